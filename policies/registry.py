@@ -1,0 +1,84 @@
+"""Policies by name: built-in composites, per-decision built-ins and ``module:attr`` entry points."""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from typing import Any
+
+from policies import kernels as K
+from policies.base import BuiltinDecision, Composite
+
+
+def _d(decision: str, code: int, name: str, **hp: float) -> Callable[[], BuiltinDecision]:
+    return lambda: BuiltinDecision(decision, code, name, **hp)
+
+
+DECISIONS: dict[str, dict[str, Callable[[], BuiltinDecision]]] = {
+    "dispatch": {
+        "nearest": _d("dispatch", K.D_NEAREST, "nearest"),
+        "inverse-distance": _d("dispatch", K.D_INVERSE, "inverse-distance"),
+        "random": _d("dispatch", K.D_RANDOM, "random"),
+        "none": _d("dispatch", K.D_NOOP, "none"),
+    },
+    "workforce": {
+        "threshold": _d("workforce", K.W_THRESHOLD, "threshold"),
+        "threshold-epsilon": _d("workforce", K.W_EPSILON, "threshold-epsilon"),
+        "random": _d("workforce", K.W_RANDOM, "random"),
+        "fixed": _d("workforce", K.W_NOOP, "fixed"),
+    },
+    "positioning": {
+        "spatial": _d("positioning", K.P_SPATIAL, "spatial"),
+        "spatial-gaussian": _d("positioning", K.P_GAUSSIAN, "spatial-gaussian"),
+        "random": _d("positioning", K.P_RANDOM, "random"),
+        "none": _d("positioning", K.P_NONE, "none"),
+    },
+}
+
+# name -> (dispatch, workforce, positioning, description)
+COMPOSITES: dict[str, tuple[str, str, str, str]] = {
+    "random": ("random", "random", "random", "uniformly random valid actions for all three decisions (Table 3 row 1)"),
+    "heuristic": ("nearest", "threshold", "spatial", "the paper's deterministic heuristics (Table 3 row 4)"),
+    "heuristic-stochastic": (
+        "inverse-distance", "threshold-epsilon", "spatial-gaussian", "the stochastic variants of the heuristics",
+    ),
+    "random-dispatch": ("random", "threshold", "spatial", "random dispatch, heuristic workforce and positioning (row 2)"),
+    "random-positioning": ("nearest", "threshold", "random", "heuristic dispatch and workforce, random positioning (row 3)"),
+    "fixed-workforce": ("nearest", "fixed", "none", "nearest dispatch, no hiring or letting go (Table 2)"),
+}
+
+
+def names() -> list[str]:
+    return list(COMPOSITES)
+
+
+def get(spec: Any) -> Any:
+    """A fresh policy for a registry name, a ``module:attr`` entry point, or a policy object.
+
+    An entry point may name a policy object, a class or a factory (called with no
+    arguments).
+    """
+    if not isinstance(spec, str):
+        if hasattr(spec, "act") and hasattr(spec, "reset"):
+            return spec
+        raise ValueError(f"{spec!r} is not a policy: it needs reset(seeds) and act(obs)")
+    if spec in COMPOSITES:
+        d, w, p, _ = COMPOSITES[spec]
+        return Composite(d, w, p, name=spec)
+    if ":" in spec:
+        module_name, _, attr = spec.partition(":")
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError as exc:
+            raise ValueError(f"cannot import module {module_name!r} of policy entry point {spec!r}: {exc}") from None
+        obj = module
+        for part in attr.split("."):
+            if not hasattr(obj, part):
+                raise ValueError(f"module {module_name!r} has no attribute {attr!r} (policy entry point {spec!r})")
+            obj = getattr(obj, part)
+        if not (hasattr(obj, "act") and hasattr(obj, "reset")) and callable(obj):
+            obj = obj()
+        if not (hasattr(obj, "act") and hasattr(obj, "reset")):
+            raise ValueError(f"entry point {spec!r} is not a policy: it needs reset(seeds) and act(obs)")
+        return obj
+    raise ValueError(f"unknown policy {spec!r}; available: {', '.join(COMPOSITES)}, or a module:attr entry point")

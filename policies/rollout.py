@@ -1,0 +1,38 @@
+"""Whole episodes in compiled code for composites of built-in policies.
+
+``rollout`` resets every environment and runs it to the horizon: observe, act with
+the built-in kernels, step. It calls the same kernels as ``Simulator.step`` and
+``BuiltinDecision.act``, so its results are identical to stepping the policy through
+the Python API (a test checks this); it only removes the per-step Python overhead.
+Environments are independent, so ``prange`` spreads them over cores without changing a
+bit of any result.
+"""
+
+from __future__ import annotations
+
+from numba import njit, prange
+
+from policies.kernels import act_env
+from wfbench.dynamics import reset_env, step_env
+from wfbench.observe import observe_env
+
+
+@njit(cache=True)
+def _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
+    reset_env(b, S, Tr, P)
+    while S.t[b] < P.horizon:
+        observe_env(b, S, P, O, False)
+        act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b])
+        step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
+
+
+@njit(cache=True, parallel=True)
+def rollout_parallel(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
+    for b in prange(S.t.shape[0]):
+        _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning)
+
+
+@njit(cache=True)
+def rollout_serial(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
+    for b in range(S.t.shape[0]):
+        _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning)

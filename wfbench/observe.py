@@ -1,0 +1,179 @@
+"""Observations: the paper's facility (M x 7) and personnel (N x 9) features, masks, globals.
+
+Facility features: x, y, operational, requesting service, has a person assigned,
+assigned person (-1 none), rolling downtime. Personnel features: home x, y, current
+x, y, level, busy (assigned to a job), assigned facility (-1 none), heading (1 to a
+facility, 0 otherwise), rolling utilization. Inactive slots are all zeros except the
+-1 identifiers. Masks say which slots are active, who may be dispatched, which
+requests are open and unassigned, and which actions are possible.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from wfbench.dynamics import is_dispatchable, is_releasable, retained_headcount
+from wfbench.state import EMPTY, IDLE, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
+
+
+FACILITY_FEATURES = ("x", "y", "operational", "requesting", "assigned", "assigned_person", "downtime")
+PERSONNEL_FEATURES = ("home_x", "home_y", "x", "y", "level", "busy", "assigned_facility", "heading_out", "utilization")
+GLOBAL_FEATURES = (
+    "time_fraction", "headcount", "onboarding", "under_notice", "novices", "mids", "experts",
+    "workforce_cost", "utilization", "downtime", "nsw", "active_facilities",
+)
+G_TIME, G_HEAD, G_ONB, G_NOTICE, G_L0, G_L1, G_L2, G_WC, G_PUR, G_AFD, G_NSW, G_ACTIVE = range(len(GLOBAL_FEATURES))
+
+
+class Obs(NamedTuple):
+    """Batched observation buffers (leading axis B)."""
+
+    facilities: np.ndarray  # (B, M, 7) float32
+    personnel: np.ndarray  # (B, N, 9) float32
+    facility_mask: np.ndarray  # (B, M) int8 active facility
+    personnel_mask: np.ndarray  # (B, N) int8 employed (onboarding and under notice included)
+    personnel_status: np.ndarray  # (B, N) int8 EMPTY..RETURNING
+    under_notice: np.ndarray  # (B, N) int8
+    dispatchable: np.ndarray  # (B, N) int8 idle or returning, not under notice
+    requesting: np.ndarray  # (B, M) int8 open request with nobody assigned
+    globals: np.ndarray  # (B, 12) float32
+    dispatch_mask: np.ndarray  # (B, M, N + 1) int8 valid dispatch choices (last = no-op)
+    workforce_mask: np.ndarray  # (B, 7) int8 valid workforce actions
+
+
+def allocate_obs(B: int, M: int, N: int) -> Obs:
+    return Obs(
+        facilities=np.zeros((B, M, len(FACILITY_FEATURES)), dtype=np.float32),
+        personnel=np.zeros((B, N, len(PERSONNEL_FEATURES)), dtype=np.float32),
+        facility_mask=np.zeros((B, M), dtype=np.int8),
+        personnel_mask=np.zeros((B, N), dtype=np.int8),
+        personnel_status=np.zeros((B, N), dtype=np.int8),
+        under_notice=np.zeros((B, N), dtype=np.int8),
+        dispatchable=np.zeros((B, N), dtype=np.int8),
+        requesting=np.zeros((B, M), dtype=np.int8),
+        globals=np.zeros((B, len(GLOBAL_FEATURES)), dtype=np.float32),
+        dispatch_mask=np.zeros((B, M, N + 1), dtype=np.int8),
+        workforce_mask=np.zeros((B, N_WORKFORCE_ACTIONS), dtype=np.int8),
+    )
+
+
+@njit(cache=True)
+def observe_env(b, S, P, O, with_masks):
+    """Fill the observation of environment b; ``with_masks`` also fills the (M, N + 1) dispatch mask."""
+    M = S.fac_active.shape[1]
+    N = S.per_status.shape[1]
+    t = S.t[b]
+    W = P.window
+    active = 0
+    for f in range(M):
+        row = O.facilities[b, f]
+        if S.fac_active[b, f]:
+            active += 1
+            down = S.fac_down[b, f]
+            a = S.fac_assigned[b, f]
+            row[0] = S.fac_x[b, f]
+            row[1] = S.fac_y[b, f]
+            row[2] = 0.0 if down else 1.0
+            row[3] = 1.0 if down else 0.0
+            row[4] = 1.0 if a >= 0 else 0.0
+            row[5] = a
+            row[6] = S.fac_sum[b, f] / max(1, min(W, t - S.fac_since[b, f]))
+            O.facility_mask[b, f] = 1
+            O.requesting[b, f] = 1 if (down and a < 0) else 0
+        else:
+            row[:] = 0.0
+            row[5] = -1.0
+            O.facility_mask[b, f] = 0
+            O.requesting[b, f] = 0
+    head = 0
+    onb = 0
+    notice = 0
+    l0 = 0
+    l1 = 0
+    l2 = 0
+    for p in range(N):
+        row = O.personnel[b, p]
+        st = S.per_status[b, p]
+        O.personnel_status[b, p] = st
+        if st == EMPTY:
+            row[:] = 0.0
+            row[6] = -1.0
+            O.personnel_mask[b, p] = 0
+            O.dispatchable[b, p] = 0
+            O.under_notice[b, p] = 0
+            continue
+        head += 1
+        lv = S.per_level[b, p]
+        if lv == 0:
+            l0 += 1
+        elif lv == 1:
+            l1 += 1
+        else:
+            l2 += 1
+        if st == ONBOARDING:
+            onb += 1
+        row[0] = S.per_hx[b, p]
+        row[1] = S.per_hy[b, p]
+        row[2] = S.per_x[b, p]
+        row[3] = S.per_y[b, p]
+        row[4] = lv
+        row[5] = 1.0 if (st == TO_FACILITY or st == SERVICING) else 0.0
+        row[6] = S.per_target[b, p]
+        row[7] = 1.0 if st == TO_FACILITY else 0.0
+        row[8] = S.per_sum[b, p] / max(1, min(W, t - S.per_since[b, p])) if st >= IDLE and t > S.per_since[b, p] else 0.0
+        O.personnel_mask[b, p] = 1
+        O.dispatchable[b, p] = 1 if is_dispatchable(b, p, S) else 0
+        lv_notice = S.per_leave[b, p] >= 0
+        O.under_notice[b, p] = 1 if lv_notice else 0
+        if lv_notice:
+            notice += 1
+    g = O.globals[b]
+    g[0] = t / P.horizon
+    g[1] = head / N
+    g[2] = onb / N
+    g[3] = notice / N
+    g[4] = l0 / N
+    g[5] = l1 / N
+    g[6] = l2 / N
+    g[G_WC] = S.last[b, K_WC] / P.max_cost
+    g[G_PUR] = S.last[b, K_PUR]
+    g[G_AFD] = S.last[b, K_AFD]
+    g[G_NSW] = S.last[b, K_NSW]
+    g[11] = active / M
+    fill_workforce_mask(b, S, P, O.workforce_mask[b])
+    if with_masks:
+        for f in range(M):
+            req = O.requesting[b, f] == 1
+            for p in range(N):
+                O.dispatch_mask[b, f, p] = 1 if (req and O.dispatchable[b, p] == 1) else 0
+            O.dispatch_mask[b, f, N] = 1
+
+
+@njit(cache=True)
+def fill_workforce_mask(b, S, P, out):
+    N = S.per_status.shape[1]
+    out[:] = 0
+    out[0] = 1
+    free = False
+    for p in range(N):
+        if S.per_status[b, p] == EMPTY:
+            free = True
+            break
+    if free:
+        out[1] = 1
+        out[2] = 1
+        out[3] = 1
+    if retained_headcount(b, S) > P.min_personnel:
+        for p in range(N):
+            if is_releasable(b, p, S):
+                out[4 + S.per_level[b, p]] = 1
+
+
+@njit(cache=True)
+def observe_batch(S, P, O, with_masks):
+    for b in range(S.t.shape[0]):
+        observe_env(b, S, P, O, with_masks)
+
