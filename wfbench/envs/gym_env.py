@@ -1,0 +1,158 @@
+"""Gymnasium environments ``wfbench/Workforce-v0`` (joint) and ``wfbench/Dispatch-v0``.
+
+Both observe a flat ``Dict`` of ``Box`` es (the shared observation plus action masks)
+and act through a 1-D ``MultiDiscrete``, the shape SB3's PPO and MaskablePPO take;
+``action_masks()`` returns the flat boolean mask MaskablePPO asks for.
+
+- Workforce-v0: one agent makes all three decisions. The action is
+  ``[dispatch (M entries of 0..N), workforce (0..6), positioning (2M entries of
+  0..10, weight = level / 10)]``.
+- Dispatch-v0: the action is the dispatch vector; workforce and positioning are made
+  by built-in policies (``fixed``, default the paper's heuristics). ``reward="nsw"``
+  (default) is the leaderboard's NSW; ``reward="nsw-no-cost"`` is the paper's
+  dispatch-only reward, the geometric mean of the utilization and downtime utilities.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from wfbench.config import ScenarioConfig
+from wfbench.envs.parallel import WorkforceCore
+from wfbench.envs.spaces import POSITIONING_LEVELS, SHARED_KEYS, shared_spaces, single
+from wfbench.simulator import ActionError
+from wfbench.state import K_UAFD, K_UPUR
+
+REWARDS = ("nsw", "nsw-no-cost")
+
+
+class _Base(gym.Env):
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 8}
+
+    def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None, render_mode: str | None,
+                 reward: str):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None, 'rgb_array'")
+        if reward not in REWARDS:
+            raise ValueError(f"reward {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
+        self.core = WorkforceCore(scenario, fixed)
+        self.config = self.core.config
+        self.render_mode = render_mode
+        self.reward_kind = reward
+        self.M, self.N = self.config.max_facilities, self.config.max_personnel
+
+    def _obs(self) -> dict[str, np.ndarray]:
+        raise NotImplementedError
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, 2**31 - 1))
+        self.core.reset(seed)
+        return self._obs(), self.core.info()
+
+    def _reward(self, nsw: float) -> float:
+        if self.reward_kind == "nsw":
+            return nsw
+        last = self.core.sim.state.last[0]  # type: ignore[union-attr]
+        return float((last[K_UPUR] * last[K_UAFD]) ** 0.5)
+
+    def _step(self, given: dict[str, np.ndarray]):
+        if self.core.sim is None:
+            raise RuntimeError("call reset() before step()")
+        nsw, _ = self.core.step(given)
+        truncated = self.core.sim.done
+        return self._obs(), self._reward(nsw), False, truncated, self.core.info()
+
+    def _check_vector(self, action: Any, n: int) -> np.ndarray:
+        a = np.asarray(action)
+        if a.shape != (n,):
+            raise ActionError(f"action has shape {a.shape}, expected ({n},)")
+        return a
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self.core.sim is None:
+            return None
+        from wfbench.envs.render import render_rgb
+
+        return render_rgb(self.core.sim)
+
+
+class WorkforceEnv(_Base):
+    """Joint decision: dispatch, workforce and positioning in one MultiDiscrete action."""
+
+    def __init__(self, scenario: str | ScenarioConfig = "paper-64", render_mode: str | None = None,
+                 reward: str = "nsw"):
+        super().__init__(scenario, None, render_mode, reward)
+        M, N = self.M, self.N
+        self.observation_space = spaces.Dict({
+            **shared_spaces(self.config),
+            "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
+            "workforce_mask": spaces.Box(0, 1, shape=(7,), dtype=np.int8),
+        })
+        nvec = np.concatenate([np.full(M, N + 1), [7], np.full(2 * M, POSITIONING_LEVELS)]).astype(np.int64)
+        self.action_space = spaces.MultiDiscrete(nvec)
+
+    def _obs(self) -> dict[str, np.ndarray]:
+        return single(self.core.obs, (*SHARED_KEYS, "dispatch_mask", "workforce_mask"))
+
+    def action_masks(self) -> np.ndarray:
+        """Flat mask over the MultiDiscrete choices (MaskablePPO's convention)."""
+        obs = self.core.obs
+        pos = np.ones(2 * self.M * POSITIONING_LEVELS, dtype=bool)
+        return np.concatenate([obs["dispatch_mask"][0].ravel().astype(bool), obs["workforce_mask"][0].astype(bool), pos])
+
+    def step(self, action):
+        M = self.M
+        a = self._check_vector(action, 1 + 3 * M)
+        pos_levels = a[M + 1 :]
+        if np.any((pos_levels < 0) | (pos_levels >= POSITIONING_LEVELS)):
+            i = int(np.argmax((pos_levels < 0) | (pos_levels >= POSITIONING_LEVELS)))
+            raise ActionError(f"positioning action: {pos_levels[i]} at index {i} is out of range; "
+                              f"allowed: integers 0..{POSITIONING_LEVELS - 1}")
+        given = {
+            "dispatch": a[:M],
+            "workforce": a[M],
+            "positioning": (pos_levels.astype(np.float64) / (POSITIONING_LEVELS - 1)).reshape(2, M),
+        }
+        return self._step(given)
+
+
+class DispatchEnv(_Base):
+    """Dispatch only; the workforce and positioning decisions are made by built-in policies."""
+
+    def __init__(self, scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
+                 render_mode: str | None = None, reward: str = "nsw"):
+        fixed = dict(fixed or {"workforce": "threshold", "positioning": "spatial"})
+        if "dispatch" in fixed:
+            raise ValueError("Dispatch-v0 learns the dispatch decision; fix only workforce and positioning")
+        if set(fixed) != {"workforce", "positioning"}:
+            raise ValueError(f"Dispatch-v0 needs fixed policies for workforce and positioning, got {sorted(fixed)}")
+        super().__init__(scenario, fixed, render_mode, reward)
+        M, N = self.M, self.N
+        self.observation_space = spaces.Dict({
+            **shared_spaces(self.config),
+            "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
+        })
+        self.action_space = spaces.MultiDiscrete(np.full(M, N + 1, dtype=np.int64))
+
+    def _obs(self) -> dict[str, np.ndarray]:
+        return single(self.core.obs, (*SHARED_KEYS, "dispatch_mask"))
+
+    def action_masks(self) -> np.ndarray:
+        return self.core.obs["dispatch_mask"][0].ravel().astype(bool)
+
+    def step(self, action):
+        return self._step({"dispatch": self._check_vector(action, self.M)})
+
+
+def register_envs() -> None:
+    """Register the Gymnasium ids (done on ``import wfbench``)."""
+    for env_id, entry in (("wfbench/Workforce-v0", "wfbench.envs.gym_env:WorkforceEnv"),
+                          ("wfbench/Dispatch-v0", "wfbench.envs.gym_env:DispatchEnv")):
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=entry, disable_env_checker=False)

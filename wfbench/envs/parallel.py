@@ -1,0 +1,205 @@
+"""PettingZoo environments: ``parallel_env(...)`` (ParallelEnv) and ``env(...)`` (AEC).
+
+Agents ``dispatch``, ``workforce`` and ``positioning`` act at every step on the same
+observation: the shared features and both action masks, ``dispatch_mask`` (M, N + 1)
+and ``workforce_mask`` (7,). The mask is not called ``action_mask`` because a
+MultiDiscrete mask cannot be one array. All agents receive the same reward, the NSW of
+the step (a cooperative game). ``fixed={"workforce": "threshold"}`` hands an agent to a
+built-in policy (a decision name from ``policies.DECISIONS``, a composite name such as
+``"heuristic"`` or a policy object); fixed agents leave ``agents`` so the others can be
+trained alone. The episode is truncated at the scenario's horizon.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+from pettingzoo.utils import parallel_to_aec, wrappers
+
+from wfbench.config import ScenarioConfig
+from wfbench.envs.spaces import (
+    OBS_KEYS,
+    SHARED_KEYS,
+    dispatch_action_space,
+    positioning_action_space,
+    shared_spaces,
+    single,
+    workforce_action_space,
+)
+from wfbench.simulator import AGENTS, ActionError, Simulator
+
+
+def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
+    """Policies for the fixed agents; names are decision policies or composites."""
+    from policies import DECISIONS, get
+    from policies.registry import COMPOSITES
+
+    out: dict[str, Any] = {}
+    for agent, spec in (fixed or {}).items():
+        if agent not in AGENTS:
+            raise ValueError(f"fixed names unknown agent {agent!r}; agents: {', '.join(AGENTS)}")
+        if isinstance(spec, str) and spec in DECISIONS[agent]:
+            out[agent] = DECISIONS[agent][spec]()
+        elif isinstance(spec, str) and spec not in COMPOSITES and ":" not in spec:
+            allowed = ", ".join([*DECISIONS[agent], *COMPOSITES])
+            raise ValueError(f"unknown policy {spec!r} for fixed agent {agent!r}; available: {allowed}")
+        else:
+            out[agent] = get(spec)
+    return out
+
+
+class WorkforceCore:
+    """What the PettingZoo and Gymnasium environments share: one simulator with B = 1."""
+
+    def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None):
+        self.config = ScenarioConfig.resolve(scenario)
+        self.fixed = resolve_fixed(fixed)
+        self.sim: Simulator | None = None
+        self.obs: dict[str, np.ndarray] | None = None
+        self.seed: int | None = None
+        self._seed_rng = np.random.default_rng()
+        self.last_counters: dict[str, int] = {}
+
+    def reset(self, seed: int | None) -> dict[str, np.ndarray]:
+        """Start an episode; ``seed=None`` continues the seed sequence of the last seeded reset."""
+        if seed is not None:
+            self._seed_rng = np.random.default_rng(seed)
+            self.seed = int(seed)
+        else:
+            self.seed = int(self._seed_rng.integers(0, 2**31 - 1))
+        self.sim = Simulator(self.config, [self.seed])
+        self.obs = self.sim.reset()
+        for p in {id(p): p for p in self.fixed.values()}.values():
+            p.reset([self.seed])
+        return self.obs
+
+    def full_action(self, given: dict[str, Any]) -> dict[str, np.ndarray]:
+        """Batched (B = 1) actions of all agents: the given ones plus the fixed agents' choices."""
+        assert self.obs is not None
+        out: dict[str, np.ndarray] = {}
+        cache: dict[int, dict[str, np.ndarray]] = {}
+        for agent, p in self.fixed.items():
+            if id(p) not in cache:
+                cache[id(p)] = p.act(self.obs)
+            out[agent] = cache[id(p)][agent]
+        for agent, a in given.items():
+            if agent in self.fixed:
+                raise ActionError(f"agent {agent!r} is fixed to {self.fixed[agent]!r}; do not pass its action")
+            out[agent] = np.asarray(a)[None]
+        return out
+
+    def step(self, given: dict[str, Any]) -> tuple[float, dict[str, int]]:
+        assert self.sim is not None
+        before = self.sim.counters(0)
+        reward = float(self.sim.step(self.full_action(given))[0])
+        self.obs = self.sim.observe()
+        after = self.sim.counters(0)
+        self.last_counters = {k: int(after[k] - before[k]) for k in after}
+        return reward, self.last_counters
+
+    def info(self) -> dict[str, Any]:
+        assert self.sim is not None
+        last = self.sim.state.last[0]
+        return {
+            "t": self.sim.t, "seed": self.seed, "step_counts": dict(self.last_counters),
+            "counts": {k: int(v) for k, v in self.sim.counters(0).items()},
+            "metrics": {"workforce_cost": float(last[0]), "utilization": float(last[1]),
+                        "downtime": float(last[2]), "nsw": float(last[3])},
+        }
+
+
+class WorkforceParallelEnv(ParallelEnv):
+    """The three-agent workforce environment (PettingZoo Parallel API)."""
+
+    metadata = {"name": "wfbench_workforce_v0", "render_modes": ["rgb_array"], "is_parallelizable": True,
+                "render_fps": 8}
+
+    def __init__(self, scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
+                 render_mode: str | None = None):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None, 'rgb_array'")
+        self.core = WorkforceCore(scenario, fixed)
+        self.config = self.core.config
+        self.render_mode = render_mode
+        self.possible_agents = [a for a in AGENTS if a not in self.core.fixed]
+        if not self.possible_agents:
+            raise ValueError("every agent is fixed; leave at least one of dispatch, workforce, positioning free")
+        self.agents: list[str] = []
+        M, N = self.config.max_facilities, self.config.max_personnel
+        self._obs_space = spaces.Dict({
+            **shared_spaces(self.config),
+            "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
+            "workforce_mask": spaces.Box(0, 1, shape=(7,), dtype=np.int8),
+        })
+        self._act_spaces = {
+            "dispatch": dispatch_action_space(self.config),
+            "workforce": workforce_action_space(),
+            "positioning": positioning_action_space(self.config),
+        }
+
+    @functools.lru_cache(maxsize=None)  # noqa: B019 - one space object per agent, as PettingZoo asks
+    def observation_space(self, agent: str) -> spaces.Dict:
+        return self._obs_space
+
+    @functools.lru_cache(maxsize=None)  # noqa: B019
+    def action_space(self, agent: str) -> spaces.Space:
+        return self._act_spaces[agent]
+
+    def _observations(self) -> dict[str, dict[str, np.ndarray]]:
+        shared = single(self.core.obs, OBS_KEYS)
+        return {a: {k: v.copy() for k, v in shared.items()} for a in self.agents}
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        self.core.reset(seed)
+        self.agents = list(self.possible_agents)
+        info = self.core.info()
+        return self._observations(), {a: dict(info) for a in self.agents}
+
+    def step(self, actions: dict[str, Any]):
+        if not self.agents:
+            raise RuntimeError("the episode is over; call reset()")
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ActionError(f"missing action for agent(s) {missing}; agents: {self.agents}")
+        reward, _ = self.core.step({a: actions[a] for a in self.agents})
+        info = self.core.info()
+        truncated = self.core.sim.done  # type: ignore[union-attr]
+        agents = list(self.agents)
+        obs = self._observations()
+        if truncated:
+            self.agents = []
+        return (obs, {a: reward for a in agents}, {a: False for a in agents}, {a: truncated for a in agents},
+                {a: dict(info) for a in agents})
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self.core.sim is None:
+            return None
+        from wfbench.envs.render import render_rgb
+
+        return render_rgb(self.core.sim)
+
+    def close(self) -> None:
+        pass
+
+    def state(self) -> np.ndarray:
+        """A flat global state (the shared observation) for centralized critics."""
+        obs = self.core.obs
+        assert obs is not None
+        return np.concatenate([np.asarray(obs[k][0], dtype=np.float32).ravel() for k in SHARED_KEYS])
+
+
+def parallel_env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
+                 render_mode: str | None = None) -> WorkforceParallelEnv:
+    """The PettingZoo Parallel environment."""
+    return WorkforceParallelEnv(scenario=scenario, fixed=fixed, render_mode=render_mode)
+
+
+def env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
+        render_mode: str | None = None):
+    """The PettingZoo AEC environment (agents act in turn; the step is applied after the last)."""
+    aec = parallel_to_aec(parallel_env(scenario=scenario, fixed=fixed, render_mode=render_mode))
+    return wrappers.OrderEnforcingWrapper(aec)

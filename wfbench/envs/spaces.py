@@ -1,0 +1,63 @@
+"""Observation and action spaces shared by the PettingZoo and Gymnasium environments."""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from wfbench.config import ScenarioConfig
+from wfbench.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
+from wfbench.state import N_WORKFORCE_ACTIONS
+
+# Positioning weights are quantized to this many levels in MultiDiscrete action spaces.
+POSITIONING_LEVELS = 11
+SHARED_KEYS = (
+    "facilities", "personnel", "facility_mask", "personnel_mask", "personnel_status", "under_notice",
+    "dispatchable", "requesting", "globals",
+)
+OBS_KEYS = (*SHARED_KEYS, "dispatch_mask", "workforce_mask")
+
+
+def _binary(*shape: int) -> spaces.Box:
+    return spaces.Box(0, 1, shape=shape, dtype=np.int8)
+
+
+def shared_spaces(c: ScenarioConfig) -> dict[str, spaces.Space]:
+    M, N = c.max_facilities, c.max_personnel
+    xmax, ymax = c.grid_width - 1, c.grid_height - 1
+    f_lo = np.array([0, 0, 0, 0, 0, -1, 0], dtype=np.float32)
+    f_hi = np.array([xmax, ymax, 1, 1, 1, N - 1, 1], dtype=np.float32)
+    p_lo = np.array([0, 0, 0, 0, 0, 0, -1, 0, 0], dtype=np.float32)
+    p_hi = np.array([xmax, ymax, xmax, ymax, 2, 1, M - 1, 1, 1], dtype=np.float32)
+    assert len(f_lo) == len(FACILITY_FEATURES) and len(p_lo) == len(PERSONNEL_FEATURES)
+    return {
+        "facilities": spaces.Box(np.tile(f_lo, (M, 1)), np.tile(f_hi, (M, 1)), dtype=np.float32),
+        "personnel": spaces.Box(np.tile(p_lo, (N, 1)), np.tile(p_hi, (N, 1)), dtype=np.float32),
+        "facility_mask": _binary(M),
+        "personnel_mask": _binary(N),
+        "personnel_status": spaces.Box(0, 5, shape=(N,), dtype=np.int8),
+        "under_notice": _binary(N),
+        "dispatchable": _binary(N),
+        "requesting": _binary(M),
+        "globals": spaces.Box(0.0, 1.0, shape=(len(GLOBAL_FEATURES),), dtype=np.float32),
+    }
+
+
+def dispatch_action_space(c: ScenarioConfig) -> spaces.MultiDiscrete:
+    """Entry f: the person sent to facility slot f, or N for none."""
+    return spaces.MultiDiscrete(np.full(c.max_facilities, c.max_personnel + 1, dtype=np.int64))
+
+
+def workforce_action_space() -> spaces.Discrete:
+    """0 no-op, 1..3 hire a novice / mid / expert, 4..6 let go a novice / mid / expert."""
+    return spaces.Discrete(N_WORKFORCE_ACTIONS)
+
+
+def positioning_action_space(c: ScenarioConfig) -> spaces.Box:
+    """Row 0: weights of the facilities for placing a hire; row 1: for choosing whom to let go."""
+    return spaces.Box(0.0, 1.0, shape=(2, c.max_facilities), dtype=np.float32)
+
+
+def single(obs: dict[str, np.ndarray], keys, b: int = 0) -> dict[str, np.ndarray]:
+    """Environment b of a batched observation, copied, for the given keys."""
+    return {k: np.array(obs[k][b], copy=True) for k in keys}
