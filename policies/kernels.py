@@ -45,7 +45,7 @@ HP_FIELDS = (
 )
 HP_DEFAULTS = {
     "high": 0.8,
-    "low": 0.55,
+    "low": 0.45,
     "cooldown": 30.0,
     "warmup": 50.0,
     "epsilon": 0.02,

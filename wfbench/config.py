@@ -41,7 +41,7 @@ class ScenarioConfig:
     level_multipliers: tuple[float, float, float] = (0.7, 1.0, 1.2)
     level_probs: tuple[float, float, float] = (0.25, 0.5, 0.25)
     level_salaries: tuple[float, float, float] = (1.0, 1.5, 2.0)
-    speed: float = 2.0
+    speed: float = 1.0
     service_time: int = 3
     hire_delay: int = 20
     fire_delay: int = 10

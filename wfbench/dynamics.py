@@ -257,7 +257,7 @@ def heat_at(b, S, w, sigma, x, y):
         if w[f] > 0.0:
             dx = x - S.fac_x[b, f]
             dy = y - S.fac_y[b, f]
-            h += w[f] * np.exp(-(dx * dx + dy * dy) * inv)
+            h += w[f] * np.exp(-(dx * dx) * inv) * np.exp(-(dy * dy) * inv)
     return h
 
 
@@ -297,7 +297,10 @@ def _place(b, S, Tr, P, w):
                     bx = x
                     by = y
         return bx, by
-    total = H.sum()
+    total = 0.0
+    for y in range(P.grid_h):
+        for x in range(P.grid_w):
+            total += H[y, x]
     u = uniform(Tr.key[b], STREAM_PLACEMENT, S.n_hires[b], 0, 0) * total
     acc = 0.0
     for y in range(P.grid_h):

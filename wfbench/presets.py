@@ -38,7 +38,7 @@ def _build() -> dict[str, ScenarioConfig]:
     )
     presets["large"] = paper.replace(
         name="large", grid_width=256, grid_height=256, max_facilities=200, max_personnel=200,
-        initial_facilities=100, initial_personnel=100, speed=8.0,
+        initial_facilities=100, initial_personnel=100, speed=4.0,
     )
     for grid in TABLE2_GRIDS:
         for f, s in TABLE2_CELLS:

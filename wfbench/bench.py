@@ -1,0 +1,129 @@
+"""``wfbench bench``: env-steps per second of the core and of the environment shells.
+
+Measures, after a warm-up run that loads the compiled code:
+
+- the compiled rollout with the heuristic policy in the loop, B = 1, 64, 1024, on one
+  thread and on all cores;
+- the Python batched loop (``Simulator.step`` + ``policy.act``), B = 64;
+- PettingZoo ``parallel_env().step()`` and Gymnasium ``step()`` with random actions.
+
+Prints the machine and one line per measurement; ``--json`` writes them to a file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from wfbench.config import ScenarioConfig
+
+
+def machine() -> dict[str, str | int]:
+    cpu = platform.processor() or "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count() or 1, "python": platform.python_version(),
+            "numpy": np.__version__, "numba": numba.__version__, "platform": platform.platform()}
+
+
+def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) -> float:
+    from wfbench.evaluate import run_batch
+
+    seeds = list(range(B))
+    run_batch("heuristic", config, seeds[: min(B, 2)], threads=threads)  # warm-up (loads compiled code)
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        run_batch("heuristic", config, seeds, threads=threads)
+        best = min(best, time.perf_counter() - t0)
+    return B * config.horizon / best
+
+
+def _python_loop_rate(config: ScenarioConfig, B: int) -> float:
+    from policies import get
+    from wfbench.simulator import Simulator
+
+    policy = get("heuristic")
+    sim = Simulator(config, list(range(B)), keep_series=False)
+    obs = sim.reset()
+    policy.reset(sim.seeds)
+    for _ in range(5):
+        sim.step(policy.act(obs))
+        obs = sim.observe()
+    t0 = time.perf_counter()
+    steps = 0
+    while not sim.done and steps < 300:
+        sim.step(policy.act(obs))
+        obs = sim.observe()
+        steps += 1
+    return B * steps / (time.perf_counter() - t0)
+
+
+def _pettingzoo_rate(config: ScenarioConfig, steps: int) -> float:
+    from wfbench.envs.parallel import parallel_env
+
+    env = parallel_env(config)
+    obs, _ = env.reset(seed=0)
+    for a in env.agents:
+        env.action_space(a).seed(0)
+    done = 0
+    t0 = time.perf_counter()
+    while done < steps:
+        if not env.agents:
+            env.reset()
+        actions = {a: env.action_space(a).sample() for a in env.agents}
+        env.step(actions)
+        done += 1
+    return steps / (time.perf_counter() - t0)
+
+
+def _gym_rate(config: ScenarioConfig, steps: int) -> float:
+    from wfbench.envs.gym_env import WorkforceEnv
+
+    env = WorkforceEnv(config)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, term, trunc, _ = env.step(env.action_space.sample())
+        if term or trunc:
+            env.reset()
+    return steps / (time.perf_counter() - t0)
+
+
+def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None = None) -> list[dict]:
+    config = ScenarioConfig.resolve(scenario)
+    info = machine()
+    print(f"machine: {info['cpu']}, {info['cores']} cores, Python {info['python']}, numpy {info['numpy']}, "
+          f"numba {info['numba']}")
+    print(f"scenario: {config.name} (horizon {config.horizon})")
+    rows: list[dict] = []
+
+    def report(name: str, rate: float) -> None:
+        rows.append({"measurement": name, "env_steps_per_s": rate})
+        print(f"  {name:<48s} {rate:>14,.0f} env-steps/s", flush=True)
+
+    cores = numba.config.NUMBA_NUM_THREADS
+    sizes = (1, 64) if quick else (1, 64, 1024)
+    for B in sizes:
+        report(f"compiled rollout, heuristic, B={B}, 1 thread", _rollout_rate(config, B, 1, 1 if quick else 3))
+        if cores > 1 and B > 1:
+            report(f"compiled rollout, heuristic, B={B}, {cores} threads",
+                   _rollout_rate(config, B, cores, 1 if quick else 3))
+    report("Simulator.step + policy.act, heuristic, B=64", _python_loop_rate(config, 64))
+    report("PettingZoo parallel_env.step, random actions", _pettingzoo_rate(config, 500 if quick else 3000))
+    report("Gymnasium Workforce-v0 step, random actions", _gym_rate(config, 500 if quick else 3000))
+    if json_path:
+        Path(json_path).write_text(json.dumps({"machine": info, "scenario": config.name, "results": rows}, indent=2))
+    return rows

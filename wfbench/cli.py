@@ -1,0 +1,216 @@
+"""The ``wfbench`` command line.
+
+User mistakes (unknown policy or scenario, bad numbers, unwritable output) print one
+line saying what is wrong and what is allowed, and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """A mistake in the command line: printed as one line, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, no usage dump
+        raise UsageError(message)
+
+
+def _positive(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{v} is not allowed; allowed: an integer >= 1")
+    return v
+
+
+def _nonneg(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{v} is not allowed; allowed: an integer >= 0")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="wfbench", description="A benchmark suite for service workforce optimization.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    e = sub.add_parser("evaluate", help="score a policy over seeds (Table 3 style row)")
+    e.add_argument("--policy", required=True, help="registry name (see 'wfbench policies') or module:attr")
+    e.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
+    e.add_argument("--seeds", type=_positive, default=50, help="number of seeds (default 50)")
+    e.add_argument("--seed-start", type=_nonneg, default=0, help="first seed (default 0)")
+    e.add_argument("--backend", default="serial", help="serial (this process, all cores) or process")
+    e.add_argument("--workers", type=_positive, default=None, help="processes for --backend process")
+    e.add_argument("--format", default="table", choices=["table", "md", "csv", "json"], help="output format")
+    e.add_argument("--out", default=None, help="also write the per-seed rows to this CSV file")
+    e.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+    s = sub.add_parser("scenarios", help="list the presets, or show one as TOML")
+    s.add_argument("name", nargs="?", help="a preset to show")
+
+    sub.add_parser("policies", help="list the registered policies")
+
+    m = sub.add_parser("simulate", help="run one episode, optionally render it to a GIF")
+    m.add_argument("--scenario", default="paper-64")
+    m.add_argument("--seed", type=_nonneg, default=0)
+    m.add_argument("--policy", default="heuristic")
+    m.add_argument("--render", default=None, help="write an animated GIF here")
+    m.add_argument("--every", type=_positive, default=4, help="one frame every this many steps (default 4)")
+    m.add_argument("--steps", type=_positive, default=None, help="stop after this many steps")
+
+    b = sub.add_parser("bench", help="measure env-steps per second")
+    b.add_argument("--scenario", default="paper-64")
+    b.add_argument("--quick", action="store_true", help="fewer and smaller measurements")
+    b.add_argument("--json", default=None, help="also write the results to this JSON file")
+    return p
+
+
+def _resolve_scenario(name: str):
+    from wfbench.config import ScenarioConfig
+
+    try:
+        return ScenarioConfig.resolve(name)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _resolve_policy(spec: str):
+    from policies import get
+
+    try:
+        return get(spec)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _check_writable(path: str, what: str) -> Path:
+    out = Path(path)
+    if not out.parent.exists() or not out.parent.is_dir():
+        raise UsageError(f"{what} {path!r}: folder {str(out.parent)!r} does not exist")
+    return out
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from wfbench.evaluate import BACKENDS, KPI_LABELS, KPIS, evaluate, format_kpi, summarize
+
+    config = _resolve_scenario(args.scenario)
+    _resolve_policy(args.policy)
+    if args.backend not in BACKENDS:
+        raise UsageError(f"unknown backend {args.backend!r}; available: {', '.join(BACKENDS)}")
+    out = _check_writable(args.out, "--out") if args.out else None
+    seeds = list(range(args.seed_start, args.seed_start + args.seeds))
+    df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers,
+                  progress=not args.no_progress)
+    if out:
+        df.to_csv(out, index=False)
+    summary = summarize(df)
+    if args.format == "csv":
+        df.to_csv(sys.stdout, index=False)
+    elif args.format == "json":
+        import json
+
+        print(json.dumps({"policy": args.policy, "scenario": config.name, "seeds": seeds,
+                          "summary": {k: dict(zip(("mean", "q25", "q75"), v)) for k, v in summary.items()}}, indent=2))
+    else:
+        cells = [format_kpi(*summary[k]) for k in KPIS]
+        header = ["Policy", *[KPI_LABELS[k] for k in KPIS]]
+        if args.format == "md":
+            print("| " + " | ".join(header) + " |")
+            print("|" + "---|" * len(header))
+            print("| " + " | ".join([args.policy, *cells]) + " |")
+        else:
+            widths = [max(len(h), len(c)) for h, c in zip(header, [args.policy, *cells])]
+            print("  ".join(h.ljust(w) for h, w in zip(header, widths)))
+            print("  ".join(c.ljust(w) for c, w in zip([args.policy, *cells], widths)))
+        print(f"{config.name}, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}): mean (25%-75%) over seeds of the "
+              "episode means; NSW higher is better.")
+    return 0
+
+
+def cmd_scenarios(args: argparse.Namespace) -> int:
+    from wfbench.presets import PRESETS
+
+    if args.name:
+        print(_resolve_scenario(args.name).to_toml(), end="")
+        return 0
+    print(f"{'name':<24s} {'grid':>9s} {'facilities':>12s} {'personnel':>11s} {'horizon':>8s}")
+    for name, c in PRESETS.items():
+        print(f"{name:<24s} {c.grid_width:>4d}x{c.grid_height:<4d} {c.initial_facilities:>5d}/{c.max_facilities:<6d}"
+              f" {c.initial_personnel:>4d}/{c.max_personnel:<6d} {c.horizon:>8d}")
+    return 0
+
+
+def cmd_policies(args: argparse.Namespace) -> int:
+    from policies.registry import COMPOSITES, DECISIONS
+
+    for name, (d, w, p, text) in COMPOSITES.items():
+        print(f"{name:<22s} dispatch={d}, workforce={w}, positioning={p}: {text}")
+    for decision, table in DECISIONS.items():
+        print(f"{decision} decisions (for Composite and fixed agents): {', '.join(table)}")
+    return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from wfbench.envs.render import render_rgb, save_gif
+    from wfbench.simulator import Simulator
+
+    config = _resolve_scenario(args.scenario)
+    policy = _resolve_policy(args.policy)
+    out = _check_writable(args.render, "--render") if args.render else None
+    sim = Simulator(config, [args.seed])
+    obs = sim.reset()
+    policy.reset([args.seed])
+    frames = [render_rgb(sim)] if out else []
+    limit = args.steps or config.horizon
+    while not sim.done and sim.t < limit:
+        sim.step(policy.act(obs))
+        obs = sim.observe()
+        if out and sim.t % args.every == 0:
+            frames.append(render_rgb(sim))
+    means = sim.episode_means()
+    print(f"{config.name} seed {args.seed}, {args.policy}, {sim.t} steps: "
+          + ", ".join(f"{k}={means[k][0]:.4g}" for k in ("workforce_cost", "utilization", "downtime", "nsw")))
+    if out:
+        save_gif(frames, out)
+        print(f"wrote {len(frames)} frames to {out}")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from wfbench.bench import run
+
+    _resolve_scenario(args.scenario)
+    run(args.scenario, quick=args.quick, json_path=args.json)
+    return 0
+
+
+COMMANDS = {"evaluate": cmd_evaluate, "scenarios": cmd_scenarios, "policies": cmd_policies,
+            "simulate": cmd_simulate, "bench": cmd_bench}
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return COMMANDS[args.command](args)
+    except UsageError as exc:
+        print(f"wfbench: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("wfbench: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
