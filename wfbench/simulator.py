@@ -56,7 +56,7 @@ def validate_actions(actions: dict, B: int, M: int, N: int) -> tuple[np.ndarray,
             bad = ~np.isfinite(a) | (a != np.round(a))
             if bad.any():
                 idx = _first_bad(bad)
-                raise ActionError(f"{agent} action: {a[idx]!r} at index {idx} is not an integer; allowed: integers 0..{hi}")
+                raise ActionError(f"{agent} action: {a[idx].item()!r} at index {idx} is not an integer; allowed: integers 0..{hi}")
         out = a.astype(np.int64)
         bad = (out < 0) | (out > hi)
         if bad.any():
@@ -75,7 +75,7 @@ def validate_actions(actions: dict, B: int, M: int, N: int) -> tuple[np.ndarray,
     bad = ~np.isfinite(pos) | (pos < 0.0) | (pos > 1.0)
     if bad.any():
         idx = _first_bad(bad)
-        raise ActionError(f"positioning action: {pos[idx]!r} at index {idx} is not allowed; allowed: numbers in [0, 1]")
+        raise ActionError(f"positioning action: {pos[idx].item()!r} at index {idx} is not allowed; allowed: numbers in [0, 1]")
     return dispatch, workforce, np.ascontiguousarray(pos)
 
 

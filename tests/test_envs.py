@@ -1,0 +1,99 @@
+"""The peers' own checkers on our environments."""
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import wfbench
+
+SCENARIOS = ["small", "paper-64"]
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_parallel_api(scenario, strict_warnings):
+    parallel_api_test(wfbench.parallel_env(scenario), num_cycles=200)
+
+
+@pytest.mark.parametrize("fixed", [None, {"workforce": "threshold", "positioning": "heuristic"}])
+def test_parallel_seed(fixed, strict_warnings):
+    parallel_seed_test(lambda: wfbench.parallel_env("small", fixed=fixed))
+
+
+def test_aec_api(strict_warnings):
+    api_test(wfbench.env("small"), num_cycles=100)
+
+
+@pytest.mark.parametrize("env_id", ["wfbench/Workforce-v0", "wfbench/Dispatch-v0"])
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_gymnasium_and_sb3_checkers(env_id, scenario, strict_warnings):
+    env = gymnasium.make(env_id, scenario=scenario)
+    gym_check_env(env.unwrapped)
+    sb3_check_env(env.unwrapped)
+
+
+def test_fixed_agents_leave_the_agent_list():
+    env = wfbench.parallel_env("small", fixed={"workforce": "threshold", "positioning": "spatial"})
+    obs, _ = env.reset(seed=3)
+    assert env.agents == ["dispatch"]
+    assert set(obs) == {"dispatch"}
+
+
+def test_fixed_agent_action_is_refused():
+    env = wfbench.parallel_env("small", fixed={"workforce": "threshold"})
+    env.reset(seed=0)
+    with pytest.raises(wfbench.ActionError, match="fixed"):
+        env.core.step({"workforce": 0})
+
+
+def test_unknown_fixed_policy_names_what_exists():
+    with pytest.raises(ValueError, match="available: .*threshold"):
+        wfbench.parallel_env("small", fixed={"workforce": "nope"})
+
+
+def test_masks_allow_only_open_requests_and_free_people():
+    env = wfbench.parallel_env("paper-64")
+    obs, _ = env.reset(seed=1)
+    for _ in range(60):
+        o = obs["dispatch"]
+        mask = o["dispatch_mask"]
+        assert (mask[:, -1] == 1).all(), "the no-op is always allowed"
+        allowed = mask[:, :-1].astype(bool)
+        assert (allowed == (o["requesting"][:, None].astype(bool) & o["dispatchable"][None, :].astype(bool))).all()
+        actions = {a: env.action_space(a).sample() for a in env.agents}
+        obs, *_ = env.step(actions)
+
+
+def test_dispatch_env_with_masked_actions_reports_no_invalid_dispatch():
+    env = gymnasium.make("wfbench/Dispatch-v0", scenario="small").unwrapped
+    env.reset(seed=5)
+    env.action_space.seed(5)
+    M, N = env.M, env.N
+    total = 0
+    for _ in range(150):
+        mask = env.action_masks().reshape(M, N + 1)
+        action = env.action_space.sample(mask=tuple(m.astype(np.int8) for m in mask))
+        _, _, _, trunc, info = env.step(action)
+        total += info["step_counts"]["invalid_dispatch_not_requesting"] + info["step_counts"][
+            "invalid_dispatch_unavailable"]
+        if trunc:
+            break
+    assert total == 0
+
+
+def test_render_draws_the_grid():
+    env = wfbench.parallel_env("small", render_mode="rgb_array")
+    env.reset(seed=2)
+    img = env.render()
+    assert img.shape[2] == 3 and img.dtype == np.uint8
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 3, "the frame is not blank"
+
+
+def test_nsw_no_cost_reward_is_the_geometric_mean_of_two_utilities():
+    env = gymnasium.make("wfbench/Dispatch-v0", scenario="small", reward="nsw-no-cost").unwrapped
+    env.reset(seed=0)
+    _, r, *_ = env.step(np.full(env.M, env.N))
+    last = env.core.sim.state.last[0]
+    assert r == pytest.approx(float((last[5] * last[6]) ** 0.5))
