@@ -80,12 +80,12 @@ def allocate_state(B: int, M: int) -> PolicyState:
 
 
 # -- dispatch -----------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dist(O, b, f, p):
     return abs(O.personnel[b, p, 2] - O.facilities[b, f, 0]) + abs(O.personnel[b, p, 3] - O.facilities[b, f, 1])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def dispatch_nearest(b, O, out):
     """Greedy: repeatedly send the closest (dispatchable person, open request) pair.
 
@@ -190,7 +190,7 @@ def dispatch_random(b, O, out, key, t):
 
 
 # -- workforce ----------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _draw_level(u, hp, m0, m1, m2):
     """A level from (p_novice, p_mid, p_expert), restricted to the levels with flag 1."""
     w0 = hp[HP_P0] * m0
@@ -207,7 +207,7 @@ def _draw_level(u, hp, m0, m1, m2):
     return 2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def workforce_threshold(b, O, S, hp, key, t, epsilon):
     """Hire when the rolling utilization is above ``high``, let go when below ``low``.
 
@@ -259,7 +259,7 @@ def workforce_random(b, O, key, t):
 
 
 # -- positioning --------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def observe_history(b, O, S, hp):
     """Update each facility's smoothed request rate from the request flags it shows."""
     M = O.facilities.shape[1]
@@ -279,7 +279,7 @@ def observe_history(b, O, S, hp):
         S.prev_active[b, f] = act
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def positioning_spatial(b, O, S, hp, out, key, t, noise):
     """Spatial averaging: weight each facility by its service demand.
 
@@ -328,7 +328,7 @@ def positioning_random(b, O, out, key, t):
 
 
 # -- one environment, all three decisions --------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t):
     """Fill the three decisions of environment b for the given codes."""
     dc = codes[0]

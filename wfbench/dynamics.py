@@ -59,7 +59,7 @@ THIRD = 1.0 / 3.0
 
 
 # -- entity helpers ------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _draw_failure_clock(b, f, S, key):
     S.fac_hazard[b, f] = exponential(key, STREAM_FAILURE, f, S.fac_draws[b, f], 0)
     S.fac_draws[b, f] += 1
@@ -81,7 +81,7 @@ def _activate_facility(b, f, x, y, leave, t, S, key):
     _draw_failure_clock(b, f, S, key)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _person_goes_home(b, p, S):
     S.per_target[b, p] = -1
     S.per_timer[b, p] = 0
@@ -114,19 +114,19 @@ def _remove_person(b, p, S):
     S.per_ring[b, p, :] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def is_dispatchable(b, p, S):
     st = S.per_status[b, p]
     return (st == IDLE or st == RETURNING) and S.per_leave[b, p] < 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def is_releasable(b, p, S):
     st = S.per_status[b, p]
     return st >= IDLE and S.per_leave[b, p] < 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def retained_headcount(b, S):
     """Employed people (onboarding included) who are not under notice."""
     n = 0
@@ -186,7 +186,7 @@ def reset_env(b, S, Tr, P):
 
 
 # -- 1. exogenous events -------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def exogenous(b, S, Tr, P):
     t = S.t[b]
     M = S.fac_active.shape[1]
@@ -248,7 +248,7 @@ def _weights(b, S, w):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def heat_at(b, S, w, sigma, x, y):
     """H(x, y) = sum_f w_f exp(-|(x, y) - x_f|^2 / (2 sigma^2)) over the weights ``w``."""
     h = 0.0
@@ -359,7 +359,7 @@ def _release(b, level, w_release, S, P):
     S.counters[b, C_RELEASES] += 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def apply_actions(b, S, Tr, P, dispatch, workforce, positioning):
     """Dispatch row (M,) int (N = no-op), workforce code, positioning (2, M) weights."""
     M = S.fac_active.shape[1]
@@ -390,7 +390,7 @@ def apply_actions(b, S, Tr, P, dispatch, workforce, positioning):
 
 
 # -- 3. movement and service --------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _move_towards(b, p, tx, ty, speed, S):
     """Move up to ``speed`` cells, x first then y (a Manhattan path). True on arrival."""
     budget = speed
@@ -412,7 +412,7 @@ def _move_towards(b, p, tx, ty, speed, S):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _end_visit(b, p, S, Tr, P):
     f = S.per_target[b, p]
     t = S.t[b]
@@ -428,7 +428,7 @@ def _end_visit(b, p, S, Tr, P):
     _person_goes_home(b, p, S)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance(b, S, Tr, P):
     M = S.fac_active.shape[1]
     N = S.per_status.shape[1]
@@ -461,12 +461,12 @@ def advance(b, S, Tr, P):
 
 
 # -- 4. metrics ---------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def utility_pur(pur, target, tolerance):
     return 1.0 - max(0.0, abs(pur - target) - tolerance) / (max(target, 1.0 - target) - tolerance)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def record_metrics(b, S, P):
     M = S.fac_active.shape[1]
     N = S.per_status.shape[1]
@@ -517,7 +517,7 @@ def record_metrics(b, S, P):
 
 
 # -- the step -----------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def step_env(b, S, Tr, P, dispatch, workforce, positioning):
     """One full step of environment b; returns its reward (NSW of the step)."""
     apply_actions(b, S, Tr, P, dispatch, workforce, positioning)

@@ -15,8 +15,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from wfbench.dynamics import is_dispatchable, is_releasable, retained_headcount
-from wfbench.state import EMPTY, IDLE, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
+from wfbench.state import EMPTY, IDLE, RETURNING, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
 
 
 FACILITY_FEATURES = ("x", "y", "operational", "requesting", "assigned", "assigned_person", "downtime")
@@ -60,7 +59,7 @@ def allocate_obs(B: int, M: int, N: int) -> Obs:
     )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def observe_env(b, S, P, O, with_masks):
     """Fill the observation of environment b; ``with_masks`` also fills the (M, N + 1) dispatch mask."""
     M = S.fac_active.shape[1]
@@ -94,9 +93,11 @@ def observe_env(b, S, P, O, with_masks):
     l0 = 0
     l1 = 0
     l2 = 0
+    status = S.per_status[b]
+    leave = S.per_leave[b]
     for p in range(N):
         row = O.personnel[b, p]
-        st = S.per_status[b, p]
+        st = status[p]
         O.personnel_status[b, p] = st
         if st == EMPTY:
             row[:] = 0.0
@@ -123,12 +124,13 @@ def observe_env(b, S, P, O, with_masks):
         row[5] = 1.0 if (st == TO_FACILITY or st == SERVICING) else 0.0
         row[6] = S.per_target[b, p]
         row[7] = 1.0 if st == TO_FACILITY else 0.0
-        row[8] = S.per_sum[b, p] / max(1, min(W, t - S.per_since[b, p])) if st >= IDLE and t > S.per_since[b, p] else 0.0
+        since = S.per_since[b, p]
+        row[8] = S.per_sum[b, p] / max(1, min(W, t - since)) if st >= IDLE and t > since else 0.0
         O.personnel_mask[b, p] = 1
-        O.dispatchable[b, p] = 1 if is_dispatchable(b, p, S) else 0
-        lv_notice = S.per_leave[b, p] >= 0
-        O.under_notice[b, p] = 1 if lv_notice else 0
-        if lv_notice:
+        on_notice = leave[p] >= 0
+        O.dispatchable[b, p] = 1 if ((st == IDLE or st == RETURNING) and not on_notice) else 0
+        O.under_notice[b, p] = 1 if on_notice else 0
+        if on_notice:
             notice += 1
     g = O.globals[b]
     g[0] = t / P.horizon
@@ -152,24 +154,28 @@ def observe_env(b, S, P, O, with_masks):
             O.dispatch_mask[b, f, N] = 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fill_workforce_mask(b, S, P, out):
-    N = S.per_status.shape[1]
+    status = S.per_status[b]
+    leave = S.per_leave[b]
+    level = S.per_level[b]
     out[:] = 0
     out[0] = 1
     free = False
-    for p in range(N):
-        if S.per_status[b, p] == EMPTY:
+    retained = 0
+    for p in range(status.shape[0]):
+        if status[p] == EMPTY:
             free = True
-            break
+        elif leave[p] < 0:
+            retained += 1
     if free:
         out[1] = 1
         out[2] = 1
         out[3] = 1
-    if retained_headcount(b, S) > P.min_personnel:
-        for p in range(N):
-            if is_releasable(b, p, S):
-                out[4 + S.per_level[b, p]] = 1
+    if retained > P.min_personnel:
+        for p in range(status.shape[0]):
+            if status[p] >= IDLE and leave[p] < 0:
+                out[4 + level[p]] = 1
 
 
 @njit(cache=True)
