@@ -36,6 +36,15 @@ class Policy(Protocol):
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]: ...
 
 
+def decision_key(env_seed: int, policy_seed: int, decision: str) -> np.uint64:
+    """The random key of one decision of a policy in the environment with ``env_seed``.
+
+    Keyed by the environment's seed, never by its batch position, so a seed decides the
+    same alone or inside any batch.
+    """
+    return key_from_seed(int(env_seed), int(policy_seed), 0xB01 + _DECISION_INDEX[decision])
+
+
 def as_obs(obs: dict[str, np.ndarray]) -> Obs:
     return Obs(**{name: obs[name] for name in Obs._fields})
 
@@ -82,7 +91,7 @@ class BuiltinDecision:
             self.state = K.allocate_state(B, M)
             d = _DECISION_INDEX[self.decision]
             for b, s in enumerate(seeds):
-                self.state.keys[b, d] = key_from_seed(int(s), self.seed, 0xB01 + d)
+                self.state.keys[b, d] = decision_key(s, self.seed, self.decision)
         return self.state
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -167,5 +176,5 @@ class Composite:
         for d, decision in enumerate(AGENTS):
             part = self.parts[decision]
             for b, s in enumerate(seeds):
-                state.keys[b, d] = key_from_seed(int(s), part.seed, 0xB01 + d)
+                state.keys[b, d] = decision_key(s, part.seed, decision)
         return codes, hp, state
