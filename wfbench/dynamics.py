@@ -115,25 +115,40 @@ def _remove_person(b, p, S):
 
 
 @njit(cache=True, inline="always")
+def dispatchable(status, leave):
+    """Idle or returning, and not under notice: may be sent to a request."""
+    return (status == IDLE or status == RETURNING) and leave < 0
+
+
+@njit(cache=True, inline="always")
+def releasable(status, leave):
+    """Onboarded and not under notice: may be let go."""
+    return status >= IDLE and leave < 0
+
+
+@njit(cache=True, inline="always")
+def retained(status_row, leave_row):
+    """Employed people (onboarding included) who are not under notice."""
+    n = 0
+    for p in range(status_row.shape[0]):
+        if status_row[p] != EMPTY and leave_row[p] < 0:
+            n += 1
+    return n
+
+
+@njit(cache=True, inline="always")
 def is_dispatchable(b, p, S):
-    st = S.per_status[b, p]
-    return (st == IDLE or st == RETURNING) and S.per_leave[b, p] < 0
+    return dispatchable(S.per_status[b, p], S.per_leave[b, p])
 
 
 @njit(cache=True, inline="always")
 def is_releasable(b, p, S):
-    st = S.per_status[b, p]
-    return st >= IDLE and S.per_leave[b, p] < 0
+    return releasable(S.per_status[b, p], S.per_leave[b, p])
 
 
 @njit(cache=True, inline="always")
 def retained_headcount(b, S):
-    """Employed people (onboarding included) who are not under notice."""
-    n = 0
-    for p in range(S.per_status.shape[1]):
-        if S.per_status[b, p] != EMPTY and S.per_leave[b, p] < 0:
-            n += 1
-    return n
+    return retained(S.per_status[b], S.per_leave[b])
 
 
 # -- reset ------------------------------------------------------------------------------------

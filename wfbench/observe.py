@@ -15,7 +15,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from wfbench.state import EMPTY, IDLE, RETURNING, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
+from wfbench.dynamics import dispatchable, releasable, retained
+from wfbench.state import EMPTY, IDLE, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
 
 
 FACILITY_FEATURES = ("x", "y", "operational", "requesting", "assigned", "assigned_person", "downtime")
@@ -128,7 +129,7 @@ def observe_env(b, S, P, O, with_masks):
         row[8] = S.per_sum[b, p] / max(1, min(W, t - since)) if st >= IDLE and t > since else 0.0
         O.personnel_mask[b, p] = 1
         on_notice = leave[p] >= 0
-        O.dispatchable[b, p] = 1 if ((st == IDLE or st == RETURNING) and not on_notice) else 0
+        O.dispatchable[b, p] = 1 if dispatchable(st, leave[p]) else 0
         O.under_notice[b, p] = 1 if on_notice else 0
         if on_notice:
             notice += 1
@@ -161,20 +162,15 @@ def fill_workforce_mask(b, S, P, out):
     level = S.per_level[b]
     out[:] = 0
     out[0] = 1
-    free = False
-    retained = 0
     for p in range(status.shape[0]):
         if status[p] == EMPTY:
-            free = True
-        elif leave[p] < 0:
-            retained += 1
-    if free:
-        out[1] = 1
-        out[2] = 1
-        out[3] = 1
-    if retained > P.min_personnel:
+            out[1] = 1
+            out[2] = 1
+            out[3] = 1
+            break
+    if retained(status, leave) > P.min_personnel:
         for p in range(status.shape[0]):
-            if status[p] >= IDLE and leave[p] < 0:
+            if releasable(status[p], leave[p]):
                 out[4 + level[p]] = 1
 
 
