@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from policies import get
-from wfbench import Simulator, trace
+from wfbench import ScenarioConfig, Simulator, trace
 from wfbench.evaluate import evaluate, run_batch
 
 
@@ -17,11 +17,11 @@ def digest(series: np.ndarray) -> str:
 
 
 def test_trace_is_a_pure_function():
-    a, b = trace(__import__("wfbench").ScenarioConfig.preset("paper-64"), 7), trace(
-        __import__("wfbench").ScenarioConfig.preset("paper-64"), 7)
+    config = ScenarioConfig.preset("paper-64")
+    a, b = trace(config, 7), trace(config, 7)
     for x, y in zip(a, b):
         assert np.array_equal(x, y)
-    c = trace(__import__("wfbench").ScenarioConfig.preset("paper-64"), 8)
+    c = trace(config, 8)
     assert not np.array_equal(a.fac0_x, c.fac0_x)
 
 

@@ -31,6 +31,7 @@ from wfbench.envs.spaces import (
     workforce_action_space,
 )
 from wfbench.simulator import AGENTS, ActionError, Simulator
+from wfbench.state import COUNTERS, METRICS
 
 
 def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
@@ -94,11 +95,11 @@ class WorkforceCore:
 
     def step(self, given: dict[str, Any]) -> tuple[float, dict[str, int]]:
         assert self.sim is not None
-        before = self.sim.counters(0)
+        before = self.sim.state.counters[0].copy()
         reward = float(self.sim.step(self.full_action(given))[0])
         self.obs = self.sim.observe()
-        after = self.sim.counters(0)
-        self.last_counters = {k: int(after[k] - before[k]) for k in after}
+        delta = self.sim.state.counters[0] - before
+        self.last_counters = dict(zip(COUNTERS, delta.tolist()))
         return reward, self.last_counters
 
     def info(self) -> dict[str, Any]:
@@ -106,9 +107,8 @@ class WorkforceCore:
         last = self.sim.state.last[0]
         return {
             "t": self.sim.t, "seed": self.seed, "step_counts": dict(self.last_counters),
-            "counts": {k: int(v) for k, v in self.sim.counters(0).items()},
-            "metrics": {"workforce_cost": float(last[0]), "utilization": float(last[1]),
-                        "downtime": float(last[2]), "nsw": float(last[3])},
+            "counts": dict(zip(COUNTERS, self.sim.state.counters[0].tolist())),
+            "metrics": {k: float(last[METRICS.index(k)]) for k in ("workforce_cost", "utilization", "downtime", "nsw")},
         }
 
 
@@ -150,8 +150,7 @@ class WorkforceParallelEnv(ParallelEnv):
         return self._act_spaces[agent]
 
     def _observations(self) -> dict[str, dict[str, np.ndarray]]:
-        shared = single(self.core.obs, OBS_KEYS)
-        return {a: {k: v.copy() for k, v in shared.items()} for a in self.agents}
+        return {a: single(self.core.obs, OBS_KEYS) for a in self.agents}
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         self.core.reset(seed)
