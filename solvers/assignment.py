@@ -1,0 +1,312 @@
+"""Rectangular min-cost assignment with forbidden pairs and an optional "leave unassigned" cost.
+
+Problem (rows i = requests, columns j = people, in the dispatch use)::
+
+    minimize   sum_ij c_ij x_ij + sum_i u_i (1 - sum_j x_ij)
+    subject to sum_j x_ij <= 1, sum_i x_ij <= 1, x_ij in {0, 1}, x_ij = 0 where mask is False
+
+- With ``unassigned_cost=None`` there is no ``u`` term and every row of the smaller
+  side must be assigned (every row when ``n_rows <= n_cols``, every column otherwise),
+  the convention of :func:`scipy.optimize.linear_sum_assignment`. If the mask makes
+  that impossible the status is ``"infeasible"`` (solution all -1, objective NaN).
+- With ``unassigned_cost`` (a scalar or one value per row) any row may be left
+  unassigned at that cost, so the problem is always feasible; the optimum pairs a row
+  only where that is cheaper than leaving it.
+
+Methods, which agree on the optimum (a test checks it on random and degenerate
+instances):
+
+- ``"exact"``: :func:`scipy.optimize.linear_sum_assignment` (shortest augmenting path).
+  Forbidden pairs are infinite costs; the unassigned option is ``n_rows`` extra columns,
+  column ``n_cols + i`` costing ``u_i`` for row i only.
+- ``"milp"``: :func:`scipy.optimize.milp` (HiGHS branch and cut), one binary per
+  allowed pair. Honors ``time_limit`` and reports the dual bound and gap.
+- ``"lp"``: the LP relaxation through cvxpy, solved by HiGHS or OSQP. The assignment
+  polytope is integral, so the LP optimum equals the integer one. The problem is built
+  once per (shape, unassigned or not, solver) with cvxpy Parameters (costs, allowed
+  pairs, unassigned costs), so re-solving with new data skips cvxpy's compilation
+  (``detail["rebuilt"]`` says which solves compiled). The integral solution is read off
+  the LP solution: a min-cost assignment restricted to the LP's support (pairs with
+  ``x > 1e-6``), optimal by complementary slackness; when the LP solution is only
+  approximate (OSQP) and that support admits no assignment, the assignment that keeps
+  the most LP mass. ``bound`` is the LP value (exact for HiGHS; for OSQP it is within
+  the solver's tolerance, not a certificate).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import LinearConstraint, linear_sum_assignment, milp
+
+from solvers.result import (
+    EMPTY,
+    FEASIBLE,
+    INFEASIBLE,
+    OPTIMAL,
+    TIME_LIMIT,
+    SolveResult,
+    SolverInputError,
+    Timer,
+    as_matrix,
+    as_vector,
+    check_method,
+    check_time_limit,
+    relative_gap,
+)
+
+METHODS = ("exact", "milp", "lp")
+LP_SOLVERS = ("HIGHS", "OSQP")
+
+
+def _inputs(cost: Any, mask: Any, unassigned_cost: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    if mask is None:
+        C = as_matrix(cost, "cost")
+        allowed = np.ones(C.shape, dtype=bool)
+    else:
+        allowed = np.asarray(mask)
+        if allowed.dtype != bool:
+            if not np.isin(allowed, (0, 1)).all():
+                raise SolverInputError("mask must be boolean (True = allowed pair) or 0/1")
+            allowed = allowed.astype(bool)
+        C = np.array(cost, dtype=np.float64) if np.ndim(cost) == 2 else None
+        if C is None or allowed.shape != C.shape:
+            shape = None if C is None else C.shape
+            raise SolverInputError(f"mask must have the shape of cost {shape}; got {allowed.shape}")
+        C = as_matrix(cost, "cost", mask=allowed)
+    u = None if unassigned_cost is None else as_vector(unassigned_cost, "unassigned_cost", C.shape[0])
+    return C, allowed, u
+
+
+def _objective(C: np.ndarray, u: np.ndarray | None, sol: np.ndarray) -> float:
+    rows = np.flatnonzero(sol >= 0)
+    total = float(C[rows, sol[rows]].sum()) if rows.size else 0.0
+    if u is not None:
+        total += float(u[sol < 0].sum())
+    return total
+
+
+def _infeasible(n: int, method: str, solver: str, seconds: float, message: str) -> SolveResult:
+    return SolveResult(INFEASIBLE, math.nan, np.full(n, -1, dtype=np.int64), None, seconds, solver, method,
+                       message=message)
+
+
+_NOT_MATCHABLE = "the mask leaves no assignment that covers every row of the smaller side; pass unassigned_cost to allow leaving rows unassigned"
+
+
+def _exact(C: np.ndarray, allowed: np.ndarray, u: np.ndarray | None) -> np.ndarray | None:
+    """Optimal row -> column (-1 unassigned), or None when infeasible."""
+    n, m = C.shape
+    W = np.where(allowed, C, np.inf)
+    if u is not None:
+        dummy = np.full((n, n), np.inf)
+        np.fill_diagonal(dummy, u)
+        W = np.hstack([W, dummy])
+    if not np.isfinite(W).any():
+        if u is None and min(n, m) > 0:
+            return None
+        return np.full(n, -1, dtype=np.int64)
+    try:
+        r, c = linear_sum_assignment(W)
+    except ValueError:
+        return None
+    sol = np.full(n, -1, dtype=np.int64)
+    keep = c < m
+    sol[r[keep]] = c[keep]
+    return sol
+
+
+def _milp(C, allowed, u, time_limit):
+    n, m = C.shape
+    ii, jj = np.nonzero(allowed)
+    k = ii.size
+    obj = C[ii, jj] - (u[ii] if u is not None else 0.0)
+    const = float(u.sum()) if u is not None else 0.0
+    A = sp.vstack([
+        sp.csr_matrix((np.ones(k), (ii, np.arange(k))), shape=(n, k)),
+        sp.csr_matrix((np.ones(k), (jj, np.arange(k))), shape=(m, k)),
+    ]).tocsr()
+    lb = np.zeros(n + m)
+    if u is None:
+        if n <= m:
+            lb[:n] = 1.0
+        else:
+            lb[n:] = 1.0
+    options = {"disp": False}
+    if time_limit is not None:
+        options["time_limit"] = time_limit
+    res = milp(obj, integrality=np.ones(k), bounds=(0, 1), constraints=LinearConstraint(A, lb, np.ones(n + m)),
+               options=options)
+    return res, ii, jj, const
+
+
+def _lp_round(C, allowed, u, x):
+    """An integral assignment from an optimal LP solution (see the module docstring)."""
+    support = allowed & (x > 1e-6)
+    sol = _exact(C, support, u)
+    if sol is not None:
+        return sol, "support"
+    n, m = C.shape
+    W = np.where(allowed, -x, np.inf)
+    if u is not None:
+        dummy = np.full((n, n), np.inf)
+        np.fill_diagonal(dummy, -(1.0 - x.sum(axis=1)))
+        W = np.hstack([W, dummy])
+    r, c = linear_sum_assignment(W)
+    out = np.full(n, -1, dtype=np.int64)
+    keep = c < m
+    out[r[keep]] = c[keep]
+    return out, "max-mass"
+
+
+class AssignmentLP:
+    """The LP relaxation of one problem shape, built once with cvxpy Parameters.
+
+    ``solve`` sets the parameters and re-solves; cvxpy reuses the compiled problem
+    (DPP), so only the first solve of a shape pays the compilation.
+    """
+
+    def __init__(self, n: int, m: int, with_unassigned: bool, lp_solver: str = "HIGHS"):
+        import cvxpy as cp
+
+        self.shape = (n, m)
+        self.with_unassigned = with_unassigned
+        self.lp_solver = lp_solver
+        self.cost = cp.Parameter((n, m), name="cost")
+        self.allowed = cp.Parameter((n, m), nonneg=True, name="allowed")
+        self.x = cp.Variable((n, m), nonneg=True)
+        obj = cp.sum(cp.multiply(self.cost, self.x))
+        rows = cp.sum(self.x, axis=1)
+        cols = cp.sum(self.x, axis=0)
+        cons = [self.x <= self.allowed]
+        if with_unassigned:
+            self.u = cp.Parameter(n, name="unassigned_cost")
+            obj = obj + cp.sum(self.u) - self.u @ rows
+            cons += [rows <= 1, cols <= 1]
+        elif n <= m:
+            cons += [rows == 1, cols <= 1]
+        else:
+            cons += [rows <= 1, cols == 1]
+        self.problem = cp.Problem(cp.Minimize(obj), cons)
+        self.solves = 0
+
+    def solve(self, C: np.ndarray, allowed: np.ndarray, u: np.ndarray | None, time_limit: float | None = None):
+        import cvxpy as cp
+
+        self.cost.value = np.where(allowed, C, 0.0)
+        self.allowed.value = allowed.astype(np.float64)
+        if self.with_unassigned:
+            self.u.value = u
+        kwargs: dict[str, Any] = {}
+        if self.lp_solver == "OSQP":
+            kwargs = {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iter": 200_000, "polish": True}
+            if time_limit is not None:
+                kwargs["time_limit"] = time_limit
+        elif time_limit is not None:
+            kwargs["time_limit"] = time_limit
+        rebuilt = self.solves == 0
+        try:
+            self.problem.solve(solver=getattr(cp, self.lp_solver), warm_start=True, **kwargs)
+        except cp.error.SolverError as exc:
+            return None, f"{self.lp_solver} failed: {exc}", rebuilt
+        self.solves += 1
+        return self.problem, self.problem.status, rebuilt
+
+
+_LP_CACHE: dict[tuple[int, int, bool, str], AssignmentLP] = {}
+
+
+def lp_model(n: int, m: int, with_unassigned: bool, lp_solver: str) -> AssignmentLP:
+    key = (n, m, with_unassigned, lp_solver)
+    if key not in _LP_CACHE:
+        _LP_CACHE[key] = AssignmentLP(n, m, with_unassigned, lp_solver)
+    return _LP_CACHE[key]
+
+
+def solve(
+    cost: Any,
+    mask: Any = None,
+    unassigned_cost: Any = None,
+    method: str = "exact",
+    lp_solver: str = "HIGHS",
+    time_limit: float | None = None,
+) -> SolveResult:
+    """Min-cost assignment; ``solution[i]`` is row i's column, -1 if unassigned.
+
+    ``cost`` is ``(n_rows, n_cols)``; ``mask`` (same shape, True = allowed) forbids
+    pairs (their cost may then be anything, NaN included); ``unassigned_cost`` lets
+    rows stay unassigned at that cost. See the module docstring for the methods.
+    """
+    check_method(method, METHODS, "solvers.assignment.solve")
+    if lp_solver not in LP_SOLVERS:
+        raise SolverInputError(f"lp_solver={lp_solver!r} is not allowed; allowed: {', '.join(LP_SOLVERS)}")
+    time_limit = check_time_limit(time_limit)
+    C, allowed, u = _inputs(cost, mask, unassigned_cost)
+    n, m = C.shape
+    solver = {"exact": "scipy.linear_sum_assignment", "milp": "HiGHS (scipy.milp)", "lp": f"cvxpy/{lp_solver}"}[method]
+    with Timer() as clock:
+        if n == 0 or (m == 0 and u is None):
+            sol = np.full(n, -1, dtype=np.int64)
+            return SolveResult(EMPTY, 0.0, sol, 0.0, clock.elapsed, solver, method, gap=0.0,
+                               message="nothing to assign")
+        if method == "exact":
+            sol = _exact(C, allowed, u)
+            if sol is None:
+                return _infeasible(n, method, solver, clock.elapsed, _NOT_MATCHABLE)
+            obj = _objective(C, u, sol)
+            return SolveResult(OPTIMAL, obj, sol, obj, clock.elapsed, solver, method, gap=0.0)
+        if method == "milp" and not allowed.any():
+            if u is None:
+                return _infeasible(n, method, solver, clock.elapsed, _NOT_MATCHABLE)
+            sol = np.full(n, -1, dtype=np.int64)
+            obj = _objective(C, u, sol)
+            return SolveResult(OPTIMAL, obj, sol, obj, clock.elapsed, solver, method, gap=0.0,
+                               message="every pair is forbidden: every row unassigned")
+        if method == "milp":
+            res, ii, jj, const = _milp(C, allowed, u, time_limit)
+            if res.status == 2:
+                return _infeasible(n, method, solver, clock.elapsed, _NOT_MATCHABLE)
+            if res.x is None:
+                status = TIME_LIMIT if res.status == 1 else INFEASIBLE
+                return SolveResult(status, math.nan, np.full(n, -1, dtype=np.int64), None, clock.elapsed, solver,
+                                   method, message=f"HiGHS found no solution: {res.message}")
+            sol = np.full(n, -1, dtype=np.int64)
+            chosen = res.x > 0.5
+            sol[ii[chosen]] = jj[chosen]
+            obj = _objective(C, u, sol)
+            bound = getattr(res, "mip_dual_bound", None)
+            bound = obj if bound is None or res.status == 0 else float(bound) + const
+            status = OPTIMAL if res.status == 0 else TIME_LIMIT
+            return SolveResult(status, obj, sol, bound, clock.elapsed, solver, method, gap=relative_gap(obj, bound),
+                               message=str(res.message))
+        # LP relaxation
+        if m == 0:  # everything unassigned; cvxpy cannot build a 0-column variable
+            sol = np.full(n, -1, dtype=np.int64)
+            obj = _objective(C, u, sol)
+            return SolveResult(OPTIMAL, obj, sol, obj, clock.elapsed, solver, method, gap=0.0)
+        model = lp_model(n, m, u is not None, lp_solver)
+        problem, status, rebuilt = model.solve(C, allowed, u, time_limit)
+        if problem is None:
+            return SolveResult(INFEASIBLE, math.nan, np.full(n, -1, dtype=np.int64), None, clock.elapsed, solver,
+                               method, message=status, detail={"rebuilt": rebuilt})
+        if status in ("infeasible", "infeasible_inaccurate"):
+            return _infeasible(n, method, solver, clock.elapsed, _NOT_MATCHABLE)
+        if model.x.value is None:
+            return SolveResult(TIME_LIMIT, math.nan, np.full(n, -1, dtype=np.int64), None, clock.elapsed, solver,
+                               method, message=f"{lp_solver} returned no solution (status {status})",
+                               detail={"rebuilt": rebuilt})
+        x = np.asarray(model.x.value)
+        sol, how = _lp_round(C, allowed, u, x)
+        obj = _objective(C, u, sol)
+        lp_value = float(problem.value)
+        exact_bound = lp_solver == "HIGHS" and status == "optimal"
+        # the polytope is integral: the rounding of an optimal LP solution meets its value
+        proven = exact_bound and obj <= lp_value + 1e-9 * max(1.0, abs(lp_value))
+        return SolveResult(
+            OPTIMAL if proven else FEASIBLE, obj, sol, lp_value, clock.elapsed, solver, method,
+            gap=relative_gap(obj, lp_value), message=f"LP status {status}; rounding: {how}",
+            detail={"rebuilt": rebuilt, "lp_objective": lp_value, "lp_solution": x},
+        )

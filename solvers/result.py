@@ -1,0 +1,134 @@
+"""The one result type every solver returns, and the input checks they share.
+
+``solvers`` is pure optimization: arrays in, :class:`SolveResult` out. It imports
+nothing of the simulator, so OR users can take it alone.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+# Statuses, from best to worst.
+OPTIMAL = "optimal"  # proven optimal (exact methods; the LP when its rounding meets the bound)
+FEASIBLE = "feasible"  # a solution without a proof of optimality (heuristics, LP rounding)
+TIME_LIMIT = "time_limit"  # stopped by the time limit: best solution found, with its gap
+INFEASIBLE = "infeasible"  # no solution satisfies the constraints
+EMPTY = "empty"  # nothing to decide (a 0 x n problem): the empty solution, objective 0
+STATUSES = (OPTIMAL, FEASIBLE, TIME_LIMIT, INFEASIBLE, EMPTY)
+
+
+class SolverInputError(ValueError):
+    """The input cannot describe a problem: wrong shape, NaN or infinite costs, bad p."""
+
+
+@dataclass(frozen=True)
+class SolveResult:
+    """Outcome of one solve.
+
+    ``solution`` depends on the problem: for assignment, the column assigned to each
+    row (-1 unassigned); for facility location and p-median, the sorted indices of the
+    open facilities (``detail["assignment"]`` holds each client's facility).
+    ``bound`` is a proven lower bound on the optimum where the method has one (MILP
+    dual bound, LP relaxation value), else ``None``; ``gap`` is
+    ``(objective - bound) / max(1, |objective|)``.
+    """
+
+    status: str
+    objective: float
+    solution: np.ndarray
+    bound: float | None
+    solve_time_s: float
+    solver: str
+    method: str
+    gap: float | None = None
+    message: str = ""
+    detail: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def has_solution(self) -> bool:
+        return self.status in (OPTIMAL, FEASIBLE, TIME_LIMIT, EMPTY)
+
+    def __repr__(self) -> str:
+        bound = "None" if self.bound is None else f"{self.bound:.6g}"
+        gap = "None" if self.gap is None else f"{self.gap:.3g}"
+        return (
+            f"SolveResult(status={self.status!r}, objective={self.objective:.6g}, bound={bound}, gap={gap}, "
+            f"solver={self.solver!r}, method={self.method!r}, solve_time_s={self.solve_time_s:.4f})"
+        )
+
+
+def relative_gap(objective: float, bound: float | None) -> float | None:
+    if bound is None or not math.isfinite(objective) or not math.isfinite(bound):
+        return None
+    return max(0.0, (objective - bound) / max(1.0, abs(objective)))
+
+
+class Timer:
+    def __enter__(self) -> Timer:
+        self.t0 = time.perf_counter()
+        return self
+
+    @property
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def __exit__(self, *exc: object) -> None:
+        pass
+
+
+def check_method(method: str, allowed: tuple[str, ...], what: str) -> None:
+    if method not in allowed:
+        raise SolverInputError(f"{what}: method={method!r} is not allowed; allowed: {', '.join(allowed)}")
+
+
+def as_matrix(a: Any, name: str, mask: np.ndarray | None = None) -> np.ndarray:
+    """A 2-D float64 copy of ``a`` whose entries (where ``mask`` allows) are finite."""
+    try:
+        m = np.array(a, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise SolverInputError(f"{name} must be a 2-D array of numbers: {exc}") from None
+    if m.ndim != 2:
+        raise SolverInputError(f"{name} must be 2-D; got shape {m.shape}")
+    bad = ~np.isfinite(m)
+    if mask is not None:
+        bad &= mask
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        where = " at an allowed pair" if mask is not None else ""
+        raise SolverInputError(
+            f"{name}[{i}, {j}] = {m[i, j]} is not allowed{where}: costs must be finite "
+            f"({int(bad.sum())} bad entr{'y' if bad.sum() == 1 else 'ies'}); forbid a pair with the mask instead"
+        )
+    return m
+
+
+def as_vector(a: Any, name: str, n: int, *, nonneg: bool = False) -> np.ndarray:
+    try:
+        v = np.array(a, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise SolverInputError(f"{name} must be numbers: {exc}") from None
+    if v.ndim == 0:
+        v = np.full(n, float(v))
+    if v.shape != (n,):
+        raise SolverInputError(f"{name} must be a scalar or have shape ({n},); got shape {v.shape}")
+    if not np.isfinite(v).all():
+        i = int(np.flatnonzero(~np.isfinite(v))[0])
+        raise SolverInputError(f"{name}[{i}] = {v[i]} is not allowed: values must be finite")
+    if nonneg and (v < 0).any():
+        i = int(np.flatnonzero(v < 0)[0])
+        raise SolverInputError(f"{name}[{i}] = {v[i]} is not allowed: values must be >= 0")
+    return v
+
+
+def check_time_limit(time_limit: float | None) -> float | None:
+    if time_limit is None:
+        return None
+    if not (isinstance(time_limit, int | float) and math.isfinite(time_limit) and time_limit > 0):
+        raise SolverInputError(f"time_limit = {time_limit!r} is not allowed; allowed: a number of seconds > 0, or None")
+    return float(time_limit)
