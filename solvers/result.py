@@ -23,6 +23,20 @@ EMPTY = "empty"  # nothing to decide (a 0 x n problem): the empty solution, obje
 STATUSES = (OPTIMAL, FEASIBLE, TIME_LIMIT, INFEASIBLE, EMPTY)
 
 
+def _osqp_polish_option() -> dict[str, bool]:
+    """OSQP 1.x renamed ``polish`` to ``polishing``."""
+    try:
+        from importlib.metadata import version
+
+        major = int(version("osqp").split(".")[0])
+    except Exception:  # noqa: BLE001 - osqp missing or unparsable: the old name
+        major = 0
+    return {"polishing": True} if major >= 1 else {"polish": True}
+
+
+OSQP_POLISH = _osqp_polish_option()
+
+
 class SolverInputError(ValueError):
     """The input cannot describe a problem: wrong shape, NaN or infinite costs, bad p."""
 

@@ -117,7 +117,9 @@ def job_duration(
     else:
         w = np.asarray(level_mix, dtype=np.float64)
         if w.shape != q.shape or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
-            raise SolverInputError(f"level_mix = {level_mix!r} is not allowed; allowed: {q.size} shares >= 0, not all 0")
+            raise SolverInputError(
+                f"level_mix = {level_mix!r} is not allowed; allowed: {q.size} shares >= 0, not all 0"
+            )
         qbar = float((w / w.sum()) @ q)
     per_visit = t * (2.0 if return_trip else 1.0) + s
     return per_visit / qbar
