@@ -104,8 +104,11 @@ class BuiltinDecision:
         dispatch = np.full((B, M), N, dtype=np.int64)
         workforce = np.zeros(B, dtype=np.int64)
         positioning = np.zeros((B, 2, M), dtype=np.float64)
-        K.act_batch(o, S, codes, self.hp, dispatch, workforce, positioning, np.asarray(obs["t"], dtype=np.int64))
-        return {self.decision: {"dispatch": dispatch, "workforce": workforce, "positioning": positioning}[self.decision]}
+        hp = np.zeros((3, len(K.HP_FIELDS)))
+        hp[_DECISION_INDEX[self.decision]] = self.hp
+        K.act_batch(o, S, codes, hp, dispatch, workforce, positioning, np.asarray(obs["t"], dtype=np.int64))
+        made = {"dispatch": dispatch, "workforce": workforce, "positioning": positioning}
+        return {self.decision: made[self.decision]}
 
 
 def _decision_policy(decision: str, spec: Any) -> Any:
@@ -168,10 +171,7 @@ class Composite:
         seeds = seeds_array(seeds)
         B = len(seeds)
         codes = np.array([self.parts[d].code for d in AGENTS], dtype=np.int64)
-        hp = self.parts["workforce"].hp.copy()
-        pos_hp = self.parts["positioning"].hp
-        for i in (K.HP_SMOOTH, K.HP_REQW, K.HP_NOISE):
-            hp[i] = pos_hp[i]
+        hp = np.stack([self.parts[d].hp for d in AGENTS])
         state = K.allocate_state(B, M)
         for d, decision in enumerate(AGENTS):
             part = self.parts[decision]

@@ -9,10 +9,16 @@ or inside any batch.
 
 Codes (the compiled rollout dispatches on them):
 
-- dispatch: 0 no-op, 1 nearest, 2 inverse-distance sampling, 3 random;
-- workforce: 0 no-op, 1 threshold, 2 epsilon-greedy threshold, 3 random;
+- dispatch: 0 no-op, 1 nearest, 2 inverse-distance sampling, 3 random, 4 optimal
+  assignment (:func:`solvers.lap.lap_min`);
+- workforce: 0 no-op, 1 threshold, 2 epsilon-greedy threshold, 3 random, 4 square-root
+  staffing (:mod:`solvers.staffing`);
 - positioning: 0 none (zeros), 1 spatial averaging, 2 spatial averaging with Gaussian
-  noise, 3 random.
+  noise, 3 random, 4 p-median facility location (:mod:`solvers.facility_location`).
+
+Each decision reads its own row of the hyper-parameter matrix ``hp`` (3 x
+``len(HP_FIELDS)``: dispatch, workforce, positioning), so two parts of a composite never
+share a value by accident.
 """
 
 from __future__ import annotations
@@ -22,12 +28,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from solvers.facility_location import _greedy, _local_search
+from solvers.lap import lap_min
+from solvers.staffing import sqrt_staffing_servers
 from wfbench.observe import G_PUR
 from wfbench.rng import STREAM_POLICY_DISPATCH, STREAM_POLICY_POSITIONING, STREAM_POLICY_WORKFORCE, normal, uniform
 
-D_NOOP, D_NEAREST, D_INVERSE, D_RANDOM = 0, 1, 2, 3
-W_NOOP, W_THRESHOLD, W_EPSILON, W_RANDOM = 0, 1, 2, 3
-P_NONE, P_SPATIAL, P_GAUSSIAN, P_RANDOM = 0, 1, 2, 3
+D_NOOP, D_NEAREST, D_INVERSE, D_RANDOM, D_ASSIGN = 0, 1, 2, 3, 4
+W_NOOP, W_THRESHOLD, W_EPSILON, W_RANDOM, W_STAFFING = 0, 1, 2, 3, 4
+P_NONE, P_SPATIAL, P_GAUSSIAN, P_RANDOM, P_FACILITY = 0, 1, 2, 3, 4
 
 # Layout of the hyper-parameter vector ``hp``.
 HP_FIELDS = (
@@ -42,6 +51,22 @@ HP_FIELDS = (
     "smoothing",  # spatial positioning: weight of a new request in the exponential average
     "request_weight",  # ... share of the request history in a facility's demand (the rest: downtime)
     "noise",  # Gaussian variant: standard deviation of the log-normal noise on the demand
+    # the policies' model of the world (defaults: the paper's / paper-64's values)
+    "speed",  # cells a person moves per step
+    "service_time",  # steps a visit takes at the facility
+    "fix_novice",  # probability that a visit by each level fixes the fault
+    "fix_mid",
+    "fix_expert",
+    # assignment dispatch
+    "revisit_cost",  # steps of downtime an unsuccessful visit adds (a new trip and service)
+    "unassigned_cost",  # cost of leaving a request unassigned this step (inf: never, if someone is free)
+    # staffing workforce
+    "beta",  # square-root staffing safety factor: c = R + beta sqrt(R)
+    "hysteresis",  # let go only when the headcount exceeds the target by more than this
+    "rate_smoothing",  # weight of a step in the exponential average of the request rate
+    # facility-location positioning
+    "refresh",  # steps between two p-median solves (the maps are reused in between)
+    "demand_floor",  # demand weight every active facility has, on top of its observed demand
 )
 HP_DEFAULTS = {
     "high": 0.8,
@@ -55,8 +80,24 @@ HP_DEFAULTS = {
     "smoothing": 0.01,
     "request_weight": 0.5,
     "noise": 0.5,
+    "speed": 1.0,
+    "service_time": 3.0,
+    "fix_novice": 0.49,
+    "fix_mid": 0.70,
+    "fix_expert": 0.84,
+    "revisit_cost": 20.0,
+    "unassigned_cost": np.inf,
+    "beta": 1.0,
+    "hysteresis": 1.0,
+    "rate_smoothing": 0.01,
+    "refresh": 10.0,
+    "demand_floor": 0.1,
 }
-(HP_HIGH, HP_LOW, HP_COOLDOWN, HP_WARMUP, HP_EPS, HP_P0, HP_P1, HP_P2, HP_SMOOTH, HP_REQW, HP_NOISE) = range(len(HP_FIELDS))
+(
+    HP_HIGH, HP_LOW, HP_COOLDOWN, HP_WARMUP, HP_EPS, HP_P0, HP_P1, HP_P2, HP_SMOOTH, HP_REQW, HP_NOISE,
+    HP_SPEED, HP_SERVICE, HP_FIX0, HP_FIX1, HP_FIX2, HP_REVISIT, HP_UNASSIGNED, HP_BETA, HP_HYST, HP_RATE,
+    HP_REFRESH, HP_FLOOR,
+) = range(len(HP_FIELDS))
 
 
 class PolicyState(NamedTuple):
@@ -67,6 +108,10 @@ class PolicyState(NamedTuple):
     demand: np.ndarray  # (B, M) float64 smoothed rate of new requests per facility slot
     prev_down: np.ndarray  # (B, M) int8 request flag seen at the previous step
     prev_active: np.ndarray  # (B, M) int8 active flag seen at the previous step
+    rate: np.ndarray  # (B,) float64 staffing: smoothed number of new requests per step
+    rate_prev_down: np.ndarray  # (B, M) int8 staffing: request flag seen at the previous step
+    pos_cache: np.ndarray  # (B, 2, M) float64 facility-location: the maps of the last solve
+    pos_next: np.ndarray  # (B,) int64 facility-location: step of the next solve
 
 
 def allocate_state(B: int, M: int) -> PolicyState:
@@ -76,6 +121,10 @@ def allocate_state(B: int, M: int) -> PolicyState:
         demand=np.zeros((B, M), dtype=np.float64),
         prev_down=np.zeros((B, M), dtype=np.int8),
         prev_active=np.zeros((B, M), dtype=np.int8),
+        rate=np.zeros(B, dtype=np.float64),
+        rate_prev_down=np.zeros((B, M), dtype=np.int8),
+        pos_cache=np.zeros((B, 2, M), dtype=np.float64),
+        pos_next=np.zeros(B, dtype=np.int64),
     )
 
 
@@ -85,6 +134,26 @@ def _dist(O, b, f, p):
     return abs(O.personnel[b, p, 2] - O.facilities[b, f, 0]) + abs(O.personnel[b, p, 3] - O.facilities[b, f, 1])
 
 
+@njit(cache=True)
+def open_requests_and_free_people(b, O):
+    """Slots of the open unassigned requests and of the dispatchable people, in slot order."""
+    M = O.facilities.shape[1]
+    N = O.personnel.shape[1]
+    reqs = np.empty(M, dtype=np.int64)
+    nr = 0
+    for f in range(M):
+        if O.requesting[b, f] == 1:
+            reqs[nr] = f
+            nr += 1
+    people = np.empty(N, dtype=np.int64)
+    npl = 0
+    for p in range(N):
+        if O.dispatchable[b, p] == 1:
+            people[npl] = p
+            npl += 1
+    return reqs[:nr], people[:npl]
+
+
 @njit(cache=True, inline="always")
 def dispatch_nearest(b, O, out):
     """Greedy: repeatedly send the closest (dispatchable person, open request) pair.
@@ -92,23 +161,10 @@ def dispatch_nearest(b, O, out):
     Distance is Manhattan from the person's current position. Ties go to the lowest
     facility slot, then the lowest person slot.
     """
-    M = O.facilities.shape[1]
-    N = O.personnel.shape[1]
-    out[:] = N
-    reqs = np.empty(M, dtype=np.int64)
-    nr = 0
-    for f in range(M):
-        if O.requesting[b, f] == 1:
-            reqs[nr] = f
-            nr += 1
-    if nr == 0:
-        return
-    people = np.empty(N, dtype=np.int64)
-    npl = 0
-    for p in range(N):
-        if O.dispatchable[b, p] == 1:
-            people[npl] = p
-            npl += 1
+    out[:] = O.personnel.shape[1]
+    reqs, people = open_requests_and_free_people(b, O)
+    nr = reqs.shape[0]
+    npl = people.shape[0]
     while nr > 0 and npl > 0:
         best = np.inf
         bi = -1
@@ -189,6 +245,66 @@ def dispatch_random(b, O, out, key, t):
                 k -= 1
 
 
+@njit(cache=True, inline="always")
+def revisit_penalty(hp, level):
+    """Expected extra downtime of sending this level: ``revisit_cost * (1 - q) / q`` (geometric visits)."""
+    q = hp[HP_FIX0 + level]
+    return hp[HP_REVISIT] * (1.0 - q) / q
+
+
+@njit(cache=True)
+def assignment_costs(b, O, hp, reqs, people):
+    """Cost of sending each free person (column) to each open request (row).
+
+    Travel time (Manhattan distance from the person's current position over ``speed``)
+    plus the expected extra downtime of the person's level (:func:`revisit_penalty`).
+    """
+    C = np.empty((reqs.shape[0], people.shape[0]))
+    for i in range(reqs.shape[0]):
+        for j in range(people.shape[0]):
+            p = people[j]
+            C[i, j] = _dist(O, b, reqs[i], p) / hp[HP_SPEED] + revisit_penalty(hp, int(O.personnel[b, p, 4]))
+    return C
+
+
+@njit(cache=True)
+def dispatch_assignment(b, O, out, hp):
+    """Optimal assignment of the dispatchable people to the open requests (:func:`assignment_costs`).
+
+    With ``unassigned_cost = inf`` (default) as many requests as possible are served,
+    like the greedy heuristic, but at the least total cost; a finite value leaves a
+    request open when every free person costs more.
+    """
+    N = O.personnel.shape[1]
+    out[:] = N
+    reqs, people = open_requests_and_free_people(b, O)
+    nr = reqs.shape[0]
+    npl = people.shape[0]
+    if nr == 0 or npl == 0:
+        return
+    C0 = assignment_costs(b, O, hp, reqs, people)
+    u = hp[HP_UNASSIGNED]
+    if u < np.inf:
+        # column npl + i is "leave request i open" at cost u
+        C = np.full((nr, npl + nr), np.inf)
+        C[:, :npl] = C0
+        for i in range(nr):
+            C[i, npl + i] = u
+    elif nr <= npl:
+        C = C0
+    else:
+        C = C0.T.copy()  # rows must be the smaller side: people
+    col4row = np.empty(C.shape[0], dtype=np.int64)
+    lap_min(C, col4row)
+    if u < np.inf or nr <= npl:
+        for i in range(nr):
+            if col4row[i] < npl:
+                out[reqs[i]] = people[col4row[i]]
+    else:
+        for j in range(npl):
+            out[reqs[col4row[j]]] = people[j]
+
+
 # -- workforce ----------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _draw_level(u, hp, m0, m1, m2):
@@ -256,6 +372,99 @@ def workforce_random(b, O, key, t):
                 return a
             k -= 1
     return 0
+
+
+@njit(cache=True, inline="always")
+def _retained_homes(b, O, hx, hy):
+    """Homes of the people employed and not under notice (onboarding included); their count."""
+    h = 0
+    for p in range(O.personnel.shape[1]):
+        if O.personnel_mask[b, p] == 1 and O.under_notice[b, p] == 0:
+            hx[h] = O.personnel[b, p, 0]
+            hy[h] = O.personnel[b, p, 1]
+            h += 1
+    return h
+
+
+@njit(cache=True)
+def staffing_target(b, O, S, hp):
+    """The square-root-staffing headcount for environment b and the offered load behind it.
+
+    Offered load ``R = lambda * E[S]``: ``lambda`` is the smoothed number of new requests
+    per step; ``E[S] = (2 * travel + service_time) / q`` with ``travel`` the mean distance
+    from each active facility to its nearest retained home over ``speed`` (what a
+    nearest-first dispatcher travels) and ``q`` the fix probability averaged over the
+    workforce's levels. Target ``c = ceil(R + beta * sqrt(R))``, at least 1.
+    """
+    M = O.facilities.shape[1]
+    N = O.personnel.shape[1]
+    hx = np.empty(N)
+    hy = np.empty(N)
+    h = _retained_homes(b, O, hx, hy)
+    travel = 0.0
+    na = 0
+    for f in range(M):
+        if O.facility_mask[b, f] == 1 and h > 0:
+            best = np.inf
+            for k in range(h):
+                d = abs(hx[k] - O.facilities[b, f, 0]) + abs(hy[k] - O.facilities[b, f, 1])
+                best = min(best, d)
+            travel += best
+            na += 1
+    if na > 0:
+        travel /= na
+    travel /= hp[HP_SPEED]
+    qsum = 0.0
+    n = 0
+    for p in range(N):
+        if O.personnel_mask[b, p] == 1 and O.under_notice[b, p] == 0:
+            qsum += hp[HP_FIX0 + int(O.personnel[b, p, 4])]
+            n += 1
+    if n > 0:
+        q = qsum / n
+    else:
+        q = (hp[HP_P0] * hp[HP_FIX0] + hp[HP_P1] * hp[HP_FIX1] + hp[HP_P2] * hp[HP_FIX2]) / (
+            hp[HP_P0] + hp[HP_P1] + hp[HP_P2])
+    R = S.rate[b] * (2.0 * travel + hp[HP_SERVICE]) / q
+    return max(1, sqrt_staffing_servers(R, hp[HP_BETA])), h, R
+
+
+@njit(cache=True)
+def workforce_staffing(b, O, S, hp, key, t):
+    """Hire or let go toward the square-root-staffing headcount (:func:`staffing_target`).
+
+    The request rate is learned every step (a running mean, then an exponential
+    average with weight ``rate_smoothing``). After ``warmup`` and at most once per
+    ``cooldown``: hire when the retained headcount is below the target, let go when it
+    exceeds the target by more than ``hysteresis``. Levels are drawn like the threshold
+    heuristic's, so the comparison isolates the headcount rule.
+    """
+    M = O.facilities.shape[1]
+    onsets = 0.0
+    for f in range(M):
+        down = np.int8(1) if (O.facility_mask[b, f] == 1 and O.facilities[b, f, 3] > 0.5) else np.int8(0)
+        if down == 1 and S.rate_prev_down[b, f] == 0:
+            onsets += 1.0
+        S.rate_prev_down[b, f] = down
+    a = max(1.0 / (t + 1.0), hp[HP_RATE])
+    S.rate[b] = (1.0 - a) * S.rate[b] + a * onsets
+    if t < hp[HP_WARMUP] or t < S.cooldown_until[b]:
+        return 0
+    target, h, R = staffing_target(b, O, S, hp)
+    m = O.workforce_mask[b]
+    u = uniform(key, STREAM_POLICY_WORKFORCE, t, 4, 0)
+    action = 0
+    if h < target:
+        lv = _draw_level(u, hp, m[1], m[2], m[3])
+        if lv >= 0:
+            action = 1 + lv
+    elif h > target + hp[HP_HYST]:
+        lv = _draw_level(u, hp, m[4], m[5], m[6])
+        if lv >= 0:
+            action = 4 + lv
+    if action != 0:
+        S.cooldown_until[b] = t + int(hp[HP_COOLDOWN])
+    return action
 
 
 # -- positioning --------------------------------------------------------------------------------
@@ -327,10 +536,151 @@ def positioning_random(b, O, out, key, t):
         out[1, f] = uniform(key, STREAM_POLICY_POSITIONING, t, f, 2)
 
 
+@njit(cache=True)
+def positioning_facility(b, O, S, hp, out, t):
+    """p-median positioning: hire where the demand's p-median lacks a person, let go the cheapest loss.
+
+    Clients are the active facilities, weighted by ``demand_floor`` plus the spatial
+    heuristic's demand (smoothed request rate and rolling downtime); candidate sites are
+    the active facilities. Every ``refresh`` steps: solve the p-median with
+    ``p = retained headcount + 1`` (greedy + swap local search,
+    :mod:`solvers.facility_location`), match the medians to the current homes by an
+    optimal assignment on distance, and put the hire map's weight on the median left
+    unmatched (the site the workforce lacks). The let-go map gives the facility nearest
+    each home a weight that falls with the increase in p-median cost that person's
+    removal causes (1 for the cheapest removal). The simulator picks within the level
+    through its heat map (sigma = heat_sigma), so the let-go choice is approximate when
+    homes of one level sit close together.
+    """
+    M = O.facilities.shape[1]
+    N = O.personnel.shape[1]
+    observe_history(b, O, S, hp)
+    if t < S.pos_next[b]:
+        out[:, :] = S.pos_cache[b]
+        return
+    S.pos_next[b] = t + max(1, int(hp[HP_REFRESH]))
+    out[:, :] = 0.0
+    sites = np.empty(M, dtype=np.int64)
+    ns = 0
+    max_r = 0.0
+    max_d = 0.0
+    for f in range(M):
+        if O.facility_mask[b, f] == 1:
+            sites[ns] = f
+            ns += 1
+            max_r = max(max_r, S.demand[b, f])
+            max_d = max(max_d, O.facilities[b, f, 6])
+    if ns == 0:
+        S.pos_cache[b] = out
+        return
+    w = np.empty(ns)
+    wr = hp[HP_REQW]
+    for k in range(ns):
+        f = sites[k]
+        d = hp[HP_FLOOR]
+        if max_r > 0.0:
+            d += wr * S.demand[b, f] / max_r
+        if max_d > 0.0:
+            d += (1.0 - wr) * O.facilities[b, f, 6] / max_d
+        w[k] = d
+    # weighted site-to-site distances: C[candidate, client]
+    C = np.empty((ns, ns))
+    for i in range(ns):
+        for j in range(ns):
+            fi = sites[i]
+            fj = sites[j]
+            dx = abs(O.facilities[b, fi, 0] - O.facilities[b, fj, 0])
+            C[i, j] = w[j] * (dx + abs(O.facilities[b, fi, 1] - O.facilities[b, fj, 1]))
+    hx = np.empty(N)
+    hy = np.empty(N)
+    owner = np.empty(N, dtype=np.int64)
+    h = 0
+    for p in range(N):
+        if O.personnel_mask[b, p] == 1 and O.under_notice[b, p] == 0:
+            hx[h] = O.personnel[b, p, 0]
+            hy[h] = O.personnel[b, p, 1]
+            owner[h] = p
+            h += 1
+    # hire map
+    p_med = min(h + 1, ns)
+    zero = np.zeros(ns)
+    is_open = _greedy(C, zero, p_med)
+    _local_search(C, zero, is_open, p_med, 1000, 1e-9)
+    med = np.empty(p_med, dtype=np.int64)
+    k = 0
+    for i in range(ns):
+        if is_open[i]:
+            med[k] = i
+            k += 1
+    hire = -1
+    if p_med > h:
+        if h == 0:
+            hire = med[0]
+        else:
+            # rows = homes (h < p_med), columns = medians: the unmatched median is the hire site
+            D = np.empty((h, p_med))
+            for r in range(h):
+                for c in range(p_med):
+                    f = sites[med[c]]
+                    D[r, c] = abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1])
+            col4row = np.empty(h, dtype=np.int64)
+            lap_min(D, col4row)
+            taken = np.zeros(p_med, dtype=np.bool_)
+            for r in range(h):
+                taken[col4row[r]] = True
+            for c in range(p_med):
+                if not taken[c]:
+                    hire = med[c]
+                    break
+    else:
+        # every site already has someone: the site whose demand is farthest from any home
+        best = -1.0
+        for j in range(ns):
+            f = sites[j]
+            near = np.inf
+            for r in range(h):
+                near = min(near, abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1]))
+            if w[j] * near > best:
+                best = w[j] * near
+                hire = j
+    out[0, sites[hire]] = 1.0
+    # let-go map: removal cost of each retained person (clients move to their second nearest home)
+    if h >= 2:
+        delta = np.zeros(h)
+        for j in range(ns):
+            f = sites[j]
+            d1 = np.inf
+            d2 = np.inf
+            a1 = -1
+            for r in range(h):
+                d = abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1])
+                if d < d1:
+                    d2 = d1
+                    d1 = d
+                    a1 = r
+                elif d < d2:
+                    d2 = d
+            delta[a1] += w[j] * (d2 - d1)
+        lo = delta.min()
+        hi = delta.max()
+        for r in range(h):
+            near = -1
+            best = np.inf
+            for j in range(ns):
+                f = sites[j]
+                d = abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1])
+                if d < best:
+                    best = d
+                    near = f
+            v = 1.0 if hi <= lo else 1.0 - (delta[r] - lo) / (hi - lo)
+            out[1, near] = max(out[1, near], v * v)
+    S.pos_cache[b] = out
+
+
 # -- one environment, all three decisions --------------------------------------------------------
 @njit(cache=True, inline="always")
 def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t):
-    """Fill the three decisions of environment b for the given codes."""
+    """Fill the three decisions of environment b for the given codes (``hp`` has a row per decision)."""
     dc = codes[0]
     if dc == D_NEAREST:
         dispatch_nearest(b, O, dispatch[b])
@@ -338,24 +688,32 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t):
         dispatch_inverse_distance(b, O, dispatch[b], S.keys[b, 0], t)
     elif dc == D_RANDOM:
         dispatch_random(b, O, dispatch[b], S.keys[b, 0], t)
+    elif dc == D_ASSIGN:
+        dispatch_assignment(b, O, dispatch[b], hp[0])
     else:
         dispatch[b, :] = O.personnel.shape[1]
     wc = codes[1]
+    hw = hp[1]
     if wc == W_THRESHOLD:
-        workforce[b] = workforce_threshold(b, O, S, hp, S.keys[b, 1], t, 0.0)
+        workforce[b] = workforce_threshold(b, O, S, hw, S.keys[b, 1], t, 0.0)
     elif wc == W_EPSILON:
-        workforce[b] = workforce_threshold(b, O, S, hp, S.keys[b, 1], t, hp[HP_EPS])
+        workforce[b] = workforce_threshold(b, O, S, hw, S.keys[b, 1], t, hw[HP_EPS])
     elif wc == W_RANDOM:
         workforce[b] = workforce_random(b, O, S.keys[b, 1], t)
+    elif wc == W_STAFFING:
+        workforce[b] = workforce_staffing(b, O, S, hw, S.keys[b, 1], t)
     else:
         workforce[b] = 0
     pc = codes[2]
+    hpp = hp[2]
     if pc == P_SPATIAL:
-        positioning_spatial(b, O, S, hp, positioning[b], S.keys[b, 2], t, 0.0)
+        positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, 0.0)
     elif pc == P_GAUSSIAN:
-        positioning_spatial(b, O, S, hp, positioning[b], S.keys[b, 2], t, hp[HP_NOISE])
+        positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, hpp[HP_NOISE])
     elif pc == P_RANDOM:
         positioning_random(b, O, positioning[b], S.keys[b, 2], t)
+    elif pc == P_FACILITY:
+        positioning_facility(b, O, S, hpp, positioning[b], t)
     else:
         positioning[b, :, :] = 0.0
 

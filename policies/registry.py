@@ -8,29 +8,37 @@ from typing import Any
 
 from policies import kernels as K
 from policies.base import BuiltinDecision, Composite
+from policies.solver import AssignmentDispatch
 
 
 def _d(decision: str, code: int, name: str, **hp: float) -> Callable[[], BuiltinDecision]:
     return lambda: BuiltinDecision(decision, code, name, **hp)
 
 
-DECISIONS: dict[str, dict[str, Callable[[], BuiltinDecision]]] = {
+DECISIONS: dict[str, dict[str, Callable[[], Any]]] = {
     "dispatch": {
         "nearest": _d("dispatch", K.D_NEAREST, "nearest"),
         "inverse-distance": _d("dispatch", K.D_INVERSE, "inverse-distance"),
         "random": _d("dispatch", K.D_RANDOM, "random"),
+        "assignment": _d("dispatch", K.D_ASSIGN, "assignment"),
+        "assignment-scipy": lambda: AssignmentDispatch("exact", name="assignment-scipy"),
+        "assignment-milp": lambda: AssignmentDispatch("milp", name="assignment-milp"),
+        "assignment-lp": lambda: AssignmentDispatch("lp", "HIGHS", name="assignment-lp"),
+        "assignment-lp-osqp": lambda: AssignmentDispatch("lp", "OSQP", name="assignment-lp-osqp"),
         "none": _d("dispatch", K.D_NOOP, "none"),
     },
     "workforce": {
         "threshold": _d("workforce", K.W_THRESHOLD, "threshold"),
         "threshold-epsilon": _d("workforce", K.W_EPSILON, "threshold-epsilon"),
         "random": _d("workforce", K.W_RANDOM, "random"),
+        "staffing": _d("workforce", K.W_STAFFING, "staffing"),
         "fixed": _d("workforce", K.W_NOOP, "fixed"),
     },
     "positioning": {
         "spatial": _d("positioning", K.P_SPATIAL, "spatial"),
         "spatial-gaussian": _d("positioning", K.P_GAUSSIAN, "spatial-gaussian"),
         "random": _d("positioning", K.P_RANDOM, "random"),
+        "facility-location": _d("positioning", K.P_FACILITY, "facility-location"),
         "none": _d("positioning", K.P_NONE, "none"),
     },
 }
@@ -42,9 +50,21 @@ COMPOSITES: dict[str, tuple[str, str, str, str]] = {
     "heuristic-stochastic": (
         "inverse-distance", "threshold-epsilon", "spatial-gaussian", "the stochastic variants of the heuristics",
     ),
-    "random-dispatch": ("random", "threshold", "spatial", "random dispatch, heuristic workforce and positioning (row 2)"),
-    "random-positioning": ("nearest", "threshold", "random", "heuristic dispatch and workforce, random positioning (row 3)"),
+    "random-dispatch": (
+        "random", "threshold", "spatial", "random dispatch, heuristic workforce and positioning (row 2)",
+    ),
+    "random-positioning": (
+        "nearest", "threshold", "random", "heuristic dispatch and workforce, random positioning (row 3)",
+    ),
     "fixed-workforce": ("nearest", "fixed", "none", "nearest dispatch, no hiring or letting go (Table 2)"),
+    "solver": ("assignment", "staffing", "facility-location", "the three solver-backed decisions (docs/solvers.md)"),
+    "solver-dispatch": (
+        "assignment", "threshold", "spatial", "optimal-assignment dispatch, heuristic workforce and positioning",
+    ),
+    "solver-workforce": ("nearest", "staffing", "spatial", "square-root staffing, heuristic dispatch and positioning"),
+    "solver-positioning": (
+        "nearest", "threshold", "facility-location", "p-median positioning, heuristic dispatch and workforce",
+    ),
 }
 
 
@@ -56,7 +76,8 @@ def get(spec: Any) -> Any:
     """A fresh policy for a registry name, a ``module:attr`` entry point, or a policy object.
 
     An entry point may name a policy object, a class or a factory (called with no
-    arguments).
+    arguments). ``"D+W+P"`` builds a composite from three per-decision names (for
+    example ``"assignment+threshold+spatial"``; see ``DECISIONS``).
     """
     if not isinstance(spec, str):
         if hasattr(spec, "act") and hasattr(spec, "reset"):
@@ -65,6 +86,11 @@ def get(spec: Any) -> Any:
     if spec in COMPOSITES:
         d, w, p, _ = COMPOSITES[spec]
         return Composite(d, w, p, name=spec)
+    if "+" in spec and ":" not in spec:
+        parts = spec.split("+")
+        if len(parts) != 3:
+            raise ValueError(f"composite {spec!r} needs three names, dispatch+workforce+positioning")
+        return Composite(*parts, name=spec)
     if ":" in spec:
         module_name, _, attr = spec.partition(":")
         try:

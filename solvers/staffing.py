@@ -26,6 +26,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.optimize import brentq
 from scipy.stats import norm
 
@@ -125,6 +126,12 @@ def job_duration(
     return per_visit / qbar
 
 
+@njit(cache=True)
+def sqrt_staffing_servers(offered_load, beta):
+    """``ceil(R + beta * sqrt(R))``, compiled so simulation kernels can call it (R >= 0, beta >= 0)."""
+    return int(math.ceil(offered_load + beta * math.sqrt(offered_load) - 1e-12))
+
+
 @dataclass(frozen=True)
 class StaffingPlan:
     servers: int  # the rule's headcount
@@ -172,7 +179,7 @@ def square_root_staffing(
         else:
             b = _positive("beta", beta, zero_ok=True)
             rule = "beta"
-        c = math.ceil(R + b * math.sqrt(R) - 1e-12)
+        c = sqrt_staffing_servers(R, b)
     c = max(int(c), min_servers)
     util = R / c if c > 0 else 0.0
     return StaffingPlan(c, R, util, erlang_c(c, R), b, rule, erlang_servers)

@@ -25,7 +25,7 @@ def test_trace_is_a_pure_function():
     assert not np.array_equal(a.fac0_x, c.fac0_x)
 
 
-@pytest.mark.parametrize("policy", ["heuristic", "heuristic-stochastic", "random"])
+@pytest.mark.parametrize("policy", ["heuristic", "heuristic-stochastic", "random", "solver"])
 def test_seed_alone_equals_seed_in_batch_of_64(policy):
     batch = run_batch(policy, "paper-64", list(range(64)), keep_series=True, threads=2)
     for seed in (0, 17, 63):
@@ -33,7 +33,7 @@ def test_seed_alone_equals_seed_in_batch_of_64(policy):
         assert np.array_equal(alone.series[0], batch.series[seed]), f"seed {seed} differs alone vs in batch"
 
 
-@pytest.mark.parametrize("policy", ["heuristic", "heuristic-stochastic", "random"])
+@pytest.mark.parametrize("policy", ["heuristic", "heuristic-stochastic", "random", "solver"])
 def test_compiled_rollout_equals_python_step_loop(policy):
     seeds = [3, 4, 5]
     compiled = run_batch(policy, "paper-64", seeds, keep_series=True)

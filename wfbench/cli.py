@@ -56,6 +56,16 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--out", default=None, help="also write the per-seed rows to this CSV file")
     e.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
+    c = sub.add_parser("compare", help="several policies on the same seeds, paired differences to a baseline")
+    c.add_argument("--policies", required=True, help="comma-separated registry names or module:attr entry points")
+    c.add_argument("--baseline", default="heuristic", help="policy the paired differences are taken to")
+    c.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
+    c.add_argument("--seeds", type=_positive, default=50, help="number of seeds (default 50)")
+    c.add_argument("--seed-start", type=_nonneg, default=0, help="first seed (default 0)")
+    c.add_argument("--backend", default="serial", help="serial (this process, all cores) or process")
+    c.add_argument("--format", default="table", choices=["table", "md", "csv"], help="output format")
+    c.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
     s = sub.add_parser("scenarios", help="list the presets, or show one as TOML")
     s.add_argument("name", nargs="?", help="a preset to show")
 
@@ -138,6 +148,27 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    from wfbench.compare import compare, format_comparison
+    from wfbench.evaluate import BACKENDS
+
+    config = _resolve_scenario(args.scenario)
+    names = [n.strip() for n in args.policies.split(",") if n.strip()]
+    if not names:
+        raise UsageError("--policies: give at least one policy name")
+    for name in [*names, args.baseline]:
+        _resolve_policy(name)
+    if args.backend not in BACKENDS:
+        raise UsageError(f"unknown backend {args.backend!r}; available: {', '.join(BACKENDS)}")
+    seeds = list(range(args.seed_start, args.seed_start + args.seeds))
+    df = compare(names, config, seeds, baseline=args.baseline, backend=args.backend, progress=not args.no_progress)
+    print(format_comparison(df, args.format))
+    if args.format != "csv":
+        print(f"{config.name}, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}): KPIs mean (25%-75%); NSW higher is "
+              f"better; intervals are bootstrap 95% over seeds, differences paired by seed.")
+    return 0
+
+
 def cmd_scenarios(args: argparse.Namespace) -> int:
     from wfbench.presets import PRESETS
 
@@ -195,7 +226,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"evaluate": cmd_evaluate, "scenarios": cmd_scenarios, "policies": cmd_policies,
+COMMANDS = {"evaluate": cmd_evaluate, "compare": cmd_compare, "scenarios": cmd_scenarios, "policies": cmd_policies,
             "simulate": cmd_simulate, "bench": cmd_bench}
 
 

@@ -179,3 +179,28 @@ def observe_batch(S, P, O, with_masks):
     for b in range(S.t.shape[0]):
         observe_env(b, S, P, O, with_masks)
 
+
+
+def make_obs(M: int, N: int, facilities=(), people=(), t: int = 0) -> dict[str, np.ndarray]:
+    """One hand-built observation (B = 1), for unit tests of policies and for benchmarks.
+
+    ``facilities``: rows ``(x, y, requesting)``, active and operational unless requesting;
+    ``people``: rows ``(home_x, home_y, x, y, level)``, employed, idle and dispatchable.
+    Every workforce action is marked valid. Returns the dict a policy's ``act`` takes.
+    """
+    O = allocate_obs(1, M, N)
+    for f, (x, y, req) in enumerate(facilities):
+        O.facilities[0, f, :4] = (x, y, 0.0 if req else 1.0, 1.0 if req else 0.0)
+        O.facilities[0, f, 5] = -1.0
+        O.facility_mask[0, f] = 1
+        O.requesting[0, f] = 1 if req else 0
+    for p, (hx, hy, x, y, level) in enumerate(people):
+        O.personnel[0, p, :5] = (hx, hy, x, y, level)
+        O.personnel[0, p, 6] = -1.0
+        O.personnel_mask[0, p] = 1
+        O.dispatchable[0, p] = 1
+        O.personnel_status[0, p] = IDLE
+    O.workforce_mask[0, :] = 1
+    obs = O._asdict()
+    obs["t"] = np.array([t], dtype=np.int64)
+    return obs

@@ -1,0 +1,73 @@
+"""Several policies on the same seeds: KPIs, NSW intervals and paired differences to a baseline."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import pandas as pd
+
+from wfbench.config import ScenarioConfig
+from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, resolve_seeds, summarize
+from wfbench.stats import bootstrap_ci, paired_difference
+
+
+def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | Iterable[int] = 50,
+            baseline: str = "heuristic", backend: str = "serial", progress: bool = False) -> pd.DataFrame:
+    """One row per policy (baseline included): KPI summaries, NSW 95% interval, paired NSW difference.
+
+    Every policy runs on the same seeds, so the difference to the baseline is paired by
+    seed (:func:`wfbench.stats.paired_difference`). Rows keep the order given, the
+    baseline first if it was not listed. ``df.attrs["runs"]`` holds the per-seed frames.
+    """
+    config = ScenarioConfig.resolve(scenario)
+    seed_list = resolve_seeds(seeds)
+    names = list(dict.fromkeys([baseline, *policies] if baseline not in policies else policies))
+    runs = {name: evaluate(name, config, seed_list, backend=backend, progress=progress) for name in names}
+    base = runs[baseline]["nsw"].to_numpy()
+    rows = []
+    for name, df in runs.items():
+        row: dict[str, Any] = {"policy": name}
+        for k, (mean, q25, q75) in summarize(df).items():
+            row[k], row[f"{k}_q25"], row[f"{k}_q75"] = mean, q25, q75
+        ci = bootstrap_ci(df["nsw"].to_numpy())
+        row["nsw_ci_low"], row["nsw_ci_high"] = ci.low, ci.high
+        d = paired_difference(df["nsw"].to_numpy(), base)
+        row["nsw_diff"], row["nsw_diff_low"], row["nsw_diff_high"] = d
+        row["wins"] = int((df["nsw"].to_numpy() > base).sum())
+        rows.append(row)
+    out = pd.DataFrame(rows)
+    out.attrs.update(scenario=config.name, seeds=seed_list, baseline=baseline, runs=runs)
+    return out
+
+
+def comparison_cells(df: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    """Header and text cells of a comparison table."""
+    base = df.attrs.get("baseline", "baseline")
+    n = len(df.attrs.get("seeds", []))
+    header = ["Policy", *[KPI_LABELS[k] for k in KPIS], "NSW 95% CI", f"NSW - {base} (paired, 95% CI)",
+              f"wins / {n}"]
+    rows = []
+    for _, r in df.iterrows():
+        cells = [r["policy"], *[format_kpi(r[k], r[f"{k}_q25"], r[f"{k}_q75"]) for k in KPIS],
+                 f"[{r['nsw_ci_low']:.3f}, {r['nsw_ci_high']:.3f}]"]
+        if r["policy"] == base:
+            cells += ["(baseline)", "-"]
+        else:
+            cells += [f"{r['nsw_diff']:+.4f} [{r['nsw_diff_low']:+.4f}, {r['nsw_diff_high']:+.4f}]", str(r["wins"])]
+        rows.append(cells)
+    return header, rows
+
+
+def format_comparison(df: pd.DataFrame, fmt: str = "table") -> str:
+    header, rows = comparison_cells(df)
+    if fmt == "csv":
+        return df.to_csv(index=False)
+    if fmt == "md":
+        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        return "\n".join(lines)
+    widths = [max(len(c) for c in col) for col in zip(header, *rows, strict=True)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths, strict=True))]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    return "\n".join(lines)
