@@ -64,13 +64,13 @@ def test_assignment_beats_greedy_where_greedy_is_myopic():
 
 def test_assignment_weighs_the_revisit_penalty_of_each_level():
     # one request; a novice 5 cells away, an expert 10 cells away.
-    # novice: 5 + 20 * 0.51 / 0.49 = 25.8; expert: 10 + 20 * 0.16 / 0.84 = 13.8 -> the expert
+    # revisit_cost 20: novice 5 + 20 * 0.51 / 0.49 = 25.8; expert 10 + 20 * 0.16 / 0.84 = 13.8 -> the expert
     O, obs = _obs(1, 2, [(0, 0, 1)], [(5, 0, 5, 0, 0), (10, 0, 10, 0, 2)])
-    assert _act("assignment", "dispatch", obs).tolist() == [1]
-    # without a revisit penalty the nearer novice goes
-    pol = policies.base.BuiltinDecision("dispatch", K.D_ASSIGN, "assignment", revisit_cost=0.0)
+    pol = policies.base.BuiltinDecision("dispatch", K.D_ASSIGN, "assignment", revisit_cost=20.0)
     pol.reset([0])
-    assert pol.act(obs)["dispatch"][0].tolist() == [0]
+    assert pol.act(obs)["dispatch"][0].tolist() == [1]
+    # default revisit_cost 2: novice 5 + 2.08 = 7.08 < expert 10 + 0.38 -> the nearer novice
+    assert _act("assignment", "dispatch", obs).tolist() == [0]
     # a finite unassigned cost below every option leaves the request open (no-op = N)
     pol = policies.base.BuiltinDecision("dispatch", K.D_ASSIGN, "assignment", unassigned_cost=1.0)
     pol.reset([0])
@@ -128,6 +128,7 @@ def test_staffing_target_by_hand():
     # E[S] = (2 * 3 + 3) / 0.7 = 12.857; rate 0.5 -> R = 6.43; beta 1: 6.43 + 2.54 = 8.96 -> 9
     O, obs = _obs(4, 3, [(0, 0, 0), (10, 0, 0)], [(0, 0, 0, 0, 1), (4, 0, 4, 0, 1)])
     hp = np.array([K.HP_DEFAULTS[f] for f in K.HP_FIELDS])
+    hp[K.HP_BETA] = 1.0
     target, h, R = K.staffing_target(0, O, _staffing_state(0.5), hp)
     assert h == 2
     assert R == pytest.approx(0.5 * 9 / 0.7)
