@@ -28,7 +28,7 @@ def known_optima(readme: Path) -> dict[str, float]:
     """``| name | ... | optimum |`` rows of the data README."""
     out = {}
     for line in readme.read_text().splitlines():
-        m = re.match(r"\|\s*(cap\w+|pmed\d+|assign\d+)\s*\|.*\|\s*([0-9.]+)\s*\|\s*$", line)
+        m = re.match(r"\|\s*(cap\w+|pmed\d+|assign\d+)\s*\|(?:.*\|)?\s*([0-9.]+)\s*\|\s*$", line)
         if m:
             out[m.group(1)] = float(m.group(2))
     return out
