@@ -41,6 +41,22 @@ _positive = _int_at_least(1)
 _nonneg = _int_at_least(0)
 
 
+def add_backend_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--backend", default="process",
+                   help="process (default: a pool over all cores), serial (this process) or ray")
+    p.add_argument("--workers", type=_positive, default=None, help="processes or Ray tasks (default: all cores)")
+    p.add_argument("--address", default=None, help="Ray cluster address for --backend ray (default: start a local one)")
+
+
+def check_backend_args(args: argparse.Namespace) -> None:
+    from wfbench.backends import check_backend
+
+    try:
+        check_backend(args.backend, args.address)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="wfbench", description="A benchmark suite for service workforce optimization.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -50,8 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
     e.add_argument("--seeds", type=_positive, default=50, help="number of seeds (default 50)")
     e.add_argument("--seed-start", type=_nonneg, default=0, help="first seed (default 0)")
-    e.add_argument("--backend", default="serial", help="serial (this process, all cores) or process")
-    e.add_argument("--workers", type=_positive, default=None, help="processes for --backend process")
+    add_backend_args(e)
     e.add_argument("--format", default="table", choices=["table", "md", "csv", "json"], help="output format")
     e.add_argument("--out", default=None, help="also write the per-seed rows to this CSV file")
     e.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -62,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
     c.add_argument("--seeds", type=_positive, default=50, help="number of seeds (default 50)")
     c.add_argument("--seed-start", type=_nonneg, default=0, help="first seed (default 0)")
-    c.add_argument("--backend", default="serial", help="serial (this process, all cores) or process")
+    add_backend_args(c)
     c.add_argument("--format", default="table", choices=["table", "md", "csv"], help="output format")
     c.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
@@ -112,15 +127,14 @@ def _check_writable(path: str, what: str) -> Path:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from wfbench.evaluate import BACKENDS, KPI_LABELS, KPIS, evaluate, format_kpi, summarize
+    from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
 
     config = _resolve_scenario(args.scenario)
     _resolve_policy(args.policy)
-    if args.backend not in BACKENDS:
-        raise UsageError(f"unknown backend {args.backend!r}; available: {', '.join(BACKENDS)}")
+    check_backend_args(args)
     out = _check_writable(args.out, "--out") if args.out else None
     seeds = list(range(args.seed_start, args.seed_start + args.seeds))
-    df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers,
+    df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers, address=args.address,
                   progress=not args.no_progress)
     if out:
         df.to_csv(out, index=False)
@@ -150,7 +164,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from wfbench.compare import compare, format_comparison
-    from wfbench.evaluate import BACKENDS
 
     config = _resolve_scenario(args.scenario)
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
@@ -158,10 +171,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise UsageError("--policies: give at least one policy name")
     for name in [*names, args.baseline]:
         _resolve_policy(name)
-    if args.backend not in BACKENDS:
-        raise UsageError(f"unknown backend {args.backend!r}; available: {', '.join(BACKENDS)}")
+    check_backend_args(args)
     seeds = list(range(args.seed_start, args.seed_start + args.seeds))
-    df = compare(names, config, seeds, baseline=args.baseline, backend=args.backend, progress=not args.no_progress)
+    df = compare(names, config, seeds, baseline=args.baseline, backend=args.backend, workers=args.workers,
+                 address=args.address, progress=not args.no_progress)
     print(format_comparison(df, args.format))
     if args.format != "csv":
         print(f"{config.name}, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}): KPIs mean (25%-75%); NSW higher is "

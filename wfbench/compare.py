@@ -13,7 +13,8 @@ from wfbench.stats import bootstrap_ci, paired_difference
 
 
 def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | Iterable[int] = 50,
-            baseline: str = "heuristic", backend: str = "serial", progress: bool = False) -> pd.DataFrame:
+            baseline: str = "heuristic", backend: str = "serial", workers: int | None = None,
+            address: str | None = None, progress: bool = False) -> pd.DataFrame:
     """One row per policy (baseline included): KPI summaries, NSW 95% interval, paired NSW difference.
 
     Every policy runs on the same seeds, so the difference to the baseline is paired by
@@ -23,7 +24,8 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
     config = ScenarioConfig.resolve(scenario)
     seed_list = resolve_seeds(seeds)
     names = list(dict.fromkeys([baseline, *policies] if baseline not in policies else policies))
-    runs = {name: evaluate(name, config, seed_list, backend=backend, progress=progress) for name in names}
+    runs = {name: evaluate(name, config, seed_list, backend=backend, workers=workers, address=address,
+                           progress=progress) for name in names}
     base = runs[baseline]["nsw"].to_numpy()
     rows = []
     for name, df in runs.items():

@@ -8,18 +8,15 @@ independent and all randomness is indexed by the seed.
 
 from __future__ import annotations
 
-import math
-import os
 from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
 from typing import Any
 
 import numba
 import numpy as np
 import pandas as pd
 
+from wfbench.backends import BACKENDS  # noqa: F401 - re-exported for the CLI
 from wfbench.config import ScenarioConfig
 from wfbench.simulator import Simulator
 from wfbench.state import COUNTERS, INVALID_COUNTERS, METRICS
@@ -31,7 +28,6 @@ KPI_LABELS = {
     "downtime": "Facility downtime",
     "nsw": "Nash social welfare",
 }
-BACKENDS = ("serial", "process")
 
 
 def resolve_seeds(seeds: int | Iterable[int]) -> list[int]:
@@ -97,11 +93,6 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
     )
 
 
-def _run_chunk(args: tuple) -> BatchResult:
-    policy, config, seeds, keep_series = args
-    return run_batch(policy, config, seeds, keep_series=keep_series, threads=1)
-
-
 def _frame(results: list[BatchResult], config: ScenarioConfig, policy_name: str) -> pd.DataFrame:
     rows = []
     for r in results:
@@ -122,8 +113,8 @@ def _frame(results: list[BatchResult], config: ScenarioConfig, policy_name: str)
 
 def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | Iterable[int] = 50, backend: str = "serial",
              workers: int | None = None, threads: int | None = None, progress: bool = False,
-             return_series: bool = False) -> pd.DataFrame | tuple[pd.DataFrame, np.ndarray]:
-    """Score ``policy`` on ``scenario`` over ``seeds``; one row per seed.
+             return_series: bool = False, address: str | None = None) -> pd.DataFrame | tuple[pd.DataFrame, np.ndarray]:
+    """Score ``policy`` on ``scenario`` over ``seeds``; one row per seed, in seed order.
 
     Args:
         policy: a registry name (``policies.names()``), a ``module:attr`` entry point or
@@ -131,12 +122,15 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | Iterable[
         scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
         seeds: a count ``n`` (seeds ``0..n-1``) or a sequence of seeds.
         backend: ``"serial"`` (this process; built-in composites use ``threads``
-            numba threads, all cores by default) or ``"process"`` (a pool of
-            ``workers`` processes over chunks of seeds).
-        workers: processes for the ``process`` backend (default: all cores).
+            numba threads, all cores by default), ``"process"`` (a pool of ``workers``
+            processes over chunks of seeds) or ``"ray"`` (Ray tasks; ``address`` joins
+            an existing cluster). See :mod:`wfbench.backends`; the numbers do not
+            depend on the backend.
+        workers: processes or Ray tasks for the parallel backends (default: all cores).
         threads: numba threads for the ``serial`` backend.
         progress: show a progress bar.
         return_series: also return the per-step metrics, (seeds, horizon, metrics).
+        address: Ray cluster address for ``backend="ray"``.
 
     Returns:
         The DataFrame (columns ``seed``, the KPIs, utilities, ``episode_length`` and the
@@ -144,19 +138,14 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | Iterable[
         follows ``wfbench.state.METRICS``.
     """
     from policies import get
+    from wfbench.backends import check_backend, run_chunks
 
     config = ScenarioConfig.resolve(scenario)
     seed_list = resolve_seeds(seeds)
-    if backend not in BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; available: {', '.join(BACKENDS)}")
+    check_backend(backend, address)
     policy_obj = get(policy)
     policy_name = policy if isinstance(policy, str) else getattr(policy_obj, "name", type(policy_obj).__name__)
-    if backend == "serial":
-        chunks = [seed_list]
-    else:
-        workers = workers or os.cpu_count() or 1
-        size = math.ceil(len(seed_list) / max(1, workers))
-        chunks = [seed_list[i : i + size] for i in range(0, len(seed_list), size)]
+    spec = policy if isinstance(policy, str) else policy_obj
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -164,24 +153,23 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | Iterable[
         bar = tqdm(total=len(seed_list), desc=f"{policy_name} on {config.name}", unit="episode", leave=False)
     results: list[BatchResult] = []
     try:
-        if backend == "serial":
-            results.append(run_batch(policy_obj, config, chunks[0], keep_series=return_series, threads=threads))
+        run_spec = policy_obj if backend == "serial" else spec
+        for r in run_chunks(run_spec, config, seed_list, backend=backend, workers=workers, address=address,
+                            keep_series=return_series, threads=threads):
+            results.append(r)
             if bar:
-                bar.update(len(chunks[0]))
-        else:
-            with ProcessPoolExecutor(max_workers=len(chunks), mp_context=get_context("spawn")) as pool:
-                spec = policy if isinstance(policy, str) else policy_obj
-                for r in pool.map(_run_chunk, [(spec, config, c, return_series) for c in chunks]):
-                    results.append(r)
-                    if bar:
-                        bar.update(len(r.seeds))
+                bar.update(len(r.seeds))
     finally:
         if bar:
             bar.close()
     df = _frame(results, config, policy_name)
+    order = {s: i for i, s in enumerate(seed_list)}
+    rank = df["seed"].map(order).to_numpy()
+    df = df.iloc[np.argsort(rank, kind="stable")].reset_index(drop=True)
+    df.attrs.update(scenario=config.name, policy=policy_name)
     if return_series:
         series = np.concatenate([r.series for r in results if r.series is not None], axis=0)
-        return df, series
+        return df, series[np.argsort(rank, kind="stable")]
     return df
 
 

@@ -1,0 +1,331 @@
+"""The result store: one SQLite file, one row per (submission, seed), every row with its provenance.
+
+Safety:
+
+- Each finished chunk of seeds is written in its own transaction, WAL journal,
+  ``synchronous=FULL``. Killing the writer at any moment (``kill -9`` included) loses
+  at most the chunk being written and never corrupts the file. Submitting again
+  resumes with the missing seeds.
+- The file is marked as a wfbench store (``PRAGMA application_id``) and carries its
+  schema version (``PRAGMA user_version``). Any other SQLite file, a file that is not
+  SQLite, or a store from a newer wfbench is refused with a one-line message before
+  anything is written.
+- Every result row stores the track hash, the seed, the policy spec, the submitter,
+  the wfbench version and the time, plus a digest over all of them and the KPIs. At
+  read time a row is refused, with the reason, when its hash is not the track's
+  current hash (another version of the track), its seed is not a test seed of the
+  track, or its digest does not match (the row was edited).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import sqlite3
+from collections.abc import Iterable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from leaderboard.tracks import Track
+
+APPLICATION_ID = 0x57464231  # "WFB1"
+SCHEMA_VERSION = 1
+KPI_COLUMNS = ("workforce_cost", "utilization", "downtime", "nsw")
+ROW_COLUMNS = (*KPI_COLUMNS, "episode_length", "invalid_actions")
+
+_SCHEMA = """
+CREATE TABLE submissions (
+    id INTEGER PRIMARY KEY,
+    track TEXT NOT NULL,
+    name TEXT NOT NULL,
+    policy TEXT NOT NULL,
+    submitter TEXT NOT NULL,
+    track_hash TEXT NOT NULL,
+    wfbench_version TEXT NOT NULL,
+    created_at TEXT NOT NULL,
+    status TEXT NOT NULL CHECK (status IN ('running', 'complete', 'failed')),
+    reason TEXT NOT NULL DEFAULT '',
+    builtin INTEGER NOT NULL DEFAULT 0,
+    UNIQUE (track, name)
+);
+CREATE TABLE results (
+    submission_id INTEGER NOT NULL REFERENCES submissions(id),
+    seed INTEGER NOT NULL,
+    track TEXT NOT NULL,
+    track_hash TEXT NOT NULL,
+    policy TEXT NOT NULL,
+    submitter TEXT NOT NULL,
+    wfbench_version TEXT NOT NULL,
+    finished_at TEXT NOT NULL,
+    workforce_cost REAL NOT NULL,
+    utilization REAL NOT NULL,
+    downtime REAL NOT NULL,
+    nsw REAL NOT NULL,
+    episode_length INTEGER NOT NULL,
+    invalid_actions INTEGER NOT NULL,
+    digest TEXT NOT NULL,
+    PRIMARY KEY (submission_id, seed)
+);
+"""
+
+
+class StoreError(Exception):
+    """A store that cannot be used as asked: printed as one line by the CLI."""
+
+
+def default_path() -> Path:
+    """``$WFBENCH_DB``, else ``wfbench/results.sqlite`` in the user's data folder."""
+    env = os.environ.get("WFBENCH_DB")
+    if env:
+        return Path(env)
+    import platformdirs
+
+    return Path(platformdirs.user_data_dir("wfbench", appauthor=False)) / "results.sqlite"
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def row_digest(name: str, track: str, track_hash: str, policy: str, submitter: str, version: str, seed: int,
+               values: dict[str, Any]) -> str:
+    payload = [name, track, track_hash, policy, submitter, version, int(seed)]
+    payload += [float(values[c]).hex() if c in KPI_COLUMNS else int(values[c]) for c in ROW_COLUMNS]
+    return hashlib.sha256(json.dumps(payload).encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class Submission:
+    id: int
+    track: str
+    name: str
+    policy: str
+    submitter: str
+    track_hash: str
+    status: str
+    reason: str
+    builtin: bool
+
+
+class Store:
+    """A wfbench result store at ``path`` (created on first use)."""
+
+    def __init__(self, path: str | os.PathLike | None = None):
+        self.path = Path(path) if path is not None else default_path()
+        exists = self.path.exists()
+        if exists:
+            self._check_file()
+        else:
+            if self.path.parent.exists() and not self.path.parent.is_dir():
+                raise StoreError(f"cannot create store {self.path}: {self.path.parent} is not a folder")
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise StoreError(f"cannot create store {self.path}: {exc.strerror or exc}") from None
+        try:
+            self.conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot open store {self.path}: {exc}") from None
+        self.conn.row_factory = sqlite3.Row
+        try:
+            self.conn.execute("PRAGMA journal_mode=WAL")
+            self.conn.execute("PRAGMA synchronous=FULL")
+            self.conn.execute("PRAGMA foreign_keys=ON")
+            if exists:
+                self._check_schema()
+            else:
+                self._create()
+        except sqlite3.DatabaseError as exc:
+            self.conn.close()
+            raise StoreError(f"{self.path} is not a usable wfbench store: {exc}") from None
+
+    # -- opening -----------------------------------------------------------------------------------
+    def _check_file(self) -> None:
+        if self.path.is_dir():
+            raise StoreError(f"{self.path} is a folder, not a wfbench store file")
+        try:
+            with open(self.path, "rb") as fh:
+                head = fh.read(16)
+        except OSError as exc:
+            raise StoreError(f"cannot read store {self.path}: {exc.strerror or exc}") from None
+        if head and head != b"SQLite format 3\x00":
+            raise StoreError(f"{self.path} is not a wfbench store (not an SQLite database); "
+                             "pass --db with another path")
+
+    def _check_schema(self) -> None:
+        app = self.conn.execute("PRAGMA application_id").fetchone()[0]
+        version = self.conn.execute("PRAGMA user_version").fetchone()[0]
+        tables = {r[0] for r in self.conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if app == 0 and version == 0 and not tables:  # an empty file: make it a store
+            self._create()
+            return
+        if app != APPLICATION_ID:
+            raise StoreError(f"{self.path} is an SQLite database but not a wfbench store; pass --db with another path")
+        if version > SCHEMA_VERSION:
+            raise StoreError(f"{self.path} was written by a newer wfbench (store schema {version}; this wfbench "
+                             f"reads up to {SCHEMA_VERSION}): upgrade wfbench to read it")
+        if not {"submissions", "results"} <= tables:
+            raise StoreError(f"{self.path} is marked as a wfbench store but its tables are missing")
+
+    def _create(self) -> None:
+        # one explicit transaction (executescript would commit on its own)
+        self.conn.execute("BEGIN IMMEDIATE")
+        try:
+            for stmt in _SCHEMA.split(";"):
+                if stmt.strip():
+                    self.conn.execute(stmt)
+            self.conn.execute(f"PRAGMA application_id={APPLICATION_ID}")
+            self.conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+            self.conn.execute("COMMIT")
+        except BaseException:
+            self.conn.execute("ROLLBACK")
+            raise
+
+    def close(self) -> None:
+        self.conn.close()
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- transactions ------------------------------------------------------------------------------
+    class _Tx:
+        def __init__(self, store: Store):
+            self.store = store
+
+        def __enter__(self) -> sqlite3.Connection:
+            self.store.conn.execute("BEGIN IMMEDIATE")
+            return self.store.conn
+
+        def __exit__(self, exc_type, exc, tb) -> None:
+            if exc_type is None:
+                try:
+                    self.store.conn.execute("COMMIT")
+                    return
+                except sqlite3.Error:
+                    self.store.conn.execute("ROLLBACK")
+                    raise
+            self.store.conn.execute("ROLLBACK")
+
+    def _tx(self) -> Store._Tx:
+        return Store._Tx(self)
+
+    def _write(self, what: str, fn) -> Any:
+        try:
+            with self._tx() as conn:
+                return fn(conn)
+        except sqlite3.OperationalError as exc:
+            text = str(exc)
+            if "full" in text:
+                raise StoreError(f"cannot write {what} to {self.path}: the disk is full ({text}); nothing was lost, "
+                                 "finished seeds are kept: free space and submit again to resume") from None
+            raise StoreError(f"cannot write {what} to {self.path}: {text}") from None
+
+    # -- submissions -------------------------------------------------------------------------------
+    def submissions(self, track: str | None = None) -> list[Submission]:
+        q = "SELECT * FROM submissions" + (" WHERE track = ?" if track else "") + " ORDER BY id"
+        return [self._sub(r) for r in self.conn.execute(q, (track,) if track else ())]
+
+    @staticmethod
+    def _sub(r: sqlite3.Row) -> Submission:
+        return Submission(r["id"], r["track"], r["name"], r["policy"], r["submitter"], r["track_hash"], r["status"],
+                          r["reason"], bool(r["builtin"]))
+
+    def find(self, track: str, name: str) -> Submission | None:
+        r = self.conn.execute("SELECT * FROM submissions WHERE track = ? AND name = ?", (track, name)).fetchone()
+        return self._sub(r) if r else None
+
+    def open_submission(self, track: Track, name: str, policy: str, submitter: str, version: str,
+                        builtin: bool = False) -> Submission:
+        """A new submission, or the existing one of that name to resume (same policy and track version)."""
+        if not name or len(name) > 100 or any(c in name for c in "\n\r\t"):
+            raise StoreError(f"submission name {name!r} is not allowed; allowed: 1-100 characters, one line")
+        existing = self.find(track.name, name)
+        if existing is not None:
+            if existing.policy != policy:
+                raise StoreError(f"the name {name!r} is already taken on track {track.name} by policy "
+                                 f"{existing.policy!r}; choose another --name")
+            if existing.track_hash != track.hash:
+                raise StoreError(f"submission {name!r} was made on another version of track {track.name} "
+                                 f"(hash {existing.track_hash}, now {track.hash}); choose another --name")
+            self.set_status(existing.id, "running", "")
+            return self.find(track.name, name)  # type: ignore[return-value]
+
+        def insert(conn: sqlite3.Connection) -> None:
+            conn.execute(
+                "INSERT INTO submissions (track, name, policy, submitter, track_hash, wfbench_version, created_at, "
+                "status, builtin) VALUES (?, ?, ?, ?, ?, ?, ?, 'running', ?)",
+                (track.name, name, policy, submitter, track.hash, version, _now(), int(builtin)),
+            )
+
+        self._write(f"submission {name!r}", insert)
+        return self.find(track.name, name)  # type: ignore[return-value]
+
+    def set_status(self, sub_id: int, status: str, reason: str = "") -> None:
+        self._write("the submission status", lambda c: c.execute(
+            "UPDATE submissions SET status = ?, reason = ? WHERE id = ?", (status, reason, sub_id)))
+
+    def done_seeds(self, sub_id: int) -> set[int]:
+        return {r[0] for r in self.conn.execute("SELECT seed FROM results WHERE submission_id = ?", (sub_id,))}
+
+    def add_results(self, sub: Submission, version: str, rows: Iterable[dict[str, Any]]) -> int:
+        """Store finished seeds in one transaction; returns how many were new."""
+        rows = list(rows)
+        for row in rows:
+            bad = [c for c in KPI_COLUMNS if not math.isfinite(float(row[c]))]
+            if bad:
+                raise StoreError(f"seed {row['seed']}: non-finite {', '.join(bad)}; the row was not stored")
+
+        def insert(conn: sqlite3.Connection) -> int:
+            n = 0
+            for row in rows:
+                seed = int(row["seed"])
+                digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed, row)
+                cur = conn.execute(
+                    "INSERT OR IGNORE INTO results (submission_id, seed, track, track_hash, policy, submitter, "
+                    "wfbench_version, finished_at, workforce_cost, utilization, downtime, nsw, episode_length, "
+                    "invalid_actions, digest) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (sub.id, seed, sub.track, sub.track_hash, sub.policy, sub.submitter, version, _now(),
+                     *(float(row[c]) for c in KPI_COLUMNS), int(row["episode_length"]),
+                     int(row["invalid_actions"]), digest),
+                )
+                n += cur.rowcount
+            return n
+
+        return self._write(f"{len(rows)} result(s) of {sub.name!r}", insert)
+
+    # -- reading -----------------------------------------------------------------------------------
+    def results(self, track: Track) -> tuple[pd.DataFrame, list[str]]:
+        """Valid rows of the track (with the submission name) and one message per refused row."""
+        q = ("SELECT s.name, s.status, s.builtin, r.* FROM results r JOIN submissions s ON s.id = r.submission_id "
+             "WHERE r.track = ? ORDER BY s.id, r.seed")
+        keep, refused = [], []
+        test = set(track.test_seeds)
+        for r in self.conn.execute(q, (track.name,)):
+            d = dict(r)
+            where = f"result of {d['name']!r}, seed {d['seed']}"
+            if d["track_hash"] != track.hash:
+                refused.append(f"{where}: made on another version of track {track.name} (hash {d['track_hash']}, "
+                               f"current {track.hash}); refused")
+                continue
+            if d["seed"] not in test:
+                refused.append(f"{where}: seed {d['seed']} is not a test seed of track {track.name}; refused")
+                continue
+            expected = row_digest(d["name"], d["track"], d["track_hash"], d["policy"], d["submitter"],
+                                  d["wfbench_version"], d["seed"], d)
+            if expected != d["digest"]:
+                refused.append(f"{where}: its values do not match its digest (the row was edited); refused")
+                continue
+            keep.append(d)
+        df = pd.DataFrame(keep, columns=["name", "status", "builtin", "submission_id", "seed", "track", "track_hash",
+                                         "policy", "submitter", "wfbench_version", "finished_at", *ROW_COLUMNS,
+                                         "digest"])
+        return df, refused
