@@ -25,7 +25,8 @@ instances):
   polytope is integral, so the LP optimum equals the integer one. The problem is built
   once per (shape, unassigned or not, solver) with cvxpy Parameters (costs, allowed
   pairs, unassigned costs), so re-solving with new data skips cvxpy's compilation
-  (``detail["rebuilt"]`` says which solves compiled). The integral solution is read off
+  (``detail["rebuilt"]`` says which solves compiled). Above ``PARAMETRIC_MAX_PAIRS``
+  pairs the parametric form is too large and each solve builds its own problem. The integral solution is read off
   the LP solution: a min-cost assignment restricted to the LP's support (pairs with
   ``x > 1e-6``), optimal by complementary slackness; when the LP solution is only
   approximate (OSQP) and that support admits no assignment, the assignment that keeps
@@ -175,21 +176,28 @@ class AssignmentLP:
     (DPP), so only the first solve of a shape pays the compilation.
     """
 
-    def __init__(self, n: int, m: int, with_unassigned: bool, lp_solver: str = "HIGHS"):
+    def __init__(self, n: int, m: int, with_unassigned: bool, lp_solver: str = "HIGHS",
+                 data: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None):
         import cvxpy as cp
 
         self.shape = (n, m)
         self.with_unassigned = with_unassigned
         self.lp_solver = lp_solver
-        self.cost = cp.Parameter((n, m), name="cost")
-        self.allowed = cp.Parameter((n, m), nonneg=True, name="allowed")
+        self.parametric = data is None
+        if self.parametric:
+            self.cost = cp.Parameter((n, m), name="cost")
+            self.allowed = cp.Parameter((n, m), nonneg=True, name="allowed")
+        else:  # one-off problem with the data as constants (see PARAMETRIC_MAX_PAIRS)
+            C, allowed, u = data
+            self.cost = cp.Constant(np.where(allowed, C, 0.0))
+            self.allowed = cp.Constant(allowed.astype(np.float64))
         self.x = cp.Variable((n, m), nonneg=True)
         obj = cp.sum(cp.multiply(self.cost, self.x))
         rows = cp.sum(self.x, axis=1)
         cols = cp.sum(self.x, axis=0)
         cons = [self.x <= self.allowed]
         if with_unassigned:
-            self.u = cp.Parameter(n, name="unassigned_cost")
+            self.u = cp.Parameter(n, name="unassigned_cost") if self.parametric else cp.Constant(data[2])
             obj = obj + cp.sum(self.u) - self.u @ rows
             cons += [rows <= 1, cols <= 1]
         elif n <= m:
@@ -202,10 +210,11 @@ class AssignmentLP:
     def solve(self, C: np.ndarray, allowed: np.ndarray, u: np.ndarray | None, time_limit: float | None = None):
         import cvxpy as cp
 
-        self.cost.value = np.where(allowed, C, 0.0)
-        self.allowed.value = allowed.astype(np.float64)
-        if self.with_unassigned:
-            self.u.value = u
+        if self.parametric:
+            self.cost.value = np.where(allowed, C, 0.0)
+            self.allowed.value = allowed.astype(np.float64)
+            if self.with_unassigned:
+                self.u.value = u
         kwargs: dict[str, Any] = {}
         if self.lp_solver == "OSQP":
             kwargs = {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iter": 100_000, **OSQP_POLISH}
@@ -226,6 +235,11 @@ class AssignmentLP:
 
 
 _LP_CACHE: dict[tuple[int, int, bool, str], AssignmentLP] = {}
+
+# Above this many pairs the LP is built with its data as constants, once per solve: cvxpy's
+# parametric (DPP) form keeps a parameter-to-problem map whose size grows with the square
+# of the number of pairs (about 62 billion entries at 500 x 500).
+PARAMETRIC_MAX_PAIRS = 10_000
 
 
 def lp_model(n: int, m: int, with_unassigned: bool, lp_solver: str) -> AssignmentLP:
@@ -296,7 +310,10 @@ def solve(
             sol = np.full(n, -1, dtype=np.int64)
             obj = _objective(C, u, sol)
             return SolveResult(OPTIMAL, obj, sol, obj, clock.elapsed, solver, method, gap=0.0)
-        model = lp_model(n, m, u is not None, lp_solver)
+        if n * m <= PARAMETRIC_MAX_PAIRS:
+            model = lp_model(n, m, u is not None, lp_solver)
+        else:
+            model = AssignmentLP(n, m, u is not None, lp_solver, data=(C, allowed, u))
         problem, status, rebuilt = model.solve(C, allowed, u, time_limit)
         if problem is None:
             return SolveResult(INFEASIBLE, math.nan, np.full(n, -1, dtype=np.int64), None, clock.elapsed, solver,
