@@ -111,6 +111,13 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         raise SubmitError(f"wall time {wall_time_s!r} is not allowed; allowed: seconds > 0")
     if memory_mb is not None and memory_mb < 256:
         raise SubmitError(f"memory limit {memory_mb} MiB is not allowed; allowed: >= 256 MiB")
+    if ":" not in policy:  # a registry name or composite: check it here, no user code runs
+        from policies import get
+
+        try:
+            get(policy)
+        except ValueError as exc:
+            raise SubmitError(str(exc)) from None
     submitter = submitter or getpass.getuser()
     store = db if isinstance(db, Store) else Store(db)
     t0 = time.perf_counter()
@@ -133,11 +140,6 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     proc.start()
     child_conn.close()
     bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(tr.test_seeds), initial=len(done), desc=f"{name} on {tr.name}", unit="episode",
-                   leave=False)
     sub: Submission | None = existing
     new_rows = 0
     status, reason = "failed", ""
@@ -163,6 +165,11 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                     raise SubmitError(msg[1])
                 if kind == "ready":
                     sub = store.open_submission(tr, name, policy, submitter, __version__, builtin=builtin)
+                    if progress:
+                        from tqdm.auto import tqdm
+
+                        bar = tqdm(total=len(tr.test_seeds), initial=len(done), desc=f"{name} on {tr.name}",
+                                   unit="episode", leave=False)
                 elif kind == "rows":
                     assert sub is not None
                     new_rows += store.add_results(sub, __version__, msg[1])

@@ -81,6 +81,31 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--format", default="table", choices=["table", "md", "csv"], help="output format")
     c.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
+    lb = sub.add_parser("leaderboard", help="submit policies to tracks and show the rankings")
+    lsub = lb.add_subparsers(dest="lb_command", required=True, parser_class=_Parser)
+    ls = lsub.add_parser("submit", help="evaluate a policy on a track's test seeds and store the results")
+    ls.add_argument("--policy", required=True, help="registry name or module:attr entry point")
+    ls.add_argument("--name", required=True, help="the entry's name on the leaderboard (resubmit it to resume)")
+    ls.add_argument("--track", default="paper-64", help="track name (see 'wfbench leaderboard tracks')")
+    ls.add_argument("--submitter", default=None, help="who submits (default: the user name)")
+    ls.add_argument("--db", default=None, help="store file (default: $WFBENCH_DB or the user data folder)")
+    ls.add_argument("--wall-time", type=float, default=3600.0, help="seconds before the evaluation is stopped")
+    ls.add_argument("--memory", type=_positive, default=8192, help="memory limit of the evaluation in MiB")
+    ls.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_backend_args(ls)
+    lw = lsub.add_parser("show", help="the ranking of a track")
+    lw.add_argument("--track", default="paper-64")
+    lw.add_argument("--format", default="table", help="table, md, csv or html")
+    lw.add_argument("--out", default=None, help="write to this file instead of printing")
+    lw.add_argument("--baseline", default="heuristic", help="entry the paired differences are taken to")
+    lw.add_argument("--db", default=None)
+    ld = lsub.add_parser("seed", help="fill in the built-in entries (random, heuristic, solver, ...)")
+    ld.add_argument("--track", default=None, help="one track (default: all)")
+    ld.add_argument("--db", default=None)
+    ld.add_argument("--no-progress", action="store_true")
+    add_backend_args(ld)
+    lsub.add_parser("tracks", help="list the tracks with their hashes and seeds")
+
     s = sub.add_parser("scenarios", help="list the presets, or show one as TOML")
     s.add_argument("name", nargs="?", help="a preset to show")
 
@@ -182,6 +207,72 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_leaderboard(args: argparse.Namespace) -> int:
+    from leaderboard.report import FORMATS, ranking, render
+    from leaderboard.store import Store, StoreError
+    from leaderboard.submit import SubmitError, seed_builtins, submit
+    from leaderboard.tracks import TRACKS, get_track
+
+    def track(name: str):
+        try:
+            return get_track(name)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+
+    try:
+        if args.lb_command == "tracks":
+            for t in TRACKS.values():
+                print(f"{t.name:<14s} hash {t.hash}  test seeds {t.test_seeds[0]}..{t.test_seeds[-1]}  "
+                      f"public seeds {t.public_seeds[0]}..{t.public_seeds[-1]}  {t.description}")
+            return 0
+        if args.lb_command == "submit":
+            tr = track(args.track)
+            check_backend_args(args)
+            out = submit(tr, args.policy, args.name, submitter=args.submitter, db=args.db, backend=args.backend,
+                         workers=args.workers, address=args.address, wall_time_s=args.wall_time,
+                         memory_mb=args.memory, progress=not args.no_progress)
+            store = Store(args.db)
+            if out.status == "complete":
+                print(f"{args.name} on {tr.name}: complete, {out.stored_rows} seeds stored ({out.new_rows} new) "
+                      f"in {store.path}, {out.seconds:.1f} s")
+                return 0
+            print(f"wfbench: submission {args.name!r} on {tr.name} failed: {out.reason} "
+                  f"({out.stored_rows} seeds kept in {store.path}; fix the policy and submit again to resume)",
+                  file=sys.stderr)
+            return 1
+        if args.lb_command == "seed":
+            check_backend_args(args)
+            tracks = [track(args.track)] if args.track else list(TRACKS.values())
+            failed = 0
+            for tr in tracks:
+                for out in seed_builtins(tr, db=args.db, backend=args.backend, workers=args.workers,
+                                         address=args.address, progress=not args.no_progress):
+                    print(f"{tr.name:<14s} {out.submission.name:<20s} {out.status} ({out.stored_rows} seeds, "
+                          f"{out.new_rows} new, {out.seconds:.1f} s){': ' + out.reason if out.reason else ''}")
+                    failed += out.status != "complete"
+            return 1 if failed else 0
+        # show
+        tr = track(args.track)
+        if args.format not in FORMATS:
+            raise UsageError(f"--format {args.format!r} is not allowed; allowed: {', '.join(FORMATS)}")
+        out_path = _check_writable(args.out, "--out") if args.out else None
+        r = ranking(Store(args.db), tr, baseline=args.baseline)
+        for msg in r.refused:
+            print(f"wfbench: warning: {msg}", file=sys.stderr)
+        text = render(r, args.format)
+        if out_path:
+            try:
+                out_path.write_text(text)
+            except OSError as exc:
+                raise UsageError(f"cannot write {out_path}: {exc.strerror or exc}") from None
+            print(f"wrote {out_path}")
+        else:
+            print(text, end="" if text.endswith("\n") else "\n")
+        return 0
+    except (StoreError, SubmitError) as exc:
+        raise UsageError(str(exc)) from None
+
+
 def cmd_scenarios(args: argparse.Namespace) -> int:
     from wfbench.presets import PRESETS
 
@@ -239,7 +330,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"evaluate": cmd_evaluate, "compare": cmd_compare, "scenarios": cmd_scenarios, "policies": cmd_policies,
+COMMANDS = {"evaluate": cmd_evaluate, "compare": cmd_compare, "leaderboard": cmd_leaderboard,
+            "scenarios": cmd_scenarios, "policies": cmd_policies,
             "simulate": cmd_simulate, "bench": cmd_bench}
 
 

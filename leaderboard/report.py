@@ -1,0 +1,189 @@
+"""Rankings of a track: text, markdown, CSV and a self-contained HTML page."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from leaderboard.store import KPI_COLUMNS, Store
+from leaderboard.tracks import Track
+from wfbench.evaluate import KPI_LABELS, format_kpi
+from wfbench.stats import bootstrap_ci, paired_difference
+
+FORMATS = ("table", "md", "csv", "html")
+
+
+@dataclass
+class Ranking:
+    track: Track
+    baseline: str
+    table: pd.DataFrame  # one row per submission; ranked ones first
+    per_seed: pd.DataFrame  # the valid stored rows
+    refused: list[str] = field(default_factory=list)
+
+
+def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
+    """Rank the complete submissions of ``track`` by mean NSW over its test seeds.
+
+    A submission is ranked when every test seed has a valid row. The paired difference
+    to ``baseline`` is taken over the seeds both have; incomplete and failed
+    submissions are listed after the ranked ones, with their status and reason.
+    """
+    rows, refused = store.results(track)
+    subs = {s.name: s for s in store.submissions(track.name)}
+    n_test = len(track.test_seeds)
+    base = rows[rows["name"] == baseline].set_index("seed")["nsw"] if baseline in subs else pd.Series(dtype=float)
+    out = []
+    for name, sub in subs.items():
+        mine = rows[rows["name"] == name]
+        rec = {"name": name, "policy": sub.policy, "submitter": sub.submitter, "status": sub.status,
+               "reason": sub.reason, "seeds": len(mine), "builtin": sub.builtin}
+        rec["ranked"] = sub.status == "complete" and len(mine) == n_test
+        if len(mine):
+            for k in KPI_COLUMNS:
+                v = mine[k].to_numpy()
+                rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = v.mean(), np.quantile(v, 0.25), np.quantile(v, 0.75)
+            ci = bootstrap_ci(mine["nsw"].to_numpy())
+            rec["nsw_ci_low"], rec["nsw_ci_high"] = ci.low, ci.high
+            common = mine.set_index("seed")["nsw"].align(base, join="inner")
+            if name != baseline and len(common[0]):
+                d = paired_difference(common[0].to_numpy(), common[1].to_numpy())
+                rec["diff"], rec["diff_low"], rec["diff_high"] = d
+                rec["common_seeds"] = len(common[0])
+        out.append(rec)
+    table = pd.DataFrame(out)
+    if len(table):
+        table["_nsw"] = table.get("nsw", pd.Series(np.nan, index=table.index)).fillna(-np.inf)
+        table = table.sort_values(["ranked", "_nsw"], ascending=[False, False]).drop(columns="_nsw")
+        table["rank"] = [i + 1 if r else None for i, r in enumerate(table["ranked"])]
+        table = table.reset_index(drop=True)
+    return Ranking(track, baseline, table, rows, refused)
+
+
+def _cells(r: Ranking) -> tuple[list[str], list[list[str]]]:
+    n = len(r.track.test_seeds)
+    header = ["#", "Name", "Policy", *[KPI_LABELS[k] for k in KPI_COLUMNS], "NSW 95% CI",
+              f"NSW - {r.baseline} (paired, 95% CI)", "Seeds", "Status"]
+    rows = []
+    for _, t in r.table.iterrows():
+        has = t["seeds"] > 0
+        kpis = [format_kpi(t[k], t[f"{k}_q25"], t[f"{k}_q75"]) if has else "-" for k in KPI_COLUMNS]
+        ci = f"[{t['nsw_ci_low']:.3f}, {t['nsw_ci_high']:.3f}]" if has else "-"
+        if t["name"] == r.baseline:
+            diff = "(baseline)"
+        elif has and pd.notna(t.get("diff", np.nan)):
+            diff = f"{t['diff']:+.4f} [{t['diff_low']:+.4f}, {t['diff_high']:+.4f}]"
+            if t.get("common_seeds", n) < n:
+                diff += f" on {int(t['common_seeds'])} seeds"
+        else:
+            diff = "-"
+        status = t["status"] + (f": {t['reason']}" if t["reason"] else "")
+        rank = str(int(t["rank"])) if pd.notna(t["rank"]) else "-"
+        rows.append([rank, t["name"], t["policy"], *kpis, ci, diff, f"{t['seeds']}/{n}", status])
+    return header, rows
+
+
+def caption(r: Ranking) -> str:
+    t = r.track
+    return (f"Track {t.name} (hash {t.hash}): {t.description}; test seeds {t.test_seeds[0]}..{t.test_seeds[-1]} "
+            f"({len(t.test_seeds)}). Ranked by mean NSW (higher is better); KPIs are mean (25%-75%) over seeds; "
+            "intervals are bootstrap 95%; differences are paired by seed.")
+
+
+def render(r: Ranking, fmt: str = "table") -> str:
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown format {fmt!r}; allowed: {', '.join(FORMATS)}")
+    if fmt == "csv":
+        return r.table.to_csv(index=False)
+    if fmt == "html":
+        return render_html(r)
+    header, rows = _cells(r)
+    if not rows:
+        return f"No submissions on track {r.track.name} yet: run 'wfbench leaderboard seed' or 'submit'."
+    if fmt == "md":
+        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        lines += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in rows]
+        return "\n".join(lines) + "\n\n" + caption(r)
+    widths = [max(len(c) for c in col) for col in zip(header, *rows, strict=True)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths, strict=True))]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
+    return "\n".join(lines) + "\n" + caption(r)
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def _figures(r: Ranking) -> list[tuple[str, str]]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    shown = r.table[r.table["seeds"] > 0]
+    if shown.empty:
+        return []
+    names = shown["name"].tolist()
+    figs = []
+    fig, ax = plt.subplots(figsize=(max(4, 0.8 * len(names) + 2), 3.2))
+    mean = shown["nsw"].to_numpy()
+    err = np.vstack([mean - shown["nsw_ci_low"].to_numpy(), shown["nsw_ci_high"].to_numpy() - mean])
+    ax.bar(range(len(names)), mean, yerr=err, capsize=4, color="#4c72b0")
+    ax.set_xticks(range(len(names)), names, rotation=30, ha="right")
+    ax.set_ylabel("mean NSW (95% CI)")
+    ax.set_ylim(max(0.0, float(np.nanmin(shown["nsw_ci_low"])) - 0.05), min(1.0, float(np.nanmax(mean)) + 0.05))
+    ax.set_title(f"Nash social welfare on {r.track.name}")
+    figs.append(("Nash social welfare with bootstrap 95% intervals", _png(fig)))
+    plt.close(fig)
+    fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
+    for ax, k in zip(axes, KPI_COLUMNS, strict=True):
+        data = [r.per_seed.loc[r.per_seed["name"] == n, k].to_numpy() for n in names]
+        ax.boxplot(data, whis=(5, 95), showfliers=False)
+        ax.set_xticks(range(1, len(names) + 1), names, rotation=30, ha="right", fontsize=8)
+        ax.set_title(KPI_LABELS[k])
+        if k == "utilization":
+            ax.axhspan(0.70, 0.80, color="0.85", zorder=0)
+    fig.tight_layout()
+    figs.append(("Per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%; gray: the 0.75 +- 0.05 utilization band)",
+                 _png(fig)))
+    plt.close(fig)
+    return figs
+
+
+def render_html(r: Ranking) -> str:
+    header, rows = _cells(r)
+    esc = html.escape
+    table = ["<table id='ranking'>", "<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr></thead>",
+             "<tbody>"]
+    for row in rows:
+        table.append("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>")
+    table.append("</tbody></table>")
+    figures = "".join(f"<figure><img alt='{esc(cap)}' src='data:image/png;base64,{data}'>"
+                      f"<figcaption>{esc(cap)}</figcaption></figure>" for cap, data in _figures(r))
+    refused = ""
+    if r.refused:
+        refused = "<h2>Refused rows</h2><ul>" + "".join(f"<li>{esc(m)}</li>" for m in r.refused) + "</ul>"
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>wfbench leaderboard: {esc(r.track.name)}</title>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
+table {{ border-collapse: collapse; font-size: 0.9em; }}
+th, td {{ border: 1px solid #ccc; padding: 0.3em 0.6em; text-align: left; }}
+th {{ background: #f0f0f0; }}
+figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; }}
+</style></head>
+<body>
+<h1>wfbench leaderboard: {esc(r.track.name)}</h1>
+<p>{esc(caption(r))}</p>
+{"".join(table)}
+{figures}
+{refused}
+</body></html>
+"""
