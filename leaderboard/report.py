@@ -127,6 +127,8 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    if r.table.empty:
+        return []
     shown = r.table[r.table["seeds"] > 0]
     if shown.empty:
         return []
@@ -185,5 +187,12 @@ figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; }}
 {"".join(table)}
 {figures}
 {refused}
+<script>
+// lets a test (or a reader's console) confirm the embedded plots decoded
+window.addEventListener("load", () => {{
+  const ok = [...document.images].filter(i => i.complete && i.naturalWidth > 0).length;
+  document.body.dataset.imagesDecoded = String(ok);
+}});
+</script>
 </body></html>
 """

@@ -206,14 +206,17 @@ class Store:
             return self.store.conn
 
         def __exit__(self, exc_type, exc, tb) -> None:
+            conn = self.store.conn
             if exc_type is None:
                 try:
-                    self.store.conn.execute("COMMIT")
+                    conn.execute("COMMIT")
                     return
                 except sqlite3.Error:
-                    self.store.conn.execute("ROLLBACK")
+                    if conn.in_transaction:
+                        conn.execute("ROLLBACK")
                     raise
-            self.store.conn.execute("ROLLBACK")
+            if conn.in_transaction:  # SQLite rolls back by itself on some errors (a full disk)
+                conn.execute("ROLLBACK")
 
     def _tx(self) -> Store._Tx:
         return Store._Tx(self)

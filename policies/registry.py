@@ -102,8 +102,8 @@ def get(spec: Any) -> Any:
             if not hasattr(obj, part):
                 raise ValueError(f"module {module_name!r} has no attribute {attr!r} (policy entry point {spec!r})")
             obj = getattr(obj, part)
-        if not (hasattr(obj, "act") and hasattr(obj, "reset")) and callable(obj):
-            obj = obj()
+        if isinstance(obj, type) or (not (hasattr(obj, "act") and hasattr(obj, "reset")) and callable(obj)):
+            obj = obj()  # a class or a factory
         if not (hasattr(obj, "act") and hasattr(obj, "reset")):
             raise ValueError(f"entry point {spec!r} is not a policy: it needs reset(seeds) and act(obs)")
         return obj
