@@ -106,6 +106,13 @@ def build_parser() -> argparse.ArgumentParser:
     add_backend_args(ld)
     lsub.add_parser("tracks", help="list the tracks with their hashes and seeds")
 
+    rp = sub.add_parser("reproduce", help="regenerate the paper's table2, table3 or figure3")
+    rp.add_argument("target", help="table2, table3 or figure3")
+    rp.add_argument("--out", default="results", help="output folder (default: ./results)")
+    rp.add_argument("--runs", type=_positive, default=50, help="episodes per cell or row (default 50)")
+    rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_backend_args(rp)
+
     s = sub.add_parser("scenarios", help="list the presets, or show one as TOML")
     s.add_argument("name", nargs="?", help="a preset to show")
 
@@ -273,6 +280,45 @@ def cmd_leaderboard(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
 
 
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    import time
+
+    from leaderboard.reproduce import TARGETS
+
+    if args.target not in TARGETS:
+        raise UsageError(f"unknown target {args.target!r}; allowed: {', '.join(TARGETS)}")
+    check_backend_args(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {args.out!r} exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--out {args.out!r}: cannot create the folder: {exc.strerror or exc}") from None
+    t0 = time.perf_counter()
+    bar = None
+    if not args.no_progress:
+        from tqdm.auto import tqdm
+
+        sizes = {"table2": 20, "table3": 8, "figure3": 5}
+        bar = tqdm(total=sizes[args.target], desc=f"reproduce {args.target}", unit="run", leave=False)
+
+    def step(name: str) -> None:
+        if bar:
+            bar.set_postfix_str(name)
+            bar.update(1)
+
+    try:
+        result = TARGETS[args.target](out, runs=args.runs, backend=args.backend, workers=args.workers,
+                                      address=args.address, progress=step)
+    finally:
+        if bar:
+            bar.close()
+    print(result.text)
+    print(f"\nwrote {', '.join(str(f) for f in result.files)} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
 def cmd_scenarios(args: argparse.Namespace) -> int:
     from wfbench.presets import PRESETS
 
@@ -331,7 +377,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"evaluate": cmd_evaluate, "compare": cmd_compare, "leaderboard": cmd_leaderboard,
-            "scenarios": cmd_scenarios, "policies": cmd_policies,
+            "reproduce": cmd_reproduce, "scenarios": cmd_scenarios, "policies": cmd_policies,
             "simulate": cmd_simulate, "bench": cmd_bench}
 
 
