@@ -1,0 +1,81 @@
+"""Paper reproduction commands, and identical numbers from every backend."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from leaderboard.reproduce import table2_trends
+from wfbench.cli import main
+from wfbench.evaluate import evaluate
+from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS
+
+
+def test_backends_give_identical_numbers():
+    seeds = [0, 3, 5, 8, 11]
+    serial = evaluate("heuristic-stochastic", "small", seeds, backend="serial")
+    process = evaluate("heuristic-stochastic", "small", seeds, backend="process", workers=2)
+    ray = evaluate("heuristic-stochastic", "small", seeds, backend="ray", workers=2)
+    pd.testing.assert_frame_equal(serial, process)
+    pd.testing.assert_frame_equal(serial, ray)
+    assert serial["seed"].tolist() == seeds
+
+
+def test_backend_errors():
+    with pytest.raises(ValueError, match="unknown backend 'gpu'; available: serial, process, ray"):
+        evaluate("heuristic", "small", 2, backend="gpu")
+    with pytest.raises(ValueError, match="address='auto' only applies to backend 'ray'"):
+        evaluate("heuristic", "small", 2, backend="serial", address="auto")
+
+
+def test_reproduce_writes_tables_and_figure(tmp_path, capsys):
+    out = tmp_path / "res"
+    assert main(["reproduce", "table3", "--out", str(out), "--runs", "2", "--backend", "serial",
+                 "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "| 4 | Heuristic | Heuristic | Heuristic |" in text and "higher is better" in text
+    assert "46 (42-50) / 0.6 (0.5-0.8) / 0.2 (0.2-0.3) / 4.1 (3-5.1)" in text, "the paper's row 4 beside ours"
+    assert "| 6 | PPO | PPO | PPO | not run yet (RL)" in text
+    df = pd.read_csv(out / "table3.csv")
+    assert df["policy"].tolist()[:4] == ["random", "random-dispatch", "random-positioning", "heuristic"]
+    assert (out / "table3.md").read_text().startswith("Table 3")
+
+    assert main(["reproduce", "table2", "--out", str(out), "--runs", "1", "--backend", "serial",
+                 "--no-progress"]) == 0
+    t2 = pd.read_csv(out / "table2.csv")
+    assert len(t2) == 20 and t2["nsw"].between(0, 1).all()
+    assert t2.loc[(t2.grid == 64) & (t2.facilities == 25) & (t2.personnel == 5), "paper_nsw_cost"].item() == 6.37
+    assert "More personnel is better for 25 facilities" in capsys.readouterr().out
+
+    assert main(["reproduce", "figure3", "--out", str(out), "--runs", "2", "--backend", "serial",
+                 "--no-progress"]) == 0
+    png = (out / "figure3.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+    bands = pd.read_csv(out / "figure3.csv")
+    assert set(bands["kpi"]) == {"workforce_cost", "utilization", "downtime"}
+    assert (bands["q25"] <= bands["q75"]).all()
+
+
+def test_reproduce_bad_input(tmp_path, capsys):
+    assert main(["reproduce", "table9"]) == 2
+    assert "unknown target 'table9'; allowed: table2, table3, figure3" in capsys.readouterr().err
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert main(["reproduce", "table3", "--out", str(f)]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+
+
+def test_table2_trend_counting_by_hand():
+    # a world where everything the paper says holds: NSW rises with personnel, falls with facilities and grid
+    nsw = {}
+    for gi, g in enumerate(TABLE2_GRIDS):
+        for f, s in TABLE2_CELLS:
+            nsw[g, f, s] = 1.0 - 0.1 * gi + 0.01 * s - 0.001 * f
+    trends = table2_trends(nsw)
+    assert all(": holds here:" in t for t in trends), trends
+    assert "8 of 8 pairwise comparisons, monotone in 4 of 4 grids" in trends[0]
+    # flip personnel: it never holds
+    flipped = {k: v - 0.02 * k[2] for k, v in nsw.items()}
+    assert "does not hold here: 0 of 8" in table2_trends(flipped)[0]
+    assert np.isfinite(list(nsw.values())).all()
