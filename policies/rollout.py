@@ -5,7 +5,8 @@ the built-in kernels, step. It calls the same kernels as ``Simulator.step`` and
 ``BuiltinDecision.act``, so its results are identical to stepping the policy through
 the Python API (a test checks this); it only removes the per-step Python overhead.
 Environments are independent, so ``prange`` spreads them over cores without changing a
-bit of any result.
+bit of any result; with one numba thread it is a serial loop (there is no separate
+serial kernel: the whole-episode kernel is the slowest thing to compile).
 """
 
 from __future__ import annotations
@@ -29,10 +30,4 @@ def _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
 @njit(cache=True, parallel=True)
 def rollout_parallel(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
     for b in prange(S.t.shape[0]):
-        _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning)
-
-
-@njit(cache=True)
-def rollout_serial(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
-    for b in range(S.t.shape[0]):
         _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning)

@@ -60,7 +60,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
     """Run full episodes of ``seeds`` as one batch."""
     from policies import get
     from policies.base import Composite
-    from policies.rollout import rollout_parallel, rollout_serial
+    from policies.rollout import rollout_parallel
 
     policy = get(policy)
     sim = Simulator(config, seeds, keep_series=keep_series)
@@ -72,15 +72,14 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
         positioning = np.zeros((B, 2, sim.M), dtype=np.float64)
         args = (sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch, workforce, positioning)
         threads = numba.config.NUMBA_NUM_THREADS if threads is None else threads
-        if threads <= 1 or B == 1:
-            rollout_serial(*args)
-        else:
-            previous = numba.get_num_threads()
-            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-            try:
-                rollout_parallel(*args)
-            finally:
-                numba.set_num_threads(previous)
+        # one compiled rollout serves every thread count (one thread: a serial loop), so the
+        # large whole-episode kernel is compiled once, not twice
+        previous = numba.get_num_threads()
+        numba.set_num_threads(max(1, min(threads, B, numba.config.NUMBA_NUM_THREADS)))
+        try:
+            rollout_parallel(*args)
+        finally:
+            numba.set_num_threads(previous)
     else:
         obs = sim.reset()
         policy.reset(sim.seeds)
