@@ -84,11 +84,12 @@ class BuiltinDecision:
 
     def _ensure_state(self, obs: Obs) -> K.PolicyState:
         B, M = obs.facilities.shape[:2]
-        if self.state is None or self.state.demand.shape != (B, M):
+        N = obs.personnel.shape[1]
+        if self.state is None or self.state.prev_xy.shape[:2] != (B, N) or self.state.demand.shape != (B, M):
             seeds = getattr(self, "_seeds", None)
             if seeds is None or len(seeds) != B:
                 raise RuntimeError(f"{self!r}: call reset(seeds) with {B} seed(s) before act()")
-            self.state = K.allocate_state(B, M)
+            self.state = K.allocate_state(B, M, N)
             d = _DECISION_INDEX[self.decision]
             for b, s in enumerate(seeds):
                 self.state.keys[b, d] = decision_key(s, self.seed, self.decision)
@@ -164,7 +165,7 @@ class Composite:
         """True when every part is a built-in kernel, so a whole episode can run compiled."""
         return all(isinstance(p, BuiltinDecision) for p in self.parts.values())
 
-    def compiled_plan(self, seeds: Sequence[int], M: int) -> tuple[np.ndarray, np.ndarray, K.PolicyState]:
+    def compiled_plan(self, seeds: Sequence[int], M: int, N: int) -> tuple[np.ndarray, np.ndarray, K.PolicyState]:
         """Codes, hyper-parameters and fresh state for :func:`policies.rollout.rollout`."""
         if not self.compiled:
             raise ValueError(f"{self!r} has parts that are not built-in kernels")
@@ -172,7 +173,7 @@ class Composite:
         B = len(seeds)
         codes = np.array([self.parts[d].code for d in AGENTS], dtype=np.int64)
         hp = np.stack([self.parts[d].hp for d in AGENTS])
-        state = K.allocate_state(B, M)
+        state = K.allocate_state(B, M, N)
         for d, decision in enumerate(AGENTS):
             part = self.parts[decision]
             for b, s in enumerate(seeds):

@@ -112,9 +112,11 @@ class PolicyState(NamedTuple):
     rate_prev_down: np.ndarray  # (B, M) int8 staffing: request flag seen at the previous step
     pos_cache: np.ndarray  # (B, 2, M) float64 facility-location: the maps of the last solve
     pos_next: np.ndarray  # (B,) int64 facility-location: step of the next solve
+    prev_xy: np.ndarray  # (B, N, 2) float64 staffing: position at the previous step (NaN: not heading out)
+    speed_seen: np.ndarray  # (B,) float64 staffing: largest one-step move seen while heading out (0: none yet)
 
 
-def allocate_state(B: int, M: int) -> PolicyState:
+def allocate_state(B: int, M: int, N: int) -> PolicyState:
     return PolicyState(
         keys=np.zeros((B, 3), dtype=np.uint64),
         cooldown_until=np.zeros(B, dtype=np.int64),
@@ -125,6 +127,8 @@ def allocate_state(B: int, M: int) -> PolicyState:
         rate_prev_down=np.zeros((B, M), dtype=np.int8),
         pos_cache=np.zeros((B, 2, M), dtype=np.float64),
         pos_next=np.zeros(B, dtype=np.int64),
+        prev_xy=np.full((B, N, 2), np.nan),
+        speed_seen=np.zeros(B, dtype=np.float64),
     )
 
 
@@ -418,7 +422,7 @@ def staffing_target(b, O, S, hp):
             na += 1
     if na > 0:
         travel /= na
-    travel /= hp[HP_SPEED]
+    travel /= S.speed_seen[b] if S.speed_seen[b] > 0.0 else hp[HP_SPEED]
     qsum = 0.0
     n = 0
     for p in range(N):
@@ -453,6 +457,17 @@ def workforce_staffing(b, O, S, hp, key, t):
         S.rate_prev_down[b, f] = down
     a = max(1.0 / (t + 1.0), hp[HP_RATE])
     S.rate[b] = (1.0 - a) * S.rate[b] + a * onsets
+    # learn the travel speed from people heading out (the ``speed`` parameter is only the prior)
+    for p in range(O.personnel.shape[1]):
+        if O.personnel_mask[b, p] == 1 and O.personnel[b, p, 7] > 0.5:
+            x = O.personnel[b, p, 2]
+            y = O.personnel[b, p, 3]
+            if S.prev_xy[b, p, 0] == S.prev_xy[b, p, 0]:  # not NaN: was heading out last step too
+                S.speed_seen[b] = max(S.speed_seen[b], abs(x - S.prev_xy[b, p, 0]) + abs(y - S.prev_xy[b, p, 1]))
+            S.prev_xy[b, p, 0] = x
+            S.prev_xy[b, p, 1] = y
+        else:
+            S.prev_xy[b, p, 0] = np.nan
     if t < hp[HP_WARMUP] or t < S.cooldown_until[b]:
         return 0
     target, h, R = staffing_target(b, O, S, hp)

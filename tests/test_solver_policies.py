@@ -117,7 +117,7 @@ def test_dispatch_methods_agree_on_a_real_episode():
 
 
 def _staffing_state(rate):
-    S = K.allocate_state(1, 4)
+    S = K.allocate_state(1, 4, 3)
     S.rate[0] = rate
     return S
 
@@ -192,3 +192,20 @@ def test_composite_from_three_names():
         get("assignment+staffing")
     with pytest.raises(ValueError, match="unknown workforce policy 'hiring'"):
         get("assignment+hiring+spatial")
+
+
+def test_staffing_learns_the_travel_speed():
+    # facility at (40,0), home at (0,0), a mid-level person heading out 4 cells per step
+    O, obs = _obs(2, 2, [(40, 0, 0)], [(0, 0, 0, 0, 1)])
+    O.personnel[0, 0, 7] = 1.0
+    hp = np.array([K.HP_DEFAULTS[f] for f in K.HP_FIELDS])
+    S = _staffing_state(0.0)
+    K.workforce_staffing(0, O, S, hp, np.uint64(1), 0)
+    assert S.speed_seen[0] == 0.0, "one position is not a move"
+    O.personnel[0, 0, 2] = 4.0
+    K.workforce_staffing(0, O, S, hp, np.uint64(1), 1)
+    assert S.speed_seen[0] == 4.0
+    # travel 40 cells at speed 4 = 10 steps: E[S] = (2 * 10 + 3) / 0.7; rate 0.1 -> R = 3.29 -> 4 (beta 0)
+    S.rate[0] = 0.1
+    target, h, R = K.staffing_target(0, O, S, hp)
+    assert R == pytest.approx(0.1 * 23 / 0.7) and target == 4

@@ -65,7 +65,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
     policy = get(policy)
     sim = Simulator(config, seeds, keep_series=keep_series)
     if isinstance(policy, Composite) and policy.compiled:
-        codes, hp, pstate = policy.compiled_plan(seeds, sim.M)
+        codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
         B = sim.B
         dispatch = np.full((B, sim.M), sim.N, dtype=np.int64)
         workforce = np.zeros(B, dtype=np.int64)
