@@ -191,10 +191,14 @@ def test_full_disk_while_writing_loses_nothing(db):
     assert len(rows_after) == 4 and refused == []
 
 
-def test_cli_errors_are_one_line_and_exit_2(tmp_path, capsys):
+def test_cli_errors_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch):
     bad = tmp_path / "x.sqlite"
     bad.write_bytes(b"garbage" * 10)
+    taken = tmp_path / "taken.sqlite"
+    submit(TINY, "heuristic", "mine", db=taken, **_fast())
+    monkeypatch.setitem(TRACKS, TINY.name, TINY)  # reachable from the command line for this test
     cases = [
+        ["leaderboard", "submit", "--policy", "random", "--name", "mine", "--track", TINY.name, "--db", str(taken)],
         ["leaderboard", "show", "--track", "nope"],
         ["leaderboard", "show", "--db", str(bad)],
         ["leaderboard", "show", "--format", "pdf", "--db", str(tmp_path / "a.sqlite")],
@@ -207,6 +211,7 @@ def test_cli_errors_are_one_line_and_exit_2(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and err.startswith("wfbench: error: "), (argv, err)
     assert bad.read_bytes() == b"garbage" * 10
+    assert len(Store(taken).results(TINY)[0]) == 4, "the taken entry is intact"
 
 
 def test_reports_in_every_format(db, tmp_path):
