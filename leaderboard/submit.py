@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import getpass
 import multiprocessing as mp
+import os
+import signal
 import time
 import traceback
 from dataclasses import dataclass
@@ -59,7 +61,15 @@ def _rows(batch: Any) -> list[dict[str, Any]]:
 
 
 def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chunk_size, memory_mb) -> None:
-    """Runs in the child process: load the policy, then stream finished rows to the parent."""
+    """Runs in the child process: load the policy, then stream finished rows to the parent.
+
+    The child leads its own process group, so the parent can stop it together with any
+    worker processes it started.
+    """
+    try:
+        os.setsid()
+    except OSError:  # already a group leader
+        pass
     if memory_mb:
         try:
             import resource
@@ -77,12 +87,13 @@ def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chu
         return
     conn.send(("ready",))
     try:
-        from wfbench.backends import run_chunks
+        from wfbench.backends import run_chunks, shutdown_pools
 
         target = policy if backend == "serial" else policy_spec
         for batch in run_chunks(target, config, seeds, backend=backend, workers=workers, address=address,
                                 chunk_size=chunk_size, threads=1 if backend == "serial" else None):
             conn.send(("rows", _rows(batch)))
+        shutdown_pools()  # before saying done: the parent may stop this process right after
         conn.send(("done",))
     except MemoryError:
         conn.send(("error", f"the policy ran out of memory (limit {memory_mb} MiB)"))
@@ -189,9 +200,9 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     finally:
         if bar:
             bar.close()
-        if proc.is_alive():
-            proc.kill()
-        proc.join(10)
+        if status == "complete":
+            proc.join(30)  # it says done after shutting its workers down; let it exit cleanly
+        _stop(proc)
         parent_conn.close()
     if sub is None:  # the child died before loading the policy
         raise SubmitError(f"the evaluation of {policy!r} could not start: {reason}")
@@ -203,10 +214,18 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                    time.perf_counter() - t0)
 
 
+def _stop(proc) -> None:
+    """Kill the child's whole process group (it and any workers it started), then reap it."""
+    if proc.pid is not None:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    proc.join(10)
+
+
 def _death_reason(exitcode: int | None, memory_mb: int | None) -> str:
     if exitcode is not None and exitcode < 0:
-        import signal
-
         try:
             sig = signal.Signals(-exitcode).name
         except ValueError:

@@ -252,3 +252,27 @@ def test_html_report_renders_in_headless_chromium(db, tmp_path):
     assert "<table id=\"ranking\">" in dom, out.stderr[-2000:]
     assert dom.count("<tr>") == 4  # header + 3 entries
     assert 'data-images-decoded="2"' in dom, "the browser decoded both embedded plots"
+
+
+def _orphan_workers() -> set[int]:
+    """Spawned multiprocessing workers whose parent is gone (re-parented to init)."""
+    out = set()
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ")
+            ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        if ppid == 1 and b"multiprocessing.spawn" in cmd:
+            out.add(int(d.name))
+    return out
+
+
+@pytest.mark.parametrize("policy", ["heuristic", "tests.lb_policies:Raises"])
+def test_a_submission_leaves_no_worker_processes_behind(db, policy):
+    before = _orphan_workers()
+    submit(TINY, policy, "pool", db=db, backend="process", workers=2, chunk_size=1)
+    time.sleep(0.5)
+    assert _orphan_workers() - before == set()

@@ -65,6 +65,13 @@ def process_pool(workers: int) -> ProcessPoolExecutor:
     return pool
 
 
+def shutdown_pools() -> None:
+    """Stop the shared worker pools now (they also stop at interpreter exit)."""
+    while _POOLS:
+        _, pool = _POOLS.popitem()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _run_chunk(args: tuple) -> Any:
     from wfbench.evaluate import run_batch
 
