@@ -14,6 +14,7 @@ from leaderboard.store import KPI_COLUMNS, Store
 from leaderboard.tracks import Track
 from wfbench.evaluate import KPI_LABELS, format_kpi
 from wfbench.stats import bootstrap_ci, paired_difference
+from wfbench.tables import markdown_table, text_table
 
 FORMATS = ("table", "md", "csv", "html")
 
@@ -106,13 +107,8 @@ def render(r: Ranking, fmt: str = "table") -> str:
     if not rows:
         return f"No submissions on track {r.track.name} yet: run 'wfbench leaderboard seed' or 'submit'."
     if fmt == "md":
-        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        lines += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in rows]
-        return "\n".join(lines) + "\n\n" + caption(r)
-    widths = [max(len(c) for c in col) for col in zip(header, *rows, strict=True)]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths, strict=True))]
-    lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
-    return "\n".join(lines) + "\n" + caption(r)
+        return markdown_table(header, rows) + "\n\n" + caption(r)
+    return text_table(header, rows) + "\n" + caption(r)
 
 
 def _png(fig) -> str:

@@ -18,6 +18,7 @@ import pandas as pd
 
 from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
 from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
+from wfbench.tables import markdown_table
 
 DIRECTION = ("Direction: our NSW is DESIGN.md's welfare in [0, 1], higher is better; the paper's NSW column is a "
              "cost, lower is better. Compare orderings and trends, not values.")
@@ -55,12 +56,6 @@ class Output:
     files: list[Path]
 
 
-def _md_table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
-
-
 def _write(out: Path, stem: str, md: str, df: pd.DataFrame) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     md_path, csv_path = out / f"{stem}.md", out / f"{stem}.csv"
@@ -94,7 +89,7 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     trends = table2_trends(nsw)
     md = "\n".join([
         f"Table 2: NSW (mean over {runs} runs), heuristic dispatch, fixed workforce (no hiring or letting go).",
-        "", _md_table(header, rows), "", DIRECTION, "", "Trends the paper states, checked here:", "",
+        "", markdown_table(header, rows), "", DIRECTION, "", "Trends the paper states, checked here:", "",
         *[f"- {t}" for t in trends],
     ])
     return Output(md, _write(out, "table2", md, pd.DataFrame(records)))
@@ -161,7 +156,7 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     md = "\n".join([
         f"Table 3: paper-64, seeds 0-{runs - 1}; KPIs mean (25%-75%) over runs. Rows 1-4 are the paper's "
         "combinations; S1-S4 are wfbench's solver rows; rows 5-7 (PPO, IMPALA) are open until the RL work lands.",
-        "", _md_table(header, rows), "", DIRECTION,
+        "", markdown_table(header, rows), "", DIRECTION,
     ])
     return Output(md, _write(out, "table3", md, pd.DataFrame(records)))
 

@@ -179,16 +179,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         print(json.dumps({"policy": args.policy, "scenario": config.name, "seeds": seeds,
                           "summary": {k: dict(zip(("mean", "q25", "q75"), v)) for k, v in summary.items()}}, indent=2))
     else:
-        cells = [format_kpi(*summary[k]) for k in KPIS]
+        from wfbench.tables import markdown_table, text_table
+
         header = ["Policy", *[KPI_LABELS[k] for k in KPIS]]
-        if args.format == "md":
-            print("| " + " | ".join(header) + " |")
-            print("|" + "---|" * len(header))
-            print("| " + " | ".join([args.policy, *cells]) + " |")
-        else:
-            widths = [max(len(h), len(c)) for h, c in zip(header, [args.policy, *cells])]
-            print("  ".join(h.ljust(w) for h, w in zip(header, widths)))
-            print("  ".join(c.ljust(w) for c, w in zip([args.policy, *cells], widths)))
+        rows = [[args.policy, *[format_kpi(*summary[k]) for k in KPIS]]]
+        print((markdown_table if args.format == "md" else text_table)(header, rows))
         print(f"{config.name}, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}): mean (25%-75%) over seeds of the "
               "episode means; NSW higher is better.")
     return 0

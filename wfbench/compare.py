@@ -10,6 +10,7 @@ import pandas as pd
 from wfbench.config import ScenarioConfig
 from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, resolve_seeds, summarize
 from wfbench.stats import bootstrap_ci, paired_difference
+from wfbench.tables import markdown_table, text_table
 
 
 def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | Iterable[int] = 50,
@@ -66,10 +67,5 @@ def format_comparison(df: pd.DataFrame, fmt: str = "table") -> str:
     if fmt == "csv":
         return df.to_csv(index=False)
     if fmt == "md":
-        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        lines += ["| " + " | ".join(r) + " |" for r in rows]
-        return "\n".join(lines)
-    widths = [max(len(c) for c in col) for col in zip(header, *rows, strict=True)]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths, strict=True))]
-    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
-    return "\n".join(lines)
+        return markdown_table(header, rows)
+    return text_table(header, rows)
