@@ -23,7 +23,7 @@ import traceback
 from dataclasses import dataclass
 from typing import Any
 
-from leaderboard.store import Store, Submission
+from leaderboard.store import ROW_COLUMNS, Store, Submission
 from leaderboard.tracks import Track, get_track
 from wfbench import __version__
 
@@ -45,19 +45,6 @@ class Outcome:
     new_rows: int
     stored_rows: int
     seconds: float
-
-
-def _rows(batch: Any) -> list[dict[str, Any]]:
-    from wfbench.state import INVALID_COUNTERS
-
-    out = []
-    for i, seed in enumerate(batch.seeds):
-        row = {k: float(batch.means[k][i]) for k in ("workforce_cost", "utilization", "downtime", "nsw")}
-        row["seed"] = int(seed)
-        row["episode_length"] = int(batch.steps[i])
-        row["invalid_actions"] = int(sum(batch.counters[c][i] for c in INVALID_COUNTERS))
-        out.append(row)
-    return out
 
 
 def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chunk_size, memory_mb) -> None:
@@ -88,11 +75,13 @@ def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chu
     conn.send(("ready",))
     try:
         from wfbench.backends import run_chunks, shutdown_pools
+        from wfbench.evaluate import _frame
 
         target = policy if backend == "serial" else policy_spec
         for batch in run_chunks(target, config, seeds, backend=backend, workers=workers, address=address,
                                 chunk_size=chunk_size, threads=1 if backend == "serial" else None):
-            conn.send(("rows", _rows(batch)))
+            rows = _frame([batch], config, policy_spec)[["seed", *ROW_COLUMNS]].to_dict("records")
+            conn.send(("rows", rows))
         shutdown_pools()  # before saying done: the parent may stop this process right after
         conn.send(("done",))
     except MemoryError:

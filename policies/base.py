@@ -56,22 +56,27 @@ def seeds_array(seeds: int | Sequence[int]) -> np.ndarray:
     return arr
 
 
+def hp_vector(hp: dict[str, float], name: str) -> np.ndarray:
+    """The hyper-parameter vector (``policies.kernels.HP_FIELDS`` order) with ``hp`` over the defaults."""
+    unknown = set(hp) - set(K.HP_FIELDS)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {sorted(unknown)} for {name}; allowed: {list(K.HP_FIELDS)}")
+    params = dict(K.HP_DEFAULTS, **hp)
+    return np.array([float(params[f]) for f in K.HP_FIELDS])
+
+
 class BuiltinDecision:
     """One decision made by a compiled kernel (see :mod:`policies.kernels` for the codes)."""
 
     def __init__(self, decision: str, code: int, name: str, seed: int = 0, **hp: float):
         if decision not in _DECISION_INDEX:
             raise ValueError(f"unknown decision {decision!r}; allowed: {AGENTS}")
-        unknown = set(hp) - set(K.HP_FIELDS)
-        if unknown:
-            raise ValueError(f"unknown parameter(s) {sorted(unknown)} for {name}; allowed: {list(K.HP_FIELDS)}")
+        self.hp = hp_vector(hp, name)
         self.decisions = (decision,)
         self.decision = decision
         self.code = int(code)
         self.name = name
         self.seed = int(seed)
-        params = dict(K.HP_DEFAULTS, **hp)
-        self.hp = np.array([float(params[f]) for f in K.HP_FIELDS])
         self.state: K.PolicyState | None = None
 
     def __repr__(self) -> str:

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from policies import kernels as K
-from policies.base import as_obs, seeds_array
+from policies.base import as_obs, hp_vector, seeds_array
 from solvers import assignment
 
 
@@ -32,14 +32,10 @@ class AssignmentDispatch:
     def __init__(self, method: str = "exact", lp_solver: str = "HIGHS", name: str | None = None, **hp: float):
         if method not in assignment.METHODS:
             raise ValueError(f"method={method!r} is not allowed; allowed: {', '.join(assignment.METHODS)}")
-        unknown = set(hp) - set(K.HP_FIELDS)
-        if unknown:
-            raise ValueError(f"unknown parameter(s) {sorted(unknown)}; allowed: {list(K.HP_FIELDS)}")
-        params = dict(K.HP_DEFAULTS, **hp)
-        self.hp = np.array([float(params[f]) for f in K.HP_FIELDS])
+        self.name = name or f"assignment-{method}"
+        self.hp = hp_vector(hp, self.name)
         self.method = method
         self.lp_solver = lp_solver
-        self.name = name or f"assignment-{method}"
         self.solve_time_s = 0.0  # total time inside the solver, for the benchmarks
 
     def __repr__(self) -> str:
