@@ -130,29 +130,25 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     header = ["#", "Dispatch", "Workforce mgmt", "Positioning", *[KPI_LABELS[k] for k in KPIS],
               "Paper: WC / PUR / AFD / NSW (cost)"]
     rows, records = [], []
+    def run(num: str, policy: str, parts: tuple[str, str, str], paper_text: str, paper_cell: str) -> None:
+        if progress:
+            progress(policy)
+        summ = summarize(evaluate(policy, "paper-64", seeds, backend=backend, workers=workers, address=address))
+        rows.append([num, *parts, *[format_kpi(*summ[k]) for k in KPIS], paper_cell])
+        records.append({"row": num, "policy": policy, **{k: summ[k][0] for k in KPIS},
+                        **{f"{k}_q25": summ[k][1] for k in KPIS}, **{f"{k}_q75": summ[k][2] for k in KPIS},
+                        "paper": paper_text})
+
     for num, d, w, p, *paper in PAPER_TABLE3:
         policy = TABLE3_POLICIES[num]
         paper_text = " / ".join(paper)
         if policy is None:
             rows.append([num, d, w, p, "not run yet (RL)", *["-"] * (len(KPIS) - 1), paper_text])
-            continue
-        if progress:
-            progress(policy)
-        summ = summarize(evaluate(policy, "paper-64", seeds, backend=backend, workers=workers, address=address))
-        rows.append([num, d, w, p, *[format_kpi(*summ[k]) for k in KPIS], paper_text])
-        records.append({"row": num, "policy": policy, **{k: summ[k][0] for k in KPIS},
-                        **{f"{k}_q25": summ[k][1] for k in KPIS}, **{f"{k}_q75": summ[k][2] for k in KPIS},
-                        "paper": paper_text})
+        else:
+            run(num, policy, (d, w, p), paper_text, paper_text)
     if solver_rows:
         for num, policy in SOLVER_ROWS:
-            if progress:
-                progress(policy)
-            summ = summarize(evaluate(policy, "paper-64", seeds, backend=backend, workers=workers,
-                                      address=address))
-            rows.append([num, *SOLVER_PARTS[policy], *[format_kpi(*summ[k]) for k in KPIS], "(not in the paper)"])
-            records.append({"row": num, "policy": policy, **{k: summ[k][0] for k in KPIS},
-                            **{f"{k}_q25": summ[k][1] for k in KPIS}, **{f"{k}_q75": summ[k][2] for k in KPIS},
-                            "paper": ""})
+            run(num, policy, SOLVER_PARTS[policy], "", "(not in the paper)")
     md = "\n".join([
         f"Table 3: paper-64, seeds 0-{runs - 1}; KPIs mean (25%-75%) over runs. Rows 1-4 are the paper's "
         "combinations; S1-S4 are wfbench's solver rows; rows 5-7 (PPO, IMPALA) are open until the RL work lands.",
