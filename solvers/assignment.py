@@ -156,17 +156,11 @@ def _lp_round(C, allowed, u, x):
     sol = _exact(C, support, u)
     if sol is not None:
         return sol, "support"
-    n, m = C.shape
-    W = np.where(allowed, -x, np.inf)
-    if u is not None:
-        dummy = np.full((n, n), np.inf)
-        np.fill_diagonal(dummy, -(1.0 - x.sum(axis=1)))
-        W = np.hstack([W, dummy])
-    r, c = linear_sum_assignment(W)
-    out = np.full(n, -1, dtype=np.int64)
-    keep = c < m
-    out[r[keep]] = c[keep]
-    return out, "max-mass"
+    # the assignment that keeps the most LP mass: leaving row i open "keeps" 1 - sum_j x_ij
+    sol = _exact(-x, allowed, None if u is None else -(1.0 - x.sum(axis=1)))
+    if sol is None:  # the LP was feasible, so the allowed pairs do admit an assignment
+        raise RuntimeError("LP rounding found no assignment on pairs the LP called feasible")
+    return sol, "max-mass"
 
 
 class AssignmentLP:
