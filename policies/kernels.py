@@ -134,6 +134,12 @@ def allocate_state(B: int, M: int, N: int) -> PolicyState:
 
 # -- dispatch -----------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
+def _dist_to(O, b, f, x, y):
+    """Manhattan distance from the cell (x, y) to facility slot f."""
+    return abs(x - O.facilities[b, f, 0]) + abs(y - O.facilities[b, f, 1])
+
+
+@njit(cache=True, inline="always")
 def _dist(O, b, f, p):
     return abs(O.personnel[b, p, 2] - O.facilities[b, f, 0]) + abs(O.personnel[b, p, 3] - O.facilities[b, f, 1])
 
@@ -416,7 +422,7 @@ def staffing_target(b, O, S, hp):
         if O.facility_mask[b, f] == 1 and h > 0:
             best = np.inf
             for k in range(h):
-                d = abs(hx[k] - O.facilities[b, f, 0]) + abs(hy[k] - O.facilities[b, f, 1])
+                d = _dist_to(O, b, f, hx[k], hy[k])
                 best = min(best, d)
             travel += best
             na += 1
@@ -597,8 +603,7 @@ def positioning_facility(b, O, S, hp, out, t):
         for j in range(ns):
             fi = sites[i]
             fj = sites[j]
-            dx = abs(O.facilities[b, fi, 0] - O.facilities[b, fj, 0])
-            C[i, j] = w[j] * (dx + abs(O.facilities[b, fi, 1] - O.facilities[b, fj, 1]))
+            C[i, j] = w[j] * _dist_to(O, b, fj, O.facilities[b, fi, 0], O.facilities[b, fi, 1])
     hx = np.empty(N)
     hy = np.empty(N)
     h = _retained_homes(b, O, hx, hy)
@@ -623,7 +628,7 @@ def positioning_facility(b, O, S, hp, out, t):
             for r in range(h):
                 for c in range(p_med):
                     f = sites[med[c]]
-                    D[r, c] = abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1])
+                    D[r, c] = _dist_to(O, b, f, hx[r], hy[r])
             col4row = np.empty(h, dtype=np.int64)
             lap_min(D, col4row)
             taken = np.zeros(p_med, dtype=np.bool_)
@@ -640,7 +645,7 @@ def positioning_facility(b, O, S, hp, out, t):
             f = sites[j]
             near = np.inf
             for r in range(h):
-                near = min(near, abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1]))
+                near = min(near, _dist_to(O, b, f, hx[r], hy[r]))
             if w[j] * near > best:
                 best = w[j] * near
                 hire = j
@@ -654,7 +659,7 @@ def positioning_facility(b, O, S, hp, out, t):
             d2 = np.inf
             a1 = -1
             for r in range(h):
-                d = abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1])
+                d = _dist_to(O, b, f, hx[r], hy[r])
                 if d < d1:
                     d2 = d1
                     d1 = d
@@ -669,7 +674,7 @@ def positioning_facility(b, O, S, hp, out, t):
             best = np.inf
             for j in range(ns):
                 f = sites[j]
-                d = abs(hx[r] - O.facilities[b, f, 0]) + abs(hy[r] - O.facilities[b, f, 1])
+                d = _dist_to(O, b, f, hx[r], hy[r])
                 if d < best:
                     best = d
                     near = f
