@@ -12,7 +12,7 @@ import pandas as pd
 
 from leaderboard.store import KPI_COLUMNS, Store
 from leaderboard.tracks import Track
-from wfbench.evaluate import KPI_LABELS, format_kpi
+from wfbench.evaluate import KPI_LABELS, format_kpi, summarize
 from wfbench.stats import bootstrap_ci, paired_difference
 from wfbench.tables import markdown_table, text_table
 
@@ -46,9 +46,8 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
                "reason": sub.reason, "seeds": len(mine), "builtin": sub.builtin}
         rec["ranked"] = sub.status == "complete" and len(mine) == n_test
         if len(mine):
-            for k in KPI_COLUMNS:
-                v = mine[k].to_numpy()
-                rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = v.mean(), np.quantile(v, 0.25), np.quantile(v, 0.75)
+            for k, (mean, q25, q75) in summarize(mine, KPI_COLUMNS).items():
+                rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = mean, q25, q75
             ci = bootstrap_ci(mine["nsw"].to_numpy())
             rec["nsw_ci_low"], rec["nsw_ci_high"] = ci.low, ci.high
             common = mine.set_index("seed")["nsw"].align(base, join="inner")
