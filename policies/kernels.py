@@ -114,6 +114,11 @@ class PolicyState(NamedTuple):
     pos_next: np.ndarray  # (B,) int64 facility-location: step of the next solve
     prev_xy: np.ndarray  # (B, N, 2) float64 staffing: position at the previous step (NaN: not heading out)
     speed_seen: np.ndarray  # (B,) float64 staffing: largest one-step move seen while heading out (0: none yet)
+    # scratch space of the dispatch kernels, so that they allocate nothing per step
+    req_buf: np.ndarray  # (B, M) int64
+    per_buf: np.ndarray  # (B, N) int64
+    w_buf: np.ndarray  # (B, N) float64
+    used_buf: np.ndarray  # (B, N) bool
 
 
 def allocate_state(B: int, M: int, N: int) -> PolicyState:
@@ -129,6 +134,10 @@ def allocate_state(B: int, M: int, N: int) -> PolicyState:
         pos_next=np.zeros(B, dtype=np.int64),
         prev_xy=np.full((B, N, 2), np.nan),
         speed_seen=np.zeros(B, dtype=np.float64),
+        req_buf=np.zeros((B, M), dtype=np.int64),
+        per_buf=np.zeros((B, N), dtype=np.int64),
+        w_buf=np.zeros((B, N), dtype=np.float64),
+        used_buf=np.zeros((B, N), dtype=np.bool_),
     )
 
 
@@ -144,37 +153,51 @@ def _dist(O, b, f, p):
     return abs(O.personnel[b, p, 2] - O.facilities[b, f, 0]) + abs(O.personnel[b, p, 3] - O.facilities[b, f, 1])
 
 
-@njit(cache=True)
-def open_requests_and_free_people(b, O):
-    """Slots of the open unassigned requests and of the dispatchable people, in slot order."""
-    M = O.facilities.shape[1]
-    N = O.personnel.shape[1]
-    reqs = np.empty(M, dtype=np.int64)
+@njit(cache=True, inline="always")
+def fill_open_requests_and_free_people(b, O, reqs, people):
+    """Slots of the open unassigned requests and of the dispatchable people, in slot order.
+
+    They are written into ``reqs`` (M,) and ``people`` (N,); returns their counts.
+    """
     nr = 0
-    for f in range(M):
+    for f in range(O.facilities.shape[1]):
         if O.requesting[b, f] == 1:
             reqs[nr] = f
             nr += 1
-    people = np.empty(N, dtype=np.int64)
     npl = 0
-    for p in range(N):
+    for p in range(O.personnel.shape[1]):
         if O.dispatchable[b, p] == 1:
             people[npl] = p
             npl += 1
+    return nr, npl
+
+
+@njit(cache=True)
+def open_requests_and_free_people(b, O):
+    """Slots of the open unassigned requests and of the dispatchable people, in slot order."""
+    reqs = np.empty(O.facilities.shape[1], dtype=np.int64)
+    people = np.empty(O.personnel.shape[1], dtype=np.int64)
+    nr, npl = fill_open_requests_and_free_people(b, O, reqs, people)
     return reqs[:nr], people[:npl]
 
 
 @njit(cache=True, inline="always")
-def dispatch_nearest(b, O, out):
+def _remove_at(a, i, n):
+    """Remove item i of the first n of ``a``, keeping the others in order."""
+    for k in range(i, n - 1):
+        a[k] = a[k + 1]
+
+
+@njit(cache=True, inline="always")
+def dispatch_nearest(b, O, out, reqs, people):
     """Greedy: repeatedly send the closest (dispatchable person, open request) pair.
 
     Distance is Manhattan from the person's current position. Ties go to the lowest
-    facility slot, then the lowest person slot.
+    facility slot, then the lowest person slot. ``reqs`` (M,) and ``people`` (N,) are
+    scratch space.
     """
     out[:] = O.personnel.shape[1]
-    reqs, people = open_requests_and_free_people(b, O)
-    nr = reqs.shape[0]
-    npl = people.shape[0]
+    nr, npl = fill_open_requests_and_free_people(b, O, reqs, people)
     while nr > 0 and npl > 0:
         best = np.inf
         bi = -1
@@ -187,23 +210,23 @@ def dispatch_nearest(b, O, out):
                     bi = i
                     bj = j
         out[reqs[bi]] = people[bj]
-        reqs[bi] = reqs[nr - 1]
+        # both lists stay in slot order so that ties stay lowest-slot first
+        _remove_at(reqs, bi, nr)
         nr -= 1
-        people[bj] = people[npl - 1]
+        _remove_at(people, bj, npl)
         npl -= 1
-        # keep both lists in slot order so that ties stay lowest-slot first
-        reqs[:nr].sort()
-        people[:npl].sort()
 
 
-@njit(cache=True)
-def dispatch_inverse_distance(b, O, out, key, t):
-    """For each open request in slot order, sample a free person with probability ~ 1 / (1 + distance)."""
+@njit(cache=True, inline="always")
+def dispatch_inverse_distance(b, O, out, key, t, used, w):
+    """For each open request in slot order, sample a free person with probability ~ 1 / (1 + distance).
+
+    ``used`` (N,) bool and ``w`` (N,) float are scratch space.
+    """
     M = O.facilities.shape[1]
     N = O.personnel.shape[1]
     out[:] = N
-    used = np.zeros(N, dtype=np.bool_)
-    w = np.empty(N)
+    used[:] = False
     for f in range(M):
         if O.requesting[b, f] != 1:
             continue
@@ -229,13 +252,16 @@ def dispatch_inverse_distance(b, O, out, key, t):
         used[pick] = True
 
 
-@njit(cache=True)
-def dispatch_random(b, O, out, key, t):
-    """For each open request in slot order, uniformly one of: no-op or any still-free dispatchable person."""
+@njit(cache=True, inline="always")
+def dispatch_random(b, O, out, key, t, used):
+    """For each open request in slot order, uniformly one of: no-op or any still-free dispatchable person.
+
+    ``used`` (N,) bool is scratch space.
+    """
     M = O.facilities.shape[1]
     N = O.personnel.shape[1]
     out[:] = N
-    used = np.zeros(N, dtype=np.bool_)
+    used[:] = False
     for f in range(M):
         if O.requesting[b, f] != 1:
             continue
@@ -277,7 +303,7 @@ def assignment_costs(b, O, hp, reqs, people):
     return C
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
 def dispatch_assignment(b, O, out, hp):
     """Optimal assignment of the dispatchable people to the open requests (:func:`assignment_costs`).
 
@@ -444,7 +470,7 @@ def staffing_target(b, O, S, hp):
     return max(1, sqrt_staffing_servers(R, hp[HP_BETA])), h, R
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
 def workforce_staffing(b, O, S, hp, key, t):
     """Hire or let go toward the square-root-staffing headcount (:func:`staffing_target`).
 
@@ -512,8 +538,14 @@ def positioning_spatial(b, O, S, hp, out, key, t, noise):
     come from where it is not. ``noise > 0`` multiplies the demand by
     ``exp(noise * N(0, 1))`` per facility (the Gaussian-sampling variant).
     """
-    M = O.facilities.shape[1]
     observe_history(b, O, S, hp)
+    spatial_weights(b, O, S, hp, out, key, t, noise)
+
+
+@njit(cache=True, inline="always")
+def spatial_weights(b, O, S, hp, out, key, t, noise):
+    """The two rows of :func:`positioning_spatial` from the demand history as it stands."""
+    M = O.facilities.shape[1]
     max_r = 0.0
     max_d = 0.0
     for f in range(M):
@@ -550,7 +582,7 @@ def positioning_random(b, O, out, key, t):
         out[1, f] = uniform(key, STREAM_POLICY_POSITIONING, t, f, 2)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
 def positioning_facility(b, O, S, hp, out, t):
     """p-median positioning: hire where the demand's p-median lacks a person, let go the cheapest loss.
 
@@ -685,15 +717,25 @@ def positioning_facility(b, O, S, hp, out, t):
 
 # -- one environment, all three decisions --------------------------------------------------------
 @njit(cache=True, inline="always")
-def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t):
-    """Fill the three decisions of environment b for the given codes (``hp`` has a row per decision)."""
+def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
+    """Fill the three decisions of environment b for the given codes (``hp`` has a row per decision).
+
+    ``lazy`` (the compiled rollout, where all three decisions are built in) skips the
+    spatial positioning weights on steps whose workforce action is the no-op: the step
+    does not read them then, and the demand history they come from is still updated, so
+    the episode is the same. ``Policy.act`` always fills them (another agent may hire).
+
+    Callers compile this without numba's runtime (see ``wfbench.dynamics.step_env``): the
+    heuristic and random kernels work in the scratch arrays of the policy state, and the
+    solver kernels, which allocate, are compiled with ``_nrt=True`` set explicitly.
+    """
     dc = codes[0]
     if dc == D_NEAREST:
-        dispatch_nearest(b, O, dispatch[b])
+        dispatch_nearest(b, O, dispatch[b], S.req_buf[b], S.per_buf[b])
     elif dc == D_INVERSE:
-        dispatch_inverse_distance(b, O, dispatch[b], S.keys[b, 0], t)
+        dispatch_inverse_distance(b, O, dispatch[b], S.keys[b, 0], t, S.used_buf[b], S.w_buf[b])
     elif dc == D_RANDOM:
-        dispatch_random(b, O, dispatch[b], S.keys[b, 0], t)
+        dispatch_random(b, O, dispatch[b], S.keys[b, 0], t, S.used_buf[b])
     elif dc == D_ASSIGN:
         dispatch_assignment(b, O, dispatch[b], hp[0])
     else:
@@ -712,7 +754,9 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t):
         workforce[b] = 0
     pc = codes[2]
     hpp = hp[2]
-    if pc == P_SPATIAL:
+    if (pc == P_SPATIAL or pc == P_GAUSSIAN) and lazy and workforce[b] == 0:
+        observe_history(b, O, S, hpp)
+    elif pc == P_SPATIAL:
         positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, 0.0)
     elif pc == P_GAUSSIAN:
         positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, hpp[HP_NOISE])
@@ -724,7 +768,7 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t):
         positioning[b, :, :] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)  # see act_env
 def act_batch(O, S, codes, hp, dispatch, workforce, positioning, t):
     for b in range(O.facilities.shape[0]):
-        act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t[b])
+        act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t[b], False)

@@ -18,12 +18,12 @@ from wfbench.dynamics import reset_env, step_env
 from wfbench.observe import observe_env
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)  # no reference counting in the episode loop (see wfbench.dynamics.step_env)
 def _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
     reset_env(b, S, Tr, P)
     while S.t[b] < P.horizon:
         observe_env(b, S, P, O, False)
-        act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b])
+        act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b], True)
         step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
 
 

@@ -8,8 +8,8 @@ rule with its source):
    over and who is idle or returning leaves), facility exits, facility arrivals
    (lowest free slot; dropped when none is free), then failures of operational
    facilities (each spends ``request_hazard[t]`` of its exponential clock).
-2. ``apply_actions``: dispatch (facility by facility in slot order), then the
-   workforce action with its positioning weights. Impossible actions are ignored
+2. ``apply_dispatch`` (facility by facility in slot order), then ``apply_workforce``
+   (the workforce action with its positioning weights). Impossible actions are ignored
    and counted.
 3. ``advance``: downtime is recorded, then every person moves ``speed`` cells
    (Manhattan, x first) or services; a visit's end draws its repair outcome.
@@ -207,42 +207,59 @@ def exogenous(b, S, Tr, P):
     M = S.fac_active.shape[1]
     N = S.per_status.shape[1]
     key = Tr.key[b]
+    status = S.per_status
+    ready = S.per_ready
+    leave = S.per_leave
+    fac_active = S.fac_active
+    fac_leave = S.fac_leave
+    fac_down = S.fac_down
+    fac_ok_since = S.fac_ok_since
+    fac_hazard = S.fac_hazard
     # workforce transitions due at t
     for p in range(N):
-        st = S.per_status[b, p]
-        if st == ONBOARDING and S.per_ready[b, p] <= t:
-            S.per_status[b, p] = IDLE
+        st = status[b, p]
+        if st == ONBOARDING and ready[b, p] <= t:
+            status[b, p] = IDLE
             S.per_since[b, p] = t
-        elif S.per_leave[b, p] >= 0 and S.per_leave[b, p] <= t and (st == IDLE or st == RETURNING):
+        elif leave[b, p] >= 0 and leave[b, p] <= t and (st == IDLE or st == RETURNING):
             _remove_person(b, p, S)
-    # facility exits, then arrivals into the lowest free slot
+    # facility exits, and failures: operational facilities spend their failure clock. One
+    # pass does both: a slot that exits is inactive for the failure rule, and an arrival
+    # (below) only fills an inactive slot and cannot fail in its first step
+    lam = P.request_hazard[t]
     for f in range(M):
-        if S.fac_active[b, f] and S.fac_leave[b, f] <= t:
+        if not fac_active[b, f]:
+            continue
+        if fac_leave[b, f] <= t:
             _deactivate_facility(b, f, S)
+        elif not fac_down[b, f] and fac_ok_since[b, f] < t:
+            fac_hazard[b, f] -= lam
+            if fac_hazard[b, f] <= 0.0:
+                _open_request(b, f, S)
+    # arrivals into the lowest free slot
     A = Tr.arr_t.shape[1]
-    while S.arr_ptr[b] < A and Tr.arr_t[b, S.arr_ptr[b]] <= t:
+    arr_t = Tr.arr_t
+    while S.arr_ptr[b] < A and arr_t[b, S.arr_ptr[b]] <= t:
         a = S.arr_ptr[b]
         S.arr_ptr[b] += 1
         slot = -1
         for f in range(M):
-            if not S.fac_active[b, f]:
+            if not fac_active[b, f]:
                 slot = f
                 break
         if slot < 0:
             S.counters[b, C_DROPPED] += 1
             continue
         _activate_facility(b, slot, Tr.arr_x[b, a], Tr.arr_y[b, a], Tr.arr_leave[b, a], t, S, key)
-    # failures: operational facilities spend their failure clock
-    lam = P.request_hazard[t]
-    for f in range(M):
-        if S.fac_active[b, f] and not S.fac_down[b, f] and S.fac_ok_since[b, f] < t:
-            S.fac_hazard[b, f] -= lam
-            if S.fac_hazard[b, f] <= 0.0:
-                S.fac_down[b, f] = True
-                S.fac_assigned[b, f] = -1
-                S.fac_request[b, f] += 1
-                S.fac_visits[b, f] = 0
-                S.counters[b, C_REQUESTS] += 1
+
+
+@njit(cache=True)
+def _open_request(b, f, S):
+    S.fac_down[b, f] = True
+    S.fac_assigned[b, f] = -1
+    S.fac_request[b, f] += 1
+    S.fac_visits[b, f] = 0
+    S.counters[b, C_REQUESTS] += 1
 
 
 # -- 2. decisions -------------------------------------------------------------------------------
@@ -263,64 +280,100 @@ def _weights(b, S, w):
     return out
 
 
-@njit(cache=True, inline="always")
-def heat_at(b, S, w, sigma, x, y):
-    """H(x, y) = sum_f w_f exp(-|(x, y) - x_f|^2 / (2 sigma^2)) over the weights ``w``."""
-    h = 0.0
+@njit(cache=True)
+def gauss_table(sigma, n):
+    """``g[d] = exp(-d^2 / (2 sigma^2))`` for the integer distances d = 0..n-1.
+
+    Homes and facilities sit on integer cells, so every Gaussian factor of the heat map
+    is one of these; the table turns two exponentials per (cell, facility) into lookups.
+    Each entry is the same expression the direct computation evaluates, so the heat map
+    is bit-identical to it.
+    """
     inv = 1.0 / (2.0 * sigma * sigma)
+    g = np.empty(n)
+    for d in range(n):
+        g[d] = np.exp(-(d * d) * inv)
+    return g
+
+
+@njit(cache=True, inline="always")
+def heat_at(b, S, w, g, x, y):
+    """H(x, y) = sum_f w_f exp(-|(x, y) - x_f|^2 / (2 sigma^2)) over the weights ``w``.
+
+    ``g`` is the table of :func:`gauss_table`.
+    """
+    h = 0.0
     for f in range(S.fac_active.shape[1]):
         if w[f] > 0.0:
-            dx = x - S.fac_x[b, f]
-            dy = y - S.fac_y[b, f]
-            h += w[f] * np.exp(-(dx * dx) * inv) * np.exp(-(dy * dy) * inv)
+            h += w[f] * g[abs(x - S.fac_x[b, f])] * g[abs(y - S.fac_y[b, f])]
     return h
 
 
 @njit(cache=True)
-def heat_map(b, S, w, sigma, grid_w, grid_h):
-    """The heat map over all cells, (grid_h, grid_w), by separable Gaussians."""
+def _heat_factors(b, S, w, g, grid_w):
+    """The x factors ``w_f g[|x - x_f|]`` (k, grid_w) and the y cells (k,) of the k facilities with w_f > 0."""
     M = S.fac_active.shape[1]
-    inv = 1.0 / (2.0 * sigma * sigma)
-    H = np.zeros((grid_h, grid_w))
-    gx = np.empty(grid_w)
+    k = 0
     for f in range(M):
-        if w[f] <= 0.0:
-            continue
-        for x in range(grid_w):
-            dx = x - S.fac_x[b, f]
-            gx[x] = w[f] * np.exp(-(dx * dx) * inv)
-        for y in range(grid_h):
-            dy = y - S.fac_y[b, f]
-            gy = np.exp(-(dy * dy) * inv)
+        if w[f] > 0.0:
+            k += 1
+    gx = np.empty((k, grid_w))
+    fy = np.empty(k, dtype=np.int64)
+    k = 0
+    for f in range(M):
+        if w[f] > 0.0:
+            fx = S.fac_x[b, f]
             for x in range(grid_w):
-                H[y, x] += gx[x] * gy
-    return H
+                gx[k, x] = w[f] * g[abs(x - fx)]
+            fy[k] = S.fac_y[b, f]
+            k += 1
+    return gx, fy
+
+
+@njit(cache=True, inline="always")
+def _heat_row(row, y, gx, fy, g):
+    """Row y of the heat map, H(x, y) = sum_f (w_f g[|x - x_f|]) g[|y - y_f|], summed in slot order."""
+    row[:] = 0.0
+    for k in range(gx.shape[0]):
+        gy = g[abs(y - fy[k])]
+        for x in range(row.shape[0]):
+            row[x] += gx[k, x] * gy
 
 
 @njit(cache=True)
 def _place(b, S, Tr, P, w):
-    """Home cell of a hire: argmax of H (first cell in row-major order on ties) or a draw from H."""
-    H = heat_map(b, S, w, P.sigma, P.grid_w, P.grid_h)
+    """Home cell of a hire: argmax of H (first cell in row-major order on ties) or a draw from H.
+
+    The map is built row by row (the Gaussian is separable) and never stored whole; each
+    cell sums its facilities in slot order, so the values are the same whichever way the
+    map is traversed.
+    """
+    g = gauss_table(P.sigma, max(P.grid_w, P.grid_h))
+    gx, fy = _heat_factors(b, S, w, g, P.grid_w)
+    row = np.empty(P.grid_w)
     if P.placement == 0:
         best = -1.0
         bx = 0
         by = 0
         for y in range(P.grid_h):
+            _heat_row(row, y, gx, fy, g)
             for x in range(P.grid_w):
-                if H[y, x] > best:
-                    best = H[y, x]
+                if row[x] > best:
+                    best = row[x]
                     bx = x
                     by = y
         return bx, by
     total = 0.0
     for y in range(P.grid_h):
+        _heat_row(row, y, gx, fy, g)
         for x in range(P.grid_w):
-            total += H[y, x]
+            total += row[x]
     u = uniform(Tr.key[b], STREAM_PLACEMENT, S.n_hires[b], 0, 0) * total
     acc = 0.0
     for y in range(P.grid_h):
+        _heat_row(row, y, gx, fy, g)
         for x in range(P.grid_w):
-            acc += H[y, x]
+            acc += row[x]
             if acc > u:
                 return x, y
     return P.grid_w - 1, P.grid_h - 1
@@ -359,11 +412,12 @@ def _release(b, level, w_release, S, P):
         S.counters[b, C_RELEASE] += 1
         return
     w = _weights(b, S, w_release)
+    g = gauss_table(P.sigma, max(P.grid_w, P.grid_h))
     best = -1
     best_h = -1.0
     for p in range(N):
         if is_releasable(b, p, S) and S.per_level[b, p] == level:
-            h = heat_at(b, S, w, P.sigma, S.per_hx[b, p], S.per_hy[b, p])
+            h = heat_at(b, S, w, g, S.per_hx[b, p], S.per_hy[b, p])
             if h > best_h:
                 best_h = h
                 best = p
@@ -375,59 +429,71 @@ def _release(b, level, w_release, S, P):
 
 
 @njit(cache=True, inline="always")
-def apply_actions(b, S, Tr, P, dispatch, workforce, positioning):
-    """Dispatch row (M,) int (N = no-op), workforce code, positioning (2, M) weights."""
+def apply_dispatch(b, S, dispatch):
+    """Dispatch row (M,) int (N = no-op), facility by facility in slot order."""
     M = S.fac_active.shape[1]
     N = S.per_status.shape[1]
     t = S.t[b]
+    fac_active = S.fac_active
+    fac_down = S.fac_down
+    fac_assigned = S.fac_assigned
+    dispatched = S.per_dispatched
+    status = S.per_status
+    leave = S.per_leave
     for f in range(M):
         p = dispatch[f]
         if p >= N:
             continue
-        if not (S.fac_active[b, f] and S.fac_down[b, f] and S.fac_assigned[b, f] < 0):
+        if not (fac_active[b, f] and fac_down[b, f] and fac_assigned[b, f] < 0):
             S.counters[b, C_NOT_REQ] += 1
             continue
-        if S.per_dispatched[b, p] == t:
+        if dispatched[b, p] == t:
             S.counters[b, C_DUP] += 1
             continue
-        if not is_dispatchable(b, p, S):
+        if not dispatchable(status[b, p], leave[b, p]):
             S.counters[b, C_UNAVAIL] += 1
             continue
-        S.per_status[b, p] = TO_FACILITY
+        status[b, p] = TO_FACILITY
         S.per_target[b, p] = f
         S.per_timer[b, p] = 0
-        S.per_dispatched[b, p] = t
-        S.fac_assigned[b, f] = p
+        dispatched[b, p] = t
+        fac_assigned[b, f] = p
+
+
+@njit(cache=True, _nrt=True)  # allocates (see step_env)
+def apply_workforce(b, S, Tr, P, workforce, positioning):
+    """Workforce code (0 no-op, 1 + level hire, 4 + level let go) with the positioning (2, M) weights."""
     if workforce >= 1 and workforce <= 3:
         _hire(b, workforce - 1, positioning[0], S, Tr, P)
     elif workforce >= 4:
         _release(b, workforce - 4, positioning[1], S, P)
 
 
-# -- 3. movement and service --------------------------------------------------------------------
+# -- 3 and 4. movement, service and the metrics of the step ---------------------------------------
 @njit(cache=True, inline="always")
-def _move_towards(b, p, tx, ty, speed, S):
-    """Move up to ``speed`` cells, x first then y (a Manhattan path). True on arrival."""
+def _move_towards(x, y, tx, ty, speed):
+    """Move from (x, y) up to ``speed`` cells towards (tx, ty), x first then y (a Manhattan path).
+
+    Returns the new position and whether it is the target.
+    """
     budget = speed
-    dx = tx - S.per_x[b, p]
+    dx = tx - x
     if dx != 0.0:
         if abs(dx) <= budget:
-            S.per_x[b, p] = tx
+            x = tx
             budget -= abs(dx)
         else:
-            S.per_x[b, p] += budget if dx > 0 else -budget
-            return False
-    dy = ty - S.per_y[b, p]
+            return x + (budget if dx > 0 else -budget), y, False
+    dy = ty - y
     if dy != 0.0:
         if abs(dy) <= budget:
-            S.per_y[b, p] = ty
+            y = ty
         else:
-            S.per_y[b, p] += budget if dy > 0 else -budget
-            return False
-    return True
+            return x, y + (budget if dy > 0 else -budget), False
+    return x, y, True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _end_visit(b, p, S, Tr, P):
     f = S.per_target[b, p]
     t = S.t[b]
@@ -444,72 +510,102 @@ def _end_visit(b, p, S, Tr, P):
 
 
 @njit(cache=True, inline="always")
-def advance(b, S, Tr, P):
-    M = S.fac_active.shape[1]
-    N = S.per_status.shape[1]
-    t = S.t[b]
-    w = t % P.window
-    for f in range(M):
-        v = np.uint8(1) if (S.fac_active[b, f] and S.fac_down[b, f]) else np.uint8(0)
-        S.fac_sum[b, f] += np.int64(v) - np.int64(S.fac_ring[b, f, w])
-        S.fac_ring[b, f, w] = v
-    for p in range(N):
-        st = S.per_status[b, p]
-        work = np.uint8(0)
-        if st == TO_FACILITY:
-            work = np.uint8(1)
-            f = S.per_target[b, p]
-            if _move_towards(b, p, np.float64(S.fac_x[b, f]), np.float64(S.fac_y[b, f]), P.speed, S):
-                S.per_status[b, p] = SERVICING
-                S.per_timer[b, p] = P.service_time
-        elif st == SERVICING:
-            work = np.uint8(1)
-            S.per_timer[b, p] -= 1
-            if S.per_timer[b, p] <= 0:
-                _end_visit(b, p, S, Tr, P)
-        elif st == RETURNING:
-            work = np.uint8(1)
-            if _move_towards(b, p, np.float64(S.per_hx[b, p]), np.float64(S.per_hy[b, p]), P.speed, S):
-                S.per_status[b, p] = IDLE
-        S.per_sum[b, p] += np.int64(work) - np.int64(S.per_ring[b, p, w])
-        S.per_ring[b, p, w] = work
-
-
-# -- 4. metrics ---------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
 def utility_pur(pur, target, tolerance):
     return 1.0 - max(0.0, abs(pur - target) - tolerance) / (max(target, 1.0 - target) - tolerance)
 
 
 @njit(cache=True, inline="always")
-def record_metrics(b, S, P):
+def advance(b, S, Tr, P):
+    """Steps 3 and 4 in one pass over the slots: record downtime, move and serve, then the metrics.
+
+    A facility's downtime indicator for step t is recorded before anybody moves; a
+    person's work indicator and metric terms are taken after that person moved or
+    served. A visit's end changes only its own person and facility, never another
+    person's terms or any facility's downtime sum, so one pass gives the same numbers,
+    summed in the same order, as separate passes.
+    """
     M = S.fac_active.shape[1]
     N = S.per_status.shape[1]
     t = S.t[b]
     W = P.window
+    w = t % W
+    speed = P.speed
+    service_time = P.service_time
+    salaries = P.salaries
+    fac_active = S.fac_active
+    fac_down = S.fac_down
+    fac_sum = S.fac_sum
+    fac_ring = S.fac_ring
+    fac_since = S.fac_since
+    fac_x = S.fac_x
+    fac_y = S.fac_y
+    status = S.per_status
+    level = S.per_level
+    target = S.per_target
+    timer = S.per_timer
+    px = S.per_x
+    py = S.per_y
+    hx = S.per_hx
+    hy = S.per_hy
+    per_sum = S.per_sum
+    per_ring = S.per_ring
+    per_since = S.per_since
     afd = 0.0
     n_fac = 0
     for f in range(M):
-        if S.fac_active[b, f]:
-            seen = min(W, t - S.fac_since[b, f] + 1)
-            afd += S.fac_sum[b, f] / seen
+        if fac_active[b, f]:
+            v = np.uint8(1) if fac_down[b, f] else np.uint8(0)
+        else:
+            v = np.uint8(0)
+        fac_sum[b, f] += np.int64(v) - np.int64(fac_ring[b, f, w])
+        fac_ring[b, f, w] = v
+        if fac_active[b, f]:
+            afd += fac_sum[b, f] / min(W, t - fac_since[b, f] + 1)
             n_fac += 1
-    afd = afd / n_fac if n_fac > 0 else 0.0
     pur = 0.0
     n_work = 0
     wc = 0.0
     head = 0
     for p in range(N):
-        st = S.per_status[b, p]
-        if st == EMPTY:
-            continue
-        head += 1
-        wc += P.salaries[S.per_level[b, p]]
-        if st >= IDLE:
-            seen = min(W, t - S.per_since[b, p] + 1)
-            pur += S.per_sum[b, p] / seen
-            n_work += 1
-    pur = pur / n_work if n_work > 0 else 0.0
+        st = status[b, p]
+        work = np.uint8(0)
+        if st == TO_FACILITY:
+            work = np.uint8(1)
+            f = target[b, p]
+            x, y, arrived = _move_towards(px[b, p], py[b, p], np.float64(fac_x[b, f]), np.float64(fac_y[b, f]), speed)
+            px[b, p] = x
+            py[b, p] = y
+            if arrived:
+                status[b, p] = SERVICING
+                timer[b, p] = service_time
+        elif st == SERVICING:
+            work = np.uint8(1)
+            timer[b, p] -= 1
+            if timer[b, p] <= 0:
+                _end_visit(b, p, S, Tr, P)
+        elif st == RETURNING:
+            work = np.uint8(1)
+            x, y, arrived = _move_towards(px[b, p], py[b, p], np.float64(hx[b, p]), np.float64(hy[b, p]), speed)
+            px[b, p] = x
+            py[b, p] = y
+            if arrived:
+                status[b, p] = IDLE
+        per_sum[b, p] += np.int64(work) - np.int64(per_ring[b, p, w])
+        per_ring[b, p, w] = work
+        st = status[b, p]
+        if st != EMPTY:
+            head += 1
+            wc += salaries[level[b, p]]
+            if st >= IDLE:
+                pur += per_sum[b, p] / min(W, t - per_since[b, p] + 1)
+                n_work += 1
+    record_metrics(b, S, P, afd / n_fac if n_fac > 0 else 0.0, pur / n_work if n_work > 0 else 0.0, wc, head)
+
+
+@njit(cache=True, inline="always")
+def record_metrics(b, S, P, afd, pur, wc, head):
+    """WC, PUR, AFD, the utilities and NSW of step t into ``last``, ``totals`` and ``series``."""
+    t = S.t[b]
     u_wc = 1.0 - wc / P.max_cost
     u_pur = utility_pur(pur, P.target, P.tolerance)
     u_afd = 1.0 - afd
@@ -524,33 +620,44 @@ def record_metrics(b, S, P):
     row[K_UAFD] = u_afd
     row[K_HEAD] = head
     row[K_LOGH] = np.log(head) if head > 0 else 0.0
+    totals = S.totals
     for k in range(row.shape[0]):
-        S.totals[b, k] += row[k]
-    if S.series.shape[1] > 0:
+        totals[b, k] += row[k]
+    series = S.series
+    if series.shape[1] > 0:
         for k in range(row.shape[0]):
-            S.series[b, t, k] = row[k]
+            series[b, t, k] = row[k]
 
 
 # -- the step -----------------------------------------------------------------------------------
+# The entry points (``reset_batch``, ``step_batch`` and the whole-episode rollout) are
+# compiled with numba's runtime (NRT) switched off. With it on, every array read out of
+# the state tuple in branching code keeps an atomic reference-count increment and
+# decrement that numba's pruning pass cannot remove (numba issue #2350): about 40% of a
+# step, and a cache line that all threads fight over. Without the runtime nothing may
+# allocate, so the few functions that do (hiring and letting go build a heat map) are
+# compiled with ``_nrt=True`` set explicitly; numba would otherwise make them inherit the
+# caller's setting. docs/performance.md has the measurements.
 @njit(cache=True, inline="always")
 def step_env(b, S, Tr, P, dispatch, workforce, positioning):
     """One full step of environment b; returns its reward (NSW of the step)."""
-    apply_actions(b, S, Tr, P, dispatch, workforce, positioning)
+    apply_dispatch(b, S, dispatch)
+    if workforce != 0:
+        apply_workforce(b, S, Tr, P, workforce, positioning)
     advance(b, S, Tr, P)
-    record_metrics(b, S, P)
     S.t[b] += 1
     if S.t[b] < P.horizon:
         exogenous(b, S, Tr, P)
     return S.last[b, K_NSW]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def reset_batch(S, Tr, P):
     for b in range(S.t.shape[0]):
         reset_env(b, S, Tr, P)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_batch(S, Tr, P, dispatch, workforce, positioning):
     """Step every environment of the batch; ``dispatch`` (B, M), ``workforce`` (B,), ``positioning`` (B, 2, M)."""
     for b in range(S.t.shape[0]):

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from wfbench.dynamics import dispatchable, releasable, retained
+from wfbench.dynamics import dispatchable, releasable, step_env
 from wfbench.state import EMPTY, IDLE, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
 
 
@@ -94,6 +94,12 @@ def observe_env(b, S, P, O, with_masks):
     l0 = 0
     l1 = 0
     l2 = 0
+    # for the workforce mask: a free slot, the retained headcount, who may be let go
+    any_empty = False
+    kept = 0
+    rel0 = 0
+    rel1 = 0
+    rel2 = 0
     status = S.per_status[b]
     leave = S.per_leave[b]
     for p in range(N):
@@ -106,15 +112,20 @@ def observe_env(b, S, P, O, with_masks):
             O.personnel_mask[b, p] = 0
             O.dispatchable[b, p] = 0
             O.under_notice[b, p] = 0
+            any_empty = True
             continue
         head += 1
         lv = S.per_level[b, p]
+        rel = 1 if releasable(st, leave[p]) else 0
         if lv == 0:
             l0 += 1
+            rel0 |= rel
         elif lv == 1:
             l1 += 1
+            rel1 |= rel
         else:
             l2 += 1
+            rel2 |= rel
         if st == ONBOARDING:
             onb += 1
         row[0] = S.per_hx[b, p]
@@ -133,6 +144,8 @@ def observe_env(b, S, P, O, with_masks):
         O.under_notice[b, p] = 1 if on_notice else 0
         if on_notice:
             notice += 1
+        else:
+            kept += 1
     g = O.globals[b]
     g[0] = t / P.horizon
     g[1] = head / N
@@ -146,7 +159,19 @@ def observe_env(b, S, P, O, with_masks):
     g[G_AFD] = S.last[b, K_AFD]
     g[G_NSW] = S.last[b, K_NSW]
     g[11] = active / M
-    fill_workforce_mask(b, S, P, O.workforce_mask[b])
+    # valid workforce actions: the no-op; a hire of any level while a slot is free; letting
+    # go a level someone onboarded and not under notice has, unless that leaves the retained
+    # headcount at min_personnel
+    wm = O.workforce_mask[b]
+    wm[0] = 1
+    h = 1 if any_empty else 0
+    wm[1] = h
+    wm[2] = h
+    wm[3] = h
+    can_release = kept > P.min_personnel
+    wm[4] = rel0 if can_release else 0
+    wm[5] = rel1 if can_release else 0
+    wm[6] = rel2 if can_release else 0
     if with_masks:
         for f in range(M):
             req = O.requesting[b, f] == 1
@@ -155,28 +180,17 @@ def observe_env(b, S, P, O, with_masks):
             O.dispatch_mask[b, f, N] = 1
 
 
-@njit(cache=True, inline="always")
-def fill_workforce_mask(b, S, P, out):
-    status = S.per_status[b]
-    leave = S.per_leave[b]
-    level = S.per_level[b]
-    out[:] = 0
-    out[0] = 1
-    for p in range(status.shape[0]):
-        if status[p] == EMPTY:
-            out[1] = 1
-            out[2] = 1
-            out[3] = 1
-            break
-    if retained(status, leave) > P.min_personnel:
-        for p in range(status.shape[0]):
-            if releasable(status[p], leave[p]):
-                out[4 + level[p]] = 1
-
-
-@njit(cache=True)
+@njit(cache=True, _nrt=False)  # allocates nothing: no reference counting (see wfbench.dynamics.step_env)
 def observe_batch(S, P, O, with_masks):
     for b in range(S.t.shape[0]):
+        observe_env(b, S, P, O, with_masks)
+
+
+@njit(cache=True, _nrt=False)
+def step_observe_batch(S, Tr, P, O, dispatch, workforce, positioning, with_masks):
+    """``step_batch`` then ``observe_batch`` in one call (one unboxing of the state for both)."""
+    for b in range(S.t.shape[0]):
+        step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
         observe_env(b, S, P, O, with_masks)
 
 
