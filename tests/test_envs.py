@@ -97,3 +97,22 @@ def test_nsw_no_cost_reward_is_the_geometric_mean_of_two_utilities():
     _, r, *_ = env.step(np.full(env.M, env.N))
     last = env.core.sim.state.last[0]
     assert r == pytest.approx(float((last[5] * last[6]) ** 0.5))
+
+
+def test_observations_are_fresh_copies_that_later_steps_leave_alone():
+    env = wfbench.parallel_env("paper-64")
+    obs, _ = env.reset(seed=2)
+    for a in env.agents:
+        env.action_space(a).seed(2)
+    kept = [(obs, {a: {k: v.copy() for k, v in o.items()} for a, o in obs.items()})]
+    for _ in range(30):
+        obs, *_ = env.step({a: env.action_space(a).sample() for a in env.agents})
+        kept.append((obs, {a: {k: v.copy() for k, v in o.items()} for a, o in obs.items()}))
+    changed = 0
+    for (returned, snapshot), (later, _) in zip(kept, kept[1:], strict=False):
+        for a in returned:
+            assert returned[a].keys() == snapshot[a].keys()
+            for k in returned[a]:
+                assert np.array_equal(returned[a][k], snapshot[a][k]), f"step overwrote {a}/{k} of an earlier step"
+                changed += not np.array_equal(returned[a][k], later[a][k])
+    assert changed > 0, "the observation never changed: the test would not see an overwrite"

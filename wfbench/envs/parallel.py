@@ -3,7 +3,9 @@
 Agents ``dispatch``, ``workforce`` and ``positioning`` act at every step on the same
 observation: the shared features and both action masks, ``dispatch_mask`` (M, N + 1)
 and ``workforce_mask`` (7,). The mask is not called ``action_mask`` because a
-MultiDiscrete mask cannot be one array. All agents receive the same reward, the NSW of
+MultiDiscrete mask cannot be one array. Each agent gets its own dict; the arrays in
+them are fresh copies every step, shared by the agents (the environment never writes
+to them again; copy an array before changing it in place if another agent reads it). All agents receive the same reward, the NSW of
 the step (a cooperative game). ``fixed={"workforce": "threshold"}`` hands an agent to a
 built-in policy (a decision name from ``policies.DECISIONS``, a composite name such as
 ``"heuristic"`` or a policy object); fixed agents leave ``agents`` so the others can be
@@ -32,6 +34,8 @@ from wfbench.envs.spaces import (
 )
 from wfbench.simulator import AGENTS, ActionError, Simulator
 from wfbench.state import COUNTERS, METRICS
+
+_INFO_METRICS = tuple((k, METRICS.index(k)) for k in ("workforce_cost", "utilization", "downtime", "nsw"))
 
 
 def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
@@ -95,20 +99,19 @@ class WorkforceCore:
 
     def step(self, given: dict[str, Any]) -> tuple[float, dict[str, int]]:
         assert self.sim is not None
-        before = self.sim.state.counters[0].copy()
-        reward = float(self.sim.step(self.full_action(given))[0])
-        self.obs = self.sim.observe()
-        delta = self.sim.state.counters[0] - before
-        self.last_counters = dict(zip(COUNTERS, delta.tolist()))
-        return reward, self.last_counters
+        before = self.sim.state.counters[0].tolist()
+        rewards, self.obs = self.sim.step_observe(self.full_action(given))
+        after = self.sim.state.counters[0].tolist()
+        self.last_counters = {k: a - b for k, a, b in zip(COUNTERS, after, before, strict=True)}
+        return float(rewards[0]), self.last_counters
 
     def info(self) -> dict[str, Any]:
         assert self.sim is not None
-        last = self.sim.state.last[0]
+        last = self.sim.state.last[0].tolist()
         return {
             "t": self.sim.t, "seed": self.seed, "step_counts": dict(self.last_counters),
-            "counts": dict(zip(COUNTERS, self.sim.state.counters[0].tolist())),
-            "metrics": {k: float(last[METRICS.index(k)]) for k in ("workforce_cost", "utilization", "downtime", "nsw")},
+            "counts": dict(zip(COUNTERS, self.sim.state.counters[0].tolist(), strict=True)),
+            "metrics": {k: last[i] for k, i in _INFO_METRICS},
         }
 
 
@@ -150,7 +153,11 @@ class WorkforceParallelEnv(ParallelEnv):
         return self._act_spaces[agent]
 
     def _observations(self) -> dict[str, dict[str, np.ndarray]]:
-        return {a: single(self.core.obs, OBS_KEYS) for a in self.agents}
+        # Copies, because the simulator's buffers are overwritten by the next step. The
+        # agents see the same observation, so their dicts share one set of copies (a
+        # third of the copying); an agent's arrays are never written by the environment.
+        shared = single(self.core.obs, OBS_KEYS)
+        return {a: dict(shared) for a in self.agents}
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         self.core.reset(seed)

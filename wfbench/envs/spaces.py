@@ -60,4 +60,4 @@ def positioning_action_space(c: ScenarioConfig) -> spaces.Box:
 
 def single(obs: dict[str, np.ndarray], keys, b: int = 0) -> dict[str, np.ndarray]:
     """Environment b of a batched observation, copied, for the given keys."""
-    return {k: np.array(obs[k][b], copy=True) for k in keys}
+    return {k: obs[k][b].copy() for k in keys}
