@@ -3,9 +3,14 @@
 Measures, after a warm-up run that loads the compiled code:
 
 - the compiled rollout with the heuristic policy in the loop, B = 1, 64, 1024, on one
-  thread and on all cores;
+  thread and on all cores: whole episodes (reset, observe, act, step) of a batch whose
+  traces are already built;
+- ``evaluate.run_batch`` end to end at B = 1024 on all cores: the same plus building
+  the 1,024 traces and the state in Python;
 - the Python batched loop (``Simulator.step`` + ``policy.act``), B = 64;
-- PettingZoo ``parallel_env().step()`` and Gymnasium ``step()`` with random actions.
+- PettingZoo ``parallel_env().step()`` and Gymnasium ``step()`` with random actions. The
+  actions are sampled from the action spaces before the clock starts (1,000 of them,
+  cycled), so the rate is the environment's, not gymnasium's sampler's.
 
 Prints the machine and one line per measurement; ``--json`` writes them to a file.
 """
@@ -38,14 +43,41 @@ def machine() -> dict[str, str | int]:
 
 
 def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) -> float:
+    from policies import get
+    from policies.rollout import rollout_parallel
+    from wfbench.evaluate import run_batch
+    from wfbench.simulator import Simulator
+
+    run_batch("heuristic", config, [0], threads=1)  # warm-up (loads compiled code)
+    seeds = list(range(B))
+    sim = Simulator(config, seeds, keep_series=False)
+    codes, hp, pstate = get("heuristic").compiled_plan(seeds, sim.M, sim.N)
+    dispatch = np.full((B, sim.M), sim.N, dtype=np.int64)
+    workforce = np.zeros(B, dtype=np.int64)
+    positioning = np.zeros((B, 2, sim.M), dtype=np.float64)
+    previous = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(threads, B, numba.config.NUMBA_NUM_THREADS)))
+    best = float("inf")
+    try:
+        for _ in range(repeats):
+            # every episode starts with its reset, and the policy state is rebuilt as a fresh one
+            _, _, pstate = get("heuristic").compiled_plan(seeds, sim.M, sim.N)
+            t0 = time.perf_counter()
+            rollout_parallel(sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch,
+                             workforce, positioning)
+            best = min(best, time.perf_counter() - t0)
+    finally:
+        numba.set_num_threads(previous)
+    return B * config.horizon / best
+
+
+def _run_batch_rate(config: ScenarioConfig, B: int, repeats: int) -> float:
     from wfbench.evaluate import run_batch
 
-    seeds = list(range(B))
-    run_batch("heuristic", config, seeds[: min(B, 2)], threads=threads)  # warm-up (loads compiled code)
     best = float("inf")
     for _ in range(repeats):
         t0 = time.perf_counter()
-        run_batch("heuristic", config, seeds, threads=threads)
+        run_batch("heuristic", config, list(range(B)))
         best = min(best, time.perf_counter() - t0)
     return B * config.horizon / best
 
@@ -74,17 +106,18 @@ def _pettingzoo_rate(config: ScenarioConfig, steps: int) -> float:
     from wfbench.envs.parallel import parallel_env
 
     env = parallel_env(config)
-    obs, _ = env.reset(seed=0)
+    env.reset(seed=0)
     for a in env.agents:
         env.action_space(a).seed(0)
-    done = 0
+    actions = [{a: env.action_space(a).sample() for a in env.agents} for _ in range(1000)]
+    for i in range(100):  # warm-up
+        env.step(actions[i])
+    env.reset(seed=0)
     t0 = time.perf_counter()
-    while done < steps:
+    for i in range(steps):
         if not env.agents:
             env.reset()
-        actions = {a: env.action_space(a).sample() for a in env.agents}
-        env.step(actions)
-        done += 1
+        env.step(actions[i % len(actions)])
     return steps / (time.perf_counter() - t0)
 
 
@@ -94,9 +127,13 @@ def _gym_rate(config: ScenarioConfig, steps: int) -> float:
     env = WorkforceEnv(config)
     env.reset(seed=0)
     env.action_space.seed(0)
+    actions = [env.action_space.sample() for _ in range(1000)]
+    for i in range(100):  # warm-up
+        env.step(actions[i])
+    env.reset(seed=0)
     t0 = time.perf_counter()
-    for _ in range(steps):
-        _, _, term, trunc, _ = env.step(env.action_space.sample())
+    for i in range(steps):
+        _, _, term, trunc, _ = env.step(actions[i % len(actions)])
         if term or trunc:
             env.reset()
     return steps / (time.perf_counter() - t0)
@@ -121,6 +158,9 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
         if cores > 1 and B > 1:
             report(f"compiled rollout, heuristic, B={B}, {cores} threads",
                    _rollout_rate(config, B, cores, 1 if quick else 3))
+    if not quick and cores > 1:
+        report(f"evaluate.run_batch end to end (traces built), B=1024, {cores} threads",
+               _run_batch_rate(config, 1024, 3))
     report("Simulator.step + policy.act, heuristic, B=64", _python_loop_rate(config, 64))
     report("PettingZoo parallel_env.step, random actions", _pettingzoo_rate(config, 500 if quick else 3000))
     report("Gymnasium Workforce-v0 step, random actions", _gym_rate(config, 500 if quick else 3000))
