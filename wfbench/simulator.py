@@ -76,9 +76,9 @@ def bind(dispatcher, *args):
     Calling a dispatcher resolves the numba type of every argument first; for the state,
     trace, parameter and observation tuples (about 80 arrays and scalars) that costs
     ~13 us, against ~1 us for the call itself. The entry point skips the resolution, so
-    it must only ever get arguments of exactly these types: :class:`Simulator` binds it
-    to its own tuples and passes actions that :func:`validate_actions` made plain
-    (C-contiguous, aligned, writeable int64 and float64 arrays).
+    it must only ever get arguments of exactly these types: ``Simulator._call`` binds it
+    to the simulator's own tuples and passes actions that :func:`validate_actions` made
+    plain (C-contiguous, aligned, writeable int64 and float64 arrays).
     """
     return dispatcher.compile(tuple(dispatcher.typeof_pyval(a) for a in args))
 
@@ -153,11 +153,27 @@ class Simulator:
         self.state = allocate(self.B, self.config, keep_series)
         self.obs_buffers = allocate_obs(self.B, self.M, self.N)
         self._reset_done = False
-        self._bound = None  # (ids of the bound tuples, entry point) of step_observe
+        self._bound: dict = {}  # compiled entry points by dispatcher, bound to the tuples in _bound_for
+        self._bound_for: tuple | None = None
+
+    def _call(self, dispatcher, *args):
+        """Call a compiled batch function through its entry point bound to this simulator's arrays.
+
+        Every argument must keep its numba type from call to call (see :func:`bind`): the
+        state, trace, parameter and observation tuples are this simulator's own (a new
+        tuple object rebinds), actions come from :func:`validate_actions`, flags are bool.
+        """
+        own = (self.state, self.trace, self.params, self.obs_buffers)
+        if self._bound_for is None or any(a is not b for a, b in zip(own, self._bound_for, strict=True)):
+            self._bound, self._bound_for = {}, own
+        entry = self._bound.get(dispatcher)
+        if entry is None:
+            entry = self._bound[dispatcher] = bind(dispatcher, *args)
+        return entry(*args)
 
     # -- episode ------------------------------------------------------------------------------
     def reset(self) -> dict[str, np.ndarray]:
-        reset_batch(self.state, self.trace, self.params)
+        self._call(reset_batch, self.state, self.trace, self.params)
         self._reset_done = True
         return self.observe()
 
@@ -171,7 +187,7 @@ class Simulator:
 
     def observe(self, with_masks: bool = True) -> dict[str, np.ndarray]:
         """The batched observation. Arrays are buffers overwritten by the next call: copy to keep."""
-        observe_batch(self.state, self.params, self.obs_buffers, with_masks)
+        self._call(observe_batch, self.state, self.params, self.obs_buffers, bool(with_masks))
         obs = self.obs_buffers._asdict()
         obs["t"] = self.state.t
         return obs
@@ -186,7 +202,7 @@ class Simulator:
     def step(self, actions: dict) -> np.ndarray:
         """Apply one batched action; returns the rewards (B,) of the step (NSW_t)."""
         d, w, p = self._checked(actions)
-        step_batch(self.state, self.trace, self.params, d, w, p)
+        self._call(step_batch, self.state, self.trace, self.params, d, w, p)
         return self.state.last[:, _NSW].copy()
 
     def step_observe(self, actions: dict, with_masks: bool = True) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -197,11 +213,7 @@ class Simulator:
         a few microseconds of call overhead, not tens.
         """
         d, w, p = self._checked(actions)
-        args = (self.state, self.trace, self.params, self.obs_buffers, d, w, p, bool(with_masks))
-        key = tuple(id(a) for a in args[:4])
-        if self._bound is None or self._bound[0] != key:
-            self._bound = (key, bind(step_observe_batch, *args))
-        self._bound[1](*args)
+        self._call(step_observe_batch, self.state, self.trace, self.params, self.obs_buffers, d, w, p, bool(with_masks))
         obs = self.obs_buffers._asdict()
         obs["t"] = self.state.t
         return self.state.last[:, _NSW].copy(), obs
