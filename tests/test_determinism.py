@@ -67,6 +67,25 @@ def test_step_observe_equals_step_then_observe():
         assert np.array_equal(x, y)
 
 
+def test_fingerprint_separates_what_numba_types_apart():
+    """The bound entry points are cached by this fingerprint: whatever numba types
+    differently must fingerprint differently, or a call would misread its arguments."""
+    import numba
+
+    from wfbench.simulator import _fingerprint
+
+    a = np.zeros((3, 4))
+    ro = a.copy()
+    ro.flags.writeable = False
+    values = [a, a.astype(np.float32), a.astype(np.int64), a[None], np.asfortranarray(a), a[:, ::2], ro,
+              (a, a), (a, a.astype(np.int64)), 1, 2**63, 1.0, True, np.int32(1), np.float32(1.0)]
+    for x in values:
+        for y in values:
+            if _fingerprint(x) == _fingerprint(y):
+                assert numba.typeof(x) == numba.typeof(y), (x, y)
+    assert len({_fingerprint(x) for x in values}) == len({numba.typeof(x) for x in values})
+
+
 def test_backends_agree():
     serial = evaluate("heuristic-stochastic", "small", 6, backend="serial")
     process = evaluate("heuristic-stochastic", "small", 6, backend="process", workers=2)
