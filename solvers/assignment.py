@@ -42,8 +42,6 @@ import warnings
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.optimize import LinearConstraint, linear_sum_assignment, milp
 
 from solvers.result import (
     EMPTY,
@@ -106,6 +104,10 @@ _NOT_MATCHABLE = (
 
 def _exact(C: np.ndarray, allowed: np.ndarray, u: np.ndarray | None) -> np.ndarray | None:
     """Optimal row -> column (-1 unassigned), or None when infeasible."""
+    # scipy.optimize is imported where it is used: the compiled policies import this
+    # package and would otherwise pay ~0.4 s for it at start-up
+    from scipy.optimize import linear_sum_assignment
+
     n, m = C.shape
     W = np.where(allowed, C, np.inf)
     if u is not None:
@@ -127,6 +129,9 @@ def _exact(C: np.ndarray, allowed: np.ndarray, u: np.ndarray | None) -> np.ndarr
 
 
 def _milp(C, allowed, u, time_limit):
+    import scipy.sparse as sp
+    from scipy.optimize import LinearConstraint, milp
+
     n, m = C.shape
     ii, jj = np.nonzero(allowed)
     k = ii.size

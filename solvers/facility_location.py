@@ -31,9 +31,7 @@ import warnings
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 from numba import njit
-from scipy.optimize import Bounds, LinearConstraint, milp
 
 from solvers.result import (
     FEASIBLE,
@@ -221,6 +219,11 @@ def _heuristic(C, f, p, time_limit=None):
 
 # -- MILP and LP ---------------------------------------------------------------------------------
 def _milp(C, f, p, time_limit):
+    # imported here: the compiled policies import this module for _greedy and
+    # _local_search and would otherwise pay for scipy.optimize at start-up
+    import scipy.sparse as sp
+    from scipy.optimize import Bounds, LinearConstraint, milp
+
     m, n = C.shape
     nx = m * n
     # variable order: y_0..y_{m-1}, then x_ij row-major (i, j) at m + i * n + j

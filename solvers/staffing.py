@@ -27,8 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.optimize import brentq
-from scipy.stats import norm
 
 from solvers.result import SolverInputError
 
@@ -87,6 +85,11 @@ def halfin_whitt_beta(wait_probability: float) -> float:
     alpha = float(wait_probability)
     if not 0.0 < alpha < 1.0:
         raise SolverInputError(f"target_wait_prob = {wait_probability!r} is not allowed; allowed: 0 < alpha < 1")
+    # imported here: scipy.stats costs ~1 s of import, and the compiled policies that
+    # import this module never call this function
+    from scipy.optimize import brentq
+    from scipy.stats import norm
+
     f = lambda b: 1.0 / (1.0 + b * norm.cdf(b) / norm.pdf(b)) - alpha
     if f(8.0) > 0.0:  # alpha below ~1e-15: beyond double precision
         raise SolverInputError(f"target_wait_prob = {alpha!r} is too small to reach; allowed: alpha > 1e-15")

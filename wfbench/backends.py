@@ -97,6 +97,12 @@ def run_chunks(policy: Any, config: ScenarioConfig, seeds: Sequence[int], backen
         return
     workers = workers or os.cpu_count() or 1
     chunks = by_size or split(seeds, workers)
+    if backend == "process" and len(chunks) == 1:
+        # one chunk gains nothing from a pool but would pay for spawning it (~2 s of start-up:
+        # each worker imports numpy, numba and wfbench); the numbers do not depend on where
+        # a chunk runs
+        yield _run_chunk((policy, config, chunks[0], keep_series, threads))
+        return
     if backend == "process":
         pool = process_pool(workers)
         pending = {pool.submit(_run_chunk, (policy, config, c, keep_series, 1)) for c in chunks}
