@@ -22,7 +22,7 @@ from wfbench.observe import observe_env
 def _run_env(b, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
     reset_env(b, S, Tr, P)
     while S.t[b] < P.horizon:
-        observe_env(b, S, P, O, False)
+        observe_env(b, S, P, O, False, False)  # only what the kernels read
         act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b], True)
         step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
 

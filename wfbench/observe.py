@@ -61,8 +61,16 @@ def allocate_obs(B: int, M: int, N: int) -> Obs:
 
 
 @njit(cache=True, inline="always")
-def observe_env(b, S, P, O, with_masks):
-    """Fill the observation of environment b; ``with_masks`` also fills the (M, N + 1) dispatch mask."""
+def observe_env(b, S, P, O, with_masks, full):
+    """Fill the observation of environment b; ``with_masks`` also fills the (M, N + 1) dispatch mask.
+
+    ``full=False`` (the compiled rollout of built-in policies) fills only what the
+    built-in kernels read: facility x, y, request flags and downtime, personnel home,
+    position, level and heading, the masks, and the utilization in ``globals``; the
+    rest of the buffers is left as it was (about a fifth of a rollout step). A kernel
+    that reads anything else must be added here: the test that compares the compiled
+    rollout with stepping through ``Policy.act`` (full observations) catches a miss.
+    """
     M = S.fac_active.shape[1]
     N = S.per_status.shape[1]
     t = S.t[b]
@@ -76,16 +84,18 @@ def observe_env(b, S, P, O, with_masks):
             a = S.fac_assigned[b, f]
             row[0] = S.fac_x[b, f]
             row[1] = S.fac_y[b, f]
-            row[2] = 0.0 if down else 1.0
             row[3] = 1.0 if down else 0.0
-            row[4] = 1.0 if a >= 0 else 0.0
-            row[5] = a
+            if full:
+                row[2] = 0.0 if down else 1.0
+                row[4] = 1.0 if a >= 0 else 0.0
+                row[5] = a
             row[6] = S.fac_sum[b, f] / max(1, min(W, t - S.fac_since[b, f]))
             O.facility_mask[b, f] = 1
             O.requesting[b, f] = 1 if (down and a < 0) else 0
         else:
             row[:] = 0.0
-            row[5] = -1.0
+            if full:
+                row[5] = -1.0
             O.facility_mask[b, f] = 0
             O.requesting[b, f] = 0
     head = 0
@@ -105,10 +115,12 @@ def observe_env(b, S, P, O, with_masks):
     for p in range(N):
         row = O.personnel[b, p]
         st = status[p]
-        O.personnel_status[b, p] = st
+        if full:
+            O.personnel_status[b, p] = st
         if st == EMPTY:
-            row[:] = 0.0
-            row[6] = -1.0
+            if full:
+                row[:] = 0.0
+                row[6] = -1.0
             O.personnel_mask[b, p] = 0
             O.dispatchable[b, p] = 0
             O.under_notice[b, p] = 0
@@ -133,11 +145,12 @@ def observe_env(b, S, P, O, with_masks):
         row[2] = S.per_x[b, p]
         row[3] = S.per_y[b, p]
         row[4] = lv
-        row[5] = 1.0 if (st == TO_FACILITY or st == SERVICING) else 0.0
-        row[6] = S.per_target[b, p]
         row[7] = 1.0 if st == TO_FACILITY else 0.0
-        since = S.per_since[b, p]
-        row[8] = S.per_sum[b, p] / max(1, min(W, t - since)) if st >= IDLE and t > since else 0.0
+        if full:
+            row[5] = 1.0 if (st == TO_FACILITY or st == SERVICING) else 0.0
+            row[6] = S.per_target[b, p]
+            since = S.per_since[b, p]
+            row[8] = S.per_sum[b, p] / max(1, min(W, t - since)) if st >= IDLE and t > since else 0.0
         O.personnel_mask[b, p] = 1
         on_notice = leave[p] >= 0
         O.dispatchable[b, p] = 1 if dispatchable(st, leave[p]) else 0
@@ -147,18 +160,19 @@ def observe_env(b, S, P, O, with_masks):
         else:
             kept += 1
     g = O.globals[b]
-    g[0] = t / P.horizon
-    g[1] = head / N
-    g[2] = onb / N
-    g[3] = notice / N
-    g[4] = l0 / N
-    g[5] = l1 / N
-    g[6] = l2 / N
-    g[G_WC] = S.last[b, K_WC] / P.max_cost
     g[G_PUR] = S.last[b, K_PUR]
-    g[G_AFD] = S.last[b, K_AFD]
-    g[G_NSW] = S.last[b, K_NSW]
-    g[11] = active / M
+    if full:
+        g[0] = t / P.horizon
+        g[1] = head / N
+        g[2] = onb / N
+        g[3] = notice / N
+        g[4] = l0 / N
+        g[5] = l1 / N
+        g[6] = l2 / N
+        g[G_WC] = S.last[b, K_WC] / P.max_cost
+        g[G_AFD] = S.last[b, K_AFD]
+        g[G_NSW] = S.last[b, K_NSW]
+        g[11] = active / M
     # valid workforce actions: the no-op; a hire of any level while a slot is free; letting
     # go a level someone onboarded and not under notice has, unless that leaves the retained
     # headcount at min_personnel
@@ -183,7 +197,7 @@ def observe_env(b, S, P, O, with_masks):
 @njit(cache=True, _nrt=False)  # allocates nothing: no reference counting (see wfbench.dynamics.step_env)
 def observe_batch(S, P, O, with_masks):
     for b in range(S.t.shape[0]):
-        observe_env(b, S, P, O, with_masks)
+        observe_env(b, S, P, O, with_masks, True)
 
 
 @njit(cache=True, _nrt=False)
@@ -191,7 +205,7 @@ def step_observe_batch(S, Tr, P, O, dispatch, workforce, positioning, with_masks
     """``step_batch`` then ``observe_batch`` in one call (one unboxing of the state for both)."""
     for b in range(S.t.shape[0]):
         step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
-        observe_env(b, S, P, O, with_masks)
+        observe_env(b, S, P, O, with_masks, True)
 
 
 
