@@ -67,7 +67,7 @@ def observe_env(b, S, P, O, with_masks, full):
     ``full=False`` (the compiled rollout of built-in policies) fills only what the
     built-in kernels read: facility x, y, request flags and downtime, personnel home,
     position, level and heading, the masks, and the utilization in ``globals``; the
-    rest of the buffers is left as it was (about a fifth of a rollout step). A kernel
+    rest of the buffers is left as it was (a sixth of the time of a rollout step). A kernel
     that reads anything else must be added here: the test that compares the compiled
     rollout with stepping through ``Policy.act`` (full observations) catches a miss.
     """
