@@ -13,7 +13,8 @@ rule with its source):
    and counted.
 3. ``advance``: downtime is recorded, then every person moves ``speed`` cells
    (Manhattan, x first) or services; a visit's end draws its repair outcome.
-4. ``record_metrics``: WC, PUR, AFD, utilities and NSW of step t.
+4. in the same pass, the terms of WC, PUR and AFD; ``record_metrics`` then writes the
+   metrics, utilities and NSW of step t.
 5. ``t += 1`` and the exogenous events of the new step.
 
 All functions mutate the arrays of :class:`wfbench.state.State` in place for
@@ -127,18 +128,19 @@ def releasable(status, leave):
 
 
 @njit(cache=True, inline="always")
+def kept_on(status, leave):
+    """Employed (onboarding included) and not under notice: counts toward ``min_personnel``."""
+    return status != EMPTY and leave < 0
+
+
+@njit(cache=True, inline="always")
 def retained(status_row, leave_row):
     """Employed people (onboarding included) who are not under notice."""
     n = 0
     for p in range(status_row.shape[0]):
-        if status_row[p] != EMPTY and leave_row[p] < 0:
+        if kept_on(status_row[p], leave_row[p]):
             n += 1
     return n
-
-
-@njit(cache=True, inline="always")
-def is_dispatchable(b, p, S):
-    return dispatchable(S.per_status[b, p], S.per_leave[b, p])
 
 
 @njit(cache=True, inline="always")

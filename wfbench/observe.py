@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from wfbench.dynamics import dispatchable, releasable, step_env
+from wfbench.dynamics import dispatchable, kept_on, releasable, step_env
 from wfbench.state import EMPTY, IDLE, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
 
 
@@ -157,7 +157,7 @@ def observe_env(b, S, P, O, with_masks, full):
         O.under_notice[b, p] = 1 if on_notice else 0
         if on_notice:
             notice += 1
-        else:
+        if kept_on(st, leave[p]):
             kept += 1
     g = O.globals[b]
     g[G_PUR] = S.last[b, K_PUR]
