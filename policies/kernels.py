@@ -754,12 +754,12 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
         workforce[b] = 0
     pc = codes[2]
     hpp = hp[2]
-    if (pc == P_SPATIAL or pc == P_GAUSSIAN) and lazy and workforce[b] == 0:
-        observe_history(b, O, S, hpp)
-    elif pc == P_SPATIAL:
-        positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, 0.0)
-    elif pc == P_GAUSSIAN:
-        positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, hpp[HP_NOISE])
+    if pc == P_SPATIAL or pc == P_GAUSSIAN:
+        if lazy and workforce[b] == 0:
+            observe_history(b, O, S, hpp)
+        else:
+            noise = hpp[HP_NOISE] if pc == P_GAUSSIAN else 0.0
+            positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, noise)
     elif pc == P_RANDOM:
         positioning_random(b, O, positioning[b], S.keys[b, 2], t)
     elif pc == P_FACILITY:
