@@ -213,6 +213,9 @@ class Simulator:
     def observe(self, with_masks: bool = True) -> dict[str, np.ndarray]:
         """The batched observation. Arrays are buffers overwritten by the next call: copy to keep."""
         self._call(observe_batch, self.state, self.params, self.obs_buffers, bool(with_masks))
+        return self._obs_dict()
+
+    def _obs_dict(self) -> dict[str, np.ndarray]:
         obs = self.obs_buffers._asdict()
         obs["t"] = self.state.t
         return obs
@@ -239,9 +242,7 @@ class Simulator:
         """
         d, w, p = self._checked(actions)
         self._call(step_observe_batch, self.state, self.trace, self.params, self.obs_buffers, d, w, p, bool(with_masks))
-        obs = self.obs_buffers._asdict()
-        obs["t"] = self.state.t
-        return self.state.last[:, _NSW].copy(), obs
+        return self.state.last[:, _NSW].copy(), self._obs_dict()
 
     # -- results -----------------------------------------------------------------------------
     def counters(self, b: int | None = None) -> dict[str, np.ndarray]:
