@@ -44,30 +44,20 @@ def machine() -> dict[str, str | int]:
 
 def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) -> float:
     from policies import get
-    from policies.rollout import rollout_parallel
+    from policies.rollout import rollout
     from wfbench.evaluate import run_batch
     from wfbench.simulator import Simulator
 
     run_batch("heuristic", config, [0], threads=1)  # warm-up (loads compiled code)
     seeds = list(range(B))
     sim = Simulator(config, seeds, keep_series=False)
-    codes, hp, pstate = get("heuristic").compiled_plan(seeds, sim.M, sim.N)
-    dispatch = np.full((B, sim.M), sim.N, dtype=np.int64)
-    workforce = np.zeros(B, dtype=np.int64)
-    positioning = np.zeros((B, 2, sim.M), dtype=np.float64)
-    previous = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(threads, B, numba.config.NUMBA_NUM_THREADS)))
     best = float("inf")
-    try:
-        for _ in range(repeats):
-            # every episode starts with its reset, and the policy state is rebuilt as a fresh one
-            _, _, pstate = get("heuristic").compiled_plan(seeds, sim.M, sim.N)
-            t0 = time.perf_counter()
-            rollout_parallel(sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch,
-                             workforce, positioning)
-            best = min(best, time.perf_counter() - t0)
-    finally:
-        numba.set_num_threads(previous)
+    for _ in range(repeats):
+        # every episode starts with its reset; the policy state is a fresh one each time
+        codes, hp, pstate = get("heuristic").compiled_plan(seeds, sim.M, sim.N)
+        t0 = time.perf_counter()
+        rollout(sim, codes, hp, pstate, threads)
+        best = min(best, time.perf_counter() - t0)
     return B * config.horizon / best
 
 

@@ -12,7 +12,6 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numba
 import numpy as np
 import pandas as pd
 
@@ -60,26 +59,13 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
     """Run full episodes of ``seeds`` as one batch."""
     from policies import get
     from policies.base import Composite
-    from policies.rollout import rollout_parallel
+    from policies.rollout import rollout
 
     policy = get(policy)
     sim = Simulator(config, seeds, keep_series=keep_series)
     if isinstance(policy, Composite) and policy.compiled:
         codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
-        B = sim.B
-        dispatch = np.full((B, sim.M), sim.N, dtype=np.int64)
-        workforce = np.zeros(B, dtype=np.int64)
-        positioning = np.zeros((B, 2, sim.M), dtype=np.float64)
-        args = (sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch, workforce, positioning)
-        threads = numba.config.NUMBA_NUM_THREADS if threads is None else threads
-        # one compiled rollout serves every thread count (one thread: a serial loop), so the
-        # large whole-episode kernel is compiled once, not twice
-        previous = numba.get_num_threads()
-        numba.set_num_threads(max(1, min(threads, B, numba.config.NUMBA_NUM_THREADS)))
-        try:
-            rollout_parallel(*args)
-        finally:
-            numba.set_num_threads(previous)
+        rollout(sim, codes, hp, pstate, threads)
     else:
         obs = sim.reset()
         policy.reset(sim.seeds)
