@@ -5,11 +5,12 @@ observation: the shared features and both action masks, ``dispatch_mask`` (M, N 
 and ``workforce_mask`` (7,). The mask is not called ``action_mask`` because a
 MultiDiscrete mask cannot be one array. Each agent gets its own dict; the arrays in
 them are fresh copies every step, shared by the agents (the environment never writes
-to them again; copy an array before changing it in place if another agent reads it). All agents receive the same reward, the NSW of
-the step (a cooperative game). ``fixed={"workforce": "threshold"}`` hands an agent to a
-built-in policy (a decision name from ``policies.DECISIONS``, a composite name such as
-``"heuristic"`` or a policy object); fixed agents leave ``agents`` so the others can be
-trained alone. The episode is truncated at the scenario's horizon.
+to them again; copy an array before changing it in place if another agent reads it).
+All agents receive the same reward, the NSW of the step (a cooperative game).
+``fixed={"workforce": "threshold"}`` hands an agent to a built-in policy (a decision
+name from ``policies.DECISIONS``, a composite name such as ``"heuristic"`` or a policy
+object); fixed agents leave ``agents`` so the others can be trained alone. The episode
+is truncated at the scenario's horizon.
 """
 
 from __future__ import annotations
