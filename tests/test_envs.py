@@ -116,3 +116,58 @@ def test_observations_are_fresh_copies_that_later_steps_leave_alone():
                 assert np.array_equal(returned[a][k], snapshot[a][k]), f"step overwrote {a}/{k} of an earlier step"
                 changed += not np.array_equal(returned[a][k], later[a][k])
     assert changed > 0, "the observation never changed: the test would not see an overwrite"
+
+
+def test_env_accepts_every_action_form_alike_and_names_malformed_ones():
+    """Plain int64 / float arrays take the environment's buffer path, other forms the numpy
+    path: all give the same episode; a malformed action names the agent and the index and
+    does not advance the episode."""
+    rng = np.random.default_rng(11)
+    M, N = 50, 50
+    steps = [(rng.integers(0, N + 1, size=M), int(rng.integers(0, 7)),
+              rng.random((2, M)).astype(np.float32).astype(np.float64)) for _ in range(60)]
+    forms = [
+        lambda d, w, p: {"dispatch": d, "workforce": np.int64(w), "positioning": p},
+        lambda d, w, p: {"dispatch": d.tolist(), "workforce": w, "positioning": p.tolist()},
+        lambda d, w, p: {"dispatch": d.astype(np.int32), "workforce": np.array(w, dtype=np.uint8),
+                         "positioning": p.astype(np.float32)},
+        lambda d, w, p: {"dispatch": d.astype(float), "workforce": float(w), "positioning": p},
+    ]
+    runs = []
+    for form in forms:
+        env = wfbench.parallel_env("paper-64")
+        env.reset(seed=4)
+        trail = []
+        for d, w, p in steps:
+            obs, rew, _, _, info = env.step(form(d, w, p))
+            trail.append((obs["dispatch"]["personnel"].tobytes(), rew["dispatch"], info["dispatch"]["step_counts"]))
+        runs.append(trail)
+    assert all(r == runs[0] for r in runs[1:])
+
+    env = wfbench.parallel_env("paper-64")
+    env.reset(seed=4)
+    ok = {"dispatch": np.full(M, N), "workforce": 0, "positioning": np.zeros((2, M))}
+    bad = [({"dispatch": np.r_[np.full(M - 1, N), N + 1]}, r"dispatch action: 51 at index \(0, 49\)"),
+           ({"workforce": np.int64(-1)}, r"workforce action: -1 at index \(0,\)"),
+           ({"positioning": np.full((2, M), np.nan)}, r"positioning action: nan at index \(0, 0, 0\)"),
+           ({"dispatch": np.full(M + 1, N)}, r"dispatch action has shape \(1, 51\)")]
+    for change, message in bad:
+        with pytest.raises(wfbench.ActionError, match=message):
+            env.step({**ok, **change})
+        assert env.core.sim.t == 0
+
+
+def test_info_counts_add_up_over_the_steps():
+    env = wfbench.parallel_env("paper-64", fixed={"positioning": "spatial"})
+    _, infos = env.reset(seed=6)
+    assert set(infos["dispatch"]["step_counts"].values()) == {0}
+    start = infos["dispatch"]["counts"]
+    for a in env.agents:
+        env.action_space(a).seed(6)
+    total = dict.fromkeys(start, 0)
+    for _ in range(120):
+        _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
+        for k, v in infos["workforce"]["step_counts"].items():
+            total[k] += v
+    assert infos["workforce"]["counts"] == {k: start[k] + total[k] for k in start}
+    assert total["hires"] > 0 and total["invalid_dispatch_not_requesting"] > 0

@@ -57,6 +57,14 @@ def _all_unit(a):
     return True
 
 
+@njit(cache=True)
+def actions_in_range(dispatch, workforce, positioning, n_dispatch, n_workforce):
+    """Every entry of the plain batched actions is valid: dispatch in 0..n_dispatch, workforce in 0..n_workforce,
+    positioning a number in [0, 1]."""
+    return (_all_in(dispatch.reshape(-1), n_dispatch) and _all_in(workforce, n_workforce)
+            and _all_unit(positioning.reshape(-1)))
+
+
 def _plain(a, dtype) -> bool:
     """``a`` is an ndarray of ``dtype`` in the plain form the compiled entry points are bound to."""
     return (type(a) is np.ndarray and a.dtype == dtype and a.flags.c_contiguous and a.flags.aligned
@@ -188,9 +196,10 @@ class Simulator:
         state, trace, parameter and observation tuples are this simulator's own (a new
         tuple object rebinds), actions come from :func:`validate_actions`, flags are bool.
         """
-        own = (self.state, self.trace, self.params, self.obs_buffers)
-        if self._bound_for is None or any(a is not b for a, b in zip(own, self._bound_for, strict=True)):
-            self._bound, self._bound_for = {}, own
+        b = self._bound_for
+        if (b is None or b[0] is not self.state or b[1] is not self.trace or b[2] is not self.params
+                or b[3] is not self.obs_buffers):
+            self._bound, self._bound_for = {}, (self.state, self.trace, self.params, self.obs_buffers)
         entry = self._bound.get(dispatcher)
         if entry is None:
             entry = self._bound[dispatcher] = bind(dispatcher, *args)
@@ -220,11 +229,14 @@ class Simulator:
         obs["t"] = self.state.t
         return obs
 
-    def _checked(self, actions: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _ready(self) -> None:
         if not self._reset_done:
             raise RuntimeError("call reset() before step()")
         if self.done:
             raise RuntimeError(f"the episode is over (horizon {self.config.horizon}); call reset()")
+
+    def _checked(self, actions: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self._ready()
         return validate_actions(actions, self.B, self.M, self.N)
 
     def step(self, actions: dict) -> np.ndarray:
@@ -241,6 +253,13 @@ class Simulator:
         a few microseconds of call overhead, not tens.
         """
         d, w, p = self._checked(actions)
+        return self._step_observe_valid(d, w, p, with_masks)
+
+    def _step_observe_valid(self, d: np.ndarray, w: np.ndarray, p: np.ndarray,
+                            with_masks: bool = True) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """``step_observe`` for actions already checked: what :func:`validate_actions` returns
+        (plain int64 (B, M) and (B,), float64 (B, 2, M), every entry in range)."""
+        self._ready()
         self._call(step_observe_batch, self.state, self.trace, self.params, self.obs_buffers, d, w, p, bool(with_masks))
         return self.state.last[:, _NSW].copy(), self._obs_dict()
 

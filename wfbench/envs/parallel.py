@@ -16,6 +16,7 @@ is truncated at the scenario's horizon.
 from __future__ import annotations
 
 import functools
+import operator
 from typing import Any
 
 import numpy as np
@@ -33,8 +34,8 @@ from wfbench.envs.spaces import (
     single,
     workforce_action_space,
 )
-from wfbench.simulator import AGENTS, ActionError, Simulator
-from wfbench.state import COUNTERS, METRICS
+from wfbench.simulator import AGENTS, ActionError, Simulator, actions_in_range, validate_actions
+from wfbench.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
 
 _INFO_METRICS = tuple((k, METRICS.index(k)) for k in ("workforce_cost", "utilization", "downtime", "nsw"))
 
@@ -59,7 +60,14 @@ def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
 
 
 class WorkforceCore:
-    """What the PettingZoo and Gymnasium environments share: one simulator with B = 1."""
+    """What the PettingZoo and Gymnasium environments share: one simulator with B = 1.
+
+    The step is on the path of every environment step, so its Python work is kept small:
+    actions of the expected kinds (integer dispatch and workforce, float positioning) are
+    copied into preallocated plain buffers and checked by one compiled range test; any
+    other form, and every malformed action, goes through
+    :func:`wfbench.simulator.validate_actions`, which converts it or names the bad index.
+    """
 
     def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None):
         self.config = ScenarioConfig.resolve(scenario)
@@ -69,6 +77,12 @@ class WorkforceCore:
         self.seed: int | None = None
         self._seed_rng = np.random.default_rng()
         self.last_counters: dict[str, int] = {}
+        M = self.config.max_facilities
+        # one batched (B = 1) buffer per agent, with the integer kinds ("iu") or float kind ("f") copied as is
+        self._buffers = (("dispatch", np.zeros((1, M), dtype=np.int64), "iu"),
+                         ("workforce", np.zeros(1, dtype=np.int64), "iu"),
+                         ("positioning", np.zeros((1, 2, M)), "f"))
+        self._free = frozenset(a for a in AGENTS if a not in self.fixed)
 
     def reset(self, seed: int | None) -> dict[str, np.ndarray]:
         """Start an episode; ``seed=None`` continues the seed sequence of the last seeded reset."""
@@ -79,12 +93,14 @@ class WorkforceCore:
             self.seed = int(self._seed_rng.integers(0, 2**31 - 1))
         self.sim = Simulator(self.config, [self.seed])
         self.obs = self.sim.reset()
+        self.last_counters = dict.fromkeys(COUNTERS, 0)
+        self._counts: list[int] = self.sim.state.counters[0].tolist()  # the counters, as of the last reset or step
         for p in {id(p): p for p in self.fixed.values()}.values():
             p.reset([self.seed])
         return self.obs
 
-    def full_action(self, given: dict[str, Any]) -> dict[str, np.ndarray]:
-        """Batched (B = 1) actions of all agents: the given ones plus the fixed agents' choices."""
+    def _fixed_actions(self) -> dict[str, np.ndarray]:
+        """The fixed agents' batched actions on the current observation (each policy acts once)."""
         assert self.obs is not None
         out: dict[str, np.ndarray] = {}
         cache: dict[int, dict[str, np.ndarray]] = {}
@@ -92,26 +108,53 @@ class WorkforceCore:
             if id(p) not in cache:
                 cache[id(p)] = p.act(self.obs)
             out[agent] = cache[id(p)][agent]
+        return out
+
+    def full_action(self, given: dict[str, Any], fixed: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        """Batched (B = 1) actions of all agents: the given ones plus the fixed agents' choices."""
+        out = dict(self._fixed_actions() if fixed is None else fixed)
         for agent, a in given.items():
             if agent in self.fixed:
                 raise ActionError(f"agent {agent!r} is fixed to {self.fixed[agent]!r}; do not pass its action")
             out[agent] = np.asarray(a)[None]
         return out
 
+    def actions(self, given: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The checked batched actions (dispatch, workforce, positioning) of all agents for this step."""
+        assert self.sim is not None
+        fixed = self._fixed_actions() if self.fixed else {}
+        plain = given.keys() == self._free
+        for agent, buf, kinds in self._buffers:
+            if not plain:
+                break
+            if agent in fixed:
+                a, shape, where = fixed[agent], buf.shape, ...
+            else:
+                a, shape, where = np.asarray(given[agent]), buf.shape[1:], 0
+            plain = type(a) is np.ndarray and a.dtype.kind in kinds and a.shape == shape
+            if plain:
+                buf[where] = a
+        d, w, p = (buf for _, buf, _ in self._buffers)
+        if plain and self.sim._call(actions_in_range, d, w, p, self.sim.N, N_WORKFORCE_ACTIONS - 1):
+            return d, w, p
+        return validate_actions(self.full_action(given, fixed), 1, self.sim.M, self.sim.N)
+
     def step(self, given: dict[str, Any]) -> tuple[float, dict[str, int]]:
         assert self.sim is not None
-        before = self.sim.state.counters[0].tolist()
-        rewards, self.obs = self.sim.step_observe(self.full_action(given))
-        after = self.sim.state.counters[0].tolist()
-        self.last_counters = {k: a - b for k, a, b in zip(COUNTERS, after, before, strict=True)}
+        counters = self.sim.state.counters[0]
+        before = counters.tolist()
+        rewards, self.obs = self.sim._step_observe_valid(*self.actions(given))
+        self._counts = counters.tolist()
+        self.last_counters = dict(zip(COUNTERS, map(operator.sub, self._counts, before), strict=True))
         return float(rewards[0]), self.last_counters
 
     def info(self) -> dict[str, Any]:
         assert self.sim is not None
-        last = self.sim.state.last[0].tolist()
+        state = self.sim.state
+        last = state.last[0].tolist()
         return {
-            "t": self.sim.t, "seed": self.seed, "step_counts": dict(self.last_counters),
-            "counts": dict(zip(COUNTERS, self.sim.state.counters[0].tolist(), strict=True)),
+            "t": int(state.t[0]), "seed": self.seed, "step_counts": dict(self.last_counters),
+            "counts": dict(zip(COUNTERS, self._counts, strict=True)),
             "metrics": {k: last[i] for k, i in _INFO_METRICS},
         }
 

@@ -59,5 +59,11 @@ def positioning_action_space(c: ScenarioConfig) -> spaces.Box:
 
 
 def single(obs: dict[str, np.ndarray], keys, b: int = 0) -> dict[str, np.ndarray]:
-    """Environment b of a batched observation, copied, for the given keys."""
+    """Environment b of a batched observation, copied, for the given keys.
+
+    A batch of one (the environments) copies each whole array and returns its row: numpy
+    copies a contiguous array in about half the time it takes to copy a row view.
+    """
+    if len(obs["facilities"]) == 1 and b == 0:
+        return {k: obs[k].copy()[0] for k in keys}
     return {k: obs[k][b].copy() for k in keys}
