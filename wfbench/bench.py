@@ -13,6 +13,12 @@ Measures, after a warm-up run that loads the compiled code:
   cycled), so the rate is the environment's, not gymnasium's sampler's.
 
 Prints the machine and one line per measurement; ``--json`` writes them to a file.
+
+Every run also times two fixed loops, one in Python and one compiled, before and after
+the measurements. They do the same work on every machine and every run, so they show
+the machine's speed at the time: on a shared virtual machine it drifts (by up to 2.5x
+minute to minute on the development VM), and two runs compare only when their
+reference times do.
 """
 
 from __future__ import annotations
@@ -40,6 +46,33 @@ def machine() -> dict[str, str | int]:
         pass
     return {"cpu": cpu, "cores": os.cpu_count() or 1, "python": platform.python_version(),
             "numpy": np.__version__, "numba": numba.__version__, "platform": platform.platform()}
+
+
+@numba.njit(cache=True)
+def _reference_kernel(n):
+    """A fixed integer loop (xorshift64, a serial chain the compiler cannot shortcut), compiled."""
+    x = np.uint64(88172645463325252)
+    for _ in range(n):
+        x ^= x << np.uint64(13)
+        x ^= x >> np.uint64(7)
+        x ^= x << np.uint64(17)
+    return x
+
+
+def reference_times() -> dict[str, float]:
+    """Seconds for a fixed pure-Python loop (3M additions) and a fixed compiled loop (40M steps), best of 3."""
+    _reference_kernel(10)
+    python = compiled = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        total = 0
+        for i in range(3_000_000):
+            total += i
+        python = min(python, time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        _reference_kernel(40_000_000)
+        compiled = min(compiled, time.perf_counter() - t0)
+    return {"python_loop_s": python, "compiled_loop_s": compiled}
 
 
 def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) -> float:
@@ -136,6 +169,15 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
           f"numba {info['numba']}")
     print(f"scenario: {config.name} (horizon {config.horizon})")
     rows: list[dict] = []
+    references = []
+
+    def reference(when: str) -> None:
+        r = reference_times()
+        references.append({"when": when, **r})
+        print(f"  machine speed {when}: Python loop {r['python_loop_s']:.3f} s, compiled loop "
+              f"{r['compiled_loop_s']:.3f} s (fixed work; lower is faster)", flush=True)
+
+    reference("before")
 
     def report(name: str, rate: float) -> None:
         rows.append({"measurement": name, "env_steps_per_s": rate})
@@ -154,6 +196,8 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
     report("Simulator.step + policy.act, heuristic, B=64", _python_loop_rate(config, 64))
     report("PettingZoo parallel_env.step, random actions", _pettingzoo_rate(config, 500 if quick else 3000))
     report("Gymnasium Workforce-v0 step, random actions", _gym_rate(config, 500 if quick else 3000))
+    reference("after")
     if json_path:
-        Path(json_path).write_text(json.dumps({"machine": info, "scenario": config.name, "results": rows}, indent=2))
+        Path(json_path).write_text(json.dumps({"machine": info, "scenario": config.name, "results": rows,
+                                               "reference": references}, indent=2))
     return rows
