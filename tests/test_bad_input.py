@@ -152,3 +152,11 @@ def test_every_accepted_action_form_gives_the_same_episode(tiny):
     for series, counters in runs[1:]:
         assert np.array_equal(series, runs[0][0])
         assert np.array_equal(counters, runs[0][1])
+
+
+def test_cli_bench_refuses_bad_options_before_measuring(capsys, tmp_path):
+    assert main(["bench", "--json", str(tmp_path / "no" / "bench.json")]) == 2
+    err = capsys.readouterr().err
+    assert "does not exist" in err and err.count("\n") == 1
+    assert main(["bench", "--rounds", "0"]) == 2
+    assert "allowed: an integer >= 1" in capsys.readouterr().err

@@ -12,7 +12,9 @@ Measures, after a warm-up run that loads the compiled code:
   actions are sampled from the action spaces before the clock starts (1,000 of them,
   cycled), so the rate is the environment's, not gymnasium's sampler's.
 
-Prints the machine and one line per measurement; ``--json`` writes them to a file.
+Each measurement is taken in several rounds (``--rounds``), the rounds interleaved; the
+best, median and worst round are reported. Prints the machine and the measurements;
+``--json`` writes them to a file.
 
 Every run also times two fixed loops, one in Python and one compiled, before and after
 the measurements. They do the same work on every machine and every run, so they show
@@ -162,13 +164,23 @@ def _gym_rate(config: ScenarioConfig, steps: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
-def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None = None) -> list[dict]:
+def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None = None,
+        rounds: int | None = None) -> list[dict]:
+    """Measure every row ``rounds`` times (default 3, 1 with ``quick``), the rows interleaved.
+
+    A round runs each measurement once, so a slow spell of the machine hits every row a
+    little instead of one row entirely. Each row reports its best, median and worst
+    round; the best is the machine's speed when nothing else got in the way, the spread
+    is how much it drifted.
+    """
     config = ScenarioConfig.resolve(scenario)
+    rounds = (1 if quick else 3) if rounds is None else rounds
+    if rounds < 1:
+        raise ValueError(f"rounds = {rounds} is not allowed; allowed: an integer >= 1")
     info = machine()
     print(f"machine: {info['cpu']}, {info['cores']} cores, Python {info['python']}, numpy {info['numpy']}, "
           f"numba {info['numba']}")
-    print(f"scenario: {config.name} (horizon {config.horizon})")
-    rows: list[dict] = []
+    print(f"scenario: {config.name} (horizon {config.horizon}), {rounds} round(s)")
     references = []
 
     def reference(when: str) -> None:
@@ -177,27 +189,41 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
         print(f"  machine speed {when}: Python loop {r['python_loop_s']:.3f} s, compiled loop "
               f"{r['compiled_loop_s']:.3f} s (fixed work; lower is faster)", flush=True)
 
-    reference("before")
-
-    def report(name: str, rate: float) -> None:
-        rows.append({"measurement": name, "env_steps_per_s": rate})
-        print(f"  {name:<48s} {rate:>14,.0f} env-steps/s", flush=True)
-
     cores = numba.config.NUMBA_NUM_THREADS
-    sizes = (1, 64) if quick else (1, 64, 1024)
-    for B in sizes:
-        report(f"compiled rollout, heuristic, B={B}, 1 thread", _rollout_rate(config, B, 1, 1 if quick else 3))
+    repeats = 1 if quick else 3
+    plan = []
+    for B in (1, 64) if quick else (1, 64, 1024):
+        plan.append((f"compiled rollout, heuristic, B={B}, 1 thread",
+                     lambda B=B: _rollout_rate(config, B, 1, repeats)))
         if cores > 1 and B > 1:
-            report(f"compiled rollout, heuristic, B={B}, {cores} threads",
-                   _rollout_rate(config, B, cores, 1 if quick else 3))
+            plan.append((f"compiled rollout, heuristic, B={B}, {cores} threads",
+                         lambda B=B: _rollout_rate(config, B, cores, repeats)))
     if not quick and cores > 1:
-        report(f"evaluate.run_batch end to end (traces built), B=1024, {cores} threads",
-               _run_batch_rate(config, 1024, 3))
-    report("Simulator.step + policy.act, heuristic, B=64", _python_loop_rate(config, 64))
-    report("PettingZoo parallel_env.step, random actions", _pettingzoo_rate(config, 500 if quick else 3000))
-    report("Gymnasium Workforce-v0 step, random actions", _gym_rate(config, 500 if quick else 3000))
+        plan.append((f"evaluate.run_batch end to end (traces built), B=1024, {cores} threads",
+                     lambda: _run_batch_rate(config, 1024, repeats)))
+    plan.append(("Simulator.step + policy.act, heuristic, B=64", lambda: _python_loop_rate(config, 64)))
+    env_steps = 500 if quick else 3000
+    plan.append(("PettingZoo parallel_env.step, random actions", lambda: _pettingzoo_rate(config, env_steps)))
+    plan.append(("Gymnasium Workforce-v0 step, random actions", lambda: _gym_rate(config, env_steps)))
+
+    width = max(len(name) for name, _ in plan)
+    reference("before")
+    measured: dict[str, list[float]] = {name: [] for name, _ in plan}
+    for r in range(rounds):
+        if rounds > 1:
+            print(f"  round {r + 1} of {rounds}", flush=True)
+        for name, measure in plan:
+            measured[name].append(measure())
+            print(f"    {name:<{width}s} {measured[name][-1]:>12,.0f} env-steps/s", flush=True)
     reference("after")
+    rows = [{"measurement": name, "env_steps_per_s": max(v), "median": float(np.median(v)), "worst": min(v),
+             "rounds": v} for name, v in measured.items()]
+    if rounds > 1:
+        print(f"  {'env-steps/s over the rounds':<{width + 2}s} {'best':>12s} {'median':>12s} {'worst':>12s}")
+        for row in rows:
+            print(f"  {row['measurement']:<{width + 2}s} {row['env_steps_per_s']:>12,.0f} {row['median']:>12,.0f} "
+                  f"{row['worst']:>12,.0f}")
     if json_path:
-        Path(json_path).write_text(json.dumps({"machine": info, "scenario": config.name, "results": rows,
-                                               "reference": references}, indent=2))
+        Path(json_path).write_text(json.dumps({"machine": info, "scenario": config.name, "rounds": rounds,
+                                               "results": rows, "reference": references}, indent=2))
     return rows

@@ -130,6 +130,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--scenario", default="paper-64")
     b.add_argument("--quick", action="store_true", help="fewer and smaller measurements")
     b.add_argument("--json", default=None, help="also write the results to this JSON file")
+    b.add_argument("--rounds", type=_positive, default=None,
+                   help="measure every row this many times, interleaved (default 3; 1 with --quick)")
     return p
 
 
@@ -367,7 +369,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from wfbench.bench import run
 
     _resolve_scenario(args.scenario)
-    run(args.scenario, quick=args.quick, json_path=args.json)
+    if args.json:
+        _check_writable(args.json, "--json")
+    run(args.scenario, quick=args.quick, json_path=args.json, rounds=args.rounds)
     return 0
 
 
