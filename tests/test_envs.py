@@ -171,3 +171,20 @@ def test_info_counts_add_up_over_the_steps():
             total[k] += v
     assert infos["workforce"]["counts"] == {k: start[k] + total[k] for k in start}
     assert total["hires"] > 0 and total["invalid_dispatch_not_requesting"] > 0
+
+
+def test_stepping_past_the_horizon_is_refused_before_the_fixed_policies_act():
+    from wfbench.envs.gym_env import DispatchEnv
+
+    env = DispatchEnv(wfbench.ScenarioConfig.preset("small").replace(horizon=4))
+    env.reset(seed=1)
+    truncated = False
+    while not truncated:
+        _, _, _, truncated, _ = env.step(np.full(env.M, env.N))
+    policy = env.core.fixed["workforce"]
+    calls = []
+    original = policy.act
+    policy.act = lambda obs: calls.append(1) or original(obs)
+    with pytest.raises(RuntimeError, match="episode is over"):
+        env.step(np.full(env.M, env.N))
+    assert calls == [], "a refused step must not let the fixed policies act"

@@ -257,9 +257,8 @@ class Simulator:
 
     def _step_observe_valid(self, d: np.ndarray, w: np.ndarray, p: np.ndarray,
                             with_masks: bool = True) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """``step_observe`` for actions already checked: what :func:`validate_actions` returns
-        (plain int64 (B, M) and (B,), float64 (B, 2, M), every entry in range)."""
-        self._ready()
+        """``step_observe`` for a caller that has called :meth:`_ready` and checked the actions: what
+        :func:`validate_actions` returns (plain int64 (B, M) and (B,), float64 (B, 2, M), every entry in range)."""
         self._call(step_observe_batch, self.state, self.trace, self.params, self.obs_buffers, d, w, p, bool(with_masks))
         return self.state.last[:, _NSW].copy(), self._obs_dict()
 

@@ -141,6 +141,7 @@ class WorkforceCore:
 
     def step(self, given: dict[str, Any]) -> tuple[float, dict[str, int]]:
         assert self.sim is not None
+        self.sim._ready()  # before the fixed policies act: a refused step changes nothing
         counters = self.sim.state.counters[0]
         before = counters.tolist()
         rewards, self.obs = self.sim._step_observe_valid(*self.actions(given))
