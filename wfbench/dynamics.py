@@ -335,22 +335,12 @@ def _heat_terms(b, S, w):
 @njit(cache=True)
 def _heat_factors(b, S, w, g, grid_w):
     """The x factors ``w_f g[|x - x_f|]`` (k, grid_w) and the y cells (k,) of the k facilities with w_f > 0."""
-    M = S.fac_active.shape[1]
-    k = 0
-    for f in range(M):
-        if w[f] > 0.0:
-            k += 1
-    gx = np.empty((k, grid_w))
-    fy = np.empty(k, dtype=np.int64)
-    k = 0
-    for f in range(M):
-        if w[f] > 0.0:
-            fx = S.fac_x[b, f]
-            for x in range(grid_w):
-                gx[k, x] = w[f] * g[abs(x - fx)]
-            fy[k] = S.fac_y[b, f]
-            k += 1
-    return gx, fy
+    wk, xk, yk = _heat_terms(b, S, w)
+    gx = np.empty((wk.shape[0], grid_w))
+    for k in range(wk.shape[0]):
+        for x in range(grid_w):
+            gx[k, x] = wk[k] * g[abs(x - xk[k])]
+    return gx, yk
 
 
 @njit(cache=True, inline="always")
@@ -377,27 +367,11 @@ def _gap(c, lo, hi):
 
 
 @njit(cache=True)
-def _full_argmax(wk, xk, yk, g, grid_w, grid_h):
-    """The first cell (row-major) of maximal heat, every cell evaluated."""
-    best = -1.0
-    best_i = 0
-    for y in range(grid_h):
-        for x in range(grid_w):
-            h = 0.0
-            for k in range(wk.shape[0]):
-                h += wk[k] * g[abs(x - xk[k])] * g[abs(y - yk[k])]
-            if h > best:
-                best = h
-                best_i = y * grid_w + x
-    return best_i
-
-
-@njit(cache=True)
 def _block_argmax(wk, xk, yk, g, grid_w, x0, x1, y0, y1, best, best_i, ax, row):
     """Fold the cells x0..x1-1, y0..y1-1 into the running argmax (value, row-major index, first on ties).
 
     ``ax`` (K, >= x1 - x0) and ``row`` (>= x1 - x0) are scratch. A cell's value is
-    ``sum_k (wk g[|x - xk|]) g[|y - yk|]`` in facility order, as in :func:`_full_argmax`.
+    ``sum_k (wk g[|x - xk|]) g[|y - yk|]`` in facility order, as on the full map.
     """
     n = x1 - x0
     for k in range(wk.shape[0]):
@@ -416,6 +390,14 @@ def _block_argmax(wk, xk, yk, g, grid_w, x0, x1, y0, y1, best, best_i, ax, row):
                 best = h
                 best_i = i
     return best, best_i
+
+
+@njit(cache=True)
+def _full_argmax(wk, xk, yk, g, grid_w, grid_h):
+    """The first cell (row-major) of maximal heat, every cell evaluated."""
+    ax = np.empty((wk.shape[0], grid_w))
+    row = np.empty(grid_w)
+    return _block_argmax(wk, xk, yk, g, grid_w, 0, grid_w, 0, grid_h, -1.0, 0, ax, row)[1]
 
 
 @njit(cache=True)
