@@ -59,8 +59,10 @@ def _all_unit(a):
 
 @njit(cache=True)
 def actions_in_range(dispatch, workforce, positioning, n_dispatch, n_workforce):
-    """Every entry of the plain batched actions is valid: dispatch in 0..n_dispatch, workforce in 0..n_workforce,
-    positioning a number in [0, 1]."""
+    """Every entry of the plain batched actions is valid.
+
+    Dispatch in 0..n_dispatch, workforce in 0..n_workforce, positioning a number in [0, 1].
+    """
     return (_all_in(dispatch.reshape(-1), n_dispatch) and _all_in(workforce, n_workforce)
             and _all_unit(positioning.reshape(-1)))
 
@@ -69,13 +71,6 @@ def _plain(a, dtype) -> bool:
     """``a`` is an ndarray of ``dtype`` in the plain form the compiled entry points are bound to."""
     return (type(a) is np.ndarray and a.dtype == dtype and a.flags.c_contiguous and a.flags.aligned
             and a.flags.writeable)
-
-
-def _fast_integers(a, shape: tuple[int, ...], hi: int) -> np.ndarray | None:
-    """``a`` itself when it is already a valid plain int64 array of ``shape``, else None."""
-    if _plain(a, np.int64) and a.shape == shape and _all_in(a.reshape(-1), hi):
-        return a
-    return None
 
 
 def _fingerprint(x):
@@ -123,11 +118,10 @@ def validate_actions(actions: dict, B: int, M: int, N: int) -> tuple[np.ndarray,
     malformed input, goes through the numpy checks that name the bad index.
     """
     if type(actions) is dict and len(actions) == 3:
-        d = _fast_integers(actions.get("dispatch"), (B, M), N)
-        w = _fast_integers(actions.get("workforce"), (B,), N_WORKFORCE_ACTIONS - 1)
-        p = actions.get("positioning")
-        if (d is not None and w is not None and type(p) is np.ndarray and p.shape == (B, 2, M)
-                and (_plain(p, np.float64) or _plain(p, np.float32)) and _all_unit(p.reshape(-1))):
+        d, w, p = actions.get("dispatch"), actions.get("workforce"), actions.get("positioning")
+        if (_plain(d, np.int64) and d.shape == (B, M) and _plain(w, np.int64) and w.shape == (B,)
+                and (_plain(p, np.float64) or _plain(p, np.float32)) and p.shape == (B, 2, M)
+                and actions_in_range(d, w, p, N, N_WORKFORCE_ACTIONS - 1)):
             return d, w, p.astype(np.float64, copy=False)
     if not isinstance(actions, dict):
         raise ActionError(f"actions must be a dict with keys {AGENTS}, got {type(actions).__name__}")
@@ -257,8 +251,11 @@ class Simulator:
 
     def _step_observe_valid(self, d: np.ndarray, w: np.ndarray, p: np.ndarray,
                             with_masks: bool = True) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """``step_observe`` for a caller that has called :meth:`_ready` and checked the actions: what
-        :func:`validate_actions` returns (plain int64 (B, M) and (B,), float64 (B, 2, M), every entry in range)."""
+        """``step_observe`` for a caller that has called :meth:`_ready` and checked the actions.
+
+        The actions are what :func:`validate_actions` returns: plain int64 (B, M) and (B,),
+        float64 (B, 2, M), every entry in range.
+        """
         self._call(step_observe_batch, self.state, self.trace, self.params, self.obs_buffers, d, w, p, bool(with_masks))
         return self.state.last[:, _NSW].copy(), self._obs_dict()
 
