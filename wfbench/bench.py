@@ -80,10 +80,8 @@ def reference_times() -> dict[str, float]:
 def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) -> float:
     from policies import get
     from policies.rollout import rollout
-    from wfbench.evaluate import run_batch
     from wfbench.simulator import Simulator
 
-    run_batch("heuristic", config, [0], threads=1)  # warm-up (loads compiled code)
     seeds = list(range(B))
     sim = Simulator(config, seeds, keep_series=False)
     best = float("inf")
@@ -173,6 +171,8 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
     round; the best is the machine's speed when nothing else got in the way, the spread
     is how much it drifted.
     """
+    from wfbench.evaluate import run_batch
+
     config = ScenarioConfig.resolve(scenario)
     rounds = (1 if quick else 3) if rounds is None else rounds
     if rounds < 1:
@@ -207,6 +207,7 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
     plan.append(("Gymnasium Workforce-v0 step, random actions", lambda: _gym_rate(config, env_steps)))
 
     width = max(len(name) for name, _ in plan)
+    run_batch("heuristic", config, [0], threads=1)  # loads (or compiles) the rollout once, before any clock
     reference("before")
     measured: dict[str, list[float]] = {name: [] for name, _ in plan}
     for r in range(rounds):
