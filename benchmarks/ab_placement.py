@@ -2,9 +2,9 @@
 
     python benchmarks/ab_placement.py
 
-The baseline is the row-by-row scan of the whole heat map that ``_place`` used before
-the block search (it is built here from the same helpers, ``_heat_factors`` and
-``_heat_row``). Both run on a ``paper-64`` state after 200 no-op steps, for 200 random
+The baseline is the row-by-row scan of the whole heat map that ``place_hire`` used before
+the block search (it is built here from the same helpers, ``heat_factors`` and
+``heat_row``). Both run on a ``paper-64`` state after 200 no-op steps, for 200 random
 positioning weight vectors, alternated five times in one process (this machine's speed
 drifts between runs; see docs/performance.md). Prints microseconds per placement and
 checks that both pick the same cells.
@@ -15,18 +15,18 @@ import time
 import numpy as np
 from numba import njit
 
-from wfbench.dynamics import _heat_factors, _heat_row, _place, _weights, gauss_table
+from wfbench.placement import gauss_table, heat_factors, heat_row, place_hire, positioning_weights
 from wfbench.simulator import Simulator
 
 
 @njit
 def full_scan(b, S, P, w):
     g = gauss_table(P.sigma, max(P.grid_w, P.grid_h))
-    gx, fy = _heat_factors(b, S, w, g, P.grid_w)
+    gx, fy = heat_factors(b, S, w, g, P.grid_w)
     row = np.empty(P.grid_w)
     best, bx, by = -1.0, 0, 0
     for y in range(P.grid_h):
-        _heat_row(row, y, gx, fy, g)
+        heat_row(row, y, gx, fy, g)
         for x in range(P.grid_w):
             if row[x] > best:
                 best, bx, by = row[x], x, y
@@ -36,13 +36,13 @@ def full_scan(b, S, P, w):
 @njit
 def run_full(S, P, W, out):
     for i in range(W.shape[0]):
-        out[i] = full_scan(0, S, P, _weights(0, S, W[i]))
+        out[i] = full_scan(0, S, P, positioning_weights(0, S, W[i]))
 
 
 @njit
 def run_pruned(S, Tr, P, W, out):
     for i in range(W.shape[0]):
-        out[i] = _place(0, S, Tr, P, _weights(0, S, W[i]))
+        out[i] = place_hire(0, S, Tr, P, positioning_weights(0, S, W[i]))
 
 
 sim = Simulator("paper-64", [0])

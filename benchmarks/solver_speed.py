@@ -26,7 +26,7 @@ import numpy as np
 
 import policies
 from policies import kernels as K
-from policies.base import BuiltinDecision
+from policies.builtin import BuiltinDecision
 from solvers import facility_location
 from wfbench.bench import machine
 from wfbench.observe import make_obs

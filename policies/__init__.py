@@ -1,6 +1,17 @@
-"""Everything that decides: random, heuristics, and (later) solvers, oracles and RL."""
+"""Everything that decides: random, heuristics, solver-backed decisions and composites.
 
-from policies.base import BuiltinDecision, Composite, Policy
-from policies.registry import DECISIONS, get, names
+Modules, bottom up (each imports only those before it): ``kernels`` (compiled decision
+rules), ``protocol`` (the policy protocol and shared helpers), ``builtin`` (one decision
+by a kernel), ``solver`` (solver-backed decisions), ``decisions`` (the per-decision
+table), ``composite``, ``registry`` (names and entry points), ``rollout`` (whole
+episodes compiled). ``docs/design.md`` draws the layers; ``docs/policies.md`` is the
+protocol for your own policy.
+"""
+
+from policies.builtin import BuiltinDecision
+from policies.composite import Composite
+from policies.decisions import DECISIONS
+from policies.protocol import Policy
+from policies.registry import get, names
 
 __all__ = ["BuiltinDecision", "Composite", "DECISIONS", "Policy", "get", "names"]

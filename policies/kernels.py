@@ -28,10 +28,22 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from solvers.facility_location import _greedy, _local_search
+from solvers.facility_location import greedy_open, local_search
 from solvers.lap import lap_min
 from solvers.staffing import sqrt_staffing_servers
-from wfbench.observe import G_PUR
+from wfbench.observe import (
+    FAC_DOWNTIME,
+    FAC_REQUESTING,
+    FAC_X,
+    FAC_Y,
+    G_PUR,
+    PER_HEADING_OUT,
+    PER_HOME_X,
+    PER_HOME_Y,
+    PER_LEVEL,
+    PER_X,
+    PER_Y,
+)
 from wfbench.rng import STREAM_POLICY_DISPATCH, STREAM_POLICY_POSITIONING, STREAM_POLICY_WORKFORCE, normal, uniform
 
 D_NOOP, D_NEAREST, D_INVERSE, D_RANDOM, D_ASSIGN = 0, 1, 2, 3, 4
@@ -145,12 +157,13 @@ def allocate_state(B: int, M: int, N: int) -> PolicyState:
 @njit(cache=True, inline="always")
 def _dist_to(O, b, f, x, y):
     """Manhattan distance from the cell (x, y) to facility slot f."""
-    return abs(x - O.facilities[b, f, 0]) + abs(y - O.facilities[b, f, 1])
+    return abs(x - O.facilities[b, f, FAC_X]) + abs(y - O.facilities[b, f, FAC_Y])
 
 
 @njit(cache=True, inline="always")
 def _dist(O, b, f, p):
-    return abs(O.personnel[b, p, 2] - O.facilities[b, f, 0]) + abs(O.personnel[b, p, 3] - O.facilities[b, f, 1])
+    return (abs(O.personnel[b, p, PER_X] - O.facilities[b, f, FAC_X])
+            + abs(O.personnel[b, p, PER_Y] - O.facilities[b, f, FAC_Y]))
 
 
 @njit(cache=True, inline="always")
@@ -299,7 +312,7 @@ def assignment_costs(b, O, hp, reqs, people):
     for i in range(reqs.shape[0]):
         for j in range(people.shape[0]):
             p = people[j]
-            C[i, j] = _dist(O, b, reqs[i], p) / hp[HP_SPEED] + revisit_penalty(hp, int(O.personnel[b, p, 4]))
+            C[i, j] = _dist(O, b, reqs[i], p) / hp[HP_SPEED] + revisit_penalty(hp, int(O.personnel[b, p, PER_LEVEL]))
     return C
 
 
@@ -421,8 +434,8 @@ def _retained_homes(b, O, hx, hy):
     h = 0
     for p in range(O.personnel.shape[1]):
         if O.personnel_mask[b, p] == 1 and O.under_notice[b, p] == 0:
-            hx[h] = O.personnel[b, p, 0]
-            hy[h] = O.personnel[b, p, 1]
+            hx[h] = O.personnel[b, p, PER_HOME_X]
+            hy[h] = O.personnel[b, p, PER_HOME_Y]
             h += 1
     return h
 
@@ -459,7 +472,7 @@ def staffing_target(b, O, S, hp):
     n = 0
     for p in range(N):
         if O.personnel_mask[b, p] == 1 and O.under_notice[b, p] == 0:
-            qsum += hp[HP_FIX0 + int(O.personnel[b, p, 4])]
+            qsum += hp[HP_FIX0 + int(O.personnel[b, p, PER_LEVEL])]
             n += 1
     if n > 0:
         q = qsum / n
@@ -483,7 +496,7 @@ def workforce_staffing(b, O, S, hp, key, t):
     M = O.facilities.shape[1]
     onsets = 0.0
     for f in range(M):
-        down = np.int8(1) if (O.facility_mask[b, f] == 1 and O.facilities[b, f, 3] > 0.5) else np.int8(0)
+        down = np.int8(1) if (O.facility_mask[b, f] == 1 and O.facilities[b, f, FAC_REQUESTING] > 0.5) else np.int8(0)
         if down == 1 and S.rate_prev_down[b, f] == 0:
             onsets += 1.0
         S.rate_prev_down[b, f] = down
@@ -491,9 +504,9 @@ def workforce_staffing(b, O, S, hp, key, t):
     S.rate[b] = (1.0 - a) * S.rate[b] + a * onsets
     # learn the travel speed from people heading out (the ``speed`` parameter is only the prior)
     for p in range(O.personnel.shape[1]):
-        if O.personnel_mask[b, p] == 1 and O.personnel[b, p, 7] > 0.5:
-            x = O.personnel[b, p, 2]
-            y = O.personnel[b, p, 3]
+        if O.personnel_mask[b, p] == 1 and O.personnel[b, p, PER_HEADING_OUT] > 0.5:
+            x = O.personnel[b, p, PER_X]
+            y = O.personnel[b, p, PER_Y]
             if S.prev_xy[b, p, 0] == S.prev_xy[b, p, 0]:  # not NaN: was heading out last step too
                 S.speed_seen[b] = max(S.speed_seen[b], abs(x - S.prev_xy[b, p, 0]) + abs(y - S.prev_xy[b, p, 1]))
             S.prev_xy[b, p, 0] = x
@@ -515,7 +528,7 @@ def observe_history(b, O, S, hp):
     a = hp[HP_SMOOTH]
     for f in range(M):
         act = O.facility_mask[b, f]
-        down = np.int8(1) if O.facilities[b, f, 3] > 0.5 else np.int8(0)
+        down = np.int8(1) if O.facilities[b, f, FAC_REQUESTING] > 0.5 else np.int8(0)
         if act == 1:
             if S.prev_active[b, f] == 0:
                 S.demand[b, f] = 0.0  # a new facility in this slot: forget the old one
@@ -551,7 +564,7 @@ def spatial_weights(b, O, S, hp, out, key, t, noise):
     for f in range(M):
         if O.facility_mask[b, f] == 1:
             max_r = max(max_r, S.demand[b, f])
-            max_d = max(max_d, O.facilities[b, f, 6])
+            max_d = max(max_d, O.facilities[b, f, FAC_DOWNTIME])
     wr = hp[HP_REQW]
     top = 0.0
     for f in range(M):
@@ -563,7 +576,7 @@ def spatial_weights(b, O, S, hp, out, key, t, noise):
         if max_r > 0.0:
             d += wr * S.demand[b, f] / max_r
         if max_d > 0.0:
-            d += (1.0 - wr) * O.facilities[b, f, 6] / max_d
+            d += (1.0 - wr) * O.facilities[b, f, FAC_DOWNTIME] / max_d
         if noise > 0.0:
             d *= np.exp(noise * normal(key, STREAM_POLICY_POSITIONING, t, f, 0))
         out[0, f] = d
@@ -615,7 +628,7 @@ def positioning_facility(b, O, S, hp, out, t):
             sites[ns] = f
             ns += 1
             max_r = max(max_r, S.demand[b, f])
-            max_d = max(max_d, O.facilities[b, f, 6])
+            max_d = max(max_d, O.facilities[b, f, FAC_DOWNTIME])
     if ns == 0:
         S.pos_cache[b] = out
         return
@@ -627,7 +640,7 @@ def positioning_facility(b, O, S, hp, out, t):
         if max_r > 0.0:
             d += wr * S.demand[b, f] / max_r
         if max_d > 0.0:
-            d += (1.0 - wr) * O.facilities[b, f, 6] / max_d
+            d += (1.0 - wr) * O.facilities[b, f, FAC_DOWNTIME] / max_d
         w[k] = d
     # weighted site-to-site distances: C[candidate, client]
     C = np.empty((ns, ns))
@@ -635,15 +648,15 @@ def positioning_facility(b, O, S, hp, out, t):
         for j in range(ns):
             fi = sites[i]
             fj = sites[j]
-            C[i, j] = w[j] * _dist_to(O, b, fj, O.facilities[b, fi, 0], O.facilities[b, fi, 1])
+            C[i, j] = w[j] * _dist_to(O, b, fj, O.facilities[b, fi, FAC_X], O.facilities[b, fi, FAC_Y])
     hx = np.empty(N)
     hy = np.empty(N)
     h = _retained_homes(b, O, hx, hy)
     # hire map
     p_med = min(h + 1, ns)
     zero = np.zeros(ns)
-    is_open = _greedy(C, zero, p_med)
-    _local_search(C, zero, is_open, p_med, 1000, 1e-9)
+    is_open = greedy_open(C, zero, p_med)
+    local_search(C, zero, is_open, p_med, 1000, 1e-9)
     med = np.empty(p_med, dtype=np.int64)
     k = 0
     for i in range(ns):

@@ -1,47 +1,11 @@
-"""Policies by name: built-in composites, per-decision built-ins and ``module:attr`` entry points."""
+"""Policies by name: built-in composites, ``"D+W+P"`` composites of built-in decisions, ``module:attr`` entry points."""
 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
 from typing import Any
 
-from policies import kernels as K
-from policies.base import BuiltinDecision, Composite
-from policies.solver import AssignmentDispatch
-
-
-def _d(decision: str, code: int, name: str, **hp: float) -> Callable[[], BuiltinDecision]:
-    return lambda: BuiltinDecision(decision, code, name, **hp)
-
-
-DECISIONS: dict[str, dict[str, Callable[[], Any]]] = {
-    "dispatch": {
-        "nearest": _d("dispatch", K.D_NEAREST, "nearest"),
-        "inverse-distance": _d("dispatch", K.D_INVERSE, "inverse-distance"),
-        "random": _d("dispatch", K.D_RANDOM, "random"),
-        "assignment": _d("dispatch", K.D_ASSIGN, "assignment"),
-        "assignment-scipy": lambda: AssignmentDispatch("exact", name="assignment-scipy"),
-        "assignment-milp": lambda: AssignmentDispatch("milp", name="assignment-milp"),
-        "assignment-lp": lambda: AssignmentDispatch("lp", "HIGHS", name="assignment-lp"),
-        "assignment-lp-osqp": lambda: AssignmentDispatch("lp", "OSQP", name="assignment-lp-osqp"),
-        "none": _d("dispatch", K.D_NOOP, "none"),
-    },
-    "workforce": {
-        "threshold": _d("workforce", K.W_THRESHOLD, "threshold"),
-        "threshold-epsilon": _d("workforce", K.W_EPSILON, "threshold-epsilon"),
-        "random": _d("workforce", K.W_RANDOM, "random"),
-        "staffing": _d("workforce", K.W_STAFFING, "staffing"),
-        "fixed": _d("workforce", K.W_NOOP, "fixed"),
-    },
-    "positioning": {
-        "spatial": _d("positioning", K.P_SPATIAL, "spatial"),
-        "spatial-gaussian": _d("positioning", K.P_GAUSSIAN, "spatial-gaussian"),
-        "random": _d("positioning", K.P_RANDOM, "random"),
-        "facility-location": _d("positioning", K.P_FACILITY, "facility-location"),
-        "none": _d("positioning", K.P_NONE, "none"),
-    },
-}
+from policies.composite import Composite
 
 # name -> (dispatch, workforce, positioning, description)
 COMPOSITES: dict[str, tuple[str, str, str, str]] = {

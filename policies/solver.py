@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from policies import kernels as K
-from policies.base import as_obs, hp_vector, seeds_array
+from policies.protocol import as_obs, hp_vector, seeds_array
 from solvers import assignment
 
 

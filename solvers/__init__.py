@@ -6,7 +6,7 @@
 - :mod:`solvers.staffing` Erlang C and square-root staffing;
 - :mod:`solvers.orlib` readers for the OR-Library instance formats.
 
-Nothing here imports the simulator (DESIGN section 3).
+Nothing here imports the simulator or any other package of ours (``docs/design.md``, layers).
 """
 
 from solvers.result import SolveResult, SolverInputError

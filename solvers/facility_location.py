@@ -91,7 +91,7 @@ def _cost(C, f, is_open):
 
 
 @njit(cache=True)
-def _greedy(C, f, p):
+def greedy_open(C, f, p):
     """Greedy construction: p > 0 adds exactly p facilities, p == 0 adds while the cost drops."""
     m, n = C.shape
     is_open = np.zeros(m, dtype=np.bool_)
@@ -127,7 +127,7 @@ def _greedy(C, f, p):
 
 
 @njit(cache=True)
-def _local_search(C, f, is_open, p, max_iter, tol):
+def local_search(C, f, is_open, p, max_iter, tol):
     """Best-improvement add / drop / swap (swap only when p > 0) from ``is_open`` (changed in place)."""
     m, n = C.shape
     d1 = np.empty(n)
@@ -211,16 +211,16 @@ def _result(status, C, f, is_open, bound, seconds, solver, method, message="", *
 
 
 def _heuristic(C, f, p, time_limit=None):
-    is_open = _greedy(C, f, p)
+    is_open = greedy_open(C, f, p)
     greedy_obj = _objective(C, f, is_open)
-    iters = _local_search(C, f, is_open, p, 10_000_000, 1e-9 * max(1.0, abs(greedy_obj)))
+    iters = local_search(C, f, is_open, p, 10_000_000, 1e-9 * max(1.0, abs(greedy_obj)))
     return is_open, greedy_obj, iters
 
 
 # -- MILP and LP ---------------------------------------------------------------------------------
 def _milp(C, f, p, time_limit):
-    # imported here: the compiled policies import this module for _greedy and
-    # _local_search and would otherwise pay for scipy.optimize at start-up
+    # imported here: the compiled policies import this module for greedy_open and
+    # local_search and would otherwise pay for scipy.optimize at start-up
     import scipy.sparse as sp
     from scipy.optimize import Bounds, LinearConstraint, milp
 

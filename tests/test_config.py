@@ -1,7 +1,8 @@
 import pytest
 
 from wfbench import RateSchedule, ScenarioConfig
-from wfbench.presets import PRESETS, TABLE2_CELLS, TABLE2_GRIDS, table2_name
+from wfbench.config import PRESETS
+from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
 
 
 def test_table2_has_twenty_cells_with_the_papers_sizes():

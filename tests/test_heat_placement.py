@@ -9,7 +9,7 @@ does not decrease (where the bound would not hold and the full scan must be used
 import numpy as np
 import pytest
 
-from wfbench.dynamics import _full_argmax, argmax_heat, gauss_table
+from wfbench.placement import argmax_heat, full_argmax, gauss_table
 
 
 def python_argmax(wk, xk, yk, g, grid_w, grid_h):
@@ -36,7 +36,7 @@ def test_pruned_argmax_equals_full_scan(grid_w, grid_h, sigma):
         wk, xk, yk = terms(rng, int(rng.integers(1, 30)), grid_w, grid_h)
         if trial % 3 == 0:  # coarse weights make equal values likely
             wk = np.round(wk * 2) / 2
-        expected = _full_argmax(wk, xk, yk, g, grid_w, grid_h)
+        expected = full_argmax(wk, xk, yk, g, grid_w, grid_h)
         assert argmax_heat(wk, xk, yk, g, grid_w, grid_h) == expected
         if grid_w * grid_h < 400:
             assert expected == python_argmax(wk, xk, yk, g, grid_w, grid_h)
@@ -59,7 +59,7 @@ def test_underflowing_table_ties_on_zero_values():
     rng = np.random.default_rng(7)
     for _ in range(30):
         wk, xk, yk = terms(rng, 3, 40, 40)
-        assert argmax_heat(wk, xk, yk, g, 40, 40) == _full_argmax(wk, xk, yk, g, 40, 40)
+        assert argmax_heat(wk, xk, yk, g, 40, 40) == full_argmax(wk, xk, yk, g, 40, 40)
 
 
 def test_non_decreasing_table_falls_back_to_the_full_scan():

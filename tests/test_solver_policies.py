@@ -40,7 +40,7 @@ def test_lap_min_matches_scipy(seed):
 
 def _obs(M, N, facilities, people):
     obs = make_obs(M, N, facilities, people)
-    return policies.base.as_obs(obs), obs
+    return policies.protocol.as_obs(obs), obs
 
 
 def _act(name, decision, obs):
@@ -66,13 +66,13 @@ def test_assignment_weighs_the_revisit_penalty_of_each_level():
     # one request; a novice 5 cells away, an expert 10 cells away.
     # revisit_cost 20: novice 5 + 20 * 0.51 / 0.49 = 25.8; expert 10 + 20 * 0.16 / 0.84 = 13.8 -> the expert
     O, obs = _obs(1, 2, [(0, 0, 1)], [(5, 0, 5, 0, 0), (10, 0, 10, 0, 2)])
-    pol = policies.base.BuiltinDecision("dispatch", K.D_ASSIGN, "assignment", revisit_cost=20.0)
+    pol = policies.BuiltinDecision("dispatch", K.D_ASSIGN, "assignment", revisit_cost=20.0)
     pol.reset([0])
     assert pol.act(obs)["dispatch"][0].tolist() == [1]
     # default revisit_cost 2: novice 5 + 2.08 = 7.08 < expert 10 + 0.38 -> the nearer novice
     assert _act("assignment", "dispatch", obs).tolist() == [0]
     # a finite unassigned cost below every option leaves the request open (no-op = N)
-    pol = policies.base.BuiltinDecision("dispatch", K.D_ASSIGN, "assignment", unassigned_cost=1.0)
+    pol = policies.BuiltinDecision("dispatch", K.D_ASSIGN, "assignment", unassigned_cost=1.0)
     pol.reset([0])
     assert pol.act(obs)["dispatch"][0].tolist() == [2]
 
@@ -96,7 +96,7 @@ def test_dispatch_methods_agree_on_a_real_episode():
     hp = methods["exact"].hp
     checked = 0
     for _ in range(120):
-        o = policies.base.as_obs(obs)
+        o = policies.protocol.as_obs(obs)
         outs = {name: p.act(obs)["dispatch"] for name, p in methods.items()}
         for b in range(2):
             reqs, people = K.open_requests_and_free_people(b, o)

@@ -1,17 +1,50 @@
-"""wfbench: a benchmark suite for service workforce optimization."""
+"""wfbench: a benchmark suite for service workforce optimization.
+
+Importing ``wfbench`` loads the simulator core (``ScenarioConfig``, ``Simulator``,
+``trace``) and registers the Gymnasium ids by their string entry points. The names of
+the layers above the core (``evaluate``, ``env``, ``parallel_env``) are imported on
+first use, so importing the core never pulls in ``policies`` or the application layer
+(``docs/design.md``, layers).
+"""
 
 __version__ = "0.1.0"
 
+import importlib
+
+import gymnasium as _gymnasium
+
 from wfbench.config import ScenarioConfig
-from wfbench.envs import env, parallel_env, register_envs
-from wfbench.evaluate import evaluate
 from wfbench.schedule import RateSchedule
 from wfbench.simulator import ActionError, Simulator
 from wfbench.trace import trace
 
-register_envs()
+# Gymnasium imports an entry point's module only when an environment is made.
+ENV_IDS = {
+    "wfbench/Workforce-v0": "wfbench.envs.gym_env:WorkforceEnv",
+    "wfbench/Dispatch-v0": "wfbench.envs.gym_env:DispatchEnv",
+}
+for _env_id, _entry in ENV_IDS.items():
+    if _env_id not in _gymnasium.registry:
+        _gymnasium.register(id=_env_id, entry_point=_entry, disable_env_checker=False)
+
+_LAZY = {"evaluate": "wfbench.evaluate", "env": "wfbench.envs", "parallel_env": "wfbench.envs"}
+
+
+def __getattr__(name: str):
+    """The application-layer names, imported on first use (PEP 562)."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'wfbench' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
+
 
 __all__ = [
-    "ActionError", "RateSchedule", "ScenarioConfig", "Simulator", "env", "evaluate", "parallel_env", "trace",
-    "__version__",
+    "ActionError", "ENV_IDS", "RateSchedule", "ScenarioConfig", "Simulator", "env", "evaluate", "parallel_env",
+    "trace", "__version__",
 ]

@@ -317,7 +317,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
-    from wfbench.presets import PRESETS
+    from wfbench.config import PRESETS
 
     if args.name:
         print(_resolve_scenario(args.name).to_toml(), end="")

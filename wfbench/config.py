@@ -1,7 +1,8 @@
 """Scenario configuration: a frozen, validated dataclass with named presets.
 
 Every field is checked on construction; a bad value raises ``ValueError`` naming the
-field, the value and what is allowed. Presets are looked up by name with
+field, the value and what is allowed. Presets (``PRESETS``, built from the
+data in :mod:`wfbench.presets`) are looked up by name with
 :meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON.
 See ``docs/model.md`` for what each field means in the model.
 """
@@ -17,6 +18,7 @@ from typing import Any
 
 import tomli_w
 
+from wfbench.presets import PRESET_FIELDS
 from wfbench.schedule import RateSchedule
 
 PLACEMENTS = ("argmax", "sample")
@@ -144,8 +146,6 @@ class ScenarioConfig:
     @classmethod
     def preset(cls, name: str) -> ScenarioConfig:
         """The named preset; ``ValueError`` listing the presets for an unknown name."""
-        from wfbench.presets import PRESETS
-
         if name not in PRESETS:
             raise ValueError(f"unknown scenario {name!r}; available: {', '.join(PRESETS)}")
         return PRESETS[name]
@@ -211,3 +211,7 @@ class ScenarioConfig:
             return cls.from_toml(text) if path.suffix == ".toml" else cls.from_json(text)
         except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
             raise ValueError(f"config file {str(path)!r} is not valid {path.suffix[1:].upper()}: {exc}") from None
+
+
+# name -> config; the presets' fields are data in wfbench.presets (it imports nothing of the config)
+PRESETS: dict[str, ScenarioConfig] = {name: ScenarioConfig(name=name, **f) for name, f in PRESET_FIELDS.items()}

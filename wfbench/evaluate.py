@@ -58,7 +58,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
               threads: int | None = None) -> BatchResult:
     """Run full episodes of ``seeds`` as one batch."""
     from policies import get
-    from policies.base import Composite
+    from policies import Composite
     from policies.rollout import rollout
 
     policy = get(policy)

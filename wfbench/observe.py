@@ -25,6 +25,10 @@ GLOBAL_FEATURES = (
     "time_fraction", "headcount", "onboarding", "under_notice", "novices", "mids", "experts",
     "workforce_cost", "utilization", "downtime", "nsw", "active_facilities",
 )
+# column indices of the features, by name: kernels and shells read features through these
+FAC_X, FAC_Y, FAC_OPERATIONAL, FAC_REQUESTING, FAC_ASSIGNED, FAC_PERSON, FAC_DOWNTIME = range(len(FACILITY_FEATURES))
+(PER_HOME_X, PER_HOME_Y, PER_X, PER_Y, PER_LEVEL, PER_BUSY, PER_FACILITY, PER_HEADING_OUT,
+ PER_UTILIZATION) = range(len(PERSONNEL_FEATURES))
 G_TIME, G_HEAD, G_ONB, G_NOTICE, G_L0, G_L1, G_L2, G_WC, G_PUR, G_AFD, G_NSW, G_ACTIVE = range(len(GLOBAL_FEATURES))
 
 
@@ -82,20 +86,20 @@ def observe_env(b, S, P, O, with_masks, full):
             active += 1
             down = S.fac_down[b, f]
             a = S.fac_assigned[b, f]
-            row[0] = S.fac_x[b, f]
-            row[1] = S.fac_y[b, f]
-            row[3] = 1.0 if down else 0.0
+            row[FAC_X] = S.fac_x[b, f]
+            row[FAC_Y] = S.fac_y[b, f]
+            row[FAC_REQUESTING] = 1.0 if down else 0.0
             if full:
-                row[2] = 0.0 if down else 1.0
-                row[4] = 1.0 if a >= 0 else 0.0
-                row[5] = a
-            row[6] = S.fac_sum[b, f] / max(1, min(W, t - S.fac_since[b, f]))
+                row[FAC_OPERATIONAL] = 0.0 if down else 1.0
+                row[FAC_ASSIGNED] = 1.0 if a >= 0 else 0.0
+                row[FAC_PERSON] = a
+            row[FAC_DOWNTIME] = S.fac_sum[b, f] / max(1, min(W, t - S.fac_since[b, f]))
             O.facility_mask[b, f] = 1
             O.requesting[b, f] = 1 if (down and a < 0) else 0
         else:
             row[:] = 0.0
             if full:
-                row[5] = -1.0
+                row[FAC_PERSON] = -1.0
             O.facility_mask[b, f] = 0
             O.requesting[b, f] = 0
     head = 0
@@ -120,7 +124,7 @@ def observe_env(b, S, P, O, with_masks, full):
         if st == EMPTY:
             if full:
                 row[:] = 0.0
-                row[6] = -1.0
+                row[PER_FACILITY] = -1.0
             O.personnel_mask[b, p] = 0
             O.dispatchable[b, p] = 0
             O.under_notice[b, p] = 0
@@ -140,17 +144,17 @@ def observe_env(b, S, P, O, with_masks, full):
             rel2 |= rel
         if st == ONBOARDING:
             onb += 1
-        row[0] = S.per_hx[b, p]
-        row[1] = S.per_hy[b, p]
-        row[2] = S.per_x[b, p]
-        row[3] = S.per_y[b, p]
-        row[4] = lv
-        row[7] = 1.0 if st == TO_FACILITY else 0.0
+        row[PER_HOME_X] = S.per_hx[b, p]
+        row[PER_HOME_Y] = S.per_hy[b, p]
+        row[PER_X] = S.per_x[b, p]
+        row[PER_Y] = S.per_y[b, p]
+        row[PER_LEVEL] = lv
+        row[PER_HEADING_OUT] = 1.0 if st == TO_FACILITY else 0.0
         if full:
-            row[5] = 1.0 if (st == TO_FACILITY or st == SERVICING) else 0.0
-            row[6] = S.per_target[b, p]
+            row[PER_BUSY] = 1.0 if (st == TO_FACILITY or st == SERVICING) else 0.0
+            row[PER_FACILITY] = S.per_target[b, p]
             since = S.per_since[b, p]
-            row[8] = S.per_sum[b, p] / max(1, min(W, t - since)) if st >= IDLE and t > since else 0.0
+            row[PER_UTILIZATION] = S.per_sum[b, p] / max(1, min(W, t - since)) if st >= IDLE and t > since else 0.0
         O.personnel_mask[b, p] = 1
         on_notice = leave[p] >= 0
         O.dispatchable[b, p] = 1 if dispatchable(st, leave[p]) else 0
@@ -162,13 +166,13 @@ def observe_env(b, S, P, O, with_masks, full):
     g = O.globals[b]
     g[G_PUR] = S.last[b, K_PUR]
     if full:
-        g[0] = t / P.horizon
-        g[1] = head / N
-        g[2] = onb / N
-        g[3] = notice / N
-        g[4] = l0 / N
-        g[5] = l1 / N
-        g[6] = l2 / N
+        g[G_TIME] = t / P.horizon
+        g[G_HEAD] = head / N
+        g[G_ONB] = onb / N
+        g[G_NOTICE] = notice / N
+        g[G_L0] = l0 / N
+        g[G_L1] = l1 / N
+        g[G_L2] = l2 / N
         g[G_WC] = S.last[b, K_WC] / P.max_cost
         g[G_AFD] = S.last[b, K_AFD]
         g[G_NSW] = S.last[b, K_NSW]

@@ -148,11 +148,3 @@ class DispatchEnv(_Base):
 
     def step(self, action):
         return self._step({"dispatch": self._check_vector(action, self.M)})
-
-
-def register_envs() -> None:
-    """Register the Gymnasium ids (done on ``import wfbench``)."""
-    for env_id, entry in (("wfbench/Workforce-v0", "wfbench.envs.gym_env:WorkforceEnv"),
-                          ("wfbench/Dispatch-v0", "wfbench.envs.gym_env:DispatchEnv")):
-        if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=entry, disable_env_checker=False)

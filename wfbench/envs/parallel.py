@@ -24,6 +24,8 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from pettingzoo.utils import parallel_to_aec, wrappers
 
+from policies import DECISIONS, get
+from policies.registry import COMPOSITES
 from wfbench.config import ScenarioConfig
 from wfbench.envs.spaces import (
     OBS_KEYS,
@@ -42,9 +44,6 @@ _INFO_METRICS = tuple((k, METRICS.index(k)) for k in ("workforce_cost", "utiliza
 
 def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
     """Policies for the fixed agents; names are decision policies or composites."""
-    from policies import DECISIONS, get
-    from policies.registry import COMPOSITES
-
     out: dict[str, Any] = {}
     for agent, spec in (fixed or {}).items():
         if agent not in AGENTS:
@@ -189,11 +188,11 @@ class WorkforceParallelEnv(ParallelEnv):
             "positioning": positioning_action_space(self.config),
         }
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019 - one space object per agent, as PettingZoo asks
+    @functools.cache  # noqa: B019 - one space object per agent, as PettingZoo asks
     def observation_space(self, agent: str) -> spaces.Dict:
         return self._obs_space
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019
+    @functools.cache  # noqa: B019
     def action_space(self, agent: str) -> spaces.Space:
         return self._act_spaces[agent]
 

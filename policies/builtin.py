@@ -1,0 +1,69 @@
+"""Built-in decisions: one decision made by a compiled kernel of :mod:`policies.kernels`.
+
+A :class:`BuiltinDecision` is a policy for one agent; a composite made only of them can
+run a whole episode in compiled code (:mod:`policies.rollout`) with results identical to
+stepping it through ``act``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from policies import kernels as K
+from policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
+from wfbench.observe import Obs
+from wfbench.simulator import AGENTS
+
+
+class BuiltinDecision:
+    """One decision made by a compiled kernel (see :mod:`policies.kernels` for the codes)."""
+
+    def __init__(self, decision: str, code: int, name: str, seed: int = 0, **hp: float):
+        if decision not in DECISION_INDEX:
+            raise ValueError(f"unknown decision {decision!r}; allowed: {AGENTS}")
+        self.hp = hp_vector(hp, name)
+        self.decisions = (decision,)
+        self.decision = decision
+        self.code = int(code)
+        self.name = name
+        self.seed = int(seed)
+        self.state: K.PolicyState | None = None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+    def reset(self, seeds: int | Sequence[int]) -> None:
+        seeds = seeds_array(seeds)
+        self._seeds = seeds
+        self.state = None  # allocated at the first act, when M is known
+
+    def _ensure_state(self, obs: Obs) -> K.PolicyState:
+        B, M = obs.facilities.shape[:2]
+        N = obs.personnel.shape[1]
+        if self.state is None or self.state.prev_xy.shape[:2] != (B, N) or self.state.demand.shape != (B, M):
+            seeds = getattr(self, "_seeds", None)
+            if seeds is None or len(seeds) != B:
+                raise RuntimeError(f"{self!r}: call reset(seeds) with {B} seed(s) before act()")
+            self.state = K.allocate_state(B, M, N)
+            d = DECISION_INDEX[self.decision]
+            for b, s in enumerate(seeds):
+                self.state.keys[b, d] = decision_key(s, self.seed, self.decision)
+        return self.state
+
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        o = as_obs(obs)
+        S = self._ensure_state(o)
+        B, M = o.facilities.shape[:2]
+        N = o.personnel.shape[1]
+        codes = np.zeros(3, dtype=np.int64)
+        codes[DECISION_INDEX[self.decision]] = self.code
+        dispatch = np.full((B, M), N, dtype=np.int64)
+        workforce = np.zeros(B, dtype=np.int64)
+        positioning = np.zeros((B, 2, M), dtype=np.float64)
+        hp = np.zeros((3, len(K.HP_FIELDS)))
+        hp[DECISION_INDEX[self.decision]] = self.hp
+        K.act_batch(o, S, codes, hp, dispatch, workforce, positioning, np.asarray(obs["t"], dtype=np.int64))
+        made = {"dispatch": dispatch, "workforce": workforce, "positioning": positioning}
+        return {self.decision: made[self.decision]}

@@ -1,0 +1,87 @@
+"""The composite: one policy per decision, which is how the paper's Table 3 rows are built.
+
+``Composite(dispatch=..., workforce=..., positioning=...)`` takes for each decision a
+policy object or the name of a built-in decision policy (:data:`policies.decisions.DECISIONS`).
+A composite made only of built-in kernels can run whole episodes compiled
+(:meth:`Composite.compiled_plan`, :func:`policies.rollout.rollout`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from policies import kernels as K
+from policies.builtin import BuiltinDecision
+from policies.decisions import DECISIONS
+from policies.protocol import decision_key, seeds_array
+from wfbench.simulator import AGENTS
+
+
+def _decision_policy(decision: str, spec: Any) -> Any:
+    if isinstance(spec, str):
+        table = DECISIONS[decision]
+        if spec not in table:
+            raise ValueError(f"unknown {decision} policy {spec!r}; available: {', '.join(table)}")
+        return table[spec]()
+    if not hasattr(spec, "act") or decision not in getattr(spec, "decisions", AGENTS):
+        raise ValueError(f"{spec!r} cannot make the {decision} decision")
+    return spec
+
+
+class Composite:
+    """One policy per decision: ``Composite(dispatch=..., workforce=..., positioning=...)``.
+
+    Each argument is a policy object or the name of a built-in decision policy
+    (``policies.registry.DECISIONS``).
+    """
+
+    def __init__(self, dispatch: Any, workforce: Any, positioning: Any, name: str | None = None):
+        self.parts = {
+            "dispatch": _decision_policy("dispatch", dispatch),
+            "workforce": _decision_policy("workforce", workforce),
+            "positioning": _decision_policy("positioning", positioning),
+        }
+        self.decisions = AGENTS
+        self.name = name or "+".join(getattr(p, "name", type(p).__name__) for p in self.parts.values())
+
+    def __repr__(self) -> str:
+        return f"Composite({self.name!r})"
+
+    def reset(self, seeds: int | Sequence[int]) -> None:
+        done: set[int] = set()
+        for p in self.parts.values():
+            if id(p) not in done:
+                p.reset(seeds)
+                done.add(id(p))
+
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {}
+        cache: dict[int, dict[str, np.ndarray]] = {}
+        for decision, p in self.parts.items():
+            if id(p) not in cache:
+                cache[id(p)] = p.act(obs)
+            out[decision] = cache[id(p)][decision]
+        return out
+
+    @property
+    def compiled(self) -> bool:
+        """True when every part is a built-in kernel, so a whole episode can run compiled."""
+        return all(isinstance(p, BuiltinDecision) for p in self.parts.values())
+
+    def compiled_plan(self, seeds: Sequence[int], M: int, N: int) -> tuple[np.ndarray, np.ndarray, K.PolicyState]:
+        """Codes, hyper-parameters and fresh state for :func:`policies.rollout.rollout`."""
+        if not self.compiled:
+            raise ValueError(f"{self!r} has parts that are not built-in kernels")
+        seeds = seeds_array(seeds)
+        B = len(seeds)
+        codes = np.array([self.parts[d].code for d in AGENTS], dtype=np.int64)
+        hp = np.stack([self.parts[d].hp for d in AGENTS])
+        state = K.allocate_state(B, M, N)
+        for d, decision in enumerate(AGENTS):
+            part = self.parts[decision]
+            for b, s in enumerate(seeds):
+                state.keys[b, d] = decision_key(s, part.seed, decision)
+        return codes, hp, state
