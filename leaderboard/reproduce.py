@@ -2,7 +2,7 @@
 
 Each writes markdown and CSV (and PNG for the figure) into an output folder and
 returns the text it prints. The paper's NSW is a cost (lower is better) and its
-formulas do not reproduce its own numbers; ours (DESIGN.md) is a welfare in [0, 1],
+formulas do not reproduce its own numbers; ours (``docs/metrics.md``) is a welfare in [0, 1],
 higher is better. So the tables put the paper's numbers beside ours and compare
 orderings and trends, never values; docs/reproduction.md says what matches and why.
 """
@@ -20,8 +20,8 @@ from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
 from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
 from wfbench.tables import markdown_table
 
-DIRECTION = ("Direction: our NSW is DESIGN.md's welfare in [0, 1], higher is better; the paper's NSW column is a "
-             "cost, lower is better. Compare orderings and trends, not values.")
+DIRECTION = ("Direction: our NSW is a welfare in [0, 1] (docs/metrics.md), higher is better; the paper's NSW "
+             "column is a cost, lower is better. Compare orderings and trends, not values.")
 
 # Paper, Table 2: NSW (a cost, lower is better) by grid and (facilities, personnel)
 PAPER_TABLE2 = {

@@ -1,6 +1,6 @@
 """The compiled transition core: one environment ``b`` of a batch at a time.
 
-A step of environment b at time t (DESIGN.md section 1; ``docs/model.md`` has every
+A step of environment b at time t (``docs/design.md``, "One time step"; ``docs/model.md`` has every
 rule with its source):
 
 1. ``exogenous`` (run at the *start* of step t, before the decisions are observed):

@@ -1,6 +1,6 @@
 """The trace: every exogenous draw of one episode, a pure function of (config, seed).
 
-Contents (DESIGN.md section 1, common random numbers):
+Contents (``docs/design.md``, "The trace and common random numbers"; ``docs/model.md`` lists every draw):
 
 - the initial facilities (cells, exit times) and workforce (home cells, levels);
 - facility arrivals: a non-homogeneous Poisson process with rate
