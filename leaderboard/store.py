@@ -114,13 +114,22 @@ class Submission:
 
 
 class Store:
-    """A wfbench result store at ``path`` (created on first use)."""
+    """A wfbench result store at ``path``.
 
-    def __init__(self, path: str | os.PathLike | None = None):
+    Args:
+        path: the store file (default: :func:`default_path`).
+        create: make the store when the file does not exist (writers do); readers pass
+            ``False`` and get a StoreError saying the file does not exist.
+    """
+
+    def __init__(self, path: str | os.PathLike | None = None, create: bool = True):
         self.path = Path(path) if path is not None else default_path()
         exists = self.path.exists()
         if exists:
             self._check_file()
+        elif not create:
+            raise StoreError(f"store {self.path} does not exist; pass --db with the file that "
+                             "'wfbench leaderboard submit' or 'seed' wrote, or run one of them first")
         else:
             if self.path.parent.exists() and not self.path.parent.is_dir():
                 raise StoreError(f"cannot create store {self.path}: {self.path.parent} is not a folder")

@@ -1,21 +1,23 @@
 """Evaluate a policy on a track's test seeds in a child process and store one row per seed.
 
-The policy runs in a child process (spawned: nothing of the parent leaks in) with an
-address-space limit (``memory_mb``, ``RLIMIT_AS``, inherited by its workers); the parent
-enforces the wall-time limit and is the only writer of the store. The child sends each
-finished chunk of seeds as soon as it is done and the parent commits it in one
-transaction, so an interruption loses at most the chunks in flight. A policy that
-cannot be loaded is a user error (nothing is stored); one that raises, returns
-malformed actions, hangs past the limit, exhausts its memory or kills its process
-marks the submission ``failed`` with the reason, and every stored row and every other
-submission stay as they were. Submitting the same name and policy again resumes with
-the seeds still missing.
+The policy runs in a child process (a fresh interpreter started by loky: nothing of the
+parent leaks in, and ``__main__`` is not re-imported, so this works from a script
+without a ``__main__`` guard) with an address-space limit (``memory_mb``,
+``RLIMIT_AS``, inherited by its workers); the parent enforces the wall-time limit and
+is the only writer of the store. The child sends each finished chunk of seeds as soon
+as it is done and the parent commits it in one transaction, so an interruption loses
+at most the chunks in flight. A policy that cannot be loaded is a user error (nothing
+is stored); one that raises, returns malformed actions, overruns its act timeout
+(``act_timeout_s`` per ``reset``/``act`` call, :mod:`wfbench.guard`), hangs past the
+wall-time limit, exhausts its memory or kills its process marks the submission
+``failed`` with a one-line reason naming its file and line, and every stored row and
+every other submission stay as they were. Submitting the same name and policy again
+resumes with the seeds still missing.
 """
 
 from __future__ import annotations
 
 import getpass
-import multiprocessing as mp
 import os
 import signal
 import time
@@ -23,9 +25,14 @@ import traceback
 from dataclasses import dataclass
 from typing import Any
 
+from joblib.externals.loky.backend.context import get_context
+
 from leaderboard.store import ROW_COLUMNS, Store, Submission
 from leaderboard.tracks import Track, get_track
 from wfbench import __version__
+from wfbench.backends import check_backend, run_chunks, shutdown_pools
+from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError, check_act_timeout, load_policy
+from wfbench.runner import results_frame
 
 DEFAULT_WALL_TIME_S = 3600.0
 DEFAULT_MEMORY_MB = 8192
@@ -41,17 +48,30 @@ class SubmitError(Exception):
 class Outcome:
     submission: Submission
     status: str  # complete | failed
-    reason: str
+    reason: str  # one line; empty when complete
     new_rows: int
     stored_rows: int
     seconds: float
+    trace: str = ""  # the failure's whole traceback, formatted in the child (for --traceback)
 
 
-def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chunk_size, memory_mb) -> None:
+def _where(exc: BaseException) -> str:
+    tb = traceback.extract_tb(exc.__traceback__)
+    return f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chunk_size, memory_mb,
+           act_timeout_s) -> None:
     """Runs in the child process: load the policy, then stream finished rows to the parent.
 
-    The child leads its own process group, so the parent can stop it together with any
-    worker processes it started.
+    Messages: ``("note", text)``, ``("load_error", line, trace)``, ``("ready",)``,
+    ``("rows", rows)``, ``("done",)``, ``("error", line, trace)``. The child leads its own
+    process group, so the parent can stop it together with any worker processes it started.
     """
     try:
         os.setsid()
@@ -59,50 +79,77 @@ def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chu
         pass
     if memory_mb:
         try:
-            import resource
+            import resource  # POSIX only: on other platforms the limit is reported as not applied
 
             limit = int(memory_mb) * 1024 * 1024
             resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
         except (ImportError, ValueError, OSError) as exc:  # not on this platform: say so, run unlimited
             conn.send(("note", f"memory limit not applied: {exc}"))
     try:
-        from policies import get
-
-        policy = get(policy_spec)
+        loaded = load_policy(policy_spec, act_timeout_s)
+    except PolicyLoadError as exc:
+        conn.send(("load_error", f"cannot load policy {policy_spec!r}: {exc}", ""))
+        return
+    except PolicyError as exc:
+        conn.send(("load_error", exc.message, exc.trace))
+        return
     except BaseException as exc:  # noqa: BLE001 - anything the user's import raises is a load error
-        conn.send(("load_error", f"cannot load policy {policy_spec!r}: {type(exc).__name__}: {exc}"))
+        conn.send(("load_error", f"cannot load policy {policy_spec!r}: {_one_line(exc)}{_where(exc)}",
+                   traceback.format_exc()))
         return
     conn.send(("ready",))
     try:
-        from wfbench.backends import run_chunks, shutdown_pools
-        from wfbench.evaluate import _frame
-
-        target = policy if backend == "serial" else policy_spec
-        for batch in run_chunks(target, config, seeds, backend=backend, workers=workers, address=address,
+        for batch in run_chunks(loaded, config, seeds, backend=backend, workers=workers, address=address,
                                 chunk_size=chunk_size, threads=1 if backend == "serial" else None):
-            rows = _frame([batch], config, policy_spec)[["seed", *ROW_COLUMNS]].to_dict("records")
+            rows = results_frame([batch], config, policy_spec)[["seed", *ROW_COLUMNS]].to_dict("records")
             conn.send(("rows", rows))
         shutdown_pools()  # before saying done: the parent may stop this process right after
         conn.send(("done",))
+    except PolicyError as exc:
+        shutdown_pools(kill_workers=True)  # the other chunks' results would not be stored
+        conn.send(("error", exc.message, exc.trace))
     except MemoryError:
-        conn.send(("error", f"the policy ran out of memory (limit {memory_mb} MiB)"))
-    except BaseException as exc:  # noqa: BLE001 - report any failure of the user's policy
-        tb = traceback.extract_tb(exc.__traceback__)
-        where = f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
-        text = str(exc).splitlines()[0] if str(exc) else ""
-        conn.send(("error", f"{type(exc).__name__}: {text}{where}"))
+        conn.send(("error", f"the policy ran out of memory (limit {memory_mb} MiB)", traceback.format_exc()))
+    except BaseException as exc:  # noqa: BLE001 - report any failure of the evaluation
+        shutdown_pools(kill_workers=True)
+        conn.send(("error", f"{_one_line(exc)}{_where(exc)}", traceback.format_exc()))
 
 
 def submit(track: str | Track, policy: str, name: str, submitter: str | None = None, db: Any = None,
            backend: str = "process", workers: int | None = None, address: str | None = None,
            wall_time_s: float = DEFAULT_WALL_TIME_S, memory_mb: int | None = DEFAULT_MEMORY_MB,
-           chunk_size: int | None = None, progress: bool = False, builtin: bool = False) -> Outcome:
-    """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows."""
-    from wfbench.backends import check_backend
+           chunk_size: int | None = None, progress: bool = False, builtin: bool = False,
+           act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S) -> Outcome:
+    """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows.
 
+    Args:
+        track: a track name or :class:`~leaderboard.tracks.Track`.
+        policy: a registry name or a ``module:attr`` entry point.
+        name: the entry's name on the track; submitting it again resumes.
+        submitter: who submits (default: the user name).
+        db: a store path or :class:`~leaderboard.store.Store` (default: the user's store).
+        backend: where the child runs the episodes (:mod:`wfbench.backends`).
+        workers: processes or Ray tasks of the child.
+        address: Ray cluster address.
+        wall_time_s: the whole evaluation's limit in seconds.
+        memory_mb: the child's address-space limit in MiB (``None``: none).
+        chunk_size: seeds per stored chunk (default 5).
+        progress: show a progress bar.
+        builtin: mark the entry as one of wfbench's own.
+        act_timeout_s: limit of each ``reset``/``act`` call of a user's policy in
+            seconds; ``None`` or 0 for none.
+
+    Returns:
+        The outcome: ``complete``, or ``failed`` with a one-line reason and its trace.
+
+    Raises:
+        SubmitError: the submission cannot start (unknown track or policy, a policy that
+            cannot be loaded, a name taken, bad limits); nothing is stored.
+    """
     try:
         tr = track if isinstance(track, Track) else get_track(track)
         check_backend(backend, address)
+        act_timeout_s = check_act_timeout(act_timeout_s)
     except ValueError as exc:
         raise SubmitError(str(exc)) from None
     if not isinstance(policy, str) or not policy:
@@ -112,11 +159,9 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     if memory_mb is not None and memory_mb < 256:
         raise SubmitError(f"memory limit {memory_mb} MiB is not allowed; allowed: >= 256 MiB")
     if ":" not in policy:  # a registry name or composite: check it here, no user code runs
-        from policies import get
-
         try:
-            get(policy)
-        except ValueError as exc:
+            load_policy(policy)
+        except PolicyLoadError as exc:
             raise SubmitError(str(exc)) from None
     submitter = submitter or getpass.getuser()
     store = db if isinstance(db, Store) else Store(db)
@@ -133,16 +178,19 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         sub = store.find(tr.name, name)
         return Outcome(sub, "complete", "", 0, len(done), time.perf_counter() - t0)  # type: ignore[arg-type]
     chunk = chunk_size or 5
-    ctx = mp.get_context("spawn")
+    # loky's process: a fresh interpreter that does not re-import __main__ (multiprocessing's
+    # spawn would run a guard-less calling script again in the child)
+    ctx = get_context("loky")
     parent_conn, child_conn = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(child_conn, policy, tr.config, missing, backend, workers, address,
-                                            chunk, memory_mb), daemon=False)
+                                            chunk, memory_mb, act_timeout_s), daemon=False)
     proc.start()
     child_conn.close()
     bar = None
     sub: Submission | None = existing
     new_rows = 0
-    status, reason = "failed", ""
+    status, reason, trace = "failed", "", ""
+    child_ends = False  # the child said done or error and exits by itself
     deadline = time.monotonic() + wall_time_s
     try:
         while True:
@@ -176,10 +224,10 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                     if bar:
                         bar.update(len(msg[1]))
                 elif kind == "done":
-                    status = "complete"
+                    status, child_ends = "complete", True
                     break
                 elif kind == "error":
-                    reason = msg[1]
+                    reason, trace, child_ends = msg[1], msg[2], True
                     break
             elif not proc.is_alive():
                 if parent_conn.poll():
@@ -189,8 +237,8 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     finally:
         if bar:
             bar.close()
-        if status == "complete":
-            proc.join(30)  # it says done after shutting its workers down; let it exit cleanly
+        if child_ends:
+            proc.join(30)  # it has shut its workers down; let it exit cleanly
         _stop(proc)
         parent_conn.close()
     if sub is None:  # the child died before loading the policy
@@ -200,7 +248,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         status, reason = "failed", f"only {stored} of {len(tr.test_seeds)} seeds were stored"
     store.set_status(sub.id, status, reason)
     return Outcome(store.find(tr.name, name), status, reason, new_rows, stored,  # type: ignore[arg-type]
-                   time.perf_counter() - t0)
+                   time.perf_counter() - t0, trace)
 
 
 def _stop(proc) -> None:

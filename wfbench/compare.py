@@ -9,24 +9,44 @@ import pandas as pd
 
 from wfbench.config import ScenarioConfig
 from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, resolve_seeds, summarize
+from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.stats import bootstrap_ci, paired_difference
 from wfbench.tables import markdown_table, text_table
 
 
 def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | Iterable[int] = 50,
             baseline: str = "heuristic", backend: str = "serial", workers: int | None = None,
-            address: str | None = None, progress: bool = False) -> pd.DataFrame:
+            address: str | None = None, progress: bool = False,
+            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S) -> pd.DataFrame:
     """One row per policy (baseline included): KPI summaries, NSW 95% interval, paired NSW difference.
 
     Every policy runs on the same seeds, so the difference to the baseline is paired by
-    seed (:func:`wfbench.stats.paired_difference`). Rows keep the order given, the
-    baseline first if it was not listed. ``df.attrs["runs"]`` holds the per-seed frames.
+    seed (:func:`wfbench.stats.paired_difference`). Every policy is loaded before the
+    first one runs, so a bad name fails at once. Rows keep the order given, the
+    baseline first if it was not listed; ``df.attrs["baseline_added"]`` says whether it
+    was added. ``df.attrs["runs"]`` holds the per-seed frames.
+
+    Args:
+        policies: registry names, ``module:attr`` entry points or policy objects.
+        scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
+        seeds: a count ``n`` (seeds ``0..n-1``) or a sequence of seeds.
+        baseline: the policy the differences are taken to (a name or entry point).
+        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluate.evaluate`).
+        workers: processes or Ray tasks.
+        address: Ray cluster address.
+        progress: show a progress bar per policy.
+        act_timeout_s: limit of each ``reset``/``act`` call of a user's policy.
+
+    Returns:
+        The comparison, one row per policy.
     """
     config = ScenarioConfig.resolve(scenario)
     seed_list = resolve_seeds(seeds)
-    names = list(dict.fromkeys([baseline, *policies] if baseline not in policies else policies))
-    runs = {name: evaluate(name, config, seed_list, backend=backend, workers=workers, address=address,
-                           progress=progress) for name in names}
+    added = baseline not in policies
+    loaded = [load_policy(p, act_timeout_s) for p in ([baseline, *policies] if added else policies)]
+    by_name = {lp.name: lp for lp in loaded}  # a policy listed twice runs once
+    runs = {name: evaluate(lp, config, seed_list, backend=backend, workers=workers, address=address,
+                           progress=progress) for name, lp in by_name.items()}
     base = runs[baseline]["nsw"].to_numpy()
     rows = []
     for name, df in runs.items():
@@ -40,7 +60,7 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         row["wins"] = int((df["nsw"].to_numpy() > base).sum())
         rows.append(row)
     out = pd.DataFrame(rows)
-    out.attrs.update(scenario=config.name, seeds=seed_list, baseline=baseline, runs=runs)
+    out.attrs.update(scenario=config.name, seeds=seed_list, baseline=baseline, baseline_added=added, runs=runs)
     return out
 
 

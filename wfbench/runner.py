@@ -1,0 +1,99 @@
+"""One batch of full episodes, and the per-seed result rows.
+
+:func:`run_batch` runs every seed of a chunk as one batch: a composite of built-in
+kernels as one compiled rollout, any other policy through one batched ``reset`` /
+``act`` / ``step`` loop (a user's policy through its :class:`~wfbench.guard.Guard`).
+Each environment is independent and all its randomness is indexed by its seed, so a
+seed's numbers do not depend on the batch it ran in. :func:`results_frame` turns
+finished batches into one row per seed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from policies import Composite
+from policies.rollout import rollout
+from wfbench.config import ScenarioConfig
+from wfbench.guard import load_policy
+from wfbench.simulator import Simulator
+from wfbench.state import COUNTERS, INVALID_COUNTERS, METRICS
+
+
+@dataclass
+class BatchResult:
+    """The finished episodes of one batch, row ``i`` for ``seeds[i]``."""
+
+    seeds: list[int]
+    means: dict[str, np.ndarray]  # metric -> (B,) episode mean
+    counters: dict[str, np.ndarray]  # counter -> (B,) int
+    steps: np.ndarray  # (B,) steps run
+    series: np.ndarray | None  # (B, horizon, len(METRICS)) float32
+
+
+def run_batch(policy: Any, config: str | ScenarioConfig, seeds: Sequence[int], keep_series: bool = False,
+              threads: int | None = None) -> BatchResult:
+    """Run full episodes of ``seeds`` as one batch.
+
+    Args:
+        policy: a :class:`~wfbench.guard.LoadedPolicy` (what the backends pass: resolved
+            once per evaluation), or anything :func:`~wfbench.guard.load_policy` takes,
+            loaded here with the default act timeout.
+        config: the scenario (a :class:`ScenarioConfig` or what it resolves).
+        seeds: one environment per seed.
+        keep_series: also keep the per-step metrics.
+        threads: numba threads of a compiled rollout (default: all cores).
+
+    Returns:
+        The batch's episode means, counters and steps (and series).
+
+    Raises:
+        wfbench.guard.PolicyError: a user's policy raised, hung past its act timeout or
+            returned a malformed action.
+    """
+    loaded = load_policy(policy)
+    policy, guard = loaded.policy, loaded.guard
+    sim = Simulator(ScenarioConfig.resolve(config), seeds, keep_series=keep_series)
+    if isinstance(policy, Composite) and policy.compiled:
+        codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
+        rollout(sim, codes, hp, pstate, threads)
+    elif guard is None:  # a built-in: our own code runs as it is
+        obs = sim.reset()
+        policy.reset(sim.seeds)
+        while not sim.done:
+            sim.step(policy.act(obs))
+            obs = sim.observe()
+    else:
+        obs = sim.reset()
+        guard.call("reset", policy.reset, sim.seeds)
+        while not sim.done:
+            guard.step(sim, guard.call("act", policy.act, obs), policy.act)
+            obs = sim.observe()
+    return BatchResult(
+        seeds=list(seeds), means=sim.episode_means(), counters=sim.counters(), steps=sim.state.t.copy(),
+        series=sim.state.series.copy() if keep_series else None,
+    )
+
+
+def results_frame(results: Sequence[BatchResult], config: ScenarioConfig, policy_name: str) -> pd.DataFrame:
+    """One row per seed of the batches, in batch order: the metrics, episode length and action counters."""
+    rows = []
+    for r in results:
+        for i, seed in enumerate(r.seeds):
+            row: dict[str, Any] = {"seed": seed}
+            for k in METRICS:
+                row[k] = float(r.means[k][i])
+            row["episode_length"] = int(r.steps[i])
+            for c in COUNTERS:
+                row[c] = int(r.counters[c][i])
+            row["invalid_actions"] = int(sum(r.counters[c][i] for c in INVALID_COUNTERS))
+            rows.append(row)
+    df = pd.DataFrame(rows)
+    df.attrs["scenario"] = config.name
+    df.attrs["policy"] = policy_name
+    return df
