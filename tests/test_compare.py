@@ -14,7 +14,7 @@ from wfbench.stats import bootstrap_ci, paired_difference
 def test_compare_pairs_by_seed():
     seeds = [0, 1, 2, 3]
     df = compare(["random-dispatch", "random"], "small", seeds, baseline="heuristic")
-    assert df["policy"].tolist() == ["heuristic", "random-dispatch", "random"]
+    assert df["policy"].tolist() == ["heuristic", "random-dispatch", "random"] and df.attrs["baseline_added"]
     base = df.set_index("policy")
     assert base.loc["heuristic", "nsw_diff"] == 0.0
     h = evaluate("heuristic", "small", seeds)["nsw"].to_numpy()
@@ -39,8 +39,15 @@ def test_bootstrap_intervals():
 
 def test_compare_command_and_its_errors(capsys):
     assert main(["compare", "--policies", "solver", "--scenario", "small", "--seeds", "3", "--no-progress"]) == 0
-    out = capsys.readouterr().out
-    assert "solver" in out and "heuristic" in out and "paired" in out
+    captured = capsys.readouterr()
+    assert "solver" in captured.out and "heuristic" in captured.out and "paired" in captured.out
+    assert captured.err == ("wfbench: note: the baseline 'heuristic' is not in --policies; added it as the first row "
+                            "(choose another with --baseline)\n")
+    assert main(["compare", "--policies", "random,heuristic", "--scenario", "small", "--seeds", "2", "--format",
+                 "csv", "--no-progress"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == "", "no note when the baseline is listed"
+    assert [line.split(",")[0] for line in captured.out.splitlines()[1:]] == ["random", "heuristic"]
     assert main(["compare", "--policies", "solver,nope", "--scenario", "small", "--seeds", "2"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unknown policy 'nope'" in err

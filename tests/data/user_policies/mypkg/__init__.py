@@ -1,0 +1,1 @@
+"""A user's own package next to where they run ``wfbench`` (found through the current folder)."""
