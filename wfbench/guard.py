@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import os
 import signal
 import sysconfig
 import threading
@@ -54,9 +55,9 @@ DEFAULT_ACT_TIMEOUT_S = 10.0
 
 # frames in these folders are not the user's: the innermost frame outside them is "where"
 _ROOT = Path(__file__).resolve().parents[1]
-_NOT_USER = tuple(
-    {str(Path(sysconfig.get_paths()[k]).resolve()) for k in ("stdlib", "platstdlib", "purelib", "platlib")}
-    | {str(_ROOT / pkg) for pkg in ("wfbench", "policies", "solvers", "leaderboard")}
+_NOT_USER = tuple(  # folder prefixes with their separator: /repo/wfbench_runs/ is the user's
+    {str(Path(sysconfig.get_paths()[k]).resolve()) + os.sep for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+    | {str(_ROOT / pkg) + os.sep for pkg in ("wfbench", "policies", "solvers", "leaderboard")}
 )
 
 
