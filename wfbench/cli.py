@@ -169,6 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--render", default=None, help="write an animated GIF here")
     m.add_argument("--every", type=_positive, default=4, help="one frame every this many steps (default 4)")
     m.add_argument("--steps", type=_positive, default=None, help="stop after this many steps")
+    m.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
     b = sub.add_parser("bench", help="measure env-steps per second")
     b.add_argument("--scenario", default="paper-64")
@@ -375,7 +376,7 @@ def cmd_policies(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from wfbench.envs.render import render_rgb, save_gif
+    from wfbench.envs.render import Renderer, save_gif
     from wfbench.simulator import Simulator
 
     config = _resolve_scenario(args.scenario)
@@ -384,13 +385,18 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     sim = Simulator(config, [args.seed])
     obs = sim.reset()
     policy.reset([args.seed])
-    frames = [render_rgb(sim)] if out else []
-    limit = args.steps or config.horizon
-    while not sim.done and sim.t < limit:
-        sim.step(policy.act(obs))
-        obs = sim.observe()
-        if out and sim.t % args.every == 0:
-            frames.append(render_rgb(sim))
+    renderer = Renderer(config) if out else None  # one figure for every frame (wfbench/envs/render.py)
+    frames = [renderer.frame(sim)] if renderer else []
+    limit = min(args.steps or config.horizon, config.horizon)
+    with tqdm(total=limit, desc=f"simulate {config.name} seed {args.seed}", unit="step", leave=False,
+              disable=args.no_progress) as bar:
+        while not sim.done and sim.t < limit:
+            sim.step(policy.act(obs))
+            obs = sim.observe()
+            if renderer and sim.t % args.every == 0:
+                frames.append(renderer.frame(sim))
+                bar.set_postfix(frames=len(frames), refresh=False)
+            bar.update(1)
     means = sim.episode_means()
     print(f"{config.name} seed {args.seed}, {args.policy}, {sim.t} steps: "
           + ", ".join(f"{k}={means[k][0]:.4g}" for k in ("workforce_cost", "utilization", "downtime", "nsw")))
