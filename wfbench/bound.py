@@ -1,0 +1,319 @@
+"""A proven upper bound on the episode score, computed from the trace and the config alone.
+
+No policy, oracles included, can score more than :func:`score_upper_bound` on a seed:
+the argument is in ``docs/hindsight.md`` ("The upper bound"); in short:
+
+1. **Nobody works before the first failure of the episode** ``t*``: work needs a
+   dispatch and a dispatch needs a down facility, so ``PUR_t = 0``, ``u_PUR = 0`` and
+   ``NSW_t = 0`` for ``t < t*``. Per slot the facility process is exogenous up to the
+   slot's first failure (the failure clock of the j-th activation is draw j while no
+   repair has happened in the slot), so ``t*`` is known.
+2. **Cost**: at most one let-go per step, each leaving ``max(fire_delay, 1)`` steps
+   later at the earliest, and the retained headcount never drops below
+   ``min_personnel``; so at step t at least ``n0 - k_t`` initial people remain
+   (``k_t = t - max(fire_delay, 1) + 1``) and ``WC_t`` is at least the sum of the
+   cheapest ``n0 - k_t`` initial salaries (and at least ``min_personnel`` cheapest
+   salaries): a per-step bound ``u_WC,t <= a_t``.
+3. **Downtime**: for the occupant of a slot that fails first in that slot, every
+   failure clock (draws ``j, j + 1, ...``) and repair draw (request ``0, 1, ...``) is
+   known. Its timeline alternates operational periods (no longer than the known clock
+   allows, whenever the repair before it happened) and down periods of at least
+   ``(service_time + 1) * V_k`` steps, ``V_k`` the fewest visits that fix request k at
+   the best fix probability. The alternating process with the longest operational and
+   the shortest down periods has, at every step, no more down steps so far than the
+   facility under any policy; with weights that do not increase over time that orders
+   the weighted sums too, and ``sum_t AFD_t`` is such a weighted sum once each weight
+   is replaced by its running minimum.
+4. **Hölder** with exponents (3/2, 3) over the steps ``t >= t*``:
+   ``score <= (1/T) (sum_t sqrt(a_t))^(2/3) (sum_t (1 - AFD_t))^(1/3)``.
+
+The bound is a pure function of ``(config, seed)``; 200 seeds of ``paper-64`` take well
+under a second once compiled.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from wfbench.config import ScenarioConfig
+from wfbench.rng import STREAM_FAILURE, STREAM_REPAIR, exponential, uniform
+from wfbench.trace import trace as make_trace
+
+_NO_FAILURE = -1
+_MAX_VISITS = 256  # a request that needs more visits than this is counted as needing this many
+_REL = 1e-9  # safety margins on the floating-point failure times of later cycles (see _threshold)
+_ABS = 1e-12
+
+
+class BoundParts(NamedTuple):
+    """The pieces of the bound of one seed.
+
+    Attributes:
+        bound: the upper bound on the episode score.
+        per_step: the bound without the downtime part, ``(1/T) sum_t a_t^(1/3)`` over
+            ``t >= t*`` (also valid; ``bound`` is the smaller of the two).
+        first_failure: ``t*``, the step of the first failure of the episode (the
+            horizon when nothing fails: the score is then 0).
+        wc_utility: ``a_t``, the per-step upper bound on ``u_WC`` (0 before ``t*``).
+        downtime_sum: the lower bound on ``sum_{t >= t*} AFD_t``.
+        downtime_mean: ``downtime_sum / T``.
+    """
+
+    bound: float
+    per_step: float
+    first_failure: int
+    wc_utility: np.ndarray
+    downtime_sum: float
+    downtime_mean: float
+
+
+# -- the facility process that no decision changes ---------------------------------------------------
+def occupancies(config: ScenarioConfig, tr) -> list[tuple[int, int, int]]:
+    """Every activation of a facility slot in one episode, in the order it happens.
+
+    Exits and arrivals come from the trace, and an arrival takes the lowest free slot
+    (exits of a step come before its arrivals), so which slot holds which facility when
+    is exogenous.
+
+    Args:
+        config: the scenario.
+        tr: a single-episode :class:`wfbench.trace.Trace` (batch size 1).
+
+    Returns:
+        ``(slot, start, end)`` per activation: active on steps ``start .. end - 1``
+        (``end`` is its exit step, capped at the horizon). Dropped arrivals are absent.
+    """
+    T = config.horizon
+    M = config.max_facilities
+    leave = np.full(M, -1, dtype=np.int64)  # exit step of the current occupant, -1 when the slot never held one
+    out = []
+    for f in range(M):
+        if tr.fac0_active[0, f]:
+            leave[f] = tr.fac0_leave[0, f]
+            out.append((f, 0, int(min(leave[f], T))))
+    for a in range(tr.arr_t.shape[1]):
+        t = int(tr.arr_t[0, a])
+        if t >= T:
+            break
+        free = np.flatnonzero(leave <= t)  # never used (-1) or exited at or before t
+        if free.size == 0:
+            continue  # dropped
+        f = int(free[0])
+        leave[f] = tr.arr_leave[0, a]
+        out.append((f, t, int(min(leave[f], T))))
+    return out
+
+
+@njit(cache=True)
+def _first_failure(key, f, draw, start, end, hazard):
+    """The step the activation fails first, replicating the simulator's arithmetic; -1 if not before ``end``."""
+    h = exponential(key, STREAM_FAILURE, f, draw, 0)
+    for t in range(start + 1, end):
+        h -= hazard[t]
+        if h <= 0.0:
+            return t
+    return _NO_FAILURE
+
+
+@njit(cache=True)
+def _min_visits(key, f, request, p_best):
+    """The fewest visits that can fix ``request`` of slot ``f``: the first draw below the best fix probability."""
+    for v in range(_MAX_VISITS):
+        if uniform(key, STREAM_REPAIR, f, request, v) < p_best:
+            return v + 1
+    return _MAX_VISITS
+
+
+@njit(cache=True)
+def _threshold(e, upper):
+    """``e`` inflated (the latest the simulator's float arithmetic can fail) or deflated (the earliest)."""
+    return e * (1.0 + _REL) + _ABS if upper else e * (1.0 - _REL) - _ABS
+
+
+@njit(cache=True)
+def _tau(cum, rho, thr, end):
+    """First step t in (rho, end) whose hazard summed over ``rho + 1 .. t`` reaches ``thr``; ``end`` if none."""
+    for t in range(rho + 1, end):
+        if cum[t] - cum[rho] >= thr:
+            return t
+    return end
+
+
+@njit(cache=True)
+def _longest_up(cum, rho_min, thr, end):
+    """The longest operational run after a repair at any step rho in ``[rho_min, end - 2]``, capped at the exit.
+
+    After a repair at rho the facility is operational on ``rho + 1 .. tau(rho) - 1``;
+    ``tau`` does not decrease with rho, so one forward scan finds every ``tau(rho)``.
+    """
+    longest = 0
+    t = rho_min + 1
+    for rho in range(rho_min, end - 1):
+        if t <= rho:
+            t = rho + 1
+        while t < end and cum[t] - cum[rho] < thr:
+            t += 1
+        longest = max(longest, t - rho - 1)
+    return longest
+
+
+@njit(cache=True)
+def _min_down_profile(key, f, draw0, start, end, tau0, cum, service_time, p_best, out):
+    """Write into ``out[start:end]`` the down indicators of the bounding process of one activation.
+
+    The activation's first failure is ``tau0`` (exact). Request k needs at least
+    ``(service_time + 1) * V_k`` down steps; the operational period after the k-th
+    repair is at most the longest the (k+1)-th clock allows for any repair step the
+    simulator can reach (``rho >= rho_min``, ``rho_min`` from the shortest periods),
+    capped at the exit.
+    """
+    tau_b = tau0  # failure step of the bounding process
+    tau_min = tau0  # earliest failure step of the same cycle under any policy
+    k = 0
+    while tau_b < end:
+        d = (service_time + 1) * _min_visits(key, f, k, p_best)
+        for s in range(tau_b, min(tau_b + d, end)):
+            out[s] = 1
+        rho_b = tau_b + d - 1  # repair step of the bounding process
+        rho_min = tau_min + d - 1  # earliest repair step of request k under any policy
+        if rho_b >= end - 1 or rho_min >= end - 1:
+            return
+        k += 1
+        e = exponential(key, STREAM_FAILURE, f, draw0 + k, 0)
+        tau_b = rho_b + 1 + _longest_up(cum, rho_min, _threshold(e, True), end)
+        tau_min = _tau(cum, rho_min, _threshold(e, False), end)
+
+
+@njit(cache=True)
+def _weights(start, end, t_star, n_active, window):
+    """Per down step s of an activation, its weight in ``sum_{t >= t*} AFD_t``, replaced by the running minimum.
+
+    A down step s of the facility counts ``1 / (n_t * min(W, t - start + 1))`` in
+    ``AFD_t`` for every t in ``[s, s + W - 1]`` while the facility is active.
+    """
+    n = end - start
+    w = np.zeros(n + 1)
+    for i in range(n):
+        t = start + i
+        if t >= t_star and n_active[t] > 0:
+            w[i] = 1.0 / (n_active[t] * min(window, i + 1))
+    csum = np.zeros(n + 1)
+    for i in range(n):
+        csum[i + 1] = csum[i] + w[i]
+    c = np.zeros(n)
+    run = np.inf
+    for i in range(n):
+        hi = min(i + window, n)
+        v = csum[hi] - csum[i]
+        run = min(run, v)
+        c[i] = run
+    return c
+
+
+def _downtime_lower_bound(config: ScenarioConfig, tr, occ, cum, t_first):
+    """``sum_{t >= t*} AFD_t`` from below, and the first failure per activation (-1: none, -2: unknown)."""
+    T = config.horizon
+    key = tr.key[0]
+    n_active = np.zeros(T + 1, dtype=np.int64)
+    for _, a, e in occ:
+        n_active[a] += 1
+        n_active[e] -= 1
+    n_active = np.cumsum(n_active)[:T]
+    p_best = config.base_fix_rate * max(config.level_multipliers)
+    draws = {}
+    failed = set()
+    total = 0.0
+    t_star = min((t for t in t_first if t >= 0), default=T)
+    for (f, a, e), tau0 in zip(occ, t_first, strict=True):
+        j = draws.get(f, 0)
+        draws[f] = j + 1
+        if f in failed or tau0 < 0:
+            continue
+        failed.add(f)
+        down = np.zeros(T, dtype=np.int8)
+        _min_down_profile(key, f, j, a, e, tau0, cum, config.service_time, p_best, down)
+        c = _weights(a, e, t_star, n_active, config.window)
+        total += float(np.dot(down[a:e], c))
+    return total
+
+
+def _first_failures(config: ScenarioConfig, tr, occ, hazard) -> list[int]:
+    """Per activation its first failure step when it is exogenous (-1: none before its exit; -2: not known)."""
+    key = tr.key[0]
+    draws: dict[int, int] = {}
+    failed: set[int] = set()
+    out = []
+    for f, a, e in occ:
+        j = draws.get(f, 0)
+        draws[f] = j + 1
+        if f in failed:
+            out.append(-2)  # the slot has failed before: its draw indices depend on the policy
+            continue
+        tau = int(_first_failure(key, f, j, a, e, hazard))
+        if tau >= 0:
+            failed.add(f)
+        out.append(tau)
+    return out
+
+
+def _wc_utility_bound(config: ScenarioConfig, tr) -> np.ndarray:
+    """Per step t, an upper bound on ``u_WC,t`` for every policy."""
+    T = config.horizon
+    sal = np.asarray(config.level_salaries, dtype=np.float64)
+    levels = tr.per0_level[0][tr.per0_active[0]]
+    cheapest = np.sort(sal[levels])  # initial salaries, cheapest first
+    n0 = cheapest.size
+    csum = np.concatenate([[0.0], np.cumsum(cheapest)])
+    t = np.arange(T)
+    k = np.clip(t - max(config.fire_delay, 1) + 1, 0, n0)  # initial people who can have left by step t
+    floor = config.min_personnel * sal.min()
+    wc = np.maximum(csum[n0 - k], floor)
+    return np.clip(1.0 - wc / config.max_workforce_cost, 0.0, 1.0)
+
+
+def bound_parts(config: ScenarioConfig, seed: int) -> BoundParts:
+    """The upper bound on the score of ``seed`` with its components.
+
+    Args:
+        config: the scenario.
+        seed: the episode seed (as in :func:`wfbench.trace`).
+
+    Returns:
+        The :class:`BoundParts` of the seed.
+    """
+    T = config.horizon
+    tr = make_trace(config, seed)
+    hazard = config.request_schedule.multipliers(T) / config.request_interval  # as wfbench.state.make_params
+    cum = np.concatenate([[0.0], np.cumsum(hazard[1:])])  # cum[t] = hazard[1] + ... + hazard[t]
+    occ = occupancies(config, tr)
+    t_first = _first_failures(config, tr, occ, hazard)
+    t_star = min((t for t in t_first if t >= 0), default=T)
+    a = _wc_utility_bound(config, tr)
+    a[:t_star] = 0.0
+    n_s = T - t_star
+    if n_s <= 0:
+        return BoundParts(0.0, 0.0, t_star, a, 0.0, 0.0)
+    per_step = float(np.cbrt(a).sum() / T)
+    afd_sum = _downtime_lower_bound(config, tr, occ, cum, t_first)
+    afd_sum = min(afd_sum, float(n_s))
+    holder = float(np.sqrt(a).sum() ** (2.0 / 3.0) * (n_s - afd_sum) ** (1.0 / 3.0) / T)
+    return BoundParts(min(holder, per_step), per_step, t_star, a, afd_sum, afd_sum / T)
+
+
+def score_upper_bound(config: ScenarioConfig | str, seeds: int | Iterable[int]) -> np.ndarray:
+    """Per seed, a score that no policy can exceed (``docs/hindsight.md``, "The upper bound").
+
+    Args:
+        config: a :class:`ScenarioConfig` or a preset name.
+        seeds: ``n`` for seeds ``0..n-1``, or a sequence of seeds.
+
+    Returns:
+        ``(len(seeds),)`` float64: the bound of each seed, in seed order.
+    """
+    config = ScenarioConfig.resolve(config)
+    seeds = range(int(seeds)) if isinstance(seeds, (int, np.integer)) else seeds
+    return np.array([bound_parts(config, int(s)).bound for s in seeds], dtype=np.float64)
