@@ -2,6 +2,8 @@
 
 import json
 
+import numba
+
 from wfbench.bench import run
 
 
@@ -12,6 +14,10 @@ def test_rounds_are_interleaved_and_summarized(tmp_path, capsys):
     assert data["rounds"] == 2 and data["results"] == rows
     names = [r["measurement"] for r in rows]
     assert any("PettingZoo" in n for n in names) and any("B=1, 1 thread" in n for n in names)
+    # step_observe by thread count: one thread, and all of numba's when there are more
+    assert "Simulator.step_observe, random actions, B=64, 1 thread" in names
+    cores = numba.config.NUMBA_NUM_THREADS
+    assert (f"Simulator.step_observe, random actions, B=64, {cores} threads" in names) == (cores > 1)
     for r in rows:
         assert len(r["rounds"]) == 2 and all(v > 0 for v in r["rounds"])
         assert r["env_steps_per_s"] == max(r["rounds"]) and r["worst"] == min(r["rounds"])

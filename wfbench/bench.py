@@ -7,6 +7,8 @@ Measures, after a warm-up run that loads the compiled code:
   traces are already built;
 - ``evaluate.run_batch`` end to end at B = 1024 on all cores: the same plus building
   the 1,024 traces and the state in Python;
+- ``Simulator.step_observe`` with random actions (drawn before the clock starts), B =
+  1024, on one thread and on all cores (the batch split over threads);
 - the Python batched loop (``Simulator.step`` + ``policy.act``), B = 64;
 - PettingZoo ``parallel_env().step()`` and Gymnasium ``step()`` with random actions. The
   actions are sampled from the action spaces before the clock starts (1,000 of them,
@@ -105,6 +107,28 @@ def _run_batch_rate(config: ScenarioConfig, B: int, repeats: int) -> float:
     return B * config.horizon / best
 
 
+def _step_observe_rate(config: ScenarioConfig, B: int, threads: int, repeats: int, steps: int = 50) -> float:
+    """``Simulator.step_observe`` on ``threads`` threads, random actions drawn before the clock."""
+    from wfbench.simulator import Simulator
+
+    sim = Simulator(config, list(range(B)), keep_series=False, threads=threads)
+    rng = np.random.default_rng(0)
+    actions = [{"dispatch": rng.integers(0, sim.N + 1, size=(B, sim.M), dtype=np.int64),
+                "workforce": rng.integers(0, 7, size=B, dtype=np.int64),
+                "positioning": rng.random((B, 2, sim.M))} for _ in range(8)]
+    sim.reset()
+    for a in actions[:3]:  # loads the compiled step
+        sim.step_observe(a)
+    best = float("inf")
+    for _ in range(repeats):
+        sim.reset()
+        t0 = time.perf_counter()
+        for i in range(steps):
+            sim.step_observe(actions[i % len(actions)])
+        best = min(best, time.perf_counter() - t0)
+    return B * steps / best
+
+
 def _python_loop_rate(config: ScenarioConfig, B: int) -> float:
     from policies import get
     from wfbench.simulator import Simulator
@@ -201,6 +225,12 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
     if not quick and cores > 1:
         plan.append((f"evaluate.run_batch end to end (traces built), B=1024, {cores} threads",
                      lambda: _run_batch_rate(config, 1024, repeats)))
+    step_b = 64 if quick else 1024
+    plan.append((f"Simulator.step_observe, random actions, B={step_b}, 1 thread",
+                 lambda: _step_observe_rate(config, step_b, 1, repeats)))
+    if cores > 1:
+        plan.append((f"Simulator.step_observe, random actions, B={step_b}, {cores} threads",
+                     lambda: _step_observe_rate(config, step_b, cores, repeats)))
     plan.append(("Simulator.step + policy.act, heuristic, B=64", lambda: _python_loop_rate(config, 64)))
     env_steps = 500 if quick else 3000
     plan.append(("PettingZoo parallel_env.step, random actions", lambda: _pettingzoo_rate(config, env_steps)))

@@ -15,9 +15,20 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from wfbench import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.dynamics import dispatchable, kept_on, releasable, step_env
-from wfbench.state import EMPTY, IDLE, K_AFD, K_NSW, K_PUR, K_WC, N_WORKFORCE_ACTIONS, ONBOARDING, SERVICING, TO_FACILITY
-
+from wfbench.state import (
+    EMPTY,
+    IDLE,
+    K_AFD,
+    K_NSW,
+    K_PUR,
+    K_WC,
+    N_WORKFORCE_ACTIONS,
+    ONBOARDING,
+    SERVICING,
+    TO_FACILITY,
+)
 
 FACILITY_FEATURES = ("x", "y", "operational", "requesting", "assigned", "assigned_person", "downtime")
 PERSONNEL_FEATURES = ("home_x", "home_y", "x", "y", "level", "busy", "assigned_facility", "heading_out", "utilization")
@@ -198,19 +209,31 @@ def observe_env(b, S, P, O, with_masks, full):
             O.dispatch_mask[b, f, N] = 1
 
 
-@njit(cache=True, _nrt=False)  # allocates nothing: no reference counting (see wfbench.dynamics.step_env)
-def observe_batch(S, P, O, with_masks):
-    for b in range(S.t.shape[0]):
+# The batch entry points take a range lo..hi-1 of environments and release the GIL, so
+# that wfbench.simulator.run_split can spread a batch over threads (environment b reads
+# and writes only row b of every array: any split gives the same bits). One compiled
+# function serves one thread and many; numba's prange would compile a second, parallel
+# copy of the whole step (docs/performance.md, "Threads").
+@njit(cache=True, _nrt=False, nogil=True)  # allocates nothing: no reference counting (see wfbench.dynamics.step_env)
+def observe_range(lo, hi, S, P, O, with_masks):
+    """Fill the observations of environments lo..hi-1."""
+    for b in range(lo, hi):
         observe_env(b, S, P, O, with_masks, True)
 
 
-@njit(cache=True, _nrt=False)
-def step_observe_batch(S, Tr, P, O, dispatch, workforce, positioning, with_masks):
-    """``step_batch`` then ``observe_batch`` in one call (one unboxing of the state for both)."""
-    for b in range(S.t.shape[0]):
+@njit(cache=True, _nrt=False, nogil=True)
+def step_range(lo, hi, S, Tr, P, dispatch, workforce, positioning):
+    """Step environments lo..hi-1; ``dispatch`` (B, M), ``workforce`` (B,), ``positioning`` (B, 2, M)."""
+    for b in range(lo, hi):
+        step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
+
+
+@njit(cache=True, _nrt=False, nogil=True)
+def step_observe_range(lo, hi, S, Tr, P, O, dispatch, workforce, positioning, with_masks):
+    """Step then observe environments lo..hi-1 in one call (one unboxing of the state for both)."""
+    for b in range(lo, hi):
         step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
         observe_env(b, S, P, O, with_masks, True)
-
 
 
 def make_obs(M: int, N: int, facilities=(), people=(), t: int = 0) -> dict[str, np.ndarray]:

@@ -16,14 +16,19 @@ the agent and the index; well-formed but impossible ones are ignored and counted
 
 from __future__ import annotations
 
+import os
+import threading
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 from numba import njit
 
+from wfbench import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.config import ScenarioConfig
-from wfbench.dynamics import reset_batch, step_batch
-from wfbench.observe import allocate_obs, observe_batch, step_observe_batch
+from wfbench.dynamics import reset_batch
+from wfbench.observe import allocate_obs, observe_range, step_observe_range, step_range
 from wfbench.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS, allocate, make_params
 from wfbench.trace import trace_batch
 
@@ -111,6 +116,46 @@ def bind(dispatcher, *args):
     return entry
 
 
+_POOL: list = [None, 0, 0]  # [ThreadPoolExecutor, its number of threads, the pid that made it]
+_POOL_LOCK = threading.Lock()
+
+
+def _thread_pool(workers: int) -> ThreadPoolExecutor:
+    """A pool of at least ``workers`` threads, kept for the life of the process (remade after a fork).
+
+    A larger pool replaces a smaller one without shutting it down (a caller in another
+    thread may still be using it); its idle threads exit when it is garbage collected.
+    """
+    with _POOL_LOCK:
+        pool, size, pid = _POOL
+        if pool is None or size < workers or pid != os.getpid():
+            pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="wfbench")
+            _POOL[:] = [pool, workers, os.getpid()]
+        return pool
+
+
+def run_split(entry, B: int, threads: int, *args) -> None:
+    """Call ``entry(lo, hi, *args)`` on ``threads`` contiguous ranges that cover environments 0..B-1.
+
+    ``entry`` is a compiled range kernel that releases the GIL (``nogil=True``); the
+    first range runs in the calling thread, the others in a shared thread pool, and
+    this returns when all have finished (re-raising the first error). The ranges are
+    numba's static ``prange`` schedule: sizes differing by at most one. Environments
+    are independent, so the results do not depend on ``threads``.
+    """
+    n = max(1, min(threads, B))
+    if n == 1:
+        entry(0, B, *args)
+        return
+    bounds = [B * i // n for i in range(n + 1)]
+    futures = [_thread_pool(n - 1).submit(entry, bounds[i], bounds[i + 1], *args) for i in range(1, n)]
+    try:
+        entry(bounds[0], bounds[1], *args)
+    finally:
+        for f in futures:
+            f.result()
+
+
 def validate_actions(actions: dict, B: int, M: int, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Check and convert a batched action dict; raise :class:`ActionError` on malformed input.
 
@@ -140,7 +185,8 @@ def validate_actions(actions: dict, B: int, M: int, N: int) -> tuple[np.ndarray,
             bad = ~np.isfinite(a) | (a != np.round(a))
             if bad.any():
                 idx = _first_bad(bad)
-                raise ActionError(f"{agent} action: {a[idx].item()!r} at index {idx} is not an integer; allowed: integers 0..{hi}")
+                raise ActionError(f"{agent} action: {a[idx].item()!r} at index {idx} is not an integer; "
+                                  f"allowed: integers 0..{hi}")
         out = a.astype(np.int64)
         bad = (out < 0) | (out > hi)
         if bad.any():
@@ -159,15 +205,32 @@ def validate_actions(actions: dict, B: int, M: int, N: int) -> tuple[np.ndarray,
     bad = ~np.isfinite(pos) | (pos < 0.0) | (pos > 1.0)
     if bad.any():
         idx = _first_bad(bad)
-        raise ActionError(f"positioning action: {pos[idx].item()!r} at index {idx} is not allowed; allowed: numbers in [0, 1]")
+        raise ActionError(f"positioning action: {pos[idx].item()!r} at index {idx} is not allowed; "
+                          "allowed: numbers in [0, 1]")
     return dispatch, workforce, np.ascontiguousarray(pos)
 
 
 class Simulator:
-    """B independent episodes of one scenario, stepped together by the compiled core."""
+    """B independent episodes of one scenario, stepped together by the compiled core.
 
-    def __init__(self, scenario: str | ScenarioConfig, seeds: Sequence[int], keep_series: bool = True):
+    Args:
+        scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
+        seeds: one episode per seed.
+        keep_series: keep the per-step metrics of every step (``state.series``).
+        threads: threads that :meth:`step`, :meth:`observe` and :meth:`step_observe`
+            spread the environments over (:func:`run_split`; the results are the same
+            bits for any number). ``None`` (default): as many as numba's threads
+            (``NUMBA_NUM_THREADS``, all cores unless set). One thread, or a batch of one
+            environment, runs in the calling thread alone.
+    """
+
+    def __init__(self, scenario: str | ScenarioConfig, seeds: Sequence[int], keep_series: bool = True,
+                 threads: int | None = None):
         self.config = ScenarioConfig.resolve(scenario)
+        if threads is not None and not (type(threads) is int and threads >= 1):
+            raise ValueError(f"threads = {threads!r} is not allowed; allowed: None or an integer >= 1")
+        self.threads = threads
+        self._threads = numba.config.NUMBA_NUM_THREADS if threads is None else threads
         seeds = list(seeds)
         if not seeds:
             raise ValueError("seeds is empty; allowed: one or more integers >= 0")
@@ -183,12 +246,13 @@ class Simulator:
         self._bound: dict = {}  # compiled entry points by dispatcher, bound to the tuples in _bound_for
         self._bound_for: tuple | None = None
 
-    def _call(self, dispatcher, *args):
-        """Call a compiled batch function through its entry point bound to this simulator's arrays.
+    def _entry(self, dispatcher, args: tuple, ranged: bool = False):
+        """The entry point of a compiled batch function bound to this simulator's arrays (see :func:`bind`).
 
-        Every argument must keep its numba type from call to call (see :func:`bind`): the
-        state, trace, parameter and observation tuples are this simulator's own (a new
-        tuple object rebinds), actions come from :func:`validate_actions`, flags are bool.
+        Every argument must keep its numba type from call to call: the state, trace,
+        parameter and observation tuples are this simulator's own (a new tuple object
+        rebinds), actions come from :func:`validate_actions`, flags are bool. A
+        ``ranged`` kernel takes the range ``lo, hi`` (two ints) before ``args``.
         """
         b = self._bound_for
         if (b is None or b[0] is not self.state or b[1] is not self.trace or b[2] is not self.params
@@ -196,8 +260,20 @@ class Simulator:
             self._bound, self._bound_for = {}, (self.state, self.trace, self.params, self.obs_buffers)
         entry = self._bound.get(dispatcher)
         if entry is None:
-            entry = self._bound[dispatcher] = bind(dispatcher, *args)
-        return entry(*args)
+            entry = self._bound[dispatcher] = bind(dispatcher, *((0, 0) + args if ranged else args))
+        return entry
+
+    def _call(self, dispatcher, *args):
+        """Call a compiled batch function through its bound entry point."""
+        return self._entry(dispatcher, args)(*args)
+
+    def _split(self, kernel, *args) -> None:
+        """Run the range kernel ``kernel(lo, hi, *args)`` on every environment, spread over the threads."""
+        entry = self._entry(kernel, args, True)
+        if self.B == 1 or self._threads == 1:
+            entry(0, self.B, *args)
+        else:
+            run_split(entry, self.B, self._threads, *args)
 
     # -- episode ------------------------------------------------------------------------------
     def reset(self) -> dict[str, np.ndarray]:
@@ -215,7 +291,7 @@ class Simulator:
 
     def observe(self, with_masks: bool = True) -> dict[str, np.ndarray]:
         """The batched observation. Arrays are buffers overwritten by the next call: copy to keep."""
-        self._call(observe_batch, self.state, self.params, self.obs_buffers, bool(with_masks))
+        self._split(observe_range, self.state, self.params, self.obs_buffers, bool(with_masks))
         return self._obs_dict()
 
     def _obs_dict(self) -> dict[str, np.ndarray]:
@@ -236,7 +312,7 @@ class Simulator:
     def step(self, actions: dict) -> np.ndarray:
         """Apply one batched action; returns the rewards (B,) of the step (NSW_t)."""
         d, w, p = self._checked(actions)
-        self._call(step_batch, self.state, self.trace, self.params, d, w, p)
+        self._split(step_range, self.state, self.trace, self.params, d, w, p)
         return self.state.last[:, _NSW].copy()
 
     def step_observe(self, actions: dict, with_masks: bool = True) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -256,7 +332,8 @@ class Simulator:
         The actions are what :func:`validate_actions` returns: plain int64 (B, M) and (B,),
         float64 (B, 2, M), every entry in range.
         """
-        self._call(step_observe_batch, self.state, self.trace, self.params, self.obs_buffers, d, w, p, bool(with_masks))
+        self._split(step_observe_range, self.state, self.trace, self.params, self.obs_buffers, d, w, p,
+                    bool(with_masks))
         return self.state.last[:, _NSW].copy(), self._obs_dict()
 
     # -- results -----------------------------------------------------------------------------

@@ -1,0 +1,368 @@
+"""numba's on-disk cache for wfbench, keyed by every source file the compiled code depends on.
+
+numba's cache checks only the file of the cached function (numba's "Notes on caching":
+changes in symbols defined in another file are not seen). The compiled rollout in
+``policies/rollout.py`` inlines the step from ``wfbench/dynamics.py``, so after an edit
+of ``dynamics.py`` it kept running the old step. Module-level constants are frozen into
+compiled code the same way.
+
+This module fixes that for the packages ``wfbench`` and ``policies``. Importing it
+registers :class:`DigestLocator` in front of numba's cache locators. For a cached
+function in a file of these two packages, the locator's source stamp (numba keeps it in
+the cache index and discards the index when it differs) is a digest of:
+
+- the function's own file;
+- every in-project file (``wfbench``, ``policies``, ``solvers``) that file imports at
+  module level, and theirs, transitively (:func:`dependencies`). A compiled function
+  can only reach code and constants through the globals of its module, and those come
+  from module-level imports, so this closure is everything its machine code can
+  contain;
+- the numba, numpy and Python versions.
+
+So an edit of any file (a comment included: the digest is of the bytes) recompiles
+exactly the functions whose modules depend on it, on their next call (editing
+``kernels.py`` recompiles the policies and the rollout, not the simulator core). The
+imports are found by a scan of the module-level ``import`` and ``from ... import``
+lines, cheap enough for every start-up; a test checks that the scan finds what
+Python's ``ast`` finds in every module of the three packages.
+
+Where the cache lives does not change: ``WFBENCH_CACHE_DIR`` if set, else
+``NUMBA_CACHE_DIR`` if set, else ``__pycache__`` beside the sources, else numba's
+user-wide cache directory (a read-only installation). A stale entry is overwritten in
+place, so nothing accumulates. Functions of other libraries, and of ``solvers``, keep
+numba's own locators: ``solvers`` imports nothing of ours (the layering rule), and
+when a ``policies`` kernel inlines a solver, the digest of the kernel's module covers
+the solver's file. ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, replaces numba's list of
+locators and this one with it.
+
+Why a stamp per module and not one directory per digest of every core file: a stamp
+recompiles only what depends on the edit, leaves the cache where numba users look for
+it, and needs no clean-up of old directories (each edit would leave a full copy of the
+compiled core behind). The price: checkouts of different versions that share one cache
+directory (``WFBENCH_CACHE_DIR``) overwrite each other's entries, as with numba's own
+stamps.
+
+numba picks a function's locator when its ``@njit(cache=True)`` decorator runs, so this
+module must be imported before any module with cached functions: ``wfbench/__init__``
+imports it first (``wfbench.rng``, ``wfbench.observe`` and ``wfbench.simulator`` also do),
+and ``tests/test_jit_cache.py`` checks that every cached function of ours got this locator.
+
+The first compilation of one of our functions in a process prints one line to stderr,
+``wfbench: compiling the simulator core once, ~N s; cached afterwards (DIR)``, before it
+starts: numba reports a compilation only on a cache miss, so a warm run prints nothing.
+``N`` is the time the same entry point took to compile the last time on this machine
+(recorded in the cache directory), else the time measured on the development VM
+(``docs/performance.md``).
+
+This relies on numba internals that are not a public API (``numba.core.caching``:
+``_CacheLocator``, ``CacheImpl._locator_classes``; ``numba.core.event``'s
+``numba:compile`` event); ``tests/test_jit_cache.py`` pins each of them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import re
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+from numba.core import caching, event
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("wfbench", "policies", "solvers")  # in-project imports are followed into these
+CACHED_PACKAGES = ("wfbench", "policies")  # functions located by DigestLocator
+ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
+
+# Cold compile time (wall, seconds) after the first entry point a process compiles,
+# measured on the development VM (docs/performance.md, "Cold start"); used until this
+# machine has recorded its own. reset_batch: a Simulator (reset, step, observe);
+# rollout_range: the compiled rollout that ``wfbench evaluate`` runs.
+ESTIMATE_S = {
+    "wfbench.dynamics.reset_batch": 45,
+    "policies.rollout.rollout_range": 75,
+}
+DEFAULT_ESTIMATE_S = 60
+TIMES_FILE = "wfbench-compile-times.json"
+
+
+# -- the digest ----------------------------------------------------------------------------------
+# Plain strings and os.path, memoized: the digests are computed at every start-up.
+_FILES: dict[str, str | None] = {}
+_SOURCES: dict[str, bytes] = {}
+_IMPORTS: dict[str, frozenset[str]] = {}
+_DIGESTS: dict[str, str] = {}
+_LISTINGS: dict[str, frozenset[str]] = {}
+_OURS: dict[str, bool] = {}
+_LOCK = threading.Lock()
+_ROOT = str(ROOT)
+_PREFIX = _ROOT + os.sep
+
+
+def _listing(directory: str) -> frozenset[str]:
+    names = _LISTINGS.get(directory)
+    if names is None:
+        try:
+            names = frozenset(os.listdir(directory))
+        except OSError:
+            names = frozenset()
+        _LISTINGS[directory] = names
+    return names
+
+
+def _module_file(module: str) -> str | None:
+    """The source file of an in-project module name, or None (not ours, or no such file)."""
+    path = _FILES.get(module, "")
+    if path != "":
+        return path
+    parts = module.split(".")
+    path = None
+    if parts[0] in PACKAGES:
+        directory = _ROOT
+        for part in parts[:-1]:  # list only directories that exist
+            if part not in _listing(directory):
+                break
+            directory = os.path.join(directory, part)
+        else:
+            names = _listing(directory)
+            if parts[-1] + ".py" in names:
+                path = os.path.join(directory, parts[-1] + ".py")
+            elif parts[-1] in names and "__init__.py" in _listing(os.path.join(directory, parts[-1])):
+                path = os.path.join(directory, parts[-1], "__init__.py")
+    _FILES[module] = path
+    return path
+
+
+def _relative(path: str) -> str:
+    """``path`` (under ROOT, real) relative to ROOT, with ``/`` separators."""
+    return path[len(_PREFIX):].replace(os.sep, "/")
+
+
+def _read(path: str) -> bytes:
+    data = _SOURCES.get(path)
+    if data is None:
+        with open(path, "rb") as f:
+            data = _SOURCES[path] = f.read()
+    return data
+
+
+# a module-level ``from MODULE import NAMES`` (NAMES parenthesized over lines, or continued
+# with backslashes) or ``import NAMES``
+_IMPORT = re.compile(
+    r"^(?:from[ \t]+([.\w]+)[ \t]+import[ \t]*(\([^)]*\)|(?:[^\n]*\\\n)*[^\n]*)|import[ \t]+((?:[^\n]*\\\n)*[^\n]*))",
+    re.M)
+_COMMENT = re.compile(r"#[^\n]*")
+
+
+def _names(text: str) -> list[str]:
+    """The imported names in ``a as b, c`` (comments, parentheses and continuations removed): ``[a, c]``."""
+    text = _COMMENT.sub("", text).replace("(", " ").replace(")", " ").replace("\\", " ")
+    return [n.split()[0] for n in text.split(",") if n.strip()]
+
+
+def imported_modules(path: str | os.PathLike) -> frozenset[str]:
+    """Dotted names of what the file ``path`` imports at module level (outside functions and classes).
+
+    ``from pkg import name`` gives ``pkg`` and ``pkg.name`` (the name may be a module).
+    Relative imports are resolved against the package of ``path``, which must lie under
+    :data:`ROOT`.
+    """
+    path = os.fspath(path)
+    found = _IMPORTS.get(path)
+    if found is not None:
+        return found
+    package = _relative(path).split("/")[:-1]  # the package of a module, and of a package's __init__ itself
+    names = set()
+    for m in _IMPORT.finditer(_read(path).decode("utf-8")):
+        module, imported, plain = m.groups()
+        if plain is not None:
+            names.update(_names(plain))
+            continue
+        level = len(module) - len(module.lstrip("."))
+        if level:
+            stem = module[level:]
+            module = ".".join(package[: len(package) - level + 1] + ([stem] if stem else []))
+        names.add(module)
+        names.update(f"{module}.{n}" for n in _names(imported))
+    found = _IMPORTS[path] = frozenset(names)
+    return found
+
+
+def dependencies(path: str | os.PathLike) -> tuple[str, ...]:
+    """``path`` and every in-project source file it imports at module level, transitively, sorted."""
+    start = os.path.realpath(path)
+    seen = {start}
+    todo = [start]
+    while todo:
+        for module in imported_modules(todo.pop()):
+            dep = _module_file(module)
+            if dep is not None and dep not in seen:
+                seen.add(dep)
+                todo.append(dep)
+    return tuple(sorted(seen))
+
+
+def source_digest(path: str | os.PathLike) -> str:
+    """The cache stamp of the functions in ``path``: a sha256 of its dependencies' contents and the versions."""
+    path = os.path.realpath(path)
+    with _LOCK:
+        digest = _DIGESTS.get(path)
+        if digest is None:
+            h = hashlib.sha256()
+            h.update(f"numba {numba.__version__} numpy {np.__version__} python {platform.python_version()}".encode())
+            for dep in dependencies(path):
+                h.update(b"\0" + _relative(dep).encode() + b"\0")
+                h.update(_read(dep))
+            digest = _DIGESTS[path] = h.hexdigest()
+    return digest
+
+
+def is_ours(py_file: str | os.PathLike) -> bool:
+    """``py_file`` is a source file of a package whose cache :class:`DigestLocator` keys."""
+    py_file = os.fspath(py_file)
+    ours = _OURS.get(py_file)
+    if ours is None:
+        real = os.path.realpath(py_file)
+        rel = _relative(real).split("/") if real.startswith(_PREFIX) else []
+        ours = _OURS[py_file] = len(rel) > 1 and rel[0] in CACHED_PACKAGES and rel[-1].endswith(".py")
+    return ours
+
+
+# -- the locator -----------------------------------------------------------------------------------
+class _EnvDirLocator(caching.UserProvidedCacheLocator):
+    """numba's locator for ``NUMBA_CACHE_DIR``, pointed at ``WFBENCH_CACHE_DIR`` instead."""
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        self._cache_path = os.path.join(os.environ[ENV_CACHE_DIR], self.get_suitable_cache_subpath(py_file))
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not os.environ.get(ENV_CACHE_DIR):
+            return None
+        self = cls(py_func, py_file)
+        try:
+            self.ensure_cache_path()
+        except OSError:
+            return None
+        return self
+
+
+_INNER = (_EnvDirLocator, caching.UserProvidedCacheLocator, caching.InTreeCacheLocator,
+          caching.UserWideCacheLocator)
+
+
+class DigestLocator(caching._CacheLocator):
+    """numba's usual cache directory, with the digest of the file's dependencies as the source stamp."""
+
+    def __init__(self, inner: caching._CacheLocator, py_file: str):
+        self._inner = inner
+        self._py_file = py_file
+
+    def ensure_cache_path(self):
+        self._inner.ensure_cache_path()
+
+    def get_cache_path(self):
+        return self._inner.get_cache_path()
+
+    def get_source_stamp(self):
+        return source_digest(self._py_file)
+
+    def get_disambiguator(self):
+        return self._inner.get_disambiguator()
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not is_ours(py_file):
+            return None
+        for locator_class in _INNER:
+            inner = locator_class.from_function(py_func, py_file)
+            if inner is not None:
+                return cls(inner, py_file)
+        return None
+
+
+# -- the line on a cold start ----------------------------------------------------------------------
+class _ColdCompileNotice(event.Listener):
+    """Prints one line before the first compilation of one of our functions; records how long it took."""
+
+    def __init__(self):
+        self.first: str | None = None  # qualified name of the first function of ours compiled
+        self.times_path: Path | None = None
+        self.started = 0.0
+        self.depth = 0  # nesting of our compilations (callees compile inside their callers)
+        self.total = 0.0
+
+    @staticmethod
+    def _ours(ev) -> tuple[str, str] | None:
+        func = getattr(ev.data.get("dispatcher"), "py_func", None)
+        code = getattr(func, "__code__", None)
+        if code is None or not is_ours(code.co_filename):
+            return None
+        return f"{func.__module__}.{func.__qualname__}", code.co_filename
+
+    def on_start(self, ev):
+        ours = self._ours(ev)
+        if ours is None:
+            return
+        self.depth += 1
+        if self.depth > 1:
+            return
+        self.started = time.perf_counter()
+        if self.first is None:
+            self.first = ours[0]
+            cache = getattr(ev.data["dispatcher"], "_cache", None)
+            path = getattr(cache, "cache_path", None)
+            self.times_path = Path(path) / TIMES_FILE if path else None
+            estimate = self._recorded().get(self.first) or ESTIMATE_S.get(self.first, DEFAULT_ESTIMATE_S)
+            where = f" ({path})" if path else ""
+            print(f"wfbench: compiling the simulator core once, ~{estimate:.0f} s; cached afterwards{where}",
+                  file=sys.stderr, flush=True)
+
+    def on_end(self, ev):
+        if self._ours(ev) is None:
+            return
+        self.depth -= 1
+        if self.depth == 0:
+            self.total += time.perf_counter() - self.started
+            self._record()
+
+    def _recorded(self) -> dict:
+        try:
+            return json.loads(self.times_path.read_text())
+        except (AttributeError, OSError, ValueError):
+            return {}
+
+    def _record(self) -> None:
+        """Store the compile time of this process so far under its first entry point (atomic replace)."""
+        if self.times_path is None:
+            return
+        times = self._recorded()
+        times[self.first] = round(self.total, 1)
+        tmp = self.times_path.with_name(f"{TIMES_FILE}.{os.getpid()}.tmp")
+        try:
+            tmp.write_text(json.dumps(times, indent=1, sort_keys=True))
+            os.replace(tmp, self.times_path)
+        except OSError:
+            pass
+
+
+NOTICE = _ColdCompileNotice()
+
+
+def install() -> None:
+    """Register :class:`DigestLocator` first among numba's cache locators, and the cold-start notice."""
+    classes = caching.CacheImpl._locator_classes
+    if DigestLocator not in classes:
+        classes.insert(0, DigestLocator)
+        event.register("numba:compile", NOTICE)
+
+
+install()
