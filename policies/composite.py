@@ -46,6 +46,23 @@ class Composite:
         }
         self.decisions = AGENTS
         self.name = name or "+".join(getattr(p, "name", type(p).__name__) for p in self.parts.values())
+        self._unique = list({id(p): p for p in self.parts.values()}.values())
+        # hindsight oracles (policies.hindsight) share one planner and model the built-in parts exactly
+        joiners = [p for p in self._unique if getattr(p, "reads_trace", False) and hasattr(p, "join")]
+        if joiners:
+            joiners[0].join(self.parts)
+        self._recorders = [p for p in self._unique if hasattr(p, "record")]
+
+    @property
+    def reads_trace(self) -> bool:
+        """True when a part reads the episode's future (a hindsight oracle): not deployable."""
+        return any(getattr(p, "reads_trace", False) for p in self._unique)
+
+    def attach(self, config: Any) -> None:
+        """Hand the scenario to the parts that read the trace (the runner calls this before ``reset``)."""
+        for p in self._unique:
+            if getattr(p, "reads_trace", False) and hasattr(p, "attach"):
+                p.attach(config)
 
     def __repr__(self) -> str:
         return f"Composite({self.name!r})"
@@ -64,6 +81,8 @@ class Composite:
             if id(p) not in cache:
                 cache[id(p)] = p.act(obs)
             out[decision] = cache[id(p)][decision]
+        for p in self._recorders:  # parts that track the episode (the oracles' shadow) learn the joint action
+            p.record(out)
         return out
 
     @property

@@ -12,6 +12,7 @@ from typing import Any
 
 from policies import kernels as K
 from policies.builtin import BuiltinDecision
+from policies.hindsight import OracleDispatch, OraclePositioning, OracleWorkforce
 from policies.solver import AssignmentDispatch
 
 
@@ -30,6 +31,7 @@ DECISIONS: dict[str, dict[str, Callable[[], Any]]] = {
         "assignment-lp": lambda: AssignmentDispatch("lp", "HIGHS", name="assignment-lp"),
         "assignment-lp-osqp": lambda: AssignmentDispatch("lp", "OSQP", name="assignment-lp-osqp"),
         "none": _d("dispatch", K.D_NOOP, "none"),
+        "oracle": OracleDispatch,  # reads the trace: not deployable (docs/hindsight.md)
     },
     "workforce": {
         "threshold": _d("workforce", K.W_THRESHOLD, "threshold"),
@@ -37,6 +39,7 @@ DECISIONS: dict[str, dict[str, Callable[[], Any]]] = {
         "random": _d("workforce", K.W_RANDOM, "random"),
         "staffing": _d("workforce", K.W_STAFFING, "staffing"),
         "fixed": _d("workforce", K.W_NOOP, "fixed"),
+        "oracle": OracleWorkforce,  # reads the trace: not deployable
     },
     "positioning": {
         "spatial": _d("positioning", K.P_SPATIAL, "spatial"),
@@ -44,5 +47,6 @@ DECISIONS: dict[str, dict[str, Callable[[], Any]]] = {
         "random": _d("positioning", K.P_RANDOM, "random"),
         "facility-location": _d("positioning", K.P_FACILITY, "facility-location"),
         "none": _d("positioning", K.P_NONE, "none"),
+        "oracle": OraclePositioning,  # reads the trace: not deployable
     },
 }

@@ -29,6 +29,13 @@ COMPOSITES: dict[str, tuple[str, str, str, str]] = {
     "solver-positioning": (
         "nearest", "threshold", "facility-location", "p-median positioning, heuristic dispatch and workforce",
     ),
+    "oracle": (
+        "oracle", "oracle", "oracle", "hindsight oracle for all three decisions: reads the trace, not deployable "
+        "(docs/hindsight.md)",
+    ),
+    "oracle-dispatch": (
+        "oracle", "threshold", "spatial", "hindsight dispatch, heuristic workforce and positioning: not deployable",
+    ),
 }
 
 

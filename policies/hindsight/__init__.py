@@ -1,0 +1,16 @@
+"""Hindsight oracles: planners that see the episode's whole exogenous future and decide with it.
+
+Not deployable: they show how much a deployable policy leaves on the table, and can
+teach one later. Modules: ``rollout`` (compiled roll-forward of a batch from its
+current state), ``dispatch``, ``workforce`` and ``positioning`` (each decision's
+candidates and maps), ``planner`` (the shadow simulator, forks and scoring),
+``oracles`` (the per-decision policies). ``docs/hindsight.md`` explains them; the
+look-ahead itself is :mod:`wfbench.lookahead`.
+"""
+
+from policies.hindsight.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
+from policies.hindsight.planner import Planner, ShadowDivergedError
+from policies.hindsight.rollout import RollBuffers, roll_forward
+
+__all__ = ["OracleDispatch", "OraclePositioning", "OracleWorkforce", "Planner", "RollBuffers",
+           "ShadowDivergedError", "roll_forward"]

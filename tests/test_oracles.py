@@ -1,0 +1,138 @@
+"""Hindsight oracles (policies.hindsight): registration, determinism, the shadow check, and that hindsight pays."""
+
+import numpy as np
+import pytest
+
+import policies
+from policies import kernels as K
+from policies.hindsight import OracleDispatch, ShadowDivergedError
+from policies.hindsight.dispatch import dispatch_candidates
+from policies.hindsight.positioning import hire_sites, release_targets
+from wfbench import ScenarioConfig, Simulator
+
+SMALL = ScenarioConfig.preset("small")
+SHORT = SMALL.replace(horizon=120)
+
+
+def play(name, config, seeds):
+    """The local evaluation loop of a trace-reading policy: attach, reset, act, step. Returns (means, policy)."""
+    pol = policies.get(name)
+    if getattr(pol, "reads_trace", False):
+        pol.attach(config)
+    sim = Simulator(config, seeds)
+    obs = sim.reset()
+    pol.reset(sim.seeds)
+    while not sim.done:
+        sim.step(pol.act(obs))
+        obs = sim.observe()
+    return sim.episode_means(), sim.counters(), pol
+
+
+def test_oracles_are_registered_and_marked_as_reading_the_trace():
+    assert {"oracle", "oracle-dispatch"} <= set(policies.names())
+    for decision in ("dispatch", "workforce", "positioning"):
+        assert "oracle" in policies.DECISIONS[decision]
+    full = policies.get("oracle")
+    assert full.reads_trace and not full.compiled
+    assert not policies.get("heuristic").reads_trace
+    planners = {id(p.planner) for p in full.parts.values()}
+    assert len(planners) == 1  # one planner makes all three decisions
+    assert full.parts["dispatch"].planner.decide == ("dispatch", "workforce", "positioning")
+    od = policies.get("oracle-dispatch")
+    planner = od.parts["dispatch"].planner
+    assert planner.decide == ("dispatch",)
+    # the built-in parts of the composite are modelled by their own kernels
+    assert planner.base["workforce"][0] == K.W_THRESHOLD and planner.base["positioning"][0] == K.P_SPATIAL
+    mixed = policies.Composite("oracle", "staffing", "oracle")
+    assert mixed.parts["dispatch"].planner is mixed.parts["positioning"].planner
+    assert mixed.parts["dispatch"].planner.base["workforce"][0] == K.W_STAFFING
+
+
+def test_an_oracle_needs_the_scenario_before_reset():
+    with pytest.raises(RuntimeError, match="attach"):
+        policies.get("oracle").reset([0])
+
+
+def test_the_oracle_is_deterministic_and_a_seed_plays_the_same_alone_or_in_a_batch():
+    a, ca, _ = play("oracle", SHORT, [1, 2])
+    b, cb, _ = play("oracle", SHORT, [1, 2])
+    alone, c1, _ = play("oracle", SHORT, [2])
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
+        assert a[k][1] == alone[k][0], k
+    assert all(np.array_equal(ca[k], cb[k]) for k in ca)
+    assert ca["hires"].sum() + ca["releases"].sum() > 0  # the workforce oracle acts
+    assert sum(ca[k].sum() for k in ("invalid_dispatch_not_requesting", "invalid_dispatch_unavailable",
+                                     "invalid_dispatch_duplicate", "invalid_hire_no_slot")) == 0
+
+
+def test_a_shadow_that_diverges_is_caught():
+    pol = policies.get("oracle-dispatch")
+    pol.attach(SHORT.replace(request_interval=10.0))  # not the world it will play
+    sim = Simulator(SHORT, [0])
+    obs = sim.reset()
+    pol.reset(sim.seeds)
+    with pytest.raises(ShadowDivergedError):
+        for _ in range(SHORT.horizon):
+            sim.step(pol.act(obs))
+            obs = sim.observe()
+    # an oracle for one decision must be told the joint action (a composite does it)
+    lone = OracleDispatch()
+    lone.attach(SHORT)
+    sim = Simulator(SHORT, [0])
+    obs = sim.reset()
+    lone.reset([0])
+    d = lone.act(obs)["dispatch"]
+    sim.step({"dispatch": d, "workforce": np.zeros(1, dtype=np.int64), "positioning": np.zeros((1, 2, sim.M))})
+    with pytest.raises(ShadowDivergedError, match="joint action"):
+        lone.act(sim.observe())
+
+
+def test_hindsight_dispatch_beats_heuristic_dispatch_on_small():
+    seeds = list(range(6))
+    oracle, _, pol = play("oracle-dispatch", SMALL, seeds)
+    heuristic, _, _ = play("heuristic", SMALL, seeds)
+    assert oracle["nsw"].mean() > heuristic["nsw"].mean()
+    assert pol.parts["dispatch"].planner.timing["dispatch_rolls"] > 0
+
+
+def test_the_full_oracle_beats_the_solver_composite_on_small():
+    seeds = list(range(4))
+    oracle, _, _ = play("oracle", SMALL, seeds)
+    solver, _, _ = play("solver", SMALL, seeds)
+    assert (oracle["nsw"] > solver["nsw"]).all()
+
+
+def test_dispatch_candidates_hold_back_and_send_the_person_who_will_fix_it():
+    N = 3  # people; 3 facilities
+    base = np.array([0, N, N])  # nearest-first: novice 0 to facility 0
+    requesting = np.array([1, 0, 0])
+    free = np.array([1, 1, 1])
+    fac_xy = np.array([[0, 0], [5, 5], [9, 9]])
+    per_xy = np.array([[1, 0], [3, 0], [6, 0]], dtype=np.float64)
+    levels = np.array([0, 1, 2])
+    fixes = {0: np.array([False, False, True])}  # only an expert fixes this visit
+    cands = [tuple(c) for c in dispatch_candidates(base, requesting, free, fac_xy, per_xy, levels, fixes, 3)]
+    assert cands[0] == (0, N, N)
+    assert (N, N, N) in cands  # hold back
+    assert (2, N, N) in cands  # the expert, who will fix it
+    assert (1, N, N) in cands  # the runner-up
+    assert len(cands) == len(set(cands))
+
+
+def test_hire_at_the_known_demand_and_let_go_the_cheapest_loss():
+    sites = np.array([[0, 0], [10, 10], [20, 0]])
+    homes = np.array([[0, 0], [0, 1]])
+    cells = np.array([[0, 0], [20, 0]])
+    counts = np.array([1.0, 5.0])
+    pm, greedy = hire_sites(sites, homes, cells, counts)
+    assert pm == 2 and greedy == 2  # nobody lives near the busy cell (20, 0)
+    # two people at one corner: home 0 is nearer every demand cell, so losing home 1 costs nothing;
+    # the other levels have nobody to let go
+    levels = np.array([1, 1])
+    out = release_targets(homes, levels, np.array([True, True]), cells, counts)
+    assert list(out) == [-1, 1, -1]
+    assert list(release_targets(homes, levels, np.array([True, False]), cells, counts)) == [-1, 0, -1]
+    homes3 = np.array([[0, 0], [0, 1], [20, 0]])
+    out = release_targets(homes3, np.array([1, 1, 1]), np.array([True, True, True]), cells, counts)
+    assert out[1] in (0, 1)  # never the one serving the busy cell
