@@ -17,7 +17,7 @@ from wfbench.state import METRICS
 from wfbench.trace import trace
 
 BUILTIN = ["random", "heuristic", "heuristic-stochastic", "solver", "random-dispatch", "fixed-workforce"]
-K_NSW, K_UWC, K_AFD = METRICS.index("nsw"), METRICS.index("u_cost"), METRICS.index("downtime")
+K_NSW, K_UWC, K_UPUR, K_AFD = (METRICS.index(k) for k in ("nsw", "u_cost", "u_utilization", "downtime"))
 
 
 class _Workforce:
@@ -94,7 +94,7 @@ def test_bound__no_policy_exceeds_it_on_the_larger_scenarios(scenario):
 
 @pytest.mark.parametrize("scenario, n", [("small", 40), ("paper-64", 8), ("nonstationary", 8)])
 def test_bound__each_step_of_the_argument_holds_on_the_series(scenario, n):
-    """NSW is 0 before t*, u_WC <= a_t at every step, and the downtime after t* is at least the bound's."""
+    """NSW is 0 before t*, u_WC and u_PUR stay under their per-step bounds, the downtime after t* above its bound."""
     config = ScenarioConfig.preset(scenario)
     parts = [bound_parts(config, s) for s in range(n)]
     for policy in ["heuristic", "random", "solver", *_adversaries()]:
@@ -102,7 +102,8 @@ def test_bound__each_step_of_the_argument_holds_on_the_series(scenario, n):
         for s, p in enumerate(parts):
             assert np.all(series[s, : p.first_failure, K_NSW] == 0.0), (policy, s)
             t0 = p.first_failure
-            assert np.all(series[s, t0:, K_UWC] <= p.wc_utility[t0:] + 1e-6), (policy, s)  # the series is float32
+            assert np.all(series[s, :, K_UWC] <= p.wc_utility + 1e-6), (policy, s)  # the series is float32
+            assert np.all(series[s, :, K_UPUR] <= p.pur_utility + 1e-6), (policy, s)
             afd = series[s, t0:, K_AFD].sum()
             assert afd >= p.downtime_sum * (1 - 1e-5), (policy, s, afd, p.downtime_sum)
 
@@ -143,3 +144,29 @@ def test_bound__occupancies_follow_the_slots_of_the_simulator():
                 expect[f] = True
         assert np.array_equal(sim.state.fac_active[0], expect), t
         sim.step(noop)
+
+
+def _edge_config():
+    """``small`` at the edges of the rules the bound uses: a failure rate that swings 10x within 40 steps, fast churn
+    (slots reused often), one-step service, let-gos that take effect at once, nobody kept on."""
+    from wfbench.schedule import RateSchedule
+
+    return ScenarioConfig.preset("small").replace(
+        name="bound-edges", request_schedule=RateSchedule(kind="seasonal", amplitude=0.9, period=40.0),
+        churn_interval=8.0, service_time=1, fire_delay=0, min_personnel=0, request_interval=15.0)
+
+
+def test_bound__holds_at_the_edges_of_the_rules():
+    config = _edge_config()
+    seeds = list(range(60))
+    bound = score_upper_bound(config, seeds)
+    parts = [bound_parts(config, s) for s in seeds]
+    assert np.all(bound < 1.0)
+    for policy in BUILTIN + _adversaries():
+        df, series = wfbench.evaluate(policy, config, seeds=seeds, backend="serial", return_series=True)
+        assert np.all(df["nsw"].to_numpy() <= bound), policy
+        for s, p in enumerate(parts):
+            assert np.all(series[s, : p.first_failure, K_NSW] == 0.0), (policy, s)
+            assert np.all(series[s, :, K_UWC] <= p.wc_utility + 1e-6), (policy, s)
+            assert np.all(series[s, :, K_UPUR] <= p.pur_utility + 1e-6), (policy, s)
+            assert series[s, p.first_failure:, K_AFD].sum() >= p.downtime_sum * (1 - 1e-5), (policy, s)

@@ -54,11 +54,13 @@ class BoundParts(NamedTuple):
 
     Attributes:
         bound: the upper bound on the episode score.
-        per_step: the bound without the downtime part, ``(1/T) sum_t a_t^(1/3)`` over
-            ``t >= t*`` (also valid; ``bound`` is the smaller of the two).
+        per_step: the bound without the downtime part, ``(1/T) sum_t a_t^(1/3)``
+            (also valid; ``bound`` is the smaller of the two).
         first_failure: ``t*``, the step of the first failure of the episode (the
             horizon when nothing fails: the score is then 0).
-        wc_utility: ``a_t``, the per-step upper bound on ``u_WC`` (0 before ``t*``).
+        wc_utility: the per-step upper bound on ``u_WC``.
+        pur_utility: the per-step upper bound on ``u_PUR`` (it binds early in the episode only).
+        step_bound: ``a_t``, the per-step bound on ``u_WC * u_PUR`` (0 before ``t*``).
         downtime_sum: the lower bound on ``sum_{t >= t*} AFD_t``.
         downtime_mean: ``downtime_sum / T``.
     """
@@ -67,6 +69,8 @@ class BoundParts(NamedTuple):
     per_step: float
     first_failure: int
     wc_utility: np.ndarray
+    pur_utility: np.ndarray
+    step_bound: np.ndarray
     downtime_sum: float
     downtime_mean: float
 
@@ -189,8 +193,8 @@ def _min_down_profile(key, f, draw0, start, end, tau0, cum, service_time, p_best
 
 
 @njit(cache=True)
-def _weights(start, end, t_star, n_active, window):
-    """Per down step s of an activation, its weight in ``sum_{t >= t*} AFD_t``, replaced by the running minimum.
+def _weights(start, end, in_s, n_active, window):
+    """Per down step s of an activation, its weight in ``sum_{t in S} AFD_t``, replaced by the running minimum.
 
     A down step s of the facility counts ``1 / (n_t * min(W, t - start + 1))`` in
     ``AFD_t`` for every t in ``[s, s + W - 1]`` while the facility is active.
@@ -199,7 +203,7 @@ def _weights(start, end, t_star, n_active, window):
     w = np.zeros(n + 1)
     for i in range(n):
         t = start + i
-        if t >= t_star and n_active[t] > 0:
+        if in_s[t] and n_active[t] > 0:
             w[i] = 1.0 / (n_active[t] * min(window, i + 1))
     csum = np.zeros(n + 1)
     for i in range(n):
@@ -214,8 +218,8 @@ def _weights(start, end, t_star, n_active, window):
     return c
 
 
-def _downtime_lower_bound(config: ScenarioConfig, tr, occ, cum, t_first):
-    """``sum_{t >= t*} AFD_t`` from below, and the first failure per activation (-1: none, -2: unknown)."""
+def _downtime_lower_bound(config: ScenarioConfig, tr, occ, cum, t_first, in_s):
+    """``sum_{t in S} AFD_t`` from below; ``t_first`` from :func:`_first_failures`, ``in_s`` the mask of S."""
     T = config.horizon
     key = tr.key[0]
     n_active = np.zeros(T + 1, dtype=np.int64)
@@ -227,7 +231,6 @@ def _downtime_lower_bound(config: ScenarioConfig, tr, occ, cum, t_first):
     draws = {}
     failed = set()
     total = 0.0
-    t_star = min((t for t in t_first if t >= 0), default=T)
     for (f, a, e), tau0 in zip(occ, t_first, strict=True):
         j = draws.get(f, 0)
         draws[f] = j + 1
@@ -236,7 +239,7 @@ def _downtime_lower_bound(config: ScenarioConfig, tr, occ, cum, t_first):
         failed.add(f)
         down = np.zeros(T, dtype=np.int8)
         _min_down_profile(key, f, j, a, e, tau0, cum, config.service_time, p_best, down)
-        c = _weights(a, e, t_star, n_active, config.window)
+        c = _weights(a, e, in_s, n_active, config.window)
         total += float(np.dot(down[a:e], c))
     return total
 
@@ -275,6 +278,38 @@ def _wc_utility_bound(config: ScenarioConfig, tr) -> np.ndarray:
     return np.clip(1.0 - wc / config.max_workforce_cost, 0.0, 1.0)
 
 
+def _pur_utility_bound(config: ScenarioConfig, tr, occ, t_first) -> np.ndarray:
+    """Per step t, an upper bound on ``u_PUR,t`` early in the episode (1 once it no longer binds).
+
+    Only people who have been dispatched can have worked, and a facility takes a new
+    dispatch at most every ``service_time + 1`` steps from the step it can first be down
+    (its known first failure; the step after activation when that is not known). At
+    least ``n0 - k_t`` initial people are onboarded, so ``PUR_t <= X_t / (n0 - k_t)``
+    with ``X_t`` the most dispatches there can have been by t; ``u_PUR`` does not
+    decrease below the target, so ``u_PUR,t <= u_PUR(min(that, target))``.
+    """
+    T = config.horizon
+    step = config.service_time + 1
+    t = np.arange(T)
+    x = np.zeros(T)
+    for (_, a, e), tau0 in zip(occ, t_first, strict=True):
+        if tau0 == -1:
+            continue  # never down while active
+        first = tau0 if tau0 >= 0 else a + 1
+        if first >= e:
+            continue
+        span = np.clip(np.minimum(t, e - 1) - first + 1, 0, None)
+        x += -(-span // step)  # ceil
+    n0 = int(tr.per0_active[0].sum())
+    n_on = n0 - np.clip(t - max(config.fire_delay, 1) + 1, 0, n0)
+    n_lo = np.maximum(n_on, 1)  # PUR is 0 with nobody onboarded, and min(X, n) / n does not increase with n
+    pur = np.minimum(x, n_lo) / n_lo
+    pur = np.minimum(pur, config.target_utilization)
+    dev = np.maximum(0.0, np.abs(pur - config.target_utilization) - config.utilization_tolerance)
+    span_u = max(config.target_utilization, 1.0 - config.target_utilization) - config.utilization_tolerance
+    return np.clip(1.0 - dev / span_u, 0.0, 1.0)
+
+
 def bound_parts(config: ScenarioConfig, seed: int) -> BoundParts:
     """The upper bound on the score of ``seed`` with its components.
 
@@ -292,16 +327,18 @@ def bound_parts(config: ScenarioConfig, seed: int) -> BoundParts:
     occ = occupancies(config, tr)
     t_first = _first_failures(config, tr, occ, hazard)
     t_star = min((t for t in t_first if t >= 0), default=T)
-    a = _wc_utility_bound(config, tr)
-    a[:t_star] = 0.0
-    n_s = T - t_star
-    if n_s <= 0:
-        return BoundParts(0.0, 0.0, t_star, a, 0.0, 0.0)
+    wc = _wc_utility_bound(config, tr)
+    pur = _pur_utility_bound(config, tr, occ, t_first)
+    a = wc * pur  # before t* nobody has worked: pur is u_PUR(0), which is 0 unless the target is below 0.5
+    in_s = a > 0.0  # S: the steps where NSW_t can be above 0
+    n_s = int(in_s.sum())
+    if n_s == 0:
+        return BoundParts(0.0, 0.0, t_star, wc, pur, a, 0.0, 0.0)
     per_step = float(np.cbrt(a).sum() / T)
-    afd_sum = _downtime_lower_bound(config, tr, occ, cum, t_first)
+    afd_sum = _downtime_lower_bound(config, tr, occ, cum, t_first, in_s)
     afd_sum = min(afd_sum, float(n_s))
     holder = float(np.sqrt(a).sum() ** (2.0 / 3.0) * (n_s - afd_sum) ** (1.0 / 3.0) / T)
-    return BoundParts(min(holder, per_step), per_step, t_star, a, afd_sum, afd_sum / T)
+    return BoundParts(min(holder, per_step), per_step, t_star, wc, pur, a, afd_sum, afd_sum / T)
 
 
 def score_upper_bound(config: ScenarioConfig | str, seeds: int | Iterable[int]) -> np.ndarray:
