@@ -93,6 +93,7 @@ def test_hindsight_dispatch_beats_heuristic_dispatch_on_small():
     oracle, _, pol = play("oracle-dispatch", SMALL, seeds)
     heuristic, _, _ = play("heuristic", SMALL, seeds)
     assert oracle["nsw"].mean() > heuristic["nsw"].mean()
+    assert (oracle["nsw"] > heuristic["nsw"]).sum() >= 4  # on most seeds, not by one lucky episode
     assert pol.parts["dispatch"].planner.timing["dispatch_rolls"] > 0
 
 
