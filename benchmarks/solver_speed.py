@@ -134,7 +134,7 @@ def positioning_per_step(repeats):
 
 
 def episodes(n_seeds: int, slow_seeds: int, slow_steps: int):
-    from wfbench.evaluate import run_batch
+    from wfbench.runner import run_batch
     from wfbench.simulator import Simulator
 
     rows = []

@@ -52,7 +52,7 @@ class PrangeSimulator(Simulator):
         previous = numba.get_num_threads()
         numba.set_num_threads(self.threads)
         try:
-            self._call(_prange_step_observe, *args)
+            self.call(_prange_step_observe, *args)
         finally:
             numba.set_num_threads(previous)
         return self.state.last[:, METRICS.index("nsw")].copy(), self._obs_dict()

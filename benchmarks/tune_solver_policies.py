@@ -16,7 +16,7 @@ import sys
 from policies import Composite
 from policies import kernels as K
 from policies.builtin import BuiltinDecision
-from wfbench.evaluate import evaluate
+from wfbench.evaluation import evaluate
 from wfbench.stats import paired_difference
 
 SWEEPS = {

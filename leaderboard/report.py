@@ -12,7 +12,7 @@ import pandas as pd
 
 from leaderboard.store import KPI_COLUMNS, Store
 from leaderboard.tracks import Track
-from wfbench.evaluate import KPI_LABELS, format_kpi, summarize
+from wfbench.evaluation import KPI_LABELS, format_kpi, summarize
 from wfbench.stats import bootstrap_ci, paired_difference
 from wfbench.tables import markdown_table, text_table
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
+from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
 from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
 from wfbench.tables import markdown_table
 

@@ -7,7 +7,7 @@ import pytest
 
 from wfbench.cli import main
 from wfbench.compare import compare, format_comparison
-from wfbench.evaluate import evaluate
+from wfbench.evaluation import evaluate
 from wfbench.stats import bootstrap_ci, paired_difference
 
 

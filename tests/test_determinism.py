@@ -9,7 +9,8 @@ import pytest
 
 from policies import get
 from wfbench import ScenarioConfig, Simulator, trace
-from wfbench.evaluate import evaluate, run_batch
+from wfbench.evaluation import evaluate
+from wfbench.runner import run_batch
 
 
 def digest(series: np.ndarray) -> str:
@@ -94,7 +95,7 @@ def test_backends_agree():
 
 def test_same_bits_in_another_process():
     here = digest(run_batch("heuristic", "paper-64", [11], keep_series=True).series)
-    code = ("import hashlib, numpy as np; from wfbench.evaluate import run_batch; "
+    code = ("import hashlib, numpy as np; from wfbench.runner import run_batch; "
             "s = run_batch('heuristic', 'paper-64', [11], keep_series=True).series; "
             "print(hashlib.sha256(np.ascontiguousarray(s).tobytes()).hexdigest())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

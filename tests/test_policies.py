@@ -4,8 +4,7 @@ import pytest
 import policies
 from policies import Composite, get
 from wfbench import Simulator
-from wfbench.evaluate import evaluate, summarize
-
+from wfbench.evaluation import evaluate, summarize
 
 
 def test_entry_point_to_a_policy_factory():

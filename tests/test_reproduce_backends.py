@@ -8,7 +8,7 @@ import pytest
 
 from leaderboard.reproduce import table2_trends
 from wfbench.cli import main
-from wfbench.evaluate import evaluate
+from wfbench.evaluation import evaluate
 from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS
 
 # identical numbers from the serial, process and Ray backends: tests/test_backends_script.py, which

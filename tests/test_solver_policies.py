@@ -14,7 +14,7 @@ from policies import kernels as K
 from policies.solver import AssignmentDispatch
 from solvers.lap import lap_min
 from wfbench import Simulator
-from wfbench.evaluate import evaluate
+from wfbench.evaluation import evaluate
 from wfbench.observe import make_obs
 
 

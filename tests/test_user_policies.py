@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from wfbench.cli import main
-from wfbench.evaluate import evaluate
+from wfbench.evaluation import evaluate
 from wfbench.guard import PolicyError, PolicyLoadError, load_policy
 
 ROOT = Path(__file__).resolve().parents[1]

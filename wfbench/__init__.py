@@ -27,7 +27,7 @@ for _env_id, _entry in ENV_IDS.items():
     if _env_id not in _gymnasium.registry:
         _gymnasium.register(id=_env_id, entry_point=_entry, disable_env_checker=False)
 
-_LAZY = {"evaluate": "wfbench.evaluate", "env": "wfbench.envs", "parallel_env": "wfbench.envs"}
+_LAZY = {"evaluate": "wfbench.evaluation", "env": "wfbench.envs", "parallel_env": "wfbench.envs"}
 
 
 def __getattr__(name: str):

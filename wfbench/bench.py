@@ -97,7 +97,7 @@ def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) ->
 
 
 def _run_batch_rate(config: ScenarioConfig, B: int, repeats: int) -> float:
-    from wfbench.evaluate import run_batch
+    from wfbench.runner import run_batch
 
     best = float("inf")
     for _ in range(repeats):
@@ -195,7 +195,7 @@ def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None =
     round; the best is the machine's speed when nothing else got in the way, the spread
     is how much it drifted.
     """
-    from wfbench.evaluate import run_batch
+    from wfbench.runner import run_batch
 
     config = ScenarioConfig.resolve(scenario)
     rounds = (1 if quick else 3) if rounds is None else rounds

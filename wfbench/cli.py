@@ -29,7 +29,7 @@ from policies.registry import COMPOSITES
 from wfbench.backends import check_backend
 from wfbench.bench import run as run_bench
 from wfbench.config import PRESETS, ScenarioConfig
-from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
+from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError
 from wfbench.tables import markdown_table, text_table
 

@@ -8,7 +8,7 @@ from typing import Any
 import pandas as pd
 
 from wfbench.config import ScenarioConfig
-from wfbench.evaluate import KPI_LABELS, KPIS, evaluate, format_kpi, resolve_seeds, summarize
+from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, resolve_seeds, summarize
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.stats import bootstrap_ci, paired_difference
 from wfbench.tables import markdown_table, text_table
@@ -31,7 +31,7 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
         seeds: a count ``n`` (seeds ``0..n-1``) or a sequence of seeds.
         baseline: the policy the differences are taken to (a name or entry point).
-        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluate.evaluate`).
+        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluation.evaluate`).
         workers: processes or Ray tasks.
         address: Ray cluster address.
         progress: show a progress bar per policy.

@@ -1,8 +1,8 @@
 """Counter-based random numbers: a draw is a pure function of (key, stream, i, j, k).
 
-The trace of DESIGN.md section 1 indexes every environment draw by *what it is for*
-(the k-th failure of facility slot f; the v-th visit to request r of slot f), not by
-when it is used. Storing every such draw up front would cost ``slots x requests x
+The trace (``docs/design.md``, "The trace and common random numbers") indexes every
+environment draw by *what it is for* (the k-th failure of facility slot f; the v-th
+visit to request r of slot f), not by when it is used. Storing every such draw up front would cost ``slots x requests x
 visits`` numbers per environment; instead the trace holds one 64-bit key per seed
 (drawn from ``numpy.random.SeedSequence``) and each draw is computed on demand by
 hashing its index with the SplitMix64 finalizer (Steele, Lea & Flood 2014). The draw

@@ -263,8 +263,13 @@ class Simulator:
             entry = self._bound[dispatcher] = bind(dispatcher, *((0, 0) + args if ranged else args))
         return entry
 
-    def _call(self, dispatcher, *args):
-        """Call a compiled batch function through its bound entry point."""
+    def call(self, dispatcher, *args):
+        """Call a compiled batch function of this simulator's arrays through its bound entry point.
+
+        For layers above the core that run their own compiled kernels over the batch (the
+        environments check actions with one): ``dispatcher`` is a numba function, ``args``
+        its arguments; the entry point is bound once per dispatcher (:func:`bind`).
+        """
         return self._entry(dispatcher, args)(*args)
 
     def _split(self, kernel, *args) -> None:
@@ -277,7 +282,7 @@ class Simulator:
 
     # -- episode ------------------------------------------------------------------------------
     def reset(self) -> dict[str, np.ndarray]:
-        self._call(reset_batch, self.state, self.trace, self.params)
+        self.call(reset_batch, self.state, self.trace, self.params)
         self._reset_done = True
         return self.observe()
 
@@ -299,14 +304,15 @@ class Simulator:
         obs["t"] = self.state.t
         return obs
 
-    def _ready(self) -> None:
+    def check_ready(self) -> None:
+        """Raise ``RuntimeError`` unless a step may run now: after ``reset`` and before the horizon."""
         if not self._reset_done:
             raise RuntimeError("call reset() before step()")
         if self.done:
             raise RuntimeError(f"the episode is over (horizon {self.config.horizon}); call reset()")
 
     def _checked(self, actions: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        self._ready()
+        self.check_ready()
         return validate_actions(actions, self.B, self.M, self.N)
 
     def step(self, actions: dict) -> np.ndarray:
@@ -323,11 +329,11 @@ class Simulator:
         a few microseconds of call overhead, not tens.
         """
         d, w, p = self._checked(actions)
-        return self._step_observe_valid(d, w, p, with_masks)
+        return self.step_observe_checked(d, w, p, with_masks)
 
-    def _step_observe_valid(self, d: np.ndarray, w: np.ndarray, p: np.ndarray,
+    def step_observe_checked(self, d: np.ndarray, w: np.ndarray, p: np.ndarray,
                             with_masks: bool = True) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """``step_observe`` for a caller that has called :meth:`_ready` and checked the actions.
+        """``step_observe`` for a caller that has called :meth:`check_ready` and checked the actions.
 
         The actions are what :func:`validate_actions` returns: plain int64 (B, M) and (B,),
         float64 (B, 2, M), every entry in range.

@@ -134,16 +134,16 @@ class WorkforceCore:
             if plain:
                 buf[where] = a
         d, w, p = (buf for _, buf, _ in self._buffers)
-        if plain and self.sim._call(actions_in_range, d, w, p, self.sim.N, N_WORKFORCE_ACTIONS - 1):
+        if plain and self.sim.call(actions_in_range, d, w, p, self.sim.N, N_WORKFORCE_ACTIONS - 1):
             return d, w, p
         return validate_actions(self.full_action(given, fixed), 1, self.sim.M, self.sim.N)
 
     def step(self, given: dict[str, Any]) -> tuple[float, dict[str, int]]:
         assert self.sim is not None
-        self.sim._ready()  # before the fixed policies act: a refused step changes nothing
+        self.sim.check_ready()  # before the fixed policies act: a refused step changes nothing
         counters = self.sim.state.counters[0]
         before = counters.tolist()
-        rewards, self.obs = self.sim._step_observe_valid(*self.actions(given))
+        rewards, self.obs = self.sim.step_observe_checked(*self.actions(given))
         self._counts = counters.tolist()
         self.last_counters = dict(zip(COUNTERS, map(operator.sub, self._counts, before), strict=True))
         return float(rewards[0]), self.last_counters

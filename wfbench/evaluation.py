@@ -21,12 +21,9 @@ from tqdm.auto import tqdm
 from wfbench.backends import BACKENDS, check_backend, run_chunks
 from wfbench.config import ScenarioConfig
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
-from wfbench.runner import BatchResult, results_frame, run_batch
+from wfbench.runner import BatchResult, results_frame
 
-# BatchResult and run_batch live in wfbench.runner; they stay importable from here for the
-# code (benchmarks, wfbench.bench) that imported them from this module before runner existed
-__all__ = ["BACKENDS", "KPIS", "KPI_LABELS", "BatchResult", "evaluate", "format_kpi", "resolve_seeds", "run_batch",
-           "summarize"]
+__all__ = ["BACKENDS", "KPIS", "KPI_LABELS", "evaluate", "format_kpi", "resolve_seeds", "summarize"]
 
 KPIS = ("workforce_cost", "utilization", "downtime", "nsw")
 KPI_LABELS = {
