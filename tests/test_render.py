@@ -7,7 +7,7 @@ from PIL import Image
 from policies import get
 from wfbench import Simulator
 from wfbench.cli import main
-from wfbench.envs.render import FACILITY_COLORS, LEVEL_COLORS, Renderer, render_rgb
+from wfbench.envs.render import FACILITY_COLORS, LEVEL_COLORS, Renderer, render_rgb, save_gif
 from wfbench.state import EMPTY, SERVICING, TO_FACILITY
 
 
@@ -92,6 +92,31 @@ def test_render__render_rgb_redraws_the_changing_state(running):
     x0 = int(r.legend.get_window_extent().x0)
     top = int(r.fig.bbox.height * 0.08)  # below the KPI line
     np.testing.assert_array_equal(later[top:, x0:], first[top:, x0:])
+
+
+def test_save_gif__keeps_every_frame_and_its_colours(running, tmp_path):
+    r = Renderer(running.config)
+    sim = Simulator("small", [6])
+    obs = sim.reset()
+    policy = get("heuristic")
+    policy.reset([6])
+    frames = [r.frame(sim)]
+    for _ in range(2):
+        for _ in range(20):
+            sim.step(policy.act(obs))
+            obs = sim.observe()
+        frames.append(r.frame(sim))
+    save_gif(frames, tmp_path / "f.gif")
+    with Image.open(tmp_path / "f.gif") as gif:
+        assert gif.n_frames == 3
+        for i, frame in enumerate(frames):
+            gif.seek(i)
+            back = np.asarray(gif.convert("RGB")).astype(int)
+            assert np.abs(back - frame).mean() < 3, f"frame {i} lost its colours in the GIF's palette"
+            colours = np.unique(back.reshape(-1, 3), axis=0)
+            for name in (*FACILITY_COLORS.values(), *LEVEL_COLORS):
+                nearest = np.abs(colours - rgb(name)).sum(axis=1).min()
+                assert nearest <= 12, f"frame {i}: marker colour {name} is off by {nearest} in the GIF"
 
 
 def test_cli_simulate__shows_progress_and_writes_the_frames(tmp_path, capsys):
