@@ -12,6 +12,7 @@ import pandas as pd
 
 from leaderboard.store import KPI_COLUMNS, Store
 from leaderboard.tracks import Track
+from policies import get
 from wfbench.evaluation import KPI_LABELS, format_kpi, summarize
 from wfbench.stats import bootstrap_ci, paired_difference
 from wfbench.tables import markdown_table, text_table
@@ -31,8 +32,10 @@ class Ranking:
 def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
     """Rank the complete submissions of ``track`` by mean NSW over its test seeds.
 
-    A submission is ranked when every test seed has a valid row. The paired difference
-    to ``baseline`` is taken over the seeds both have; incomplete and failed
+    A submission is ranked when every test seed has a valid row and it is deployable.
+    wfbench's hindsight oracles (``reads_trace``) read the episode's future: they are
+    kept in a separate, unranked "not deployable" section as a reference. The paired
+    difference to ``baseline`` is taken over the seeds both have; incomplete and failed
     submissions are listed after the ranked ones, with their status and reason.
     """
     rows, refused = store.results(track)
@@ -44,7 +47,8 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
         mine = rows[rows["name"] == name]
         rec = {"name": name, "policy": sub.policy, "submitter": sub.submitter, "status": sub.status,
                "reason": sub.reason, "seeds": len(mine), "builtin": sub.builtin}
-        rec["ranked"] = sub.status == "complete" and len(mine) == n_test
+        rec["deployable"] = not reads_future(sub.policy)
+        rec["ranked"] = rec["deployable"] and sub.status == "complete" and len(mine) == n_test
         if len(mine):
             for k, (mean, q25, q75) in summarize(mine, KPI_COLUMNS).items():
                 rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = mean, q25, q75
@@ -65,12 +69,32 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
     return Ranking(track, baseline, table, rows, refused)
 
 
-def _cells(r: Ranking) -> tuple[list[str], list[list[str]]]:
+REFERENCE_TITLE = ("Not deployable (reads the future): hindsight oracles, a reference for what the deployable "
+                   "policies leave on the table, not ranked (docs/hindsight.md)")
+
+
+def reads_future(policy: str) -> bool:
+    """Whether a stored entry's policy reads the episode's future (a hindsight oracle of wfbench's).
+
+    Only registry names can: a ``module:attr`` submission that declares ``reads_trace``
+    is refused at submission, and a report never imports a user's code.
+    """
+    if ":" in policy:
+        return False
+    try:
+        return bool(getattr(get(policy), "reads_trace", False))
+    except ValueError:  # a name this version no longer has
+        return False
+
+
+def _cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[str]]]:
     n = len(r.track.test_seeds)
     header = ["#", "Name", "Policy", *[KPI_LABELS[k] for k in KPI_COLUMNS], "NSW 95% CI",
               f"NSW - {r.baseline} (paired, 95% CI)", "Seeds", "Status"]
     rows = []
     for _, t in r.table.iterrows():
+        if bool(t["deployable"]) != deployable:
+            continue
         has = t["seeds"] > 0
         kpis = [format_kpi(t[k], t[f"{k}_q25"], t[f"{k}_q75"]) if has else "-" for k in KPI_COLUMNS]
         ci = f"[{t['nsw_ci_low']:.3f}, {t['nsw_ci_high']:.3f}]" if has else "-"
@@ -103,11 +127,15 @@ def render(r: Ranking, fmt: str = "table") -> str:
     if fmt == "html":
         return render_html(r)
     header, rows = _cells(r)
-    if not rows:
+    _, ref = _cells(r, deployable=False)
+    if not rows and not ref:
         return f"No submissions on track {r.track.name} yet: run 'wfbench leaderboard seed' or 'submit'."
-    if fmt == "md":
-        return markdown_table(header, rows) + "\n\n" + caption(r)
-    return text_table(header, rows) + "\n" + caption(r)
+    table = markdown_table if fmt == "md" else text_table
+    out = (table(header, rows) if rows else "No deployable submissions yet.") + ("\n\n" if fmt == "md" else "\n")
+    out += caption(r)
+    if ref:
+        out += f"\n\n{REFERENCE_TITLE}\n" + ("\n" if fmt == "md" else "") + table(header, ref)
+    return out
 
 
 def _png(fig) -> str:
@@ -156,12 +184,18 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
 
 def render_html(r: Ranking) -> str:
     header, rows = _cells(r)
+    _, ref = _cells(r, deployable=False)
     esc = html.escape
-    table = ["<table id='ranking'>", "<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr></thead>",
-             "<tbody>"]
-    for row in rows:
-        table.append("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>")
-    table.append("</tbody></table>")
+
+    def html_table(table_id: str, body: list[list[str]]) -> list[str]:
+        out = [f"<table id='{table_id}'>",
+               "<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr></thead>", "<tbody>"]
+        out += ["<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>" for row in body]
+        return [*out, "</tbody></table>"]
+
+    table = html_table("ranking", rows)
+    if ref:
+        table += [f"<h2>{esc(REFERENCE_TITLE)}</h2>", *html_table("reference", ref)]
     figures = "".join(f"<figure><img alt='{esc(cap)}' src='data:image/png;base64,{data}'>"
                       f"<figcaption>{esc(cap)}</figcaption></figure>" for cap, data in _figures(r))
     refused = ""

@@ -1,4 +1,4 @@
-"""Regenerate the paper's Table 2, Table 3 and Figure 3 with wfbench's model.
+"""Regenerate the paper's Table 2, Table 3 and Figure 3 with wfbench's model, and the oracle gap.
 
 Each writes markdown and CSV (and PNG for the figure) into an output folder and
 returns the text it prints. The paper's NSW is a cost (lower is better) and its
@@ -45,6 +45,9 @@ PAPER_TABLE3 = [
 TABLE3_POLICIES = {"1": "random", "2": "random-dispatch", "3": "random-positioning", "4": "heuristic",
                    "5": None, "6": None, "7": None}
 SOLVER_ROWS = [("S1", "solver"), ("S2", "solver-dispatch"), ("S3", "solver-workforce"), ("S4", "solver-positioning")]
+ORACLE_ROWS = [("O1", "oracle-dispatch"), ("O2", "oracle")]
+ORACLE_PARTS = {"oracle-dispatch": ("Hindsight oracle", "Heuristic", "Heuristic"),
+                "oracle": ("Hindsight oracle", "Hindsight oracle", "Hindsight oracle")}
 SOLVER_PARTS = {"solver": ("Assignment", "Staffing", "p-median"), "solver-dispatch": ("Assignment", "Heuristic",
                 "Heuristic"), "solver-workforce": ("Heuristic", "Staffing", "Heuristic"),
                 "solver-positioning": ("Heuristic", "Heuristic", "p-median")}
@@ -124,8 +127,13 @@ def table2_trends(nsw: dict[tuple[int, int, int], float]) -> list[str]:
 
 
 def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
-           address: str | None = None, progress: Progress = None, solver_rows: bool = True) -> Output:
-    """The paper's rows 1-4 (exactly its combinations), the solver rows, and open rows for RL."""
+           address: str | None = None, progress: Progress = None, solver_rows: bool = True,
+           oracle_rows: bool = True) -> Output:
+    """The paper's rows 1-4 (exactly its combinations), the solver rows and open rows for RL.
+
+    Then the hindsight oracles and the proven upper bound on NSW (docs/hindsight.md): not
+    deployable, a reference.
+    """
     seeds = list(range(runs))
     header = ["#", "Dispatch", "Workforce mgmt", "Positioning", *[KPI_LABELS[k] for k in KPIS],
               "Paper: WC / PUR / AFD / NSW (cost)"]
@@ -149,9 +157,24 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     if solver_rows:
         for num, policy in SOLVER_ROWS:
             run(num, policy, SOLVER_PARTS[policy], "", "(not in the paper)")
+    if oracle_rows:
+        for num, policy in ORACLE_ROWS:
+            run(num, policy, ORACLE_PARTS[policy], "", "(not in the paper; reads the future)")
+        from wfbench.bound import score_upper_bound
+
+        if progress:
+            progress("bound")
+        bound = score_upper_bound("paper-64", seeds)
+        q25, q75 = np.percentile(bound, [25, 75])
+        rows.append(["B", "Upper bound", "(proven, any policy)", "", *["-"] * (len(KPIS) - 1),
+                     format_kpi(float(bound.mean()), q25, q75), "(not in the paper)"])
+        records.append({"row": "B", "policy": "bound", "nsw": float(bound.mean()), "nsw_q25": q25, "nsw_q75": q75,
+                        "paper": ""})
     md = "\n".join([
         f"Table 3: paper-64, seeds 0-{runs - 1}; KPIs mean (25%-75%) over runs. Rows 1-4 are the paper's "
-        "combinations; S1-S4 are wfbench's solver rows; rows 5-7 (PPO, IMPALA) are open until the RL work lands.",
+        "combinations; S1-S4 are wfbench's solver rows; rows 5-7 (PPO, IMPALA) are open until the RL work lands; "
+        "O1-O2 are hindsight oracles (they read the episode's future: not deployable) and B is a proven upper "
+        "bound on NSW per seed (docs/hindsight.md).",
         "", markdown_table(header, rows), "", DIRECTION,
     ])
     return Output(md, _write(out, "table3", md, pd.DataFrame(records)))
@@ -215,4 +238,76 @@ def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | 
     return Output(md, [png, *files])
 
 
-TARGETS = {"table2": table2, "table3": table3, "figure3": figure3}
+GAP_SCENARIOS = ("small", "paper-64", "nonstationary", "table2-g32-f25-s10")
+GAP_METHODS = ("heuristic", "solver", "oracle")
+
+
+def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
+        address: str | None = None, progress: Progress = None,
+        scenarios: tuple[str, ...] = GAP_SCENARIOS) -> Output:
+    """What deployable policies leave on the table: heuristic, solver, hindsight oracle and the proven bound.
+
+    Per scenario, the mean NSW of each method over seeds 0..runs-1 with its bootstrap
+    95% interval, the oracle's paired gain over the solver, and the mean upper bound
+    (docs/hindsight.md). Writes gap.md, gap.csv, gap.png and gap.svg.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from wfbench.bound import score_upper_bound
+    from wfbench.stats import bootstrap_ci, paired_difference
+
+    seeds = list(range(runs))
+    records, rows, per_seed = [], [], {}
+    for scenario in scenarios:
+        for m in GAP_METHODS:
+            if progress:
+                progress(f"{scenario}: {m}")
+            per_seed[scenario, m] = evaluate(m, scenario, seeds, backend=backend, workers=workers,
+                                             address=address)["nsw"].to_numpy()
+        per_seed[scenario, "bound"] = score_upper_bound(scenario, seeds)
+        for m in (*GAP_METHODS, "bound"):
+            x = per_seed[scenario, m]
+            ci = bootstrap_ci(x)
+            records.append({"scenario": scenario, "method": m, "nsw": float(x.mean()), "ci_low": ci.low,
+                            "ci_high": ci.high})
+        d = paired_difference(per_seed[scenario, "oracle"], per_seed[scenario, "solver"])
+        best = max(per_seed[scenario, m].mean() for m in GAP_METHODS)
+        rows.append([scenario, *[f"{per_seed[scenario, m].mean():.4f}" for m in (*GAP_METHODS, "bound")],
+                     f"{d[0]:+.4f} [{d[1]:+.4f}, {d[2]:+.4f}]",
+                     f"{per_seed[scenario, 'bound'].mean() - best:.4f}"])
+    df = pd.DataFrame(records)
+    fig, ax = plt.subplots(figsize=(1.9 * len(scenarios) + 2, 4))
+    colors = {"heuristic": "#8c8c8c", "solver": "#4c72b0", "oracle": "#dd8452", "bound": "#55a868"}
+    width = 0.2
+    for k, m in enumerate((*GAP_METHODS, "bound")):
+        sub = df[df["method"] == m]
+        x = np.arange(len(scenarios)) + (k - 1.5) * width
+        err = np.vstack([sub["nsw"] - sub["ci_low"], sub["ci_high"] - sub["nsw"]])
+        ax.bar(x, sub["nsw"], width, yerr=err, capsize=2, color=colors[m],
+               label="upper bound (proven)" if m == "bound" else m, hatch="//" if m == "bound" else None,
+               edgecolor="white" if m != "bound" else "#2d6a3e")
+    ax.set_xticks(np.arange(len(scenarios)), scenarios)
+    ax.set_ylabel("mean NSW (higher is better)")
+    lo = float(df["ci_low"].min())
+    ax.set_ylim(max(0.0, lo - 0.1), min(1.0, float(df["ci_high"].max()) + 0.05))
+    ax.set_title(f"What deployable policies leave on the table: seeds 0-{runs - 1}, 95% intervals")
+    ax.legend(ncols=4, loc="upper center", bbox_to_anchor=(0.5, -0.12), frameon=False)
+    fig.tight_layout()
+    out.mkdir(parents=True, exist_ok=True)
+    png, svg = out / "gap.png", out / "gap.svg"
+    fig.savefig(png, dpi=110)
+    fig.savefig(svg)
+    plt.close(fig)
+    header = ["Scenario", *GAP_METHODS, "Upper bound", "oracle - solver (paired, 95% CI)", "bound - best"]
+    md = "\n".join([
+        f"The gap: mean NSW over seeds 0-{runs - 1} of the heuristic and solver composites (deployable), the "
+        "hindsight oracle (reads the future) and the proven per-seed upper bound (docs/hindsight.md).",
+        "", markdown_table(header, rows), "", "![the gap per scenario](gap.png)",
+    ])
+    return Output(md, [png, svg, *_write(out, "gap", md, df)])
+
+
+TARGETS = {"table2": table2, "table3": table3, "figure3": figure3, "gap": gap}

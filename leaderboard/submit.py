@@ -37,7 +37,7 @@ from wfbench.runner import results_frame
 DEFAULT_WALL_TIME_S = 3600.0
 DEFAULT_MEMORY_MB = 8192
 BUILTIN_ENTRIES = ("random", "heuristic", "heuristic-stochastic", "solver", "solver-dispatch", "solver-workforce",
-                   "solver-positioning")
+                   "solver-positioning", "oracle")  # oracle: shown apart, as not deployable
 
 
 class SubmitError(Exception):
@@ -96,6 +96,11 @@ def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chu
     except BaseException as exc:  # noqa: BLE001 - anything the user's import raises is a load error
         conn.send(("load_error", f"cannot load policy {policy_spec!r}: {_one_line(exc)}{_where(exc)}",
                    traceback.format_exc()))
+        return
+    if loaded.guard is not None and getattr(loaded.policy, "reads_trace", False):
+        conn.send(("load_error", f"policy {policy_spec!r} declares reads_trace = True: it reads the episode's "
+                   "future, and the leaderboard ranks deployable policies only (its 'not deployable' section "
+                   "holds wfbench's own oracles); compare it with 'wfbench compare' instead", ""))
         return
     conn.send(("ready",))
     try:

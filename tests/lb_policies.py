@@ -52,3 +52,15 @@ class Slow(_Base):
 
 def import_fails():
     raise ImportError("this entry point cannot be loaded")
+
+
+class ClaimsTheFuture(_Base):
+    """The heuristic, declaring that it reads the trace: the leaderboard must refuse it."""
+
+    reads_trace = True
+
+    def attach(self, config):
+        self.config = config
+
+    def act(self, obs):
+        return self.inner.act(obs)

@@ -285,3 +285,23 @@ def test_a_submission_leaves_no_worker_processes_behind(db, policy):
     submit(TINY, policy, "pool", db=db, backend="process", workers=2, chunk_size=1)
     time.sleep(0.5)
     assert _orphan_workers() - before == set()
+
+
+def test_oracles_stand_apart_and_a_submission_cannot_claim_the_future(db):
+    for name in ("heuristic", "oracle-dispatch"):
+        submit(TINY, name, name, db=db, **_fast())
+    with pytest.raises(SubmitError, match="declares reads_trace = True.*deployable policies only"):
+        submit(TINY, "tests.lb_policies:ClaimsTheFuture", "claims", db=db, **_fast())
+    assert Store(db).find(TINY.name, "claims") is None
+    r = ranking(Store(db), TINY)
+    t = r.table.set_index("name")
+    assert t.loc["oracle-dispatch", "status"] == "complete" and not t.loc["oracle-dispatch", "deployable"]
+    assert t.loc["heuristic", "rank"] == 1 and not t.loc["oracle-dispatch", "ranked"]
+    assert t.loc["oracle-dispatch", "nsw"] > t.loc["heuristic", "nsw"]  # it would have ranked first
+    for fmt in ("table", "md"):
+        ranked, _, reference = render(r, fmt).partition("Not deployable (reads the future)")
+        assert "heuristic" in ranked and "oracle-dispatch" not in ranked, fmt
+        assert "oracle-dispatch" in reference and "| 1 | heuristic" not in reference, fmt
+    html = render(r, "html")
+    assert html.index("<table id='ranking'>") < html.index("Not deployable") < html.index("<table id='reference'>")
+    assert "oracle-dispatch" in html[html.index("<table id='reference'>"):]

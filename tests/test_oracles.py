@@ -137,3 +137,42 @@ def test_hire_at_the_known_demand_and_let_go_the_cheapest_loss():
     homes3 = np.array([[0, 0], [0, 1], [20, 0]])
     out = release_targets(homes3, np.array([1, 1, 1]), np.array([True, True, True]), cells, counts)
     assert out[1] in (0, 1)  # never the one serving the busy cell
+
+
+def test_evaluate_hands_the_scenario_to_an_oracle_and_matches_the_local_loop_on_every_backend():
+    import wfbench
+
+    means, _, _ = play("oracle-dispatch", SHORT, [3, 4])
+    for backend in ("serial", "process"):
+        df = wfbench.evaluate("oracle-dispatch", SHORT, seeds=[3, 4], backend=backend)
+        np.testing.assert_array_equal(df["nsw"].to_numpy(), means["nsw"], err_msg=backend)
+
+
+class _Recorder:
+    """A user's policy that records whether the runner handed it the scenario."""
+
+    decisions = ("dispatch",)
+    attached = []
+
+    def __init__(self, declares):
+        self.reads_trace = declares
+
+    def attach(self, config):
+        _Recorder.attached.append(config.name)
+
+    def reset(self, seeds):
+        self.n = len(seeds)
+
+    def act(self, obs):
+        m = obs["dispatch_mask"]
+        return {"dispatch": np.full(m.shape[:2], m.shape[2] - 1, dtype=np.int64)}  # N: nobody
+
+
+def test_only_a_policy_that_declares_reads_trace_is_handed_the_scenario():
+    from wfbench.runner import run_batch
+
+    _Recorder.attached.clear()
+    run_batch(policies.Composite(_Recorder(False), "threshold", "spatial"), SHORT, [0])
+    assert _Recorder.attached == []
+    run_batch(policies.Composite(_Recorder(True), "threshold", "spatial"), SHORT, [0])
+    assert _Recorder.attached == [SHORT.name]

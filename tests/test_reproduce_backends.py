@@ -30,8 +30,11 @@ def test_reproduce_writes_tables_and_figure(tmp_path, capsys):
     assert "| 4 | Heuristic | Heuristic | Heuristic |" in text and "higher is better" in text
     assert "46 (42-50) / 0.6 (0.5-0.8) / 0.2 (0.2-0.3) / 4.1 (3-5.1)" in text, "the paper's row 4 beside ours"
     assert "| 6 | PPO | PPO | PPO | not run yet (RL)" in text
+    assert "| O2 | Hindsight oracle | Hindsight oracle | Hindsight oracle |" in text and "| B | Upper bound |" in text
     df = pd.read_csv(out / "table3.csv")
     assert df["policy"].tolist()[:4] == ["random", "random-dispatch", "random-positioning", "heuristic"]
+    nsw = df.set_index("policy")["nsw"]
+    assert nsw["oracle"] > nsw["solver"] and nsw["bound"] > nsw.drop("bound").max(), "the bound is above every row"
     assert (out / "table3.md").read_text().startswith("Table 3")
 
     assert main(["reproduce", "table2", "--out", str(out), "--runs", "1", "--backend", "serial",
@@ -52,7 +55,7 @@ def test_reproduce_writes_tables_and_figure(tmp_path, capsys):
 
 def test_reproduce_bad_input(tmp_path, capsys):
     assert main(["reproduce", "table9"]) == 2
-    assert "unknown target 'table9'; allowed: table2, table3, figure3" in capsys.readouterr().err
+    assert "unknown target 'table9'; allowed: table2, table3, figure3, gap" in capsys.readouterr().err
     f = tmp_path / "file"
     f.write_text("x")
     assert main(["reproduce", "table3", "--out", str(f)]) == 2
@@ -72,3 +75,19 @@ def test_table2_trend_counting_by_hand():
     flipped = {k: v - 0.02 * k[2] for k, v in nsw.items()}
     assert "does not hold here: 0 of 8" in table2_trends(flipped)[0]
     assert np.isfinite(list(nsw.values())).all()
+
+
+def test_reproduce_gap_draws_the_methods_and_the_bound(tmp_path):
+    from leaderboard.reproduce import gap
+
+    result = gap(tmp_path, runs=3, backend="serial", scenarios=("small", "paper-64"))
+    df = pd.read_csv(tmp_path / "gap.csv")
+    assert set(df["method"]) == {"heuristic", "solver", "oracle", "bound"} and set(df["scenario"]) == {"small",
+                                                                                                      "paper-64"}
+    for _, sc in df.groupby("scenario"):
+        nsw = sc.set_index("method")["nsw"]
+        assert nsw["bound"] > nsw.drop("bound").max() and nsw["oracle"] > nsw["heuristic"]
+    png = (tmp_path / "gap.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 15_000
+    assert (tmp_path / "gap.svg").read_text().lstrip().startswith("<?xml")
+    assert "| paper-64 |" in result.text and "oracle - solver (paired, 95% CI)" in result.text

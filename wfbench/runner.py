@@ -3,6 +3,8 @@
 :func:`run_batch` runs every seed of a chunk as one batch: a composite of built-in
 kernels as one compiled rollout, any other policy through one batched ``reset`` /
 ``act`` / ``step`` loop (a user's policy through its :class:`~wfbench.guard.Guard`).
+A policy that declares ``reads_trace = True`` (a hindsight oracle, docs/hindsight.md) is
+handed the scenario with ``attach(config)`` before ``reset``; no other policy is.
 Each environment is independent and all its randomness is indexed by its seed, so a
 seed's numbers do not depend on the batch it ran in. :func:`results_frame` turns
 finished batches into one row per seed.
@@ -64,12 +66,16 @@ def run_batch(policy: Any, config: str | ScenarioConfig, seeds: Sequence[int], k
         rollout(sim, codes, hp, pstate, threads)
     elif guard is None:  # a built-in: our own code runs as it is
         obs = sim.reset()
+        if getattr(policy, "reads_trace", False):  # a hindsight oracle: handed the scenario, so the future
+            policy.attach(sim.config)
         policy.reset(sim.seeds)
         while not sim.done:
             sim.step(policy.act(obs))
             obs = sim.observe()
     else:
         obs = sim.reset()
+        if getattr(policy, "reads_trace", False):  # declared: the leaderboard keeps it off deployable tracks
+            guard.call("attach", policy.attach, sim.config)
         guard.call("reset", policy.reset, sim.seeds)
         while not sim.done:
             guard.step(sim, guard.call("act", policy.act, obs), policy.act)
