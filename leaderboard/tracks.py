@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from wfbench.config import ScenarioConfig
+from wfbench.seeds import PUBLIC, TEST
 
 TRACK_SCHEMA = 1
 
@@ -44,12 +45,12 @@ class Track:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _track(name: str, description: str, preset: str | None = None, n_test: int = 50) -> Track:
+def _track(name: str, description: str, preset: str | None = None) -> Track:
     return Track(
         name=name,
         config=ScenarioConfig.preset(preset or name),
-        public_seeds=tuple(range(1000, 1000 + n_test)),
-        test_seeds=tuple(range(n_test)),
+        public_seeds=tuple(PUBLIC),  # the named seed sets of wfbench.seeds
+        test_seeds=tuple(TEST),
         description=description,
     )
 

@@ -109,7 +109,7 @@ def test_cli_unknown_scenario_is_one_line_exit_2(capsys):
 
 def test_cli_bad_number_and_missing_output_folder(capsys, tmp_path):
     assert main(["evaluate", "--policy", "heuristic", "--seeds", "0"]) == 2
-    assert "allowed: an integer >= 1" in capsys.readouterr().err
+    assert "allowed: a count >= 1" in capsys.readouterr().err
     assert main(["evaluate", "--policy", "heuristic", "--seeds", "1", "--out", str(tmp_path / "no" / "x.csv")]) == 2
     assert "does not exist" in capsys.readouterr().err
 

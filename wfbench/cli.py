@@ -31,6 +31,8 @@ from wfbench.bench import run as run_bench
 from wfbench.config import PRESETS, ScenarioConfig
 from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError
+from wfbench.seeds import SPEC_HELP as SEEDS_HELP
+from wfbench.seeds import describe, resolve_seeds
 from wfbench.tables import markdown_table, text_table
 
 EXIT_POLICY_FAILED = 1
@@ -63,6 +65,24 @@ def _int_at_least(lo: int):
 
 _positive = _int_at_least(1)
 _nonneg = _int_at_least(0)
+
+
+def _seeds(text: str) -> str:
+    """An argparse type: anything :func:`wfbench.seeds.resolve_seeds` takes, checked now."""
+    try:
+        resolve_seeds(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def seed_list(args: argparse.Namespace) -> list[int]:
+    """The seeds of ``--seeds`` (a count starts at ``--seed-start``)."""
+    if args.seeds.strip().isdigit():
+        return list(range(args.seed_start, args.seed_start + int(args.seeds)))
+    if args.seed_start:
+        raise UsageError("--seed-start applies to a count of seeds only, not to a set, range or list")
+    return resolve_seeds(args.seeds)
 
 
 def add_backend_args(p: argparse.ArgumentParser) -> None:
@@ -105,8 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("evaluate", help="score a policy over seeds (Table 3 style row)")
     e.add_argument("--policy", required=True, help="registry name (see 'wfbench policies') or module:attr")
     e.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
-    e.add_argument("--seeds", type=_positive, default=50, help="number of seeds (default 50)")
-    e.add_argument("--seed-start", type=_nonneg, default=0, help="first seed (default 0)")
+    e.add_argument("--seeds", type=_seeds, default="50", help=f"{SEEDS_HELP} (default 50: the test set)")
+    e.add_argument("--seed-start", type=_nonneg, default=0, help="first seed of a count (default 0)")
     add_backend_args(e)
     add_policy_run_args(e)
     e.add_argument("--format", default="table", choices=["table", "md", "csv", "json"], help="output format")
@@ -117,8 +137,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--policies", required=True, help="comma-separated registry names or module:attr entry points")
     c.add_argument("--baseline", default="heuristic", help="policy the paired differences are taken to")
     c.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
-    c.add_argument("--seeds", type=_positive, default=50, help="number of seeds (default 50)")
-    c.add_argument("--seed-start", type=_nonneg, default=0, help="first seed (default 0)")
+    c.add_argument("--seeds", type=_seeds, default="50", help=f"{SEEDS_HELP} (default 50: the test set)")
+    c.add_argument("--seed-start", type=_nonneg, default=0, help="first seed of a count (default 0)")
     add_backend_args(c)
     add_policy_run_args(c)
     c.add_argument("--format", default="table", choices=["table", "md", "csv"], help="output format")
@@ -206,7 +226,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     config = _resolve_scenario(args.scenario)
     check_backend_args(args)
     out = _check_writable(args.out, "--out") if args.out else None
-    seeds = list(range(args.seed_start, args.seed_start + args.seeds))
+    seeds = seed_list(args)
     try:  # evaluate loads the policy once; a spec that names none is a usage error
         df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers, address=args.address,
                       progress=not args.no_progress, act_timeout_s=args.act_timeout)
@@ -225,7 +245,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         header = ["Policy", *[KPI_LABELS[k] for k in KPIS]]
         rows = [[args.policy, *[format_kpi(*summary[k]) for k in KPIS]]]
         print((markdown_table if args.format == "md" else text_table)(header, rows))
-        print(f"{config.name}, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}): mean (25%-75%) over seeds of the "
+        print(f"{config.name}, seeds {describe(seeds)}: mean (25%-75%) over seeds of the "
               "episode means; NSW higher is better.")
     return 0
 
@@ -240,7 +260,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if not names:
         raise UsageError("--policies: give at least one policy name")
     check_backend_args(args)
-    seeds = list(range(args.seed_start, args.seed_start + args.seeds))
+    seeds = seed_list(args)
     try:  # compare loads every policy before running the first
         df = compare(names, config, seeds, baseline=args.baseline, backend=args.backend, workers=args.workers,
                      address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout)
@@ -252,7 +272,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     text = format_comparison(df, args.format)
     print(text, end="" if text.endswith("\n") else "\n")  # a CSV ends with its own newline
     if args.format != "csv":
-        print(f"{config.name}, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}): KPIs mean (25%-75%); NSW higher is "
+        print(f"{config.name}, seeds {describe(seeds)}: KPIs mean (25%-75%); NSW higher is "
               f"better; intervals are bootstrap 95% over seeds, differences paired by seed.")
     return 0
 

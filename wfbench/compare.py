@@ -14,7 +14,7 @@ from wfbench.stats import bootstrap_ci, paired_difference
 from wfbench.tables import markdown_table, text_table
 
 
-def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | Iterable[int] = 50,
+def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,
             baseline: str = "heuristic", backend: str = "serial", workers: int | None = None,
             address: str | None = None, progress: bool = False,
             act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S) -> pd.DataFrame:
@@ -29,7 +29,8 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
     Args:
         policies: registry names, ``module:attr`` entry points or policy objects.
         scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
-        seeds: a count ``n`` (seeds ``0..n-1``) or a sequence of seeds.
+        seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
+            :mod:`wfbench.seeds`) or a sequence of seeds.
         baseline: the policy the differences are taken to (a name or entry point).
         backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluation.evaluate`).
         workers: processes or Ray tasks.

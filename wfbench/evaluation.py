@@ -22,6 +22,7 @@ from wfbench.backends import BACKENDS, check_backend, run_chunks
 from wfbench.config import ScenarioConfig
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.runner import BatchResult, results_frame
+from wfbench.seeds import resolve_seeds
 
 __all__ = ["BACKENDS", "KPIS", "KPI_LABELS", "evaluate", "format_kpi", "resolve_seeds", "summarize"]
 
@@ -34,23 +35,8 @@ KPI_LABELS = {
 }
 
 
-def resolve_seeds(seeds: int | Iterable[int]) -> list[int]:
-    """``n`` means seeds ``0..n-1``; otherwise a sequence of distinct integers >= 0."""
-    if isinstance(seeds, (int, np.integer)) and not isinstance(seeds, bool):
-        if seeds < 1:
-            raise ValueError(f"seeds = {seeds}: allowed: a count >= 1 or a list of integers >= 0")
-        return list(range(int(seeds)))
-    out = [int(s) for s in seeds]
-    if not out:
-        raise ValueError("seeds is empty; allowed: a count >= 1 or a list of integers >= 0")
-    if any(s < 0 for s in out):
-        raise ValueError(f"seeds must be >= 0, got {min(out)}")
-    if len(set(out)) != len(out):
-        raise ValueError("seeds must be distinct")
-    return out
-
-
-def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | Iterable[int] = 50, backend: str = "serial",
+def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,
+             backend: str = "serial",
              workers: int | None = None, threads: int | None = None, progress: bool = False,
              return_series: bool = False, address: str | None = None,
              act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S) -> pd.DataFrame | tuple[pd.DataFrame, np.ndarray]:
@@ -61,7 +47,8 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | Iterable[
             policy object (its class may live in ``__main__`` or a notebook cell) or a
             :class:`wfbench.guard.LoadedPolicy`. Resolved once per call.
         scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
-        seeds: a count ``n`` (seeds ``0..n-1``) or a sequence of seeds.
+        seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
+            :mod:`wfbench.seeds`) or a sequence of seeds.
         backend: ``"serial"`` (this process; built-in composites use ``threads``
             numba threads, all cores by default), ``"process"`` (a pool of ``workers``
             processes over chunks of seeds; works from a script without a
