@@ -13,6 +13,7 @@ import numpy as np
 
 from policies import kernels as K
 from policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
+from policies.tunable import Param, kernel_params
 from wfbench.observe import Obs
 from wfbench.simulator import AGENTS
 
@@ -33,6 +34,27 @@ class BuiltinDecision:
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
+
+    @property
+    def tunable(self) -> dict[str, Param]:
+        """The hyper-parameters a tuner may change, with their ranges (:mod:`policies.tunable`)."""
+        return kernel_params(self.decision, self.code)
+
+    def params(self) -> dict[str, float]:
+        """The current value of each tunable hyper-parameter."""
+        return {f: float(self.hp[K.HP_FIELDS.index(f)]) for f in self.tunable}
+
+    def with_params(self, name: str | None = None, **values: float) -> BuiltinDecision:
+        """A copy with some tunable hyper-parameters changed; ValueError names a bad name or value."""
+        allowed = self.tunable
+        for f, v in values.items():
+            if f not in allowed:
+                raise ValueError(f"{self.name} has no tunable parameter {f!r}; allowed: "
+                                 f"{', '.join(allowed) or 'none'}")
+            allowed[f].check(v, f)
+        hp = {f: float(self.hp[i]) for i, f in enumerate(K.HP_FIELDS)}
+        hp.update({f: float(v) for f, v in values.items()})
+        return BuiltinDecision(self.decision, self.code, name or self.name, seed=self.seed, **hp)
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         seeds = seeds_array(seeds)

@@ -17,6 +17,7 @@ from policies import kernels as K
 from policies.builtin import BuiltinDecision
 from policies.decisions import DECISIONS
 from policies.protocol import decision_key, seeds_array
+from policies.tunable import Param
 from wfbench.simulator import AGENTS
 
 
@@ -84,6 +85,45 @@ class Composite:
         for p in self._recorders:  # parts that track the episode (the oracles' shadow) learn the joint action
             p.record(out)
         return out
+
+    @property
+    def tunable(self) -> dict[str, Param]:
+        """Its parts' tunable hyper-parameters as ``decision.field`` -> range (``workforce.high``).
+
+        Only built-in kernel parts declare any (:mod:`policies.tunable`); ``wfbench tune``
+        searches these.
+        """
+        out: dict[str, Param] = {}
+        for decision, part in self.parts.items():
+            if isinstance(part, BuiltinDecision):
+                out.update({f"{decision}.{f}": p for f, p in part.tunable.items()})
+        return out
+
+    def params(self) -> dict[str, float | int]:
+        """The current value of each tunable hyper-parameter, by ``decision.field``."""
+        out: dict[str, float | int] = {}
+        for decision, part in self.parts.items():
+            if isinstance(part, BuiltinDecision):
+                for f, v in part.params().items():
+                    out[f"{decision}.{f}"] = int(v) if part.tunable[f].type == "int" else v
+        return out
+
+    def with_params(self, params: dict[str, float], name: str | None = None) -> Composite:
+        """A new composite with the given tunable hyper-parameters (``decision.field`` -> value) changed.
+
+        Raises:
+            ValueError: a name that is not in :attr:`tunable` or a value outside its
+                range, naming what is allowed.
+        """
+        allowed = self.tunable
+        by_part: dict[str, dict[str, float]] = {d: {} for d in AGENTS}
+        for key, value in params.items():
+            if key not in allowed:
+                raise ValueError(f"{self.name} has no tunable parameter {key!r}; allowed: "
+                                 f"{', '.join(allowed) or 'none (no part is a built-in kernel with parameters)'}")
+            by_part[key.partition(".")[0]][key.partition(".")[2]] = allowed[key].check(value, key)
+        parts = {d: (p.with_params(**by_part[d]) if by_part[d] else p) for d, p in self.parts.items()}
+        return Composite(**parts, name=name or self.name)
 
     @property
     def compiled(self) -> bool:

@@ -1,10 +1,14 @@
-"""Policies by name: built-in composites, ``"D+W+P"`` composites of built-in decisions, ``module:attr`` entry points."""
+"""Policies by name: built-in composites, ``"D+W+P"`` composites of built-in decisions, tuned-policy files.
+
+And ``module:attr`` entry points.
+"""
 
 from __future__ import annotations
 
 import importlib
 from typing import Any
 
+from policies import tuned as _tuned
 from policies.composite import Composite
 
 # name -> (dispatch, workforce, positioning, description)
@@ -38,9 +42,23 @@ COMPOSITES: dict[str, tuple[str, str, str, str]] = {
     ),
 }
 
+# name -> (file under policies/tuned/, description): tuned-policy files shipped with wfbench (docs/policies.md, Tuning)
+TUNED: dict[str, tuple[str, str]] = {
+    "heuristic-tuned": ("heuristic-paper-64.json", "the heuristic composite tuned on paper-64's public seeds "
+                        "(wfbench tune)"),
+    "solver-tuned": ("solver-paper-64.json", "the solver composite tuned jointly on paper-64's public seeds "
+                     "(wfbench tune)"),
+}
+
 
 def names() -> list[str]:
-    return list(COMPOSITES)
+    return [*COMPOSITES, *TUNED]
+
+
+def load_tuned(path: Any) -> Any:
+    """The policy a tuned-policy file describes (:mod:`policies.tuned`); ValueError names what is wrong."""
+    spec = _tuned.read(path)
+    return _tuned.build(spec, get(spec.base), path)
 
 
 def get(spec: Any) -> Any:
@@ -48,7 +66,10 @@ def get(spec: Any) -> Any:
 
     An entry point may name a policy object, a class or a factory (called with no
     arguments). ``"D+W+P"`` builds a composite from three per-decision names (for
-    example ``"assignment+threshold+spatial"``; see ``DECISIONS``).
+    example ``"assignment+threshold+spatial"``; see ``DECISIONS``). A tuned-policy file
+    (``path.json``, ``path.toml`` or ``tuned:path``, written by ``wfbench tune``) is its
+    base policy with the tuned parameters; ``heuristic-tuned`` and ``solver-tuned`` are
+    the files shipped in ``policies/tuned/``.
     """
     if not isinstance(spec, str):
         if hasattr(spec, "act") and hasattr(spec, "reset"):
@@ -57,6 +78,10 @@ def get(spec: Any) -> Any:
     if spec in COMPOSITES:
         d, w, p, _ = COMPOSITES[spec]
         return Composite(d, w, p, name=spec)
+    if spec in TUNED:
+        return load_tuned(_tuned.TUNED_DIR / TUNED[spec][0])
+    if _tuned.is_tuned_spec(spec):  # tuned:PATH or PATH.json / PATH.toml
+        return load_tuned(_tuned.spec_path(spec))
     if "+" in spec and ":" not in spec:
         parts = spec.split("+")
         if len(parts) != 3:
@@ -78,4 +103,5 @@ def get(spec: Any) -> Any:
         if not (hasattr(obj, "act") and hasattr(obj, "reset")):
             raise ValueError(f"entry point {spec!r} is not a policy: it needs reset(seeds) and act(obs)")
         return obj
-    raise ValueError(f"unknown policy {spec!r}; available: {', '.join(COMPOSITES)}, or a module:attr entry point")
+    raise ValueError(f"unknown policy {spec!r}; available: {', '.join(names())}, a tuned-policy file "
+                     "(path.json, tuned:path) or a module:attr entry point")

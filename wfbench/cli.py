@@ -14,6 +14,7 @@ import argparse
 import json
 import math
 import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -25,7 +26,7 @@ from leaderboard.store import Store, StoreError
 from leaderboard.submit import SubmitError, seed_builtins, submit
 from leaderboard.tracks import TRACKS, get_track
 from policies import DECISIONS, get
-from policies.registry import COMPOSITES
+from policies.registry import COMPOSITES, TUNED
 from wfbench.backends import check_backend
 from wfbench.bench import run as run_bench
 from wfbench.config import PRESETS, ScenarioConfig
@@ -177,6 +178,30 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--runs", type=_positive, default=50, help="episodes per cell or row (default 50)")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)
+
+    t = sub.add_parser("tune", help="search a policy's tunable parameters on public seeds (Optuna TPE) and write "
+                       "a tuned-policy file")
+    t.add_argument("policy", help="registry name or D+W+P composite whose parts declare parameters (heuristic, "
+                   "solver, ...)")
+    t.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
+    t.add_argument("--trials", type=_positive, default=100,
+                   help="the study's total of finished trials (default 100); re-run the same command to resume, "
+                        "raise it to extend")
+    t.add_argument("--seeds", type=_seeds, default="public",
+                   help="tuning seeds: public (default, 1000-1049), public:N or train:N; test seeds are refused")
+    t.add_argument("--params", default=None,
+                   help="comma-separated parameters to search, each optionally narrowed as name=low:high "
+                        "(default: all the policy declares; --list shows them)")
+    t.add_argument("--list", action="store_true", help="list the policy's tunable parameters and ranges, and exit")
+    t.add_argument("--study-db", default="wfbench-tune.db", help="SQLite file of the study (default "
+                   "./wfbench-tune.db)")
+    t.add_argument("--study-name", default=None, help="the study's name in it (default POLICY@SCENARIO)")
+    t.add_argument("--sampler-seed", type=_nonneg, default=0, help="seed of the TPE sampler (default 0)")
+    t.add_argument("--name", default=None, help="the tuned policy's name (default POLICY-tuned)")
+    t.add_argument("--out", default=None, help="tuned-policy file, .json or .toml (default "
+                   "./tuned-POLICY-SCENARIO.json)")
+    t.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_backend_args(t)
 
     s = sub.add_parser("scenarios", help="list the presets, or show one as TOML")
     s.add_argument("name", nargs="?", help="a preset to show")
@@ -377,6 +402,52 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tune(args: argparse.Namespace) -> int:
+    from wfbench.tune import check_tuning_seeds, search_space, tune
+
+    policy = _resolve_policy(args.policy)
+    if args.list:
+        try:
+            space = search_space(policy)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+        current = policy.params()
+        for key, p in space.items():
+            print(f"{key:<30s} {p.describe():<36s} now {current[key]:g}")
+        return 0
+    config = _resolve_scenario(args.scenario)
+    check_backend_args(args)
+    try:
+        seeds = check_tuning_seeds(args.seeds)
+    except ValueError as exc:
+        raise UsageError(f"--seeds: {exc}") from None
+    out = args.out or f"tuned-{args.policy}-{config.name}.json"
+    _check_writable(out, "--out")
+    _check_writable(args.study_db, "--study-db")
+    command = "wfbench " + shlex.join(args.argv)
+    try:
+        r = tune(args.policy, args.scenario, args.trials, seeds=seeds, params=args.params, study_db=args.study_db,
+                 study_name=args.study_name, backend=args.backend, workers=args.workers, address=args.address,
+                 sampler_seed=args.sampler_seed, out=out, name=args.name, progress=not args.no_progress,
+                 command=command)
+    except KeyboardInterrupt:
+        print(f"wfbench: interrupted; the finished trials are kept in {args.study_db} (study "
+              f"{args.study_name or args.policy + '@' + args.scenario!r}): run the same command again to resume",
+              file=sys.stderr)
+        return 130
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    t = r.tuned
+    untuned = f", untuned {r.untuned_score:.4f}" if r.untuned_score is not None else ""
+    print(f"{t.name}: best mean NSW {t.best_score:.4f}{untuned} on {config.name} seeds {t.seed_set}, "
+          f"{t.trials} trials ({r.new_trials} new) in {r.study_db} study {r.study_name!r}")
+    for k, v in t.params.items():
+        print(f"  {k} = {v:g}")
+    print(f"wrote {r.path}; judge it on the test seeds: wfbench compare --policies {args.policy},{r.path} "
+          f"--scenario {args.scenario} --seeds test")
+    return 0
+
+
 def cmd_scenarios(args: argparse.Namespace) -> int:
     if args.name:
         print(_resolve_scenario(args.name).to_toml(), end="")
@@ -391,6 +462,8 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 def cmd_policies(args: argparse.Namespace) -> int:
     for name, (d, w, p, text) in COMPOSITES.items():
         print(f"{name:<22s} dispatch={d}, workforce={w}, positioning={p}: {text}")
+    for name, (file, text) in TUNED.items():
+        print(f"{name:<22s} policies/tuned/{file}: {text}")
     for decision, table in DECISIONS.items():
         print(f"{decision} decisions (for Composite and fixed agents): {', '.join(table)}")
     return 0
@@ -436,7 +509,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"evaluate": cmd_evaluate, "compare": cmd_compare, "leaderboard": cmd_leaderboard,
-            "reproduce": cmd_reproduce, "scenarios": cmd_scenarios, "policies": cmd_policies,
+            "reproduce": cmd_reproduce, "tune": cmd_tune, "scenarios": cmd_scenarios, "policies": cmd_policies,
             "simulate": cmd_simulate, "bench": cmd_bench}
 
 
@@ -457,6 +530,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _search_current_folder()
         args = build_parser().parse_args(argv)
+        args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded by commands that write provenance
         return COMMANDS[args.command](args)
     except UsageError as exc:
         print(f"wfbench: error: {exc}", file=sys.stderr)
