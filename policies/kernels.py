@@ -97,7 +97,7 @@ HP_DEFAULTS = {
     "fix_novice": 0.49,
     "fix_mid": 0.70,
     "fix_expert": 0.84,
-    "revisit_cost": 2.0,  # chosen on development seeds (benchmarks/tune_solver_policies.py)
+    "revisit_cost": 2.0,  # chosen on development seeds (docs/solvers.md; wfbench tune searches it now)
     "unassigned_cost": np.inf,
     "beta": 0.0,  # chosen on development seeds: staff the offered load (docs/solvers.md)
     "hysteresis": 1.0,
