@@ -6,6 +6,7 @@ And ``module:attr`` entry points.
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 from typing import Any
 
 from policies import tuned as _tuned
@@ -51,8 +52,33 @@ TUNED: dict[str, tuple[str, str]] = {
 }
 
 
+# name -> (checkpoint under policies/neural/checkpoints/, description): trained networks (docs/rl.md);
+# a name is offered only when its file is there, and loading it needs torch (the rl extra)
+LEARNED: dict[str, tuple[str, str]] = {
+    "ppo-joint": ("ppo-joint-paper-64.pt", "the joint PPO network (all three decisions) trained on paper-64"),
+    "ppo-dispatch": ("ppo-dispatch-paper-64.pt", "the dispatch-only PPO network trained on paper-64, heuristic "
+                     "workforce and positioning"),
+}
+CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
+
+
+def learned_names() -> list[str]:
+    """The trained networks shipped in ``policies/neural/checkpoints/`` (only those whose file exists)."""
+    return [n for n, (f, _) in LEARNED.items() if (CHECKPOINT_DIR / f).is_file()]
+
+
 def names() -> list[str]:
-    return [*COMPOSITES, *TUNED]
+    return [*COMPOSITES, *TUNED, *learned_names()]
+
+
+def load_learned(path: Any, mode: str = "sample", name: str | None = None) -> Any:
+    """The policy of a PPO checkpoint (:mod:`policies.neural.policy`, imported here so torch loads only now)."""
+    try:
+        from policies.neural.policy import from_checkpoint
+    except ImportError as exc:
+        raise ValueError(f"PPO checkpoints need torch ({exc}); install the rl extra: "
+                         "pip install 'wfbench[rl]'") from None
+    return from_checkpoint(path, mode=mode, name=name)
 
 
 def load_tuned(path: Any) -> Any:
@@ -69,7 +95,9 @@ def get(spec: Any) -> Any:
     example ``"assignment+threshold+spatial"``; see ``DECISIONS``). A tuned-policy file
     (``path.json``, ``path.toml`` or ``tuned:path``, written by ``wfbench tune``) is its
     base policy with the tuned parameters; ``heuristic-tuned`` and ``solver-tuned`` are
-    the files shipped in ``policies/tuned/``.
+    the files shipped in ``policies/tuned/``. ``ppo:PATH`` is a PPO checkpoint
+    (``wfbench train``; ``ppo:PATH@greedy`` for argmax decisions, sampled by default), and
+    ``ppo-joint`` / ``ppo-dispatch`` the shipped ones (``LEARNED``).
     """
     if not isinstance(spec, str):
         if hasattr(spec, "act") and hasattr(spec, "reset"):
@@ -80,6 +108,15 @@ def get(spec: Any) -> Any:
         return Composite(d, w, p, name=spec)
     if spec in TUNED:
         return load_tuned(_tuned.TUNED_DIR / TUNED[spec][0])
+    name, _, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
+    if name in LEARNED and name in learned_names():
+        return load_learned(CHECKPOINT_DIR / LEARNED[name][0], mode or "sample", name=spec)
+    if spec.startswith("ppo:"):
+        path, _, mode = spec[4:].rpartition("@") if "@" in spec[4:] else (spec[4:], "", "sample")
+        if not path:
+            raise ValueError(f"policy {spec!r}: give a checkpoint path, e.g. ppo:runs/ppo/best.pt "
+                             "(@greedy for argmax)")
+        return load_learned(path, mode, name=spec)
     if _tuned.is_tuned_spec(spec):  # tuned:PATH or PATH.json / PATH.toml
         return load_tuned(_tuned.spec_path(spec))
     if "+" in spec and ":" not in spec:

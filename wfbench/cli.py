@@ -223,6 +223,37 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", default=None, help="also write the results to this JSON file")
     b.add_argument("--rounds", type=_positive, default=None,
                    help="measure every row this many times, interleaved (default 3; 1 with --quick)")
+
+    tr = sub.add_parser("train", help="train a policy with PPO (docs/rl.md); needs torch (the rl extra)")
+    tr.add_argument("--algo", default="ppo", choices=["ppo"], help="the algorithm (ppo)")
+    tr.add_argument("--variant", default=None, choices=["joint", "dispatch"],
+                    help="joint: all three decisions; dispatch: the dispatch head only, heuristic workforce and "
+                         "positioning (default joint)")
+    tr.add_argument("--scenario", default=None, help="scenario to train on (default paper-64)")
+    tr.add_argument("--steps", type=_positive, default=None, help="environment steps in all (default 1000000)")
+    tr.add_argument("--model", default=None, help="network size: tiny, small (CPU) or paper (~0.5M parameters)")
+    tr.add_argument("--num-envs", type=_positive, default=None, help="environments side by side (default 32)")
+    tr.add_argument("--num-steps", type=_positive, default=None, help="steps per rollout (default 32)")
+    tr.add_argument("--epochs", type=_positive, default=None, help="PPO epochs per rollout (default 2)")
+    tr.add_argument("--minibatches", type=_positive, default=None, help="minibatches of whole sequences (default 2)")
+    tr.add_argument("--lr", type=float, default=None, help="Adam learning rate (default 3e-4)")
+    tr.add_argument("--ent-coef", type=float, default=None, help="entropy bonus (default 0.003)")
+    tr.add_argument("--seed", type=_nonneg, default=None, help="run seed: network init, sampling, training seeds")
+    tr.add_argument("--device", default=None, choices=["auto", "cpu", "cuda"], help="default auto")
+    tr.add_argument("--compile", action="store_true", help="torch.compile the network (CUDA)")
+    tr.add_argument("--no-bf16", action="store_true", help="no bf16 autocast on CUDA")
+    tr.add_argument("--threads", type=_positive, default=None, help="torch CPU threads (default 1)")
+    tr.add_argument("--checkpoint-every", type=_positive, default=None, help="updates between checkpoints (20)")
+    tr.add_argument("--eval-every", type=_nonneg, default=None,
+                    help="updates between scores on the public seeds that pick best.pt (default 20; 0: never)")
+    tr.add_argument("--eval-seeds", type=_seeds, default=None,
+                    help="public seeds that select the checkpoint (default public:10; test seeds are refused)")
+    tr.add_argument("--run-dir", default=None, help="folder of the run (default runs/ppo-VARIANT-SCENARIO)")
+    tr.add_argument("--resume", default=None, metavar="CKPT",
+                    help="continue a run from its checkpoint (latest.pt); its settings are kept, --steps may raise "
+                         "the total")
+    tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    tr.add_argument("--no-tensorboard", action="store_true", help="write no TensorBoard logs")
     return p
 
 
@@ -508,9 +539,58 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+_TRAIN_FLAGS = {"variant": "variant", "scenario": "scenario", "steps": "steps", "model": "model",
+                "num_envs": "num_envs", "num_steps": "num_steps", "epochs": "epochs", "minibatches": "minibatches",
+                "lr": "lr", "ent_coef": "ent_coef", "seed": "seed", "device": "device", "threads": "threads",
+                "checkpoint_every": "checkpoint_every", "eval_every": "eval_every", "eval_seeds": "eval_seeds",
+                "run_dir": "run_dir"}
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    try:  # torch is needed here only: the rest of the command line works without it
+        from wfbench.train.ppo import TrainConfig, Trainer
+    except ImportError as exc:
+        raise UsageError(f"wfbench train needs torch ({exc}); install the rl extra: "
+                         "pip install 'wfbench[rl]'") from None
+    from policies.neural.policy import load_checkpoint
+
+    given = {field: getattr(args, flag) for flag, field in _TRAIN_FLAGS.items() if getattr(args, flag) is not None}
+    if args.compile:
+        given["compile"] = True
+    if args.no_bf16:
+        given["bf16"] = False
+    try:
+        if args.resume:
+            saved = load_checkpoint(args.resume)
+            if "optimizer" not in saved:
+                raise ValueError(f"checkpoint {args.resume!r} has no optimizer state (a best.pt?): resume from "
+                                 "latest.pt or a checkpoints/update_*.pt")
+            changed = sorted(k for k in given if k not in ("steps", "run_dir", "device", "threads")
+                             and given[k] != saved["train_config"].get(k))
+            if changed:
+                raise ValueError(f"--resume keeps the run's settings; these differ from it: {', '.join(changed)}")
+            config = TrainConfig.from_dict({**saved["train_config"], **given})
+        else:
+            given.setdefault("run_dir", str(Path("runs") / f"ppo-{given.get('variant', 'joint')}-"
+                                                            f"{given.get('scenario', 'paper-64')}"))
+            config = TrainConfig(**given)
+        trainer = Trainer(config, resume=args.resume, progress=not args.no_progress, log=not args.no_tensorboard)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    trainer.train()
+    best = trainer.best
+    print(f"trained {trainer.global_step} environment steps ({trainer.update} updates) in {config.run_dir}")
+    if best["update"] is not None:
+        print(f"best.pt: update {best['update']}, mean NSW {best['score']:.4f} on public seeds "
+              f"{best['seeds'][0]}-{best['seeds'][-1]} ({best['mode']}); evaluate with "
+              f"wfbench evaluate --policy ppo:{Path(config.run_dir) / 'best.pt'}")
+    print(f"latest.pt: {Path(config.run_dir) / 'latest.pt'}")
+    return 0
+
+
 COMMANDS = {"evaluate": cmd_evaluate, "compare": cmd_compare, "leaderboard": cmd_leaderboard,
             "reproduce": cmd_reproduce, "tune": cmd_tune, "scenarios": cmd_scenarios, "policies": cmd_policies,
-            "simulate": cmd_simulate, "bench": cmd_bench}
+            "simulate": cmd_simulate, "bench": cmd_bench, "train": cmd_train}
 
 
 def _search_current_folder() -> None:

@@ -1,0 +1,143 @@
+"""The action distributions of the model's heads: masks, sampling, log-probabilities and entropies.
+
+- **dispatch**: per facility, a categorical over the N people plus the no-op (column N),
+  masked by ``dispatch_mask``. Facilities choose in slot order and a person picked by an
+  earlier facility is masked for the later ones, so no action ever names one person
+  twice. A facility without an open unassigned request can only take the no-op, so it
+  adds nothing to the log-probability or the entropy.
+- **workforce**: a categorical over the 2L + 1 codes, masked by ``workforce_mask``.
+- **positioning**: per row (0 hire, 1 let go) a pointer over the active facilities; the
+  action puts weight 1 on the chosen facility and 0 elsewhere. Only the row that the
+  step's workforce action uses counts in the log-probability and the entropy (the other
+  row has no effect on the world).
+
+Sampling takes Gumbel noise from the caller (``noise``): the trainer draws it from a
+seeded torch generator, the deployed policy from one generator per environment keyed by
+the environment's seed, and greedy decisions pass ``None`` (argmax).
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+
+NEG = -1e9
+
+
+def _masked(logits: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    return logits.masked_fill(~mask, NEG)
+
+
+def _safe_rows(mask: torch.Tensor) -> torch.Tensor:
+    """At least one allowed entry per row (entry 0 when none is), so a row is always a distribution."""
+    none = ~mask.any(-1, keepdim=True)
+    first = torch.zeros_like(mask)
+    first[..., 0] = True
+    return mask | (none & first)
+
+
+def gumbel(shape, generator: torch.Generator | None = None, device="cpu") -> torch.Tensor:
+    u = torch.rand(shape, generator=generator, device=device).clamp_(1e-10, 1.0 - 1e-7)
+    return -torch.log(-torch.log(u))
+
+
+def noise_shapes(B: int, M: int, N: int) -> dict[str, tuple[int, ...]]:
+    return {"dispatch": (B, M, N + 1), "workforce": (B, 7), "positioning": (B, 2, M)}
+
+
+@torch.no_grad()
+def sample(out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
+    """Actions from the head outputs: dispatch (B, M) int64, workforce (B,), positioning index (B, 2).
+
+    ``noise``: Gumbel noise per head (shapes of :func:`noise_shapes`); ``None`` is greedy.
+    """
+    acts: dict[str, torch.Tensor] = {}
+    if "dispatch" in out:
+        logits = out["dispatch"].float()
+        if noise is not None:
+            logits = logits + noise["dispatch"]
+        mask = x["dispatch_mask"]
+        B, M, N1 = logits.shape
+        N = N1 - 1
+        act = torch.full((B, M), N, dtype=torch.long, device=logits.device)
+        req = x["requesting"] & mask[..., :N].any(-1)  # a real choice only where someone is free
+        count = req.sum(-1)
+        if int(count.max()) > 0:
+            # facility slots of the requesting ones first, in slot order
+            order = torch.argsort((~req).to(torch.int8) * M + torch.arange(M, device=req.device), dim=-1)
+            taken = torch.zeros(B, N1, dtype=torch.bool, device=logits.device)
+            rows = torch.arange(B, device=logits.device)
+            for r in range(int(count.max())):
+                f = order[:, r]
+                active = r < count
+                allowed = mask[rows, f] & ~taken
+                allowed[:, N] = True
+                choice = _masked(logits[rows, f], allowed).argmax(-1)
+                choice = torch.where(active, choice, torch.full_like(choice, N))
+                act[rows, f] = torch.where(active, choice, act[rows, f])
+                taken[rows, choice] |= choice < N
+        acts["dispatch"] = act
+    if "workforce" in out:
+        logits = out["workforce"].float()
+        if noise is not None:
+            logits = logits + noise["workforce"]
+        acts["workforce"] = _masked(logits, _safe_rows(x["workforce_mask"])).argmax(-1)
+    if "positioning" in out:
+        logits = out["positioning"].float()
+        if noise is not None:
+            logits = logits + noise["positioning"]
+        fm = _safe_rows(x["fac_mask"])[:, None, :].expand_as(logits)
+        acts["positioning"] = _masked(logits, fm).argmax(-1)  # (B, 2)
+    return acts
+
+
+def taken_before(dispatch: torch.Tensor, N: int) -> torch.Tensor:
+    """(B, M, N + 1): True where the person was picked by an earlier facility slot of the same step."""
+    onehot = F.one_hot(dispatch, N + 1).to(torch.int32)
+    onehot[..., N] = 0
+    return (torch.cumsum(onehot, 1) - onehot) > 0
+
+
+def _cat_logp_ent(logits, mask, index):
+    logp_all = torch.log_softmax(_masked(logits, mask), -1)
+    logp = logp_all.gather(-1, index[..., None]).squeeze(-1)
+    p = logp_all.exp()
+    ent = -(p * logp_all.masked_fill(~mask, 0.0)).sum(-1)
+    return logp, ent
+
+
+def log_prob_entropy(out: dict, x: dict, acts: dict) -> tuple[torch.Tensor, torch.Tensor, dict]:
+    """Joint log-probability (B,) of the stored actions, the joint entropy (B,), and the entropy per head."""
+    logp = 0.0
+    ent = 0.0
+    parts = {}
+    if "dispatch" in out:
+        logits = out["dispatch"].float()
+        N = logits.shape[-1] - 1
+        mask = x["dispatch_mask"] & ~taken_before(acts["dispatch"], N)
+        mask[..., N] = True  # the no-op is always allowed
+        lp, e = _cat_logp_ent(logits, mask, acts["dispatch"])
+        logp = logp + lp.sum(-1)
+        ent = ent + e.sum(-1)
+        parts["dispatch"] = e.sum(-1)
+    if "workforce" in out:
+        w = acts["workforce"]
+        lp, e = _cat_logp_ent(out["workforce"].float(), _safe_rows(x["workforce_mask"]), w)
+        logp = logp + lp
+        ent = ent + e
+        parts["workforce"] = e
+    if "positioning" in out:
+        logits = out["positioning"].float()
+        fm = _safe_rows(x["fac_mask"])[:, None, :].expand_as(logits)
+        lp, e = _cat_logp_ent(logits, fm, acts["positioning"])  # (B, 2)
+        w = acts["workforce"]
+        use = torch.stack([(w >= 1) & (w <= 3), w >= 4], -1).to(lp.dtype)  # the row this step uses
+        logp = logp + (lp * use).sum(-1)
+        ent = ent + (e * use).sum(-1)
+        parts["positioning"] = (e * use).sum(-1)
+    return logp, ent, parts
+
+
+def positioning_weights(index: torch.Tensor, M: int) -> torch.Tensor:
+    """(B, 2, M) weights: 1 on the chosen facility of each row."""
+    return F.one_hot(index, M).to(torch.float64)

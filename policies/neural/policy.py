@@ -1,0 +1,116 @@
+"""A trained checkpoint as a policy: ``policies.get("ppo:path/to/ckpt.pt")``.
+
+``PPOPolicy`` follows the policy protocol (``docs/policies.md``): ``reset(seeds)``
+clears the LSTM memory and makes one random generator per environment keyed by its
+seed, ``act(obs)`` runs the network on the whole batch at once. Two modes:
+
+- ``sample`` (the default): actions drawn from the policy's distributions, the noise
+  drawn from the environment's own generator, so a seed decides the same alone or in
+  any batch (up to float rounding of batched matrix products). The RL probe found that
+  greedy decisions mislead when the useful action is rare (letting people go), so the
+  distribution the policy was trained as is the default.
+- ``greedy``: the most likely action of every head.
+
+A checkpoint trained with ``--variant dispatch`` holds only the dispatch head; loaded,
+it is deployed inside ``policies.Composite`` with the heuristic workforce (``threshold``)
+and positioning (``spatial``) rules it was trained with.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from policies.composite import Composite
+from policies.neural.dist import positioning_weights, sample
+from policies.neural.model import ModelConfig, WorkforceNet, featurize, obs_to_torch
+from policies.protocol import seeds_array
+
+MODES = ("sample", "greedy")
+POLICY_SEED = 0x99A
+
+
+def load_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
+    """The checkpoint dict at ``path``; ``ValueError`` with one line when it is not one."""
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"checkpoint {str(path)!r} does not exist")
+    try:
+        ckpt = torch.load(p, map_location=map_location, weights_only=False)
+    except Exception as exc:  # noqa: BLE001  (a corrupt or foreign file: say so in one line)
+        raise ValueError(f"checkpoint {str(path)!r} cannot be read: {type(exc).__name__}: {exc}") from None
+    if not isinstance(ckpt, dict) or "model" not in ckpt or "model_config" not in ckpt:
+        raise ValueError(f"{str(path)!r} is not a wfbench PPO checkpoint (no model or model_config)")
+    return ckpt
+
+
+def build_model(ckpt: dict, device: str = "cpu") -> WorkforceNet:
+    model = WorkforceNet(ModelConfig.from_dict(ckpt["model_config"]))
+    model.load_state_dict(ckpt["model"])
+    return model.to(device).eval()
+
+
+class PPOPolicy:
+    """The network of a checkpoint deciding every decision its heads cover."""
+
+    def __init__(self, model: WorkforceNet, mode: str = "sample", device: str = "cpu", seed: int = 0,
+                 name: str = "ppo"):
+        if mode not in MODES:
+            raise ValueError(f"mode {mode!r} is not allowed; allowed: {', '.join(MODES)}")
+        self.model = model.to(device).eval()
+        self.mode, self.device, self.seed, self.name = mode, torch.device(device), int(seed), name
+        self.decisions = tuple(model.config.decisions)
+        self._state = None
+
+    def reset(self, seeds: int | Sequence[int]) -> None:
+        seeds = seeds_array(seeds)
+        self._rngs = [np.random.default_rng([int(s), self.seed, POLICY_SEED]) for s in seeds]
+        self._state = self.model.initial_state(len(seeds), self.device)
+        self._starts = torch.ones(1, len(seeds), device=self.device)
+
+    def _noise(self, B: int, M: int, N: int) -> dict[str, torch.Tensor]:
+        sizes = {"dispatch": (M, N + 1), "workforce": (7,), "positioning": (2, M)}
+        total = sum(int(np.prod(s)) for s in sizes.values())
+        u = np.stack([rng.random(total) for rng in self._rngs]).clip(1e-10, 1.0 - 1e-7)
+        g = torch.from_numpy(-np.log(-np.log(u))).float().to(self.device)
+        out, at = {}, 0
+        for k, s in sizes.items():
+            n = int(np.prod(s))
+            out[k] = g[:, at:at + n].reshape(B, *s)
+            at += n
+        return out
+
+    @torch.no_grad()
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        if self._state is None:
+            raise RuntimeError("call reset(seeds) before act(obs)")
+        B, M = obs["requesting"].shape
+        N = obs["personnel"].shape[1]
+        x = featurize(obs_to_torch(obs, self.device), self.model.config.coord_scale)
+        out, self._state = self.model(x, self._state, self._starts)
+        self._starts = torch.zeros_like(self._starts)
+        acts = sample(out, x, self._noise(B, M, N) if self.mode == "sample" else None)
+        result: dict[str, np.ndarray] = {}
+        if "dispatch" in acts:
+            result["dispatch"] = acts["dispatch"].cpu().numpy().astype(np.int64)
+        if "workforce" in acts:
+            result["workforce"] = acts["workforce"].cpu().numpy().astype(np.int64)
+        if "positioning" in acts:
+            result["positioning"] = positioning_weights(acts["positioning"], M).cpu().numpy()
+        return result
+
+
+def from_checkpoint(path: str | Path, mode: str = "sample", device: str = "cpu", name: str | None = None):
+    """The deployable policy of a checkpoint: the network alone, or inside a composite with the heuristics."""
+    ckpt = load_checkpoint(path, device)
+    model = build_model(ckpt, device)
+    name = name or f"ppo:{path}"
+    net = PPOPolicy(model, mode=mode, device=device, name=name)
+    if set(net.decisions) == {"dispatch", "workforce", "positioning"}:
+        return net
+    parts = {d: (net if d in net.decisions else default)
+             for d, default in (("dispatch", "nearest"), ("workforce", "threshold"), ("positioning", "spatial"))}
+    return Composite(**parts, name=name)

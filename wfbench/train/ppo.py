@@ -1,0 +1,486 @@
+"""PPO for the paper's joint model, driving the batched simulator directly (one readable file).
+
+The loop, per update::
+
+    rollout: T steps of the B environments of a Simulator
+             observation -> tensors (policies.neural.model.featurize, no loop over environments)
+             network forward (no grad) -> sample actions (policies.neural.dist) -> sim.step_observe
+    returns: GAE(gamma, lambda) on the shaped rewards, the value of the last observation bootstrapped
+    update:  epochs x minibatches of whole sequences (a minibatch is a set of environments with all
+             T of their steps, so the LSTM is rerun from the state it had at the rollout's start);
+             clipped policy objective, clipped value loss, entropy bonus, global gradient clipping
+
+Episodes are synchronized: the B environments start together and end together at the
+horizon, and then a new Simulator is made on the next B seeds of the ``train`` set
+(``wfbench.seeds``), the LSTM state is reset (the ``starts`` flags), and the returns do
+not bootstrap across the boundary.
+
+Rewards (documented in docs/rl.md):
+
+- ``joint``: ``(NSW_t - offset) * scale`` with offset 0.7 and scale 10 (the per-step NSW
+  of the scenario, workforce cost included), divided by a running standard deviation of
+  the discounted return (the usual return normalization).
+- ``dispatch``: the same with NSW_t without its workforce-cost term, the geometric mean
+  of the utilization and downtime utilities, ``sqrt(u_PUR * u_AFD)`` (the paper's
+  dispatch-only model); the network has only the dispatch head, the heuristic
+  workforce (``threshold``) and positioning (``spatial``) rules make the other decisions.
+
+Checkpoints: ``RUN/checkpoints/update_<n>.pt`` every ``checkpoint_every`` updates,
+``RUN/latest.pt`` (also on Ctrl-C) and ``RUN/best.pt``: the checkpoint with the highest
+mean NSW on the **public** seeds (``eval_seeds``, a part of 1000-1049; never the test
+seeds), scored through ``wfbench.evaluate`` in the checkpoint's default (sampled) mode.
+Each checkpoint records the seeds it was selected on.
+
+Same code on CPU and CUDA; on CUDA the forward passes run under bf16 autocast (the
+heads and the value in fp32) and ``compile=True`` wraps the network in ``torch.compile``.
+On CPU a run is deterministic given ``seed``.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import subprocess
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import policies
+from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
+from policies.neural.model import OBS_KEYS, WorkforceNet, count_parameters, featurize, model_config, obs_to_torch
+from policies.neural.policy import PPOPolicy, load_checkpoint
+from wfbench.config import ScenarioConfig
+from wfbench.evaluation import evaluate
+from wfbench.seeds import SEED_SETS, resolve_seeds
+from wfbench.simulator import Simulator
+from wfbench.state import METRICS
+
+VARIANTS = {
+    "joint": ("dispatch", "workforce", "positioning"),
+    "dispatch": ("dispatch",),
+}
+_K_NSW, _K_UPUR, _K_UAFD = METRICS.index("nsw"), METRICS.index("u_utilization"), METRICS.index("u_downtime")
+
+
+@dataclass
+class TrainConfig:
+    """Every setting of a run; saved as ``config.json`` in the run directory and in each checkpoint."""
+
+    scenario: str = "paper-64"
+    variant: str = "joint"
+    model: str = "small"  # policies.neural.model.PRESETS
+    steps: int = 1_000_000  # environment steps in all (B per simulator step)
+    num_envs: int = 32  # B
+    num_steps: int = 32  # T: steps per rollout
+    epochs: int = 2
+    minibatches: int = 2
+    lr: float = 3e-4
+    gamma: float = 0.995
+    gae_lambda: float = 0.95
+    clip: float = 0.2
+    vf_clip: float = 0.2
+    ent_coef: float = 0.003
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    reward_offset: float = 0.7
+    reward_scale: float = 10.0
+    normalize_returns: bool = True
+    seed: int = 0
+    device: str = "auto"  # auto | cpu | cuda
+    bf16: bool = True  # CUDA only
+    compile: bool = False  # CUDA only: torch.compile of the network
+    threads: int = 1  # torch CPU threads (the simulator uses numba's)
+    checkpoint_every: int = 20  # updates
+    eval_every: int = 20  # updates; 0: never
+    eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
+    run_dir: str = "runs/ppo"
+    model_overrides: dict = field(default_factory=dict)
+
+    def validate(self) -> None:
+        if self.variant not in VARIANTS:
+            raise ValueError(f"variant {self.variant!r} is not allowed; allowed: {', '.join(VARIANTS)}")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
+        if self.device == "cuda" and not torch.cuda.is_available():
+            raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
+        for name in ("steps", "num_envs", "num_steps", "epochs", "minibatches", "threads", "checkpoint_every"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: an integer >= 1")
+        if self.num_envs % self.minibatches:
+            raise ValueError(f"num_envs = {self.num_envs} must be a multiple of minibatches = {self.minibatches}")
+        ScenarioConfig.resolve(self.scenario)
+        seeds = resolve_seeds(self.eval_seeds)
+        public = set(SEED_SETS["public"])
+        if not set(seeds) <= public:
+            raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
+                             "(1000-1049) only, never on test seeds")
+        model_config(self.model, VARIANTS[self.variant], **self.model_overrides)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TrainConfig:
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10,
+                             cwd=Path(__file__).resolve().parent)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, timeout=10, cwd=Path(__file__).resolve().parent).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "") if out.returncode == 0 else "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+class RunningStd:
+    """Running variance of the discounted return, by which rewards are divided (return normalization)."""
+
+    def __init__(self):
+        self.mean, self.var, self.count = 0.0, 1.0, 1e-4
+
+    def update(self, x: np.ndarray) -> None:
+        m, v, n = float(x.mean()), float(x.var()), x.size
+        delta, total = m - self.mean, self.count + n
+        self.mean += delta * n / total
+        self.var = (self.var * self.count + v * n + delta**2 * self.count * n / total) / total
+        self.count = total
+
+    @property
+    def std(self) -> float:
+        return math.sqrt(self.var + 1e-8)
+
+
+def _device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+def deployable(model: WorkforceNet, variant: str, mode: str = "sample", name: str = "ppo"):
+    """The policy the network makes: alone (joint) or with the heuristic workforce and positioning (dispatch)."""
+    net = PPOPolicy(copy.deepcopy(model).float().cpu(), mode=mode, device="cpu", name=name)
+    if variant == "joint":
+        return net
+    return policies.Composite(net, "threshold", "spatial", name=name)
+
+
+class Trainer:
+    """A PPO run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
+
+    def __init__(self, config: TrainConfig, resume: str | Path | None = None, progress: bool = True,
+                 log: bool = True):
+        config.validate()
+        self.cfg = c = config
+        self.device = _device(c.device)
+        self.cuda = self.device.type == "cuda"
+        torch.set_num_threads(c.threads)
+        torch.manual_seed(c.seed)
+        self.scenario = ScenarioConfig.resolve(c.scenario)
+        self.decisions = VARIANTS[c.variant]
+        self.mcfg = model_config(c.model, self.decisions, **c.model_overrides)
+        self.model = WorkforceNet(self.mcfg).to(self.device)
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=1e-5)
+        self.gen = torch.Generator(device=self.device).manual_seed(c.seed)
+        self.ret_std = RunningStd()
+        self.update, self.global_step, self.episode = 0, 0, 0
+        self.best = {"score": -math.inf, "update": None}
+        self.history: list[dict] = []
+        self.progress, self.log = progress, log
+        self.run_dir = Path(c.run_dir)
+        self.timing = {"simulator": 0.0, "obs_to_tensor": 0.0, "forward": 0.0, "update": 0.0}
+        if resume is not None:
+            self._load(resume)
+        self.net = torch.compile(self.model) if (c.compile and self.cuda) else self.model
+        self._new_episode()
+
+    # -- environments -------------------------------------------------------------------------
+    def _train_seeds(self, episode: int) -> list[int]:
+        B = self.cfg.num_envs
+        start = (self.cfg.seed * 1_000_003 + episode * B) % (len(SEED_SETS["train"]) - B)
+        return list(SEED_SETS["train"][start:start + B])
+
+    def _new_episode(self) -> None:
+        self.sim = Simulator(self.scenario, self._train_seeds(self.episode), keep_series=False, threads=1)
+        self.obs = self.sim.reset()
+        self.helper = None
+        if self.cfg.variant == "dispatch":  # the heuristic workforce and positioning it is trained with
+            self.helper = policies.Composite("none", "threshold", "spatial")
+            self.helper.reset(self.sim.seeds)
+        self.state = self.model.initial_state(self.sim.B, self.device)
+        self.starts = torch.ones(self.sim.B, device=self.device)
+        self.ret = np.zeros(self.sim.B)
+
+    def _autocast(self):
+        return torch.autocast(device_type=self.device.type, dtype=torch.bfloat16, enabled=self.cuda and self.cfg.bf16)
+
+    def _reward(self, nsw: np.ndarray) -> np.ndarray:
+        if self.cfg.variant == "dispatch":
+            last = self.sim.state.last
+            nsw = np.sqrt(np.clip(last[:, _K_UPUR] * last[:, _K_UAFD], 0.0, None))
+        return (nsw - self.cfg.reward_offset) * self.cfg.reward_scale
+
+    # -- rollout ------------------------------------------------------------------------------
+    def rollout(self) -> dict:
+        c, dev, B, T = self.cfg, self.device, self.sim.B, self.cfg.num_steps
+        M, N = self.sim.M, self.sim.N
+        buf: dict = {k: [] for k in ("raw", "starts", "dispatch", "workforce", "positioning", "logp", "value",
+                                     "reward", "done")}
+        init_state = tuple(s.clone() for s in self.state)
+        episodes = []
+        for _ in range(T):
+            t0 = time.perf_counter()
+            raw = obs_to_torch(self.obs, dev)
+            x = featurize(raw, self.mcfg.coord_scale)
+            t1 = time.perf_counter()
+            with torch.no_grad(), self._autocast():
+                out, self.state = self.net(x, self.state, self.starts[None])
+            noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
+            acts = sample(out, x, noise)
+            logp, _, _ = log_prob_entropy(out, x, acts)
+            action = {"dispatch": acts["dispatch"].cpu().numpy()}
+            t2 = time.perf_counter()
+            if self.helper is not None:
+                h = self.helper.act(self.obs)
+                action["workforce"], action["positioning"] = h["workforce"], h["positioning"]
+            else:
+                action["workforce"] = acts["workforce"].cpu().numpy()
+                action["positioning"] = positioning_weights(acts["positioning"], M).cpu().numpy()
+            buf["raw"].append(raw)
+            buf["starts"].append(self.starts)
+            for k in ("dispatch", "workforce", "positioning"):
+                buf[k].append(acts.get(k, torch.zeros(B, dtype=torch.long, device=dev)))
+            buf["logp"].append(logp)
+            buf["value"].append(out["value"].float())
+            nsw, self.obs = self.sim.step_observe(action)
+            reward = self._reward(nsw)
+            done = self.sim.done
+            self.global_step += B
+            if c.normalize_returns:
+                self.ret = self.ret * c.gamma + reward
+                self.ret_std.update(self.ret)
+                reward = reward / self.ret_std.std
+            buf["reward"].append(torch.as_tensor(reward, dtype=torch.float32, device=dev))
+            buf["done"].append(torch.full((B,), float(done), device=dev))
+            if done:
+                means = self.sim.episode_means()
+                episodes.append({k: float(np.mean(means[k])) for k in ("nsw", "workforce_cost", "utilization",
+                                                                       "downtime")})
+                self.episode += 1
+                self._new_episode()
+            else:
+                self.starts = torch.zeros(B, device=dev)
+            t3 = time.perf_counter()
+            self.timing["obs_to_tensor"] += t1 - t0
+            self.timing["forward"] += t2 - t1
+            self.timing["simulator"] += t3 - t2
+        t0 = time.perf_counter()
+        with torch.no_grad(), self._autocast():
+            x = featurize(obs_to_torch(self.obs, dev), self.mcfg.coord_scale)
+            out, _ = self.net(x, self.state, self.starts[None])
+            next_value = out["value"].float()
+        self.timing["forward"] += time.perf_counter() - t0
+        roll = {k: torch.stack(v) for k, v in buf.items() if k != "raw"}
+        roll["raw"] = {k: torch.stack([r[k] for r in buf["raw"]]) for k in OBS_KEYS}
+        roll["init_state"] = init_state
+        # GAE; done[t] ends the episode after step t (no bootstrap across it)
+        adv = torch.zeros(T, B, device=dev)
+        last = torch.zeros(B, device=dev)
+        for t in reversed(range(T)):
+            nv = next_value if t == T - 1 else roll["value"][t + 1]
+            nonterminal = 1.0 - roll["done"][t]
+            delta = roll["reward"][t] + c.gamma * nv * nonterminal - roll["value"][t]
+            last = delta + c.gamma * c.gae_lambda * nonterminal * last
+            adv[t] = last
+        roll["adv"], roll["ret"] = adv, adv + roll["value"]
+        roll["episodes"] = episodes
+        return roll
+
+    # -- update -------------------------------------------------------------------------------
+    def learn(self, roll: dict) -> dict:
+        c, B = self.cfg, self.sim.B
+        t0 = time.perf_counter()
+        stats: dict[str, list] = {k: [] for k in ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac",
+                                                  "ent_dispatch", "ent_workforce", "ent_positioning")}
+        mb = B // c.minibatches
+        perm_gen = torch.Generator().manual_seed(c.seed * 7919 + self.update)
+        for _ in range(c.epochs):
+            perm = torch.randperm(B, generator=perm_gen).to(self.device)
+            for i in range(c.minibatches):
+                idx = perm[i * mb:(i + 1) * mb]
+                raw = {k: v[:, idx].flatten(0, 1) for k, v in roll["raw"].items()}
+                x = featurize(raw, self.mcfg.coord_scale)
+                acts = {k: roll[k][:, idx].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
+                state = tuple(s[:, idx] for s in roll["init_state"])
+                with self._autocast():
+                    out, _ = self.net(x, state, roll["starts"][:, idx])
+                acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
+                logp, ent, parts = log_prob_entropy(out, x, acts)
+                old_logp = roll["logp"][:, idx].flatten()
+                adv = roll["adv"][:, idx].flatten()
+                adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                ratio = (logp - old_logp).exp()
+                pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).mean()
+                value = out["value"].float()
+                old_v, ret = roll["value"][:, idx].flatten(), roll["ret"][:, idx].flatten()
+                v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
+                v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).mean()
+                entropy = ent.mean()
+                loss = pg + c.vf_coef * v_loss - c.ent_coef * entropy
+                self.opt.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(self.model.parameters(), c.max_grad_norm)
+                self.opt.step()
+                with torch.no_grad():
+                    log_ratio = logp - old_logp
+                    stats["approx_kl"].append(float(((ratio - 1) - log_ratio).mean()))
+                    stats["clipfrac"].append(float(((ratio - 1).abs() > c.clip).float().mean()))
+                stats["pg_loss"].append(pg.item())
+                stats["v_loss"].append(v_loss.item())
+                stats["entropy"].append(entropy.item())
+                for k, v in parts.items():
+                    stats[f"ent_{k}"].append(v.mean().item())
+        self.timing["update"] += time.perf_counter() - t0
+        return {k: float(np.mean(v)) for k, v in stats.items() if v}
+
+    # -- evaluation and checkpoints -------------------------------------------------------------
+    def policy(self, mode: str = "sample"):
+        return deployable(self.model, self.cfg.variant, mode, name=f"ppo-{self.cfg.variant}")
+
+    def evaluate_public(self) -> dict:
+        """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
+        seeds = resolve_seeds(self.cfg.eval_seeds)
+        res = {}
+        for mode in ("sample", "greedy"):
+            df = evaluate(self.policy(mode), self.scenario, seeds, backend="serial", act_timeout_s=None)
+            res[mode] = float(df["nsw"].mean())
+            res[f"{mode}_workforce_cost"] = float(df["workforce_cost"].mean())
+        res["seeds"] = seeds
+        return res
+
+    def checkpoint(self) -> dict:
+        return {
+            "model": {k: v.detach().cpu() for k, v in self.model.state_dict().items()},
+            "model_config": self.mcfg.to_dict(),
+            "variant": self.cfg.variant,
+            "scenario": self.scenario.name,
+            "train_config": asdict(self.cfg),
+            "update": self.update,
+            "global_step": self.global_step,
+            "episode": self.episode,
+            "git_commit": git_commit(),
+            "best": self.best,
+            "history": self.history,
+            "default_mode": "sample",
+        }
+
+    def save(self, path: Path, full: bool = True) -> Path:
+        ckpt = self.checkpoint()
+        if full:  # what --resume needs on top of the policy
+            ckpt["optimizer"] = self.opt.state_dict()
+            ckpt["ret_std"] = vars(self.ret_std)
+            ckpt["generator"] = self.gen.get_state()
+            ckpt["torch_rng"] = torch.get_rng_state()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        torch.save(ckpt, tmp)
+        tmp.replace(path)
+        return path
+
+    def _load(self, path) -> None:
+        ckpt = load_checkpoint(path, str(self.device))
+        if "optimizer" not in ckpt:
+            raise ValueError(f"checkpoint {str(path)!r} has no optimizer state: it cannot be resumed")
+        if ckpt["model_config"] != self.mcfg.to_dict() or ckpt["variant"] != self.cfg.variant:
+            raise ValueError(f"checkpoint {str(path)!r} is a {ckpt['variant']} run of another model; "
+                             "resume with the settings of its config.json")
+        self.model.load_state_dict(ckpt["model"])
+        self.opt.load_state_dict(ckpt["optimizer"])
+        self.ret_std.__dict__.update(ckpt["ret_std"])
+        self.gen.set_state(ckpt["generator"].to(self.gen.device) if self.cuda else ckpt["generator"])
+        torch.set_rng_state(ckpt["torch_rng"])
+        self.update, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
+        self.best, self.history = ckpt["best"], ckpt["history"]
+
+    # -- the loop -----------------------------------------------------------------------------
+    def train(self, updates: int | None = None) -> dict:
+        """Train until ``cfg.steps`` environment steps (or ``updates`` more updates); returns the last stats."""
+        c = self.cfg
+        per_update = c.num_envs * c.num_steps
+        total_updates = math.ceil(c.steps / per_update)
+        stop = total_updates if updates is None else min(total_updates, self.update + updates)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        (self.run_dir / "config.json").write_text(json.dumps(
+            {**asdict(c), "git_commit": git_commit(), "parameters": count_parameters(self.model),
+             "device": str(self.device), "model_config": self.mcfg.to_dict()}, indent=2))
+        writer = None
+        if self.log:
+            from torch.utils.tensorboard import SummaryWriter
+
+            writer = SummaryWriter(str(self.run_dir / "tb"))
+        bar = None
+        if self.progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=stop * per_update, initial=self.update * per_update, unit="step", unit_scale=True,
+                       desc=f"ppo {c.variant} {self.scenario.name}")
+        stats: dict = {}
+        ep_nsw = None
+        start, start_step = time.perf_counter(), self.global_step
+        try:
+            while self.update < stop:
+                roll = self.rollout()
+                stats = self.learn(roll)
+                self.update += 1
+                sps = (self.global_step - start_step) / (time.perf_counter() - start)
+                for ep in roll["episodes"]:
+                    ep_nsw = ep["nsw"]
+                    if writer:
+                        for k, v in ep.items():
+                            writer.add_scalar(f"episode/{k}", v, self.global_step)
+                if writer:
+                    for k, v in stats.items():
+                        writer.add_scalar(f"loss/{k}", v, self.global_step)
+                    writer.add_scalar("charts/env_steps_per_s", sps, self.global_step)
+                    writer.add_scalar("charts/reward_std", self.ret_std.std, self.global_step)
+                if c.eval_every and self.update % c.eval_every == 0:
+                    res = self.evaluate_public()
+                    self.history.append({"update": self.update, "global_step": self.global_step, **res})
+                    if writer:
+                        writer.add_scalar("public/nsw_sample", res["sample"], self.global_step)
+                        writer.add_scalar("public/nsw_greedy", res["greedy"], self.global_step)
+                        writer.add_scalar("public/workforce_cost_sample", res["sample_workforce_cost"],
+                                          self.global_step)
+                    if res["sample"] > self.best["score"]:
+                        self.best = {"score": res["sample"], "update": self.update, "global_step": self.global_step,
+                                     "mode": "sample", "seeds": res["seeds"], "greedy": res["greedy"]}
+                        self.save(self.run_dir / "best.pt", full=False)
+                if self.update % c.checkpoint_every == 0:
+                    self.save(self.run_dir / "checkpoints" / f"update_{self.update:06d}.pt")
+                    self.save(self.run_dir / "latest.pt")
+                if bar:
+                    bar.update(per_update)
+                    post = {"sps": f"{sps:.0f}"}
+                    if ep_nsw is not None:
+                        post["ep_nsw"] = f"{ep_nsw:.3f}"
+                    if self.best["update"] is not None:
+                        post["public"] = f"{self.best['score']:.3f}"
+                    bar.set_postfix(post)
+        except KeyboardInterrupt:
+            self.save(self.run_dir / "latest.pt")
+            if bar:
+                bar.close()
+            print(f"interrupted: checkpoint saved to {self.run_dir / 'latest.pt'} (update {self.update}); "
+                  f"continue with --resume {self.run_dir / 'latest.pt'}")
+            raise
+        finally:
+            if writer:
+                writer.close()
+        if bar:
+            bar.close()
+        self.save(self.run_dir / "latest.pt")
+        return stats
