@@ -27,10 +27,10 @@ from numba import njit
 
 from wfbench import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.config import ScenarioConfig
-from wfbench.dynamics import reset_batch
-from wfbench.observe import allocate_obs, observe_range, step_observe_range, step_range
+from wfbench.dynamics import reset_batch, reset_env
+from wfbench.observe import allocate_obs, observe_env, observe_range, step_observe_range, step_range
 from wfbench.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS, allocate, make_params
-from wfbench.trace import trace_batch
+from wfbench.trace import NEVER, Trace, trace, trace_batch
 
 AGENTS = ("dispatch", "workforce", "positioning")
 _NSW = METRICS.index("nsw")
@@ -38,6 +38,12 @@ _NSW = METRICS.index("nsw")
 
 class ActionError(ValueError):
     """A malformed action: wrong shape, out of range or not a number."""
+
+
+def _listed(idx: np.ndarray, limit: int = 10) -> str:
+    """Up to ``limit`` indices, then how many more."""
+    shown = ", ".join(str(int(i)) for i in idx[:limit])
+    return f"[{shown}{f', ... ({len(idx) - limit} more)' if len(idx) > limit else ''}]"
 
 
 def _first_bad(mask: np.ndarray) -> tuple[int, ...]:
@@ -70,6 +76,35 @@ def actions_in_range(dispatch, workforce, positioning, n_dispatch, n_workforce):
     """
     return (_all_in(dispatch.reshape(-1), n_dispatch) and _all_in(workforce, n_workforce)
             and _all_unit(positioning.reshape(-1)))
+
+
+@njit(cache=True, nogil=True)
+def reset_observe_at(S, Tr, P, O, idx, with_masks):
+    """Reset environments ``idx`` (a 1-D int64 array) from their trace rows and fill their observations.
+
+    The partial reset of :meth:`Simulator.reset`: it touches only the rows of ``idx``, so
+    its cost grows with ``len(idx)``, not with the batch.
+    """
+    for i in range(idx.shape[0]):
+        b = idx[i]
+        reset_env(b, S, Tr, P)
+        observe_env(b, S, P, O, with_masks, True)
+
+
+# The arrival columns of a trace and their padding (see wfbench.trace.stack).
+_ARRIVALS = (("arr_t", NEVER), ("arr_x", 0), ("arr_y", 0), ("arr_leave", NEVER))
+_PADDING = dict(_ARRIVALS)
+
+
+def _repad(tr: Trace, A: int) -> Trace:
+    """``tr`` with its arrival columns widened to ``A`` (a copy of the four (B, A) arrays, padded as ``stack`` pads)."""
+    fields = {}
+    for name, fill in _ARRIVALS:
+        a = getattr(tr, name)
+        out = np.full((a.shape[0], A), fill, dtype=a.dtype)
+        out[:, : a.shape[1]] = a
+        fields[name] = out
+    return tr._replace(**fields)
 
 
 def _plain(a, dtype) -> bool:
@@ -242,7 +277,8 @@ class Simulator:
         self.N = self.config.max_personnel
         self.state = allocate(self.B, self.config, keep_series)
         self.obs_buffers = allocate_obs(self.B, self.M, self.N)
-        self._reset_done = False
+        self._started = np.zeros(self.B, dtype=bool)  # environments reset at least once
+        self._reset_done = False  # all of them have been (what step and lookahead.fork ask)
         self._bound: dict = {}  # compiled entry points by dispatcher, bound to the tuples in _bound_for
         self._bound_for: tuple | None = None
 
@@ -281,18 +317,124 @@ class Simulator:
             run_split(entry, self.B, self._threads, *args)
 
     # -- episode ------------------------------------------------------------------------------
-    def reset(self) -> dict[str, np.ndarray]:
-        self.call(reset_batch, self.state, self.trace, self.params)
-        self._reset_done = True
-        return self.observe()
+    def reset(self, indices=None, seeds=None, with_masks: bool = True) -> dict[str, np.ndarray]:
+        """Reset every environment, or only those at ``indices``, optionally onto new seeds.
+
+        Args:
+            indices: ``None`` (all environments), or the environments to reset: integer
+                indices in ``0..B-1`` without repeats, or a boolean mask of shape (B,)
+                (``sim.dones`` itself works).
+            seeds: ``None`` (each environment replays its own seed, ``self.seeds``), or one
+                new seed (an integer >= 0) per reset environment, in the order of
+                ``indices`` (B of them when ``indices`` is None). Their traces are
+                regenerated and ``self.seeds`` is updated.
+            with_masks: fill the action masks of the observation (partial resets only;
+                a full reset observes with masks, as it always has).
+
+        Returns:
+            The batched observation (the simulator's buffers, overwritten by the next call:
+            copy to keep). After a partial reset only the rows at ``indices`` are new;
+            the other rows hold what the last ``observe``/``step_observe`` wrote there.
+
+        The environments not at ``indices`` are left exactly as they are, bit for bit: state,
+        trace rows, observation rows, seeds. A partial reset runs one compiled call over the
+        reset rows only, so its cost grows with their number, not with B. A new seed whose
+        trace has more arrivals than the batch's arrival arrays hold widens those four
+        (B, A) arrays (``_repad``: a copy of the batch's arrival rows, with a quarter more
+        room than needed so that repeated reseeding widens rarely) and rebinds the compiled
+        entry points; that one reset costs O(B * A). The padding is never read by a rule,
+        so it changes no result (``docs/design.md``, "Batching").
+
+        Raises:
+            ValueError: malformed ``indices`` or ``seeds`` (the message says what is allowed).
+        """
+        if indices is None and seeds is None:
+            self.call(reset_batch, self.state, self.trace, self.params)
+            self._started[:] = True
+            self._reset_done = True
+            return self.observe()
+        idx = self._indices(indices)
+        if seeds is not None:
+            self._reseed(idx, seeds)
+        if indices is None:  # all environments onto new seeds: the full reset on the new traces
+            return self.reset()
+        if idx.shape[0]:
+            self.call(reset_observe_at, self.state, self.trace, self.params, self.obs_buffers, idx, bool(with_masks))
+            self._started[idx] = True
+            self._reset_done = bool(self._started.all())
+        return self._obs_dict()
+
+    def _indices(self, indices) -> np.ndarray:
+        """``indices`` as a plain int64 array of distinct environments; ValueError naming what is wrong."""
+        if indices is None:
+            return np.arange(self.B, dtype=np.int64)
+        a = np.asarray(indices)
+        if a.dtype == bool:
+            if a.shape != (self.B,):
+                raise ValueError(f"indices is a boolean mask of shape {a.shape}; allowed: shape ({self.B},) "
+                                 "or integer indices")
+            return np.flatnonzero(a).astype(np.int64)
+        if a.ndim != 1 or (a.size and a.dtype.kind not in "iu"):
+            raise ValueError(f"indices = {indices!r} is not allowed; allowed: a 1-D sequence of integers "
+                             f"in 0..{self.B - 1} or a boolean mask of shape ({self.B},)")
+        a = a.astype(np.int64)
+        bad = (a < 0) | (a >= self.B)
+        if bad.any():
+            raise ValueError(f"indices: {int(a[np.argmax(bad)])} is out of range; allowed: 0..{self.B - 1}")
+        if np.unique(a).shape[0] != a.shape[0]:
+            raise ValueError(f"indices {a.tolist()} repeat an environment; allowed: each index at most once")
+        return np.ascontiguousarray(a)
+
+    def _reseed(self, idx: np.ndarray, seeds) -> None:
+        """Write the traces of ``seeds`` into rows ``idx`` (widening the arrival arrays if needed)."""
+        if isinstance(seeds, (str, bytes)) or np.ndim(seeds) != 1:
+            raise ValueError(f"seeds = {seeds!r} is not allowed; allowed: a sequence of integers >= 0, one per "
+                             "reset environment")
+        seeds = list(seeds)
+        if len(seeds) != idx.shape[0]:
+            raise ValueError(f"{len(seeds)} seeds for {idx.shape[0]} environments; allowed: one seed per "
+                             "reset environment")
+        new = [trace(self.config, s) for s in seeds]  # ValueError naming a seed that is not an integer >= 0
+        tr = self.trace
+        A, need = tr.arr_t.shape[1], max((t.arr_t.shape[1] for t in new), default=0)
+        if need > A:
+            tr = _repad(tr, max(need, A + A // 4))
+        for j, b in enumerate(idx):
+            for name, dst, src in zip(Trace._fields, tr, new[j], strict=True):
+                row = src[0]
+                if name in _PADDING:  # an arrival column: the seed's arrivals, then the padding
+                    dst[b, : row.shape[0]] = row
+                    dst[b, row.shape[0]:] = _PADDING[name]
+                else:
+                    dst[b] = row
+            self.seeds[b] = new[j].seed[0]
+        self.trace = tr
 
     @property
     def t(self) -> int:
-        return int(self.state.t[0])
+        """The step of the batch's environments; RuntimeError when they are at different steps (use ``state.t``)."""
+        t = self.state.t
+        t0 = int(t[0])
+        if self.B > 1 and (t != t0).any():
+            raise RuntimeError("the environments are at different steps (after a partial reset); "
+                               "read state.t, one step per environment")
+        return t0
+
+    @property
+    def dones(self) -> np.ndarray:
+        """(B,) bool: the environments whose episode is over (at the horizon); a fresh array."""
+        return self.state.t >= self.config.horizon
 
     @property
     def done(self) -> bool:
-        return self.t >= self.config.horizon
+        """True when any environment's episode is over, so that :meth:`step` refuses.
+
+        For a batch reset together (as before partial resets): when the episode is over.
+        """
+        t = self.state.t
+        if self.B == 1:
+            return int(t[0]) >= self.config.horizon
+        return bool((t >= self.config.horizon).any())
 
     def observe(self, with_masks: bool = True) -> dict[str, np.ndarray]:
         """The batched observation. Arrays are buffers overwritten by the next call: copy to keep."""
@@ -307,9 +449,18 @@ class Simulator:
     def check_ready(self) -> None:
         """Raise ``RuntimeError`` unless a step may run now: after ``reset`` and before the horizon."""
         if not self._reset_done:
+            if self._started.any():
+                waiting = np.flatnonzero(~self._started)
+                raise RuntimeError(f"environment(s) {_listed(waiting)} were never reset; call reset() or "
+                                   "reset(indices=...) on them before step()")
             raise RuntimeError("call reset() before step()")
         if self.done:
-            raise RuntimeError(f"the episode is over (horizon {self.config.horizon}); call reset()")
+            if self.B == 1:
+                raise RuntimeError(f"the episode is over (horizon {self.config.horizon}); call reset()")
+            over = np.flatnonzero(self.dones)
+            raise RuntimeError(f"the episode is over (horizon {self.config.horizon}) for environment(s) "
+                               f"{_listed(over)} of {self.B}; call reset(indices=np.flatnonzero(sim.dones)) "
+                               "(a step moves every environment, none is frozen)")
 
     def _checked(self, actions: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.check_ready()
