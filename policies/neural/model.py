@@ -77,7 +77,7 @@ class ModelConfig:
 PRESETS: dict[str, dict] = {
     "tiny": dict(d=16, heads=2, n_blocks=1, n_fusion=1, lstm=16, ff=2, pos_freqs=2),
     "small": dict(d=32, heads=2, n_blocks=1, n_fusion=1, lstm=32, ff=2, pos_freqs=4),
-    "paper": dict(d=96, heads=4, n_blocks=2, n_fusion=1, lstm=128, ff=2, pos_freqs=8),
+    "paper": dict(d=64, heads=4, n_blocks=2, n_fusion=1, lstm=64, ff=2, pos_freqs=8),  # ~475k parameters
 }
 
 

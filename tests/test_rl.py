@@ -1,0 +1,196 @@
+"""The PPO model, its masks and the trainer (issue #13): behaviour, not just that it runs.
+
+- masks: an empty slot, a masked person, a masked workforce code or an inactive facility
+  never gets probability, no person is sent twice, and garbage in empty slots changes
+  nothing the network outputs for the rest;
+- one network runs on two scenario sizes;
+- a short training run on CPU: finite losses, checkpoints, resume, a checkpoint scored
+  through ``wfbench.evaluate`` and the command line; the same seed gives the same weights.
+"""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import policies
+import wfbench
+from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, sample
+from policies.neural.model import WorkforceNet, count_parameters, featurize, model_config, obs_to_torch
+from wfbench.cli import main as cli_main
+from wfbench.train.ppo import TrainConfig, Trainer
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _mid_episode_obs(scenario, seeds, steps=60):
+    """An observation after ``steps`` heuristic steps: open requests, busy people, empty slots."""
+    sim = wfbench.Simulator(scenario, seeds)
+    obs = sim.reset()
+    h = policies.get("heuristic")
+    h.reset(seeds)
+    for _ in range(steps):
+        obs = sim.step_observe(h.act(obs))[1]
+    return {k: np.array(v, copy=True) for k, v in obs.items()}
+
+
+@pytest.fixture(scope="module")
+def paper_obs():
+    return _mid_episode_obs("paper-64", [0, 1, 2, 3], steps=40)
+
+
+def _net(decisions=("dispatch", "workforce", "positioning")):
+    torch.manual_seed(0)
+    return WorkforceNet(model_config("tiny", decisions)).eval()
+
+
+def _run(net, obs):
+    x = featurize(obs_to_torch(obs), net.config.coord_scale)
+    B = obs["t"].shape[0]
+    with torch.no_grad():
+        out, _ = net(x, net.initial_state(B), torch.ones(1, B))
+    return x, out
+
+
+def test_rl__masked_entries_never_get_probability(paper_obs):
+    net = _net()
+    x, out = _run(net, paper_obs)
+    dm = torch.from_numpy(paper_obs["dispatch_mask"] > 0)
+    assert torch.equal(x["dispatch_mask"], dm)  # rebuilt from requesting and dispatchable, as documented
+    assert (~dm[..., :-1]).any() and dm[..., :-1].any()  # something to mask and something allowed
+    gen = torch.Generator().manual_seed(0)
+    B, M, N = dm.shape[0], dm.shape[1], dm.shape[2] - 1
+    empty_people = paper_obs["personnel_mask"] == 0
+    assert empty_people.any(), "the fixture needs empty personnel slots"
+    for _ in range(50):
+        noise = {k: gumbel(s, gen) * 3 for k, s in noise_shapes(B, M, N).items()}  # hot noise: reach everywhere
+        a = sample(out, x, noise)
+        d = a["dispatch"].numpy()
+        for b in range(B):
+            for f in range(M):
+                assert paper_obs["dispatch_mask"][b, f, d[b, f]], (b, f, d[b, f])
+            sent = d[b][d[b] < N]
+            assert len(sent) == len(set(sent)), "a person was sent to two facilities"
+            assert not empty_people[b, sent].any()
+        assert paper_obs["workforce_mask"][np.arange(B), a["workforce"].numpy()].all()
+        pos = a["positioning"].numpy()
+        assert (paper_obs["facility_mask"][np.arange(B)[:, None], pos] > 0).all()
+        logp, ent, _ = log_prob_entropy(out, x, a)
+        assert torch.isfinite(logp).all() and torch.isfinite(ent).all() and (logp <= 1e-6).all()
+    # the probabilities themselves: zero outside the masks
+    wf = torch.softmax(out["workforce"].masked_fill(~x["workforce_mask"], -1e9), -1)
+    assert (wf[~x["workforce_mask"]] == 0).all()
+    disp = torch.softmax(out["dispatch"].masked_fill(~x["dispatch_mask"], -1e9), -1)
+    assert (disp[~x["dispatch_mask"]] == 0).all()
+
+
+def test_rl__garbage_in_empty_slots_changes_nothing(paper_obs):
+    net = _net()
+    _, out = _run(net, paper_obs)
+    dirty = {k: v.copy() for k, v in paper_obs.items()}
+    rng = np.random.default_rng(0)
+    empty = dirty["personnel_mask"] == 0
+    dirty["personnel"][empty] = rng.uniform(0, 60, size=(empty.sum(), dirty["personnel"].shape[-1])).round()
+    dirty["personnel_status"][empty] = 2
+    _, out2 = _run(net, dirty)
+    torch.testing.assert_close(out["value"], out2["value"], rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(out["workforce"], out2["workforce"], rtol=1e-5, atol=1e-5)
+    active = torch.from_numpy(paper_obs["personnel_mask"] > 0)
+    for b in range(active.shape[0]):
+        cols = torch.cat([active[b], torch.tensor([True])])
+        torch.testing.assert_close(out["dispatch"][b][:, cols], out2["dispatch"][b][:, cols], rtol=1e-5, atol=1e-5)
+
+
+def test_rl__one_network_two_scenario_sizes(paper_obs):
+    net = _net()
+    small = _mid_episode_obs("small", [0, 1, 2], steps=10)
+    for obs in (small, paper_obs):
+        B, M = obs["requesting"].shape
+        N = obs["personnel"].shape[1]
+        x, out = _run(net, obs)
+        assert out["dispatch"].shape == (B, M, N + 1)
+        assert out["workforce"].shape == (B, 7)
+        assert out["positioning"].shape == (B, 2, M)
+        assert out["value"].shape == (B,) and out["value"].dtype == torch.float32
+    assert small["requesting"].shape[1] != paper_obs["requesting"].shape[1]
+
+
+def test_rl__presets_sizes():
+    assert count_parameters(WorkforceNet(model_config("small"))) < 150_000
+    assert 350_000 <= count_parameters(WorkforceNet(model_config("paper"))) <= 600_000
+    with pytest.raises(ValueError, match="unknown model preset"):
+        model_config("huge")
+
+
+def _cfg(tmp_path, **kw):
+    base = dict(scenario="small", model="tiny", num_envs=4, num_steps=8, steps=4 * 8 * 2, epochs=1, minibatches=2,
+                eval_every=0, checkpoint_every=1, run_dir=str(tmp_path / "run"), seed=3)
+    return TrainConfig(**{**base, **kw})
+
+
+def test_rl__training_is_deterministic_on_cpu(tmp_path):
+    weights = []
+    for i in range(2):
+        tr = Trainer(_cfg(tmp_path / str(i)), progress=False, log=False)
+        stats = tr.train()
+        assert all(np.isfinite(v) for v in stats.values()), stats
+        weights.append({k: v.clone() for k, v in tr.model.state_dict().items()})
+    for k in weights[0]:
+        assert torch.equal(weights[0][k], weights[1][k]), k
+    tr = Trainer(_cfg(tmp_path / "2", seed=4), progress=False, log=False)
+    tr.train()
+    assert any(not torch.equal(weights[0][k], v) for k, v in tr.model.state_dict().items())
+
+
+def test_rl__train_resume_evaluate_end_to_end(tmp_path, capsys):
+    run = tmp_path / "run"
+    args = ["train", "--scenario", "small", "--model", "tiny", "--num-envs", "4", "--num-steps", "8", "--steps", "64",
+            "--epochs", "1", "--eval-every", "2", "--eval-seeds", "public:2", "--checkpoint-every", "1",
+            "--run-dir", str(run), "--no-progress", "--seed", "5"]
+    assert cli_main(args) == 0
+    assert (run / "latest.pt").is_file() and (run / "best.pt").is_file() and (run / "config.json").is_file()
+    assert list((run / "tb").iterdir()), "no TensorBoard log"
+    best = torch.load(run / "best.pt", weights_only=False)
+    assert best["best"]["seeds"] == [1000, 1001] and best["best"]["update"] == 2
+    assert "optimizer" not in best  # a policy, not a resume point
+    latest = torch.load(run / "latest.pt", weights_only=False)
+    assert latest["update"] == 2 and latest["global_step"] == 64
+    # resume: continues from update 2, keeps the settings
+    assert cli_main(["train", "--resume", str(run / "latest.pt"), "--steps", "96", "--no-progress"]) == 0
+    resumed = torch.load(run / "latest.pt", weights_only=False)
+    assert resumed["update"] == 3 and resumed["global_step"] == 96
+    assert any(not torch.equal(latest["model"][k], resumed["model"][k]) for k in latest["model"])
+    # the checkpoint is a policy, sampled by default and greedy on request
+    for spec in (f"ppo:{run / 'best.pt'}", f"ppo:{run / 'latest.pt'}@greedy"):
+        df = wfbench.evaluate(spec, "small", seeds=[0, 1], backend="serial")
+        assert df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()
+    sampled = policies.get(f"ppo:{run / 'best.pt'}")
+    assert sampled.mode == "sample" and policies.get(f"ppo:{run / 'best.pt'}@greedy").mode == "greedy"
+    capsys.readouterr()
+    # user mistakes: one line, exit 2
+    assert cli_main(["train", "--resume", str(run / "best.pt"), "--no-progress"]) == 2
+    assert "no optimizer state" in capsys.readouterr().err
+    assert cli_main(["train", "--eval-seeds", "test:5", "--run-dir", str(tmp_path / "x"), "--no-progress"]) == 2
+    assert "public seeds" in capsys.readouterr().err
+    assert cli_main(["evaluate", "--policy", f"ppo:{tmp_path / 'nope.pt'}", "--seeds", "1"]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_rl__dispatch_variant_deploys_with_the_heuristics(tmp_path):
+    tr = Trainer(_cfg(tmp_path, variant="dispatch", steps=32), progress=False, log=False)
+    tr.train()
+    assert set(tr.model.config.decisions) == {"dispatch"} and not hasattr(tr.model, "wf_head")
+    pol = policies.get(f"ppo:{tmp_path / 'run' / 'latest.pt'}")
+    assert isinstance(pol, policies.Composite)
+    assert [getattr(p, "name", "") for p in pol.parts.values()][1:] == ["threshold", "spatial"]
+    df = wfbench.evaluate(pol, "small", seeds=[0], backend="serial")
+    assert df["nsw"].between(0, 1).all()
+
+
+def test_rl__importing_wfbench_and_policies_does_not_import_torch():
+    code = "import sys, wfbench, policies, wfbench.cli; policies.names(); assert 'torch' not in sys.modules"
+    run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
