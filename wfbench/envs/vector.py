@@ -1,0 +1,212 @@
+"""A Gymnasium ``VectorEnv`` over one batched :class:`~wfbench.simulator.Simulator`.
+
+``WorkforceVectorEnv(scenario, num_envs, kind="workforce")`` is B copies of
+``wfbench/Workforce-v0`` (or, ``kind="dispatch"``, of ``wfbench/Dispatch-v0``) stepped
+by one compiled call for the whole batch, where ``SyncVectorEnv`` would make B Python
+calls. The spaces, the flat ``MultiDiscrete`` action, the observation keys and the
+reward are those of the single environments (``docs/sb3.md``):
+
+- ``step`` takes a (B, n) integer action, one row of the single environment's
+  ``MultiDiscrete`` per environment, and returns batched copies (fresh arrays that no
+  later call writes to).
+- Autoreset is ``AutoresetMode.SAME_STEP``: an environment that reaches the horizon is
+  truncated and reset in the same ``step`` through ``Simulator.reset(indices, seeds)``
+  (only those rows, on new seeds); the returned observation row is the new episode's
+  first, and ``infos["final_obs"]`` / ``infos["final_info"]`` (with their ``_final_obs``
+  masks) hold the last one, Gymnasium's convention.
+- Seeds: ``reset(seed=s)`` plays seeds ``s, s + 1, ...``; each environment's later
+  episodes take their seeds from a generator seeded with its first seed, as the single
+  environment does, so the vector environment replays ``SyncVectorEnv`` of the single
+  environments bit for bit (``tests/test_vector_env.py``).
+- Masks: ``action_masks()`` is the (B, sum(nvec)) boolean mask of MaskablePPO's
+  convention; the observation carries ``dispatch_mask`` and ``workforce_mask`` too.
+- ``kind="dispatch"``: the workforce and positioning decisions are made by built-in
+  policies acting on the whole batch at once (``fixed``, default the paper's
+  heuristics); they are told the batch's seeds again after every autoreset.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from wfbench.config import ScenarioConfig
+from wfbench.envs.gym_env import REWARDS, DispatchEnv, WorkforceEnv
+from wfbench.envs.spaces import POSITIONING_LEVELS
+from wfbench.simulator import ActionError, Simulator, validate_actions
+from wfbench.state import K_UAFD, K_UPUR
+
+KINDS = {"workforce": WorkforceEnv, "dispatch": DispatchEnv}
+_SEED_HIGH = 2**31 - 1  # the single environments draw their next seeds below this
+
+
+class WorkforceVectorEnv(VectorEnv):
+    """``num_envs`` workforce environments in one batched simulator (see the module docstring)."""
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(self, scenario: str | ScenarioConfig = "paper-64", num_envs: int = 8, kind: str = "workforce",
+                 fixed: dict[str, Any] | None = None, reward: str = "nsw", threads: int | None = None):
+        if not (type(num_envs) is int and num_envs >= 1):
+            raise ValueError(f"num_envs = {num_envs!r} is not allowed; allowed: an integer >= 1")
+        if kind not in KINDS:
+            raise ValueError(f"kind {kind!r} is not allowed; allowed: {', '.join(KINDS)}")
+        if reward not in REWARDS:
+            raise ValueError(f"reward {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
+        if kind == "workforce" and fixed:
+            raise ValueError("kind='workforce' learns every decision; fix decisions with kind='dispatch'")
+        single = DispatchEnv(scenario, fixed=fixed) if kind == "dispatch" else WorkforceEnv(scenario)
+        self.config = single.config
+        self.kind, self.reward_kind = kind, reward
+        self.fixed = single.core.fixed  # the built-in policies the single environment resolved (none for workforce)
+        self.num_envs = num_envs
+        self.M, self.N = self.config.max_facilities, self.config.max_personnel
+        self.single_observation_space = single.observation_space
+        self.single_action_space = single.action_space
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._keys = tuple(single.observation_space.spaces)
+        self._threads = threads
+        self.sim: Simulator | None = None
+        self._obs: dict[str, np.ndarray] | None = None
+        self._seed_rngs: list[np.random.Generator] = []
+        self.closed = False
+
+    # -- episodes ----------------------------------------------------------------------------
+    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+        """Reset every environment (or, ``options={"reset_mask": mask}``, those of the boolean mask).
+
+        ``seed``: an integer s (environment i plays s + i), a list of one seed per reset
+        environment, or None (seeds drawn from ``self.np_random``, or for a masked reset each
+        environment's own seed sequence).
+        """
+        mask = None if options is None else options.get("reset_mask")
+        if mask is not None:
+            if self.sim is None:
+                raise RuntimeError("call reset() without a reset_mask first")
+            mask = np.asarray(mask)
+            if mask.dtype != bool or mask.shape != (self.num_envs,):
+                raise ValueError(f"options['reset_mask'] has dtype {mask.dtype} and shape {mask.shape}; "
+                                 f"allowed: a boolean array of shape ({self.num_envs},)")
+            idx = np.flatnonzero(mask)
+        else:
+            idx = np.arange(self.num_envs)
+        if seed is None:
+            if mask is None:
+                super().reset(seed=None)
+                seeds = [int(s) for s in self.np_random.integers(0, _SEED_HIGH, size=self.num_envs)]
+            else:
+                seeds = [int(self._seed_rngs[i].integers(0, _SEED_HIGH)) for i in idx]
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            super().reset(seed=int(seed))
+            seeds = [int(seed) + i for i in range(len(idx))]
+        else:
+            seeds = list(seed)
+            if len(seeds) != len(idx):
+                raise ValueError(f"{len(seeds)} seeds for {len(idx)} environments; allowed: one seed per "
+                                 "environment reset, an integer or None")
+        for s in seeds:
+            if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
+                raise ValueError(f"seed = {s!r} is not allowed; allowed: an integer >= 0")
+        if mask is None:
+            self.sim = Simulator(self.config, seeds, keep_series=False, threads=self._threads)
+            self._seed_rngs = [np.random.default_rng(s) for s in seeds]
+            self._obs = self.sim.reset()
+        else:
+            for i, s in zip(idx, seeds, strict=True):
+                self._seed_rngs[i] = np.random.default_rng(s)
+            self._obs = self.sim.reset(indices=idx, seeds=seeds)
+        self._reset_fixed()
+        return self._copy_obs(), self._infos()
+
+    def _reset_fixed(self) -> None:
+        assert self.sim is not None
+        for p in {id(p): p for p in self.fixed.values()}.values():
+            p.reset(self.sim.seeds.copy())
+
+    def _copy_obs(self, obs: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        obs = self._obs if obs is None else obs
+        assert obs is not None
+        return {k: obs[k].copy() for k in self._keys}
+
+    def _infos(self) -> dict[str, Any]:
+        assert self.sim is not None
+        ones = np.ones(self.num_envs, dtype=bool)
+        return {"t": self.sim.state.t.copy(), "_t": ones, "seed": self.sim.seeds.copy(), "_seed": ones}
+
+    # -- steps -------------------------------------------------------------------------------
+    def _actions(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The batched simulator actions of a (B, n) MultiDiscrete action, checked."""
+        B, M = self.num_envs, self.M
+        a = np.asarray(actions)
+        n = self.single_action_space.shape[0]
+        if a.shape != (B, n):
+            raise ActionError(f"action has shape {a.shape}, expected ({B}, {n})")
+        if a.dtype.kind not in "iu":
+            raise ActionError(f"action has dtype {a.dtype}; allowed: integers")
+        given: dict[str, Any] = {"dispatch": np.ascontiguousarray(a[:, :M], dtype=np.int64)}
+        if self.kind == "workforce":
+            pos = a[:, M + 1 :]
+            bad = (pos < 0) | (pos >= POSITIONING_LEVELS)
+            if bad.any():
+                i = tuple(int(x) for x in np.argwhere(bad)[0])
+                raise ActionError(f"positioning action: {pos[i]} at index {i} is out of range; "
+                                  f"allowed: integers 0..{POSITIONING_LEVELS - 1}")
+            given["workforce"] = np.ascontiguousarray(a[:, M], dtype=np.int64)
+            given["positioning"] = (pos.astype(np.float64) / (POSITIONING_LEVELS - 1)).reshape(B, 2, M)
+        else:
+            assert self._obs is not None
+            cache: dict[int, dict[str, np.ndarray]] = {}
+            for agent, p in self.fixed.items():
+                if id(p) not in cache:
+                    cache[id(p)] = p.act(self._obs)
+                given[agent] = cache[id(p)][agent]
+        return validate_actions(given, B, M, self.N)
+
+    def step(self, actions):
+        if self.sim is None:
+            raise RuntimeError("call reset() before step()")
+        d, w, p = self._actions(actions)
+        self.sim.check_ready()
+        nsw, obs = self.sim.step_observe_checked(d, w, p)
+        if self.reward_kind == "nsw":
+            rewards = nsw
+        else:
+            last = self.sim.state.last
+            rewards = np.sqrt(last[:, K_UPUR] * last[:, K_UAFD])
+        self._obs = obs
+        truncated = self.sim.dones
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        infos = self._infos()
+        if truncated.any():
+            idx = np.flatnonzero(truncated)
+            final = self._copy_obs()
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            final_info = np.full(self.num_envs, None, dtype=object)
+            for i in idx:
+                final_obs[i] = {k: v[i] for k, v in final.items()}
+                final_info[i] = {"t": int(infos["t"][i]), "seed": int(infos["seed"][i])}
+            seeds = [int(self._seed_rngs[i].integers(0, _SEED_HIGH)) for i in idx]
+            self._obs = self.sim.reset(indices=idx, seeds=seeds)
+            self._reset_fixed()
+            infos = self._infos()
+            infos.update(final_obs=final_obs, _final_obs=truncated.copy(), final_info=final_info,
+                         _final_info=truncated.copy())
+        return self._copy_obs(), rewards.astype(np.float64, copy=False), terminated, truncated, infos
+
+    # -- masks -------------------------------------------------------------------------------
+    def action_masks(self) -> np.ndarray:
+        """(B, sum(nvec)) bool: the flat MultiDiscrete masks of every environment (MaskablePPO's convention)."""
+        assert self._obs is not None, "call reset() first"
+        B = self.num_envs
+        parts = [self._obs["dispatch_mask"].reshape(B, -1).astype(bool)]
+        if self.kind == "workforce":
+            parts += [self._obs["workforce_mask"].astype(bool), np.ones((B, 2 * self.M * POSITIONING_LEVELS), bool)]
+        return np.concatenate(parts, axis=1)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self.sim = None
+
