@@ -13,6 +13,7 @@ from policies.composite import Composite
 from wfbench import tune as tune_mod
 from wfbench.cli import main
 from wfbench.config import ScenarioConfig
+from wfbench.envs.parallel import resolve_fixed
 from wfbench.evaluation import evaluate
 from wfbench.tune import check_tuning_seeds, search_space, tune
 
@@ -167,6 +168,16 @@ def test_the_shipped_tuned_policies_are_registered():
         assert p.params() != b.params() and set(p.params()) == set(b.tunable)
         assert [part.code for part in p.parts.values()] == [part.code for part in b.parts.values()]
     assert evaluate("heuristic-tuned", "small", 1)["nsw"].notna().all()
+    fixed = resolve_fixed({"workforce": "heuristic-tuned", "positioning": "solver-tuned"})
+    assert fixed["workforce"].params() == policies.get("heuristic-tuned").params()
+    with pytest.raises(ValueError, match="unknown policy 'nope' for fixed agent"):
+        resolve_fixed({"workforce": "nope"})
+
+
+def test_wfbench_policies_lists_the_tuned_ones(capsys):
+    assert main(["policies"]) == 0
+    out = capsys.readouterr().out
+    assert "heuristic-tuned        policies/tuned/heuristic-paper-64.json" in out and "solver-tuned" in out
 
 
 def test_cli_tune_writes_a_file_that_the_cli_evaluates(tmp_path, capsys):

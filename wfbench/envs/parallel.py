@@ -25,7 +25,8 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils import parallel_to_aec, wrappers
 
 from policies import DECISIONS, get
-from policies.registry import COMPOSITES
+from policies.registry import names
+from policies.tuned import is_tuned_spec
 from wfbench.config import ScenarioConfig
 from wfbench.envs.spaces import (
     OBS_KEYS,
@@ -50,8 +51,8 @@ def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
             raise ValueError(f"fixed names unknown agent {agent!r}; agents: {', '.join(AGENTS)}")
         if isinstance(spec, str) and spec in DECISIONS[agent]:
             out[agent] = DECISIONS[agent][spec]()
-        elif isinstance(spec, str) and spec not in COMPOSITES and ":" not in spec:
-            allowed = ", ".join([*DECISIONS[agent], *COMPOSITES])
+        elif isinstance(spec, str) and spec not in names() and ":" not in spec and not is_tuned_spec(spec):
+            allowed = ", ".join([*DECISIONS[agent], *names()])
             raise ValueError(f"unknown policy {spec!r} for fixed agent {agent!r}; available: {allowed}")
         else:
             out[agent] = get(spec)
