@@ -46,6 +46,11 @@ TABLE3_POLICIES = {"1": "random", "2": "random-dispatch", "3": "random-positioni
                    "5": None, "6": None, "7": None}
 SOLVER_ROWS = [("S1", "solver"), ("S2", "solver-dispatch"), ("S3", "solver-workforce"), ("S4", "solver-positioning")]
 ORACLE_ROWS = [("O1", "oracle-dispatch"), ("O2", "oracle")]
+# beyond the paper: the heuristic and solver composites with their parameters tuned on the public seeds
+# (wfbench tune, policies/tuned/, docs/policies.md#tuning)
+TUNED_ROWS = [("T1", "heuristic-tuned"), ("T2", "solver-tuned")]
+TUNED_PARTS = {"heuristic-tuned": ("Heuristic (tuned)", "Heuristic (tuned)", "Heuristic (tuned)"),
+               "solver-tuned": ("Assignment (tuned)", "Staffing (tuned)", "p-median (tuned)")}
 ORACLE_PARTS = {"oracle-dispatch": ("Hindsight oracle", "Heuristic", "Heuristic"),
                 "oracle": ("Hindsight oracle", "Hindsight oracle", "Hindsight oracle")}
 SOLVER_PARTS = {"solver": ("Assignment", "Staffing", "p-median"), "solver-dispatch": ("Assignment", "Heuristic",
@@ -128,8 +133,11 @@ def table2_trends(nsw: dict[tuple[int, int, int], float]) -> list[str]:
 
 def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
            address: str | None = None, progress: Progress = None, solver_rows: bool = True,
-           oracle_rows: bool = True) -> Output:
+           oracle_rows: bool = True, tuned_rows: bool = True) -> Output:
     """The paper's rows 1-4 (exactly its combinations), the solver rows and open rows for RL.
+
+    Beyond the paper, rows T1-T2: the heuristic and solver composites tuned on the public
+    seeds (``wfbench tune``; the files in ``policies/tuned/``).
 
     Then the hindsight oracles and the proven upper bound on NSW (docs/hindsight.md): not
     deployable, a reference.
@@ -157,6 +165,9 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     if solver_rows:
         for num, policy in SOLVER_ROWS:
             run(num, policy, SOLVER_PARTS[policy], "", "(not in the paper)")
+    if tuned_rows:
+        for num, policy in TUNED_ROWS:
+            run(num, policy, TUNED_PARTS[policy], "", "(beyond the paper: tuned on public seeds)")
     if oracle_rows:
         for num, policy in ORACLE_ROWS:
             run(num, policy, ORACLE_PARTS[policy], "", "(not in the paper; reads the future)")
@@ -173,6 +184,8 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     md = "\n".join([
         f"Table 3: paper-64, seeds 0-{runs - 1}; KPIs mean (25%-75%) over runs. Rows 1-4 are the paper's "
         "combinations; S1-S4 are wfbench's solver rows; rows 5-7 (PPO, IMPALA) are open until the RL work lands; "
+        "T1-T2 (beyond the paper) are the heuristic and solver composites with their parameters tuned on the "
+        "public seeds 1000-1049 (wfbench tune, docs/policies.md); "
         "O1-O2 are hindsight oracles (they read the episode's future: not deployable) and B is a proven upper "
         "bound on NSW per seed (docs/hindsight.md).",
         "", markdown_table(header, rows), "", DIRECTION,
