@@ -414,7 +414,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     bar = None
     if not args.no_progress:
-        sizes = {"table2": 20, "table3": 11, "figure3": 5, "gap": 12}
+        sizes = {"table2": 20, "table3": 13, "figure3": 5, "gap": 12}
         bar = tqdm(total=sizes[args.target], desc=f"reproduce {args.target}", unit="run", leave=False)
 
     def step(name: str) -> None:
