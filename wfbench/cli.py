@@ -26,7 +26,7 @@ from leaderboard.store import Store, StoreError
 from leaderboard.submit import SubmitError, seed_builtins, submit
 from leaderboard.tracks import TRACKS, get_track
 from policies import DECISIONS, get
-from policies.registry import COMPOSITES, TUNED
+from policies.registry import COMPOSITES, LEARNED, TUNED, learned_names
 from wfbench.backends import check_backend
 from wfbench.bench import run as run_bench
 from wfbench.config import PRESETS, ScenarioConfig
@@ -495,6 +495,8 @@ def cmd_policies(args: argparse.Namespace) -> int:
         print(f"{name:<22s} dispatch={d}, workforce={w}, positioning={p}: {text}")
     for name, (file, text) in TUNED.items():
         print(f"{name:<22s} policies/tuned/{file}: {text}")
+    for name in learned_names():
+        print(f"{name:<22s} policies/neural/checkpoints/{LEARNED[name][0]}: {LEARNED[name][1]}")
     for decision, table in DECISIONS.items():
         print(f"{decision} decisions (for Composite and fixed agents): {', '.join(table)}")
     return 0
