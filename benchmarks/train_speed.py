@@ -1,0 +1,77 @@
+"""Training speed of the PPO trainer: env-steps/s and where the time goes, per model size.
+
+    python benchmarks/train_speed.py [--scenario paper-64] [--models small,paper] [--threads 1,2]
+                                     [--updates 2] [--num-envs 32] [--num-steps 32] [--json out.json]
+
+For each model and thread count: one warm-up update (compiles, allocates), then
+``--updates`` timed updates of the real trainer (``wfbench.train.ppo.Trainer``: rollout
+and PPO update, 2 epochs x 2 minibatches), split into the simulator (step and observe,
+the heuristic parts of the dispatch variant included), observation -> tensors, the
+rollout forward pass with sampling, and the update (forward and backward over the
+rollout). Checkpoints and public-seed scoring are off. Numbers go to docs/performance.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+
+import torch
+
+from policies.neural.model import count_parameters
+from wfbench.train.ppo import TrainConfig, Trainer
+
+
+def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int, num_steps: int) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg = TrainConfig(scenario=scenario, model=model, num_envs=num_envs, num_steps=num_steps,
+                          steps=num_envs * num_steps * (updates + 1), eval_every=0, checkpoint_every=10**9,
+                          run_dir=tmp, threads=threads, device="cpu")
+        tr = Trainer(cfg, progress=False, log=False)
+        tr.learn(tr.rollout())  # warm-up
+        for k in tr.timing:
+            tr.timing[k] = 0.0
+        t0, steps0 = time.perf_counter(), tr.global_step
+        for _ in range(updates):
+            tr.learn(tr.rollout())
+        wall = time.perf_counter() - t0
+        steps = tr.global_step - steps0
+    return {"scenario": scenario, "model": model, "parameters": count_parameters(tr.model), "threads": threads,
+            "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
+            **{f"{k}_share": v / wall for k, v in tr.timing.items()}}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="paper-64")
+    ap.add_argument("--models", default="small,paper")
+    ap.add_argument("--threads", default="1,2")
+    ap.add_argument("--updates", type=int, default=2)
+    ap.add_argument("--num-envs", type=int, default=32)
+    ap.add_argument("--num-steps", type=int, default=32)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    rows = []
+    for model in a.models.split(","):
+        for threads in (int(t) for t in a.threads.split(",")):
+            r = measure(a.scenario, model, threads, a.updates, a.num_envs, a.num_steps)
+            rows.append(r)
+            print(f"{r['scenario']:9s} {r['model']:6s} {r['parameters']:>8,d} params  threads {threads}  "
+                  f"{r['env_steps_per_s']:7.0f} env-steps/s  simulator {r['simulator_share']:.0%}  "
+                  f"obs->tensor {r['obs_to_tensor_share']:.0%}  forward {r['forward_share']:.0%}  "
+                  f"update {r['update_share']:.0%}", flush=True)
+    machine = {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+               "torch": torch.__version__, "load_avg_1min": os.getloadavg()[0]}
+    print(json.dumps(machine))
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump({"machine": machine, "rows": rows, "num_envs": a.num_envs, "num_steps": a.num_steps}, fh,
+                      indent=2)
+
+
+if __name__ == "__main__":
+    main()
