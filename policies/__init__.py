@@ -4,8 +4,9 @@ Modules, bottom up (each imports only those before it): ``kernels`` (compiled de
 rules), ``protocol`` (the policy protocol and shared helpers), ``builtin`` (one decision
 by a kernel), ``solver`` (solver-backed decisions), ``decisions`` (the per-decision
 table), ``composite``, ``registry`` (names and entry points), ``rollout`` (whole
-episodes compiled). ``docs/design.md`` draws the layers; ``docs/policies.md`` is the
-protocol for your own policy.
+episodes compiled); ``tunable`` declares each kernel's tunable parameters and ranges,
+``tuned`` reads and writes tuned-policy files (``wfbench tune``). ``docs/design.md``
+draws the layers; ``docs/policies.md`` is the protocol for your own policy.
 """
 
 from policies.builtin import BuiltinDecision

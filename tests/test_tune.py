@@ -220,3 +220,27 @@ def test_cli_mistakes_are_one_line_and_exit_2(tmp_path, monkeypatch, capsys, arg
     err = capsys.readouterr().err
     assert err.startswith("wfbench: error: ") and message in err and len(err.strip().splitlines()) == 1
     assert "Traceback" not in err and not (tmp_path / "s.db").exists()
+
+
+def test_cli_ctrl_c_keeps_the_trials_and_the_same_command_resumes(tmp_path, monkeypatch, capsys):
+    cfg = tmp_path / "small60.toml"
+    cfg.write_text(SMALL.to_toml())
+    argv = ["tune", "heuristic", "--scenario", str(cfg), "--trials", "3", "--seeds", SEEDS, "--params",
+            "workforce.high", "--study-db", str(tmp_path / "c.db"), "--out", str(tmp_path / "c.json"),
+            "--backend", "serial", "--no-progress"]
+    real, calls = tune_mod.evaluate, {"n": 0}
+
+    def ctrl_c_on_second(*a, **kw):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real(*a, **kw)
+
+    monkeypatch.setattr(tune_mod, "evaluate", ctrl_c_on_second)
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert "interrupted" in err and "run the same command again to resume" in err and str(tmp_path / "c.db") in err
+    assert not (tmp_path / "c.json").exists()
+    monkeypatch.setattr(tune_mod, "evaluate", real)
+    assert main(argv) == 0
+    assert "3 trials (2 new)" in capsys.readouterr().out
