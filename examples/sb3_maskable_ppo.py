@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     args = ap.parse_args(argv)
     torch.set_num_threads(1)  # small networks: threads cost more than they give
 
-    env = WorkforceVecEnv(args.scenario, args.envs, kind="dispatch", seed=TRAIN_START + args.seed * args.envs)
+    env = WorkforceVecEnv(args.scenario, args.envs, kind="dispatch")
     model = MaskablePPO(
         "MultiInputPolicy", env, n_steps=64, batch_size=256, n_epochs=4, learning_rate=3e-4, gamma=0.99,
         seed=args.seed, device="cpu", verbose=0,
@@ -47,6 +47,9 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
                        "features_extractor_kwargs": {"hidden": 32, "features_dim": 64},
                        "net_arch": [64]},
     )
+    # SB3 seeds the environments with the model's seed (env.seed(seed): seeds seed + i, test
+    # seeds here); training episodes belong on the train set, so seed them after the model
+    env.seed(TRAIN_START + args.seed * args.envs)
     start = time.perf_counter()
     model.learn(args.timesteps)
     train_s = time.perf_counter() - start

@@ -63,6 +63,15 @@ def test_masked_reset_restarts_only_the_masked_environments():
         assert np.array_equal(obs2[k][1], fresh[k][0]), k
 
 
+def test_dispatch_kind_refuses_a_reset_of_part_of_its_batch():
+    env = WorkforceVectorEnv(CONFIG, 2, kind="dispatch")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="reset_mask of all True"):
+        env.reset(options={"reset_mask": np.array([True, False])})
+    _, info = env.reset(seed=[8, 9], options={"reset_mask": np.array([True, True])})
+    assert info["seed"].tolist() == [8, 9]
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"num_envs": 0}, r"num_envs = 0 is not allowed; allowed: an integer >= 1"),
     ({"kind": "joint"}, r"kind 'joint' is not allowed; allowed: workforce, dispatch"),

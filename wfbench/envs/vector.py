@@ -22,7 +22,11 @@ reward are those of the single environments (``docs/sb3.md``):
   convention; the observation carries ``dispatch_mask`` and ``workforce_mask`` too.
 - ``kind="dispatch"``: the workforce and positioning decisions are made by built-in
   policies acting on the whole batch at once (``fixed``, default the paper's
-  heuristics); they are told the batch's seeds again after every autoreset.
+  heuristics). They keep memory per environment and the policy protocol has no reset
+  of part of a batch, so these environments are always reset together (``reset_mask``
+  must be all True); they start together and end together at the horizon, so the
+  autoreset is always of the whole batch, after which the policies are told the new
+  seeds (``reset(seeds)``).
 """
 
 from __future__ import annotations
@@ -91,6 +95,10 @@ class WorkforceVectorEnv(VectorEnv):
             if mask.dtype != bool or mask.shape != (self.num_envs,):
                 raise ValueError(f"options['reset_mask'] has dtype {mask.dtype} and shape {mask.shape}; "
                                  f"allowed: a boolean array of shape ({self.num_envs},)")
+            if self.fixed and not mask.all():
+                raise ValueError("kind='dispatch' resets its environments together: the fixed policies keep "
+                                 "memory per environment (cooldowns, smoothed demand) that a reset of part of "
+                                 "their batch would wipe; allowed: a reset_mask of all True, or kind='workforce'")
             idx = np.flatnonzero(mask)
         else:
             idx = np.arange(self.num_envs)
