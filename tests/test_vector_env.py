@@ -153,3 +153,40 @@ def test_the_vector_env_and_the_core_never_import_torch():
              "print('torch' in sys.modules, 'stable_baselines3' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["False", "False"], out
+
+
+def test_sb3_wrappers_see_whole_episodes_through_the_adapter():
+    from stable_baselines3.common.vec_env import VecCheckNan, VecMonitor
+
+    from wfbench.envs.sb3 import WorkforceVecEnv
+
+    env = VecCheckNan(VecMonitor(WorkforceVecEnv(CONFIG, 2, kind="dispatch", seed=3)), raise_exception=True)
+    env.reset()
+    total, episodes = np.zeros(2), []
+    for _ in range(CONFIG.horizon):
+        masks = np.stack(env.env_method("action_masks")).reshape(2, CONFIG.max_facilities, -1)
+        _, r, done, infos = env.step(masks.shape[-1] - 1 - np.argmax(masks[..., ::-1], axis=-1))
+        total += r
+        episodes += [info["episode"] for info in infos if "episode" in info]
+    assert done.all() and len(episodes) == 2
+    assert [e["l"] for e in episodes] == [CONFIG.horizon] * 2
+    assert np.allclose([e["r"] for e in episodes], total, atol=1e-4)
+
+
+def test_plain_ppo_on_the_joint_kind_plays_all_three_decisions_in_evaluate():
+    from stable_baselines3 import PPO
+
+    from wfbench.envs.sb3 import EntitySetExtractor, SB3Policy, WorkforceVecEnv
+
+    env = WorkforceVecEnv(CONFIG, 2, seed=1_000_000)
+    model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=16, n_epochs=1, seed=0, device="cpu",
+                policy_kwargs={"features_extractor_class": EntitySetExtractor,
+                               "features_extractor_kwargs": {"hidden": 8, "features_dim": 16}})
+    model.learn(16)
+    policy = SB3Policy(model, CONFIG)
+    assert policy.decisions == ("dispatch", "workforce", "positioning") and not policy._masked
+    df = wfbench.evaluate(policy, CONFIG, seeds=[0, 1])
+    again = wfbench.evaluate(policy, CONFIG, seeds=[0, 1])
+    assert df.equals(again), "a deterministic policy gave two results"
+    assert df["hires"].sum() + df["releases"].sum() + df["invalid_hire_no_slot"].sum() \
+        + df["invalid_release_none"].sum() > 0, "the workforce decision never acted"

@@ -22,6 +22,7 @@ or in ``wfbench.envs`` imports it, so ``import wfbench`` never loads torch.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Sequence
 from typing import Any
 
@@ -199,7 +200,7 @@ class SB3Policy:
         self.M, self.N = self.config.max_facilities, self.config.max_personnel
         self.decisions = ("dispatch", "workforce", "positioning") if kind == "workforce" else ("dispatch",)
         self._keys = tuple(model.observation_space.spaces)
-        self._masked = "action_masks" in model.predict.__code__.co_varnames
+        self._masked = "action_masks" in inspect.signature(model.predict).parameters  # MaskablePPO
 
     def reset(self, seeds: Sequence[int]) -> None:
         pass
