@@ -18,11 +18,11 @@ def same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(a[k].dtype == b[k].dtype and a[k].tobytes() == b[k].tobytes() for k in a)
 
 
-@pytest.mark.parametrize("kind", ["workforce", "dispatch"])
-def test_vector_env_replays_sync_vector_env_of_the_single_env(kind):
+@pytest.mark.parametrize("kind, reward", [("workforce", "nsw"), ("dispatch", "nsw"), ("dispatch", "nsw-no-cost")])
+def test_vector_env_replays_sync_vector_env_of_the_single_env(kind, reward):
     B = 3
-    ours = WorkforceVectorEnv(CONFIG, B, kind=kind)
-    ref = SyncVectorEnv([lambda: SINGLE[kind](CONFIG)] * B, autoreset_mode=AutoresetMode.SAME_STEP)
+    ours = WorkforceVectorEnv(CONFIG, B, kind=kind, reward=reward)
+    ref = SyncVectorEnv([lambda: SINGLE[kind](CONFIG, reward=reward)] * B, autoreset_mode=AutoresetMode.SAME_STEP)
     assert ours.single_observation_space == ref.single_observation_space
     assert ours.single_action_space == ref.single_action_space
     assert ours.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
