@@ -194,3 +194,21 @@ def test_rl__importing_wfbench_and_policies_does_not_import_torch():
     code = "import sys, wfbench, policies, wfbench.cli; policies.names(); assert 'torch' not in sys.modules"
     run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
+
+
+def test_rl__episodes_are_staggered_by_partial_reset(tmp_path):
+    tr = Trainer(_cfg(tmp_path, num_steps=20), progress=False, log=False)  # small: horizon 200, B = 4
+    assert list(tr.cut) == [50, 100, 150, 200]
+    seeds0 = tr.sim.seeds.copy()
+    dones = []
+    for _ in range(8):  # 160 steps: envs 0, 1, 2 cut at 50, 100, 150
+        roll = tr.rollout()
+        dones.append(roll["done"])
+    t = tr.sim.state.t
+    assert t.tolist() == [110, 60, 10, 160]  # the environments are at different steps of their episodes
+    done = torch.cat(dones).numpy()
+    assert done[:, 0].sum() == 1 and done[:, 3].sum() == 0  # env 0 cut at step 50, env 3 still in its first
+    assert np.flatnonzero(done[:, 0])[0] == 49 and tr.sim.seeds[0] not in seeds0  # onto a fresh train seed
+    assert tr.sim.seeds[0] >= 1_000_000
+    sync = Trainer(_cfg(tmp_path / "s", stagger=False), progress=False, log=False)
+    assert list(sync.cut) == [200] * 4

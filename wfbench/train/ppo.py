@@ -10,10 +10,16 @@ The loop, per update::
              T of their steps, so the LSTM is rerun from the state it had at the rollout's start);
              clipped policy objective, clipped value loss, entropy bonus, global gradient clipping
 
-Episodes are synchronized: the B environments start together and end together at the
-horizon, and then a new Simulator is made on the next B seeds of the ``train`` set
-(``wfbench.seeds``), the LSTM state is reset (the ``starts`` flags), and the returns do
-not bootstrap across the boundary.
+Episodes (``stagger``, the default for ``joint``) are staggered by partial reset: the
+first episode of environment b is cut after (b + 1) / B of the horizon, and from then on
+every environment that reaches the horizon is reset alone onto the next seed of the
+``train`` set (``wfbench.seeds``) with ``Simulator.reset(indices, seeds)``, so a rollout
+mixes every phase of the episode. The ``dispatch`` variant (whose heuristic parts keep
+per-environment memory that resets with the batch) and ``stagger=False`` run synchronized
+episodes: the B environments end together and a new Simulator is made on the next B
+training seeds. Either way the LSTM state is reset where an episode starts (the
+``starts`` flags) and the returns do not bootstrap across an episode's end. Only whole
+episodes are logged (``episode/*``), not the cut first ones.
 
 Rewards (documented in docs/rl.md):
 
@@ -89,6 +95,7 @@ class TrainConfig:
     reward_offset: float = 0.7
     reward_scale: float = 10.0
     normalize_returns: bool = True
+    stagger: bool = True  # joint: staggered episodes by partial reset (dispatch: always synchronized)
     seed: int = 0
     device: str = "auto"  # auto | cpu | cuda
     bf16: bool = True  # CUDA only
@@ -187,7 +194,9 @@ class Trainer:
         self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=1e-5)
         self.gen = torch.Generator(device=self.device).manual_seed(c.seed)
         self.ret_std = RunningStd()
-        self.update, self.global_step, self.episode = 0, 0, 0
+        self.update, self.global_step, self.episode, self.seed_cursor = 0, 0, 0, 0
+        # the heuristic parts of the dispatch variant keep per-environment memory: they reset with the batch
+        self.staggered = c.stagger and c.variant == "joint"
         self.best = {"score": -math.inf, "update": None}
         self.history: list[dict] = []
         self.progress, self.log = progress, log
@@ -199,14 +208,20 @@ class Trainer:
         self._new_episode()
 
     # -- environments -------------------------------------------------------------------------
-    def _train_seeds(self, episode: int) -> list[int]:
-        B = self.cfg.num_envs
-        start = (self.cfg.seed * 1_000_003 + episode * B) % (len(SEED_SETS["train"]) - B)
-        return list(SEED_SETS["train"][start:start + B])
+    def _take_seeds(self, k: int) -> list[int]:
+        """The next ``k`` seeds of the ``train`` set for this run (a window per run seed, then onwards)."""
+        train = SEED_SETS["train"]
+        start = (self.cfg.seed * 1_000_003 + self.seed_cursor) % (len(train) - k)
+        self.seed_cursor += k
+        return list(train[start:start + k])
 
     def _new_episode(self) -> None:
-        self.sim = Simulator(self.scenario, self._train_seeds(self.episode), keep_series=False, threads=1)
+        self.sim = Simulator(self.scenario, self._take_seeds(self.cfg.num_envs), keep_series=False, threads=1)
         self.obs = self.sim.reset()
+        # staggered episodes: environment b's first episode is cut after (b + 1) / B of the horizon, so
+        # that from then on the environments are spread over the whole episode
+        H, B = self.scenario.horizon, self.sim.B
+        self.cut = (H * (np.arange(B) + 1)) // B if self.staggered else np.full(B, H)
         self.helper = None
         if self.cfg.variant == "dispatch":  # the heuristic workforce and positioning it is trained with
             self.helper = policies.Composite("none", "threshold", "spatial")
@@ -258,22 +273,31 @@ class Trainer:
             buf["value"].append(out["value"].float())
             nsw, self.obs = self.sim.step_observe(action)
             reward = self._reward(nsw)
-            done = self.sim.done
+            ended = self.sim.dones | (self.sim.state.t >= self.cut)  # (B,) episodes over after this step
             self.global_step += B
             if c.normalize_returns:
                 self.ret = self.ret * c.gamma + reward
                 self.ret_std.update(self.ret)
                 reward = reward / self.ret_std.std
+                self.ret[ended] = 0.0
             buf["reward"].append(torch.as_tensor(reward, dtype=torch.float32, device=dev))
-            buf["done"].append(torch.full((B,), float(done), device=dev))
-            if done:
-                means = self.sim.episode_means()
-                episodes.append({k: float(np.mean(means[k])) for k in ("nsw", "workforce_cost", "utilization",
-                                                                       "downtime")})
-                self.episode += 1
-                self._new_episode()
-            else:
-                self.starts = torch.zeros(B, device=dev)
+            buf["done"].append(torch.as_tensor(ended, dtype=torch.float32, device=dev))
+            if ended.any():
+                full = self.sim.dones  # whole episodes only in the logs (not the cut first ones)
+                if full.any():
+                    means = self.sim.episode_means()
+                    episodes.append({k: float(np.mean(means[k][full])) for k in ("nsw", "workforce_cost",
+                                                                                 "utilization", "downtime")})
+                self.episode += int(ended.sum())
+                if ended.all() and not self.staggered:
+                    self._new_episode()
+                else:  # partial reset onto fresh training seeds
+                    idx = np.flatnonzero(ended)
+                    self.obs = self.sim.reset(indices=idx, seeds=self._take_seeds(len(idx)))
+                    self.cut[idx] = self.scenario.horizon
+                    self.state = tuple(s * torch.as_tensor(~ended, dtype=s.dtype, device=dev).view(1, -1, 1)
+                                       for s in self.state)
+            self.starts = torch.as_tensor(ended, dtype=torch.float32, device=dev)
             t3 = time.perf_counter()
             self.timing["obs_to_tensor"] += t1 - t0
             self.timing["forward"] += t2 - t1
@@ -372,6 +396,7 @@ class Trainer:
             "update": self.update,
             "global_step": self.global_step,
             "episode": self.episode,
+            "seed_cursor": self.seed_cursor,
             "git_commit": git_commit(),
             "best": self.best,
             "history": self.history,
@@ -404,6 +429,7 @@ class Trainer:
         self.gen.set_state(ckpt["generator"].to(self.gen.device) if self.cuda else ckpt["generator"])
         torch.set_rng_state(ckpt["torch_rng"])
         self.update, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
+        self.seed_cursor = ckpt.get("seed_cursor", 0)
         self.best, self.history = ckpt["best"], ckpt["history"]
 
     # -- the loop -----------------------------------------------------------------------------
