@@ -212,3 +212,15 @@ def test_rl__episodes_are_staggered_by_partial_reset(tmp_path):
     assert tr.sim.seeds[0] >= 1_000_000
     sync = Trainer(_cfg(tmp_path / "s", stagger=False), progress=False, log=False)
     assert list(sync.cut) == [200] * 4
+
+
+def test_rl__init_starts_from_a_checkpoints_weights(tmp_path):
+    first = Trainer(_cfg(tmp_path / "a", steps=32), progress=False, log=False)
+    first.train()
+    ckpt = tmp_path / "a" / "run" / "latest.pt"
+    second = Trainer(_cfg(tmp_path / "b", seed=9, init=str(ckpt)), progress=False, log=False)
+    for k, v in first.model.state_dict().items():
+        assert torch.equal(v, second.model.state_dict()[k]), k
+    assert second.update == 0 and second.global_step == 0  # a new run, not a resume
+    with pytest.raises(ValueError, match="is not this run's"):
+        Trainer(_cfg(tmp_path / "c", model="small", init=str(ckpt)), progress=False, log=False)

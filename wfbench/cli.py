@@ -249,6 +249,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--eval-seeds", type=_seeds, default=None,
                     help="public seeds that select the checkpoint (default public:10; test seeds are refused)")
     tr.add_argument("--run-dir", default=None, help="folder of the run (default runs/ppo-VARIANT-SCENARIO)")
+    tr.add_argument("--init", default=None, metavar="CKPT",
+                    help="start from the network weights of a checkpoint (a new run: fresh optimizer and counters)")
+    tr.add_argument("--gae-lambda", type=float, default=None, help="GAE lambda (default 0.95)")
     tr.add_argument("--resume", default=None, metavar="CKPT",
                     help="continue a run from its checkpoint (latest.pt); its settings are kept, --steps may raise "
                          "the total")
@@ -545,7 +548,7 @@ _TRAIN_FLAGS = {"variant": "variant", "scenario": "scenario", "steps": "steps", 
                 "num_envs": "num_envs", "num_steps": "num_steps", "epochs": "epochs", "minibatches": "minibatches",
                 "lr": "lr", "ent_coef": "ent_coef", "seed": "seed", "device": "device", "threads": "threads",
                 "checkpoint_every": "checkpoint_every", "eval_every": "eval_every", "eval_seeds": "eval_seeds",
-                "run_dir": "run_dir"}
+                "run_dir": "run_dir", "init": "init", "gae_lambda": "gae_lambda"}
 
 
 def cmd_train(args: argparse.Namespace) -> int:

@@ -105,6 +105,7 @@ class TrainConfig:
     eval_every: int = 20  # updates; 0: never
     eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
     run_dir: str = "runs/ppo"
+    init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
     model_overrides: dict = field(default_factory=dict)
 
     def validate(self) -> None:
@@ -202,6 +203,12 @@ class Trainer:
         self.progress, self.log = progress, log
         self.run_dir = Path(c.run_dir)
         self.timing = {"simulator": 0.0, "obs_to_tensor": 0.0, "forward": 0.0, "update": 0.0}
+        if c.init and resume is None:
+            start = load_checkpoint(c.init, str(self.device))
+            if start["model_config"] != self.mcfg.to_dict():
+                raise ValueError(f"--init {c.init!r}: its network ({start['model_config']}) is not this run's "
+                                 f"--model {c.model} / --variant {c.variant}")
+            self.model.load_state_dict(start["model"])
         if resume is not None:
             self._load(resume)
         self.net = torch.compile(self.model) if (c.compile and self.cuda) else self.model
