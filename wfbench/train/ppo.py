@@ -202,6 +202,7 @@ class Trainer:
         self.history: list[dict] = []
         self.progress, self.log = progress, log
         self.run_dir = Path(c.run_dir)
+        self.commit = git_commit()  # the code this run started from (a resumed run keeps its first)
         self.timing = {"simulator": 0.0, "obs_to_tensor": 0.0, "forward": 0.0, "update": 0.0}
         if c.init and resume is None:
             start = load_checkpoint(c.init, str(self.device))
@@ -404,7 +405,7 @@ class Trainer:
             "global_step": self.global_step,
             "episode": self.episode,
             "seed_cursor": self.seed_cursor,
-            "git_commit": git_commit(),
+            "git_commit": self.commit,
             "best": self.best,
             "history": self.history,
             "default_mode": "sample",
@@ -437,6 +438,7 @@ class Trainer:
         torch.set_rng_state(ckpt["torch_rng"])
         self.update, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
         self.seed_cursor = ckpt.get("seed_cursor", 0)
+        self.commit = ckpt.get("git_commit", self.commit)
         self.best, self.history = ckpt["best"], ckpt["history"]
 
     # -- the loop -----------------------------------------------------------------------------
@@ -448,7 +450,7 @@ class Trainer:
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         (self.run_dir / "config.json").write_text(json.dumps(
-            {**asdict(c), "git_commit": git_commit(), "parameters": count_parameters(self.model),
+            {**asdict(c), "git_commit": self.commit, "parameters": count_parameters(self.model),
              "device": str(self.device), "model_config": self.mcfg.to_dict()}, indent=2))
         writer = None
         if self.log:
