@@ -23,10 +23,27 @@ import wfbench  # noqa: E402
 from wfbench.seeds import resolve_seeds  # noqa: E402
 
 
-def scalars(run: Path) -> dict[str, list[tuple[int, float]]]:
+def scalars(run: Path, offset: int = 0) -> dict[str, list[tuple[int, float]]]:
     ea = EventAccumulator(str(run / "tb"), size_guidance={"scalars": 0})
     ea.Reload()
-    return {tag: [(e.step, e.value) for e in ea.Scalars(tag)] for tag in ea.Tags()["scalars"]}
+    out = {tag: [(e.step + offset, e.value) for e in ea.Scalars(tag)] for tag in ea.Tags()["scalars"]}
+    # staggered runs log several episodes per update: one mean per update
+    for tag in [t for t in out if t.startswith("episode/")]:
+        by: dict[int, list[float]] = {}
+        for step, v in out[tag]:
+            by.setdefault(step, []).append(v)
+        out[tag] = [(k, sum(v) / len(v)) for k, v in sorted(by.items())]
+    return out
+
+
+def init_offset(cfg: dict) -> int:
+    """A run started with --init continues the steps of the checkpoint it started from (and of its own start)."""
+    if not cfg.get("init"):
+        return 0
+    import torch
+
+    start = torch.load(cfg["init"], map_location="cpu", weights_only=False)
+    return int(start["global_step"]) + init_offset(start["train_config"])  # a chain of --init runs adds up
 
 
 def main() -> None:
@@ -35,24 +52,26 @@ def main() -> None:
     ap.add_argument("--out", default="docs/img/rl-curve.png")
     a = ap.parse_args()
     fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharex=True)
-    for run in map(Path, a.runs):
+    for i, run in enumerate(map(Path, a.runs)):
+        color = f"C{i}"
         cfg = json.loads((run / "config.json").read_text())
-        s = scalars(run)
-        label = f"{cfg['variant']} ({cfg['model']})"
+        offset = init_offset(cfg)
+        s = scalars(run, offset)
+        label = f"{cfg['variant']} ({cfg['model']}, {run.name})"
         for col, (tag, wtag) in enumerate((("episode/nsw", "episode/workforce_cost"),
                                            ("public/nsw_sample", "public/workforce_cost_sample"))):
             if tag in s:
-                axes[0, col].plot(*zip(*s[tag], strict=True), marker="o", ms=3, label=f"{label} sampled"
-                                  if col else label)
+                axes[0, col].plot(*zip(*s[tag], strict=True), marker="o", ms=3, color=color,
+                                  label=f"{label} sampled" if col else label)
             if wtag in s:
-                axes[1, col].plot(*zip(*s[wtag], strict=True), marker="o", ms=3, label=label)
+                axes[1, col].plot(*zip(*s[wtag], strict=True), marker="o", ms=3, color=color, label=label)
         if "public/nsw_greedy" in s:
-            axes[0, 1].plot(*zip(*s["public/nsw_greedy"], strict=True), ls="--", marker="x", ms=3,
-                            label=f"{label} greedy")
-        seeds = resolve_seeds(cfg["eval_seeds"])
-        ref = wfbench.evaluate("heuristic", cfg["scenario"], seeds, backend="serial")
-        axes[0, 1].axhline(ref["nsw"].mean(), color="grey", ls=":", label="heuristic (same seeds)")
-        axes[1, 1].axhline(ref["workforce_cost"].mean(), color="grey", ls=":", label="heuristic")
+            axes[0, 1].plot(*zip(*s["public/nsw_greedy"], strict=True), ls="--", marker="x", ms=3, color=color,
+                            alpha=0.6, label=f"{label} greedy")
+    seeds = resolve_seeds(cfg["eval_seeds"])
+    ref = wfbench.evaluate("heuristic", cfg["scenario"], seeds, backend="serial")
+    axes[0, 1].axhline(ref["nsw"].mean(), color="grey", ls=":", label="heuristic (same seeds)")
+    axes[1, 1].axhline(ref["workforce_cost"].mean(), color="grey", ls=":", label="heuristic")
     axes[0, 0].set_title("training episodes (train seeds)")
     axes[0, 1].set_title(f"selection seeds ({cfg['eval_seeds']})")
     axes[0, 0].set_ylabel("mean NSW (higher is better)")
