@@ -1,0 +1,597 @@
+"""Hindsight learning: the joint model trained by imitation of the hindsight oracle, DAgger-style (one file).
+
+After Sinclair et al., "Hindsight Learning for MDPs with Exogenous Inputs" (ICML 2023):
+the exogenous future of a training episode (failures, repairs, arrivals) is a pure
+function of its seed, so on *training* seeds a planner may read it and say what it
+would do; the network, which never reads it, learns to do the same from what it
+observes. The teacher is the full ``oracle`` of ``docs/hindsight.md`` (one
+:class:`~policies.hindsight.planner.Planner` deciding dispatch, workforce and
+positioning by exact look-ahead).
+
+The loop, per iteration i::
+
+    collect: T-step chunks of B environments of a Simulator on train seeds (synchronized
+             episodes; a new Simulator on the next B seeds when they end). Per step:
+               label  = planner.act(obs)          the oracle's joint action in this state
+               learner = network(obs), sampled     (the LSTM state carried step to step)
+               action = label with probability beta_i, else the learner's (per environment)
+               planner.record(action); sim.step_observe(action)
+    aggregate: each environment's chunk (T steps of raw observations, episode starts,
+             the labels, the LSTM state at the chunk's first step) goes into a FIFO
+             dataset of at most ``dataset_steps`` steps
+    train:   ``grad_steps`` Adam steps on minibatches of ``batch_seqs`` whole sequences
+             sampled from the dataset; the LSTM is rerun from each sequence's stored
+             state (as ``wfbench.train.ppo`` does), the first ``burn_in`` steps only
+             warm it up (unless an episode starts within them); the loss is the
+             negative log-probability of the label under each head's masked
+             distribution (``policies.neural.dist.log_prob_entropy``), a weight per head
+
+``beta_i = beta0 * beta_decay ** i``: with the defaults iteration 0 follows the oracle
+alone and later ones mostly the learner, so the states the network is trained on are
+the states its own policy visits (DAgger), while every label is still the oracle's.
+
+How the oracle is asked about the learner's state: the planner keeps a *shadow*
+simulator of the episode and steps it with the joint action it is told through
+``record``; ``act`` checks (bit for bit) that the shadow shows the observation it is
+given, then plans from the shadow's state by forking it. Recording the action the
+episode really took (the mixture's, not the oracle's) keeps the shadow on the
+learner's trajectory, so ``act`` answers for the learner's state. Its base kernels
+(nearest dispatch, spatial averaging) keep memory built from observations only, so
+that memory is the one it would have in this episode too. ``tests/test_hindsight_learning.py``
+replays the executed actions through a fresh oracle and checks every label.
+
+Labels are the oracle's actions as the network's heads express them: the dispatch row
+as it is (sanitized: a pick the masks forbid, which the oracle never makes, would
+become the no-op and is counted), the workforce code as it is (the oracle decides every
+``workforce_every`` steps and takes the no-op in between, so the network learns the
+per-step rate of its decisions), and for positioning the facility of largest weight in
+each row of the oracle's map (its own maps put weight 1 on one facility).
+
+Checkpoints are those of ``wfbench.train.ppo`` (``model``, ``model_config``,
+``variant``, ``default_mode``...), so ``ppo:RUN/best.pt`` loads one as a policy and
+``wfbench train --algo ppo --init RUN/best.pt`` fine-tunes it with PPO. ``RUN/best.pt``
+is the iterate with the highest mean NSW on the **public** seeds (``eval_seeds``; test
+seeds are refused), sampled mode. Resume restores the weights, the optimizer, the random
+states and the counters, not the dataset (it restarts empty, like PPO's episodes).
+On CPU a run is deterministic given ``seed``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from policies.hindsight.planner import Planner
+from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
+from policies.neural.model import OBS_KEYS, WorkforceNet, count_parameters, featurize, model_config, obs_to_torch
+from policies.neural.policy import load_checkpoint
+from wfbench.config import ScenarioConfig
+from wfbench.evaluation import evaluate
+from wfbench.seeds import SEED_SETS, resolve_seeds
+from wfbench.simulator import AGENTS, Simulator
+from wfbench.train.ppo import deployable, git_commit
+
+VARIANTS = ("joint",)
+HEADS = ("dispatch", "workforce", "positioning")
+ROLLOUT_MODES = ("sample", "greedy")
+
+
+@dataclass
+class HindsightConfig:
+    """Every setting of a run; saved as ``config.json`` in the run directory and in each checkpoint."""
+
+    scenario: str = "paper-64"
+    variant: str = "joint"  # the oracle teaches all three decisions
+    model: str = "cpu"  # policies.neural.model.PRESETS
+    steps: int = 200_000  # environment steps collected in all (B per simulator step)
+    iter_steps: int = 8192  # environment steps collected per DAgger iteration (rounded up to whole chunks)
+    num_envs: int = 16  # B
+    num_steps: int = 32  # T: steps per stored sequence
+    burn_in: int = 8  # first steps of a sequence that only warm up the LSTM (no loss)
+    beta0: float = 1.0  # probability of the oracle's action at iteration 0
+    beta_decay: float = 0.3  # beta_i = beta0 * beta_decay ** i
+    rollout_mode: str = "sample"  # the learner's actions while collecting: sample | greedy
+    dataset_steps: int = 100_000  # cap of the aggregated dataset (oldest sequences dropped first)
+    grad_steps: int = 100  # Adam steps per iteration
+    batch_seqs: int = 32  # sequences per minibatch
+    lr: float = 1e-3
+    max_grad_norm: float = 1.0
+    dispatch_weight: float = 1.0  # weights of each head's negative log-likelihood
+    workforce_weight: float = 1.0
+    positioning_weight: float = 1.0
+    oracle: dict = field(default_factory=dict)  # Planner settings (dispatch_horizon, workforce_every, ...)
+    seed: int = 0
+    device: str = "auto"  # auto | cpu | cuda
+    bf16: bool = True  # CUDA only
+    threads: int = 1  # torch CPU threads
+    checkpoint_every: int = 1  # iterations
+    eval_every: int = 1  # iterations; 0: never
+    eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
+    run_dir: str = "runs/hindsight"
+    init: str = ""  # a checkpoint whose network weights start this run
+    model_overrides: dict = field(default_factory=dict)
+
+    @property
+    def chunk_steps(self) -> int:
+        return self.num_envs * self.num_steps
+
+    @property
+    def chunks_per_iter(self) -> int:
+        return math.ceil(self.iter_steps / self.chunk_steps)
+
+    @property
+    def iterations(self) -> int:
+        return math.ceil(self.steps / (self.chunks_per_iter * self.chunk_steps))
+
+    def validate(self) -> None:
+        if self.variant not in VARIANTS:
+            raise ValueError(f"variant {self.variant!r} is not allowed; allowed: {', '.join(VARIANTS)} "
+                             "(the oracle teaches all three decisions)")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
+        if self.device == "cuda" and not torch.cuda.is_available():
+            raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
+        if self.rollout_mode not in ROLLOUT_MODES:
+            raise ValueError(f"rollout_mode {self.rollout_mode!r} is not allowed; allowed: {', '.join(ROLLOUT_MODES)}")
+        for name in ("steps", "iter_steps", "num_envs", "num_steps", "dataset_steps", "grad_steps", "batch_seqs",
+                     "threads", "checkpoint_every"):
+            v = getattr(self, name)
+            if type(v) is not int or v < 1:
+                raise ValueError(f"{name} = {v!r} is not allowed; allowed: an integer >= 1")
+        if type(self.eval_every) is not int or self.eval_every < 0:
+            raise ValueError(f"eval_every = {self.eval_every!r} is not allowed; allowed: an integer >= 0 (0: never)")
+        if type(self.burn_in) is not int or not 0 <= self.burn_in < self.num_steps:
+            raise ValueError(f"burn_in = {self.burn_in!r} is not allowed; allowed: an integer in "
+                             f"0..num_steps - 1 = {self.num_steps - 1}")
+        for name in ("beta0", "beta_decay"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise ValueError(f"{name} = {v!r} is not allowed; allowed: a number in [0, 1]")
+        for name in ("lr", "max_grad_norm"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} = {getattr(self, name)!r} is not allowed; allowed: a number > 0")
+        weights = [getattr(self, f"{h}_weight") for h in HEADS]
+        if any(not w >= 0.0 for w in weights) or sum(weights) <= 0.0:
+            raise ValueError(f"head weights {dict(zip(HEADS, weights, strict=True))} are not allowed; allowed: "
+                             "numbers >= 0, at least one > 0")
+        if self.dataset_steps < self.chunk_steps:
+            raise ValueError(f"dataset_steps = {self.dataset_steps} is not allowed; allowed: at least one chunk, "
+                             f"num_envs x num_steps = {self.chunk_steps}")
+        ScenarioConfig.resolve(self.scenario)
+        seeds = resolve_seeds(self.eval_seeds)
+        if not set(seeds) <= set(SEED_SETS["public"]):
+            raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
+                             "(1000-1049) only, never on test seeds")
+        Planner(AGENTS, **self.oracle)  # the planner names what it does not allow
+        model_config(self.model, HEADS, **self.model_overrides)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> HindsightConfig:
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
+
+
+def _device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+def oracle_labels(label: dict[str, np.ndarray], obs: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
+    """The oracle's joint action as the network's heads express it, and the count of sanitized dispatch picks.
+
+    Returns dispatch (B, M) int64 (N: nobody), workforce (B,) int64, positioning (B, 2)
+    int64 (per row the active facility of largest weight, the first active one when the
+    row has no weight on any) and the number of dispatch picks the masks forbid (made the no-op).
+    """
+    d = np.array(label["dispatch"], dtype=np.int64, copy=True)
+    B, M = d.shape
+    N = obs["personnel"].shape[1]
+    rows, facs = np.nonzero(d < N)
+    people = d[rows, facs]
+    ok = (obs["requesting"][rows, facs] > 0) & (obs["dispatchable"][rows, people] > 0)
+    # the same person named twice in one environment: only the first (slot order) counts, as in the simulator
+    key = rows * (N + 1) + people
+    first = np.zeros(len(key), dtype=bool)
+    first[np.unique(key, return_index=True)[1]] = True
+    bad = ~(ok & first)
+    d[rows[bad], facs[bad]] = N
+    w = np.asarray(label["workforce"], dtype=np.int64).copy()
+    fac = obs["facility_mask"][:, None, :] > 0
+    weights = np.where(fac, np.asarray(label["positioning"], dtype=np.float64), -1.0)
+    p = weights.argmax(-1).astype(np.int64)  # (B, 2)
+    return d, w, p, int(bad.sum())
+
+
+class Dataset:
+    """The aggregated sequences: a FIFO ring of at most ``capacity`` sequences of T steps (CPU tensors)."""
+
+    def __init__(self, capacity: int, T: int):
+        self.capacity, self.T = capacity, T
+        self.size, self.next = 0, 0
+        self.data: dict[str, torch.Tensor] | None = None
+
+    def add(self, chunk: dict[str, torch.Tensor]) -> None:
+        """``chunk``: tensors with the sequences on axis 0 (S, T, ...) (``h``, ``c``: (S, H))."""
+        S = next(iter(chunk.values())).shape[0]
+        if self.data is None:
+            self.data = {k: torch.zeros((self.capacity, *v.shape[1:]), dtype=v.dtype) for k, v in chunk.items()}
+        idx = (self.next + torch.arange(S)) % self.capacity
+        for k, v in chunk.items():
+            self.data[k][idx] = v
+        self.next = (self.next + S) % self.capacity
+        self.size = min(self.size + S, self.capacity)
+
+    def batch(self, idx: torch.Tensor, device: torch.device) -> dict[str, torch.Tensor]:
+        """The sequences ``idx``, time major: (T, len(idx), ...) (``h``, ``c``: (1, len(idx), H))."""
+        out = {}
+        for k, v in self.data.items():
+            x = v[idx].to(device)
+            out[k] = x[None] if k in ("h", "c") else x.transpose(0, 1)
+        return out
+
+
+class Trainer:
+    """A hindsight-learning run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
+
+    def __init__(self, config: HindsightConfig, resume: str | Path | None = None, progress: bool = True,
+                 log: bool = True):
+        config.validate()
+        self.cfg = c = config
+        self.device = _device(c.device)
+        self.cuda = self.device.type == "cuda"
+        torch.set_num_threads(c.threads)
+        torch.manual_seed(c.seed)
+        self.scenario = ScenarioConfig.resolve(c.scenario)
+        self.mcfg = model_config(c.model, HEADS, **c.model_overrides)
+        self.model = WorkforceNet(self.mcfg).to(self.device)
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr)
+        self.gen = torch.Generator(device=self.device).manual_seed(c.seed)  # the learner's sampling noise
+        self.batch_gen = torch.Generator().manual_seed(c.seed * 7919 + 1)  # minibatch draws
+        self.mix_rng = np.random.default_rng([c.seed, 0x4D1])  # oracle-or-learner draws
+        self.data = Dataset(max(c.dataset_steps // c.num_steps, c.num_envs), c.num_steps)
+        self.iteration, self.global_step, self.episode, self.seed_cursor = 0, 0, 0, 0
+        self.best = {"score": -math.inf, "update": None}
+        self.history: list[dict] = []
+        self.progress, self.log = progress, log
+        self.run_dir = Path(c.run_dir)
+        self.commit = git_commit()
+        self.timing = {"oracle": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0, "evaluate": 0.0}
+        if c.init and resume is None:
+            start = load_checkpoint(c.init, str(self.device))
+            if start["model_config"] != self.mcfg.to_dict():
+                raise ValueError(f"init {c.init!r}: its network ({start['model_config']}) is not this run's "
+                                 f"model {c.model} with all three heads")
+            self.model.load_state_dict(start["model"])
+        if resume is not None:
+            self._load(resume)
+        self.sim = None
+
+    # -- environments -------------------------------------------------------------------------
+    def _take_seeds(self, k: int) -> list[int]:
+        """The next ``k`` seeds of the ``train`` set for this run (a window per run seed, then onwards)."""
+        train = SEED_SETS["train"]
+        start = (self.cfg.seed * 1_000_003 + self.seed_cursor) % (len(train) - k)
+        self.seed_cursor += k
+        return list(train[start:start + k])
+
+    def _new_episode(self) -> None:
+        seeds = self._take_seeds(self.cfg.num_envs)
+        self.sim = Simulator(self.scenario, seeds, keep_series=False, threads=1)
+        self.obs = self.sim.reset()
+        self.planner = Planner(AGENTS, **self.cfg.oracle)  # the registry's "oracle" composite is this planner
+        self.planner.attach(self.scenario)
+        self.planner.reset(seeds)
+        self.state = self.model.initial_state(self.sim.B, self.device)
+        self.starts = torch.ones(self.sim.B, device=self.device)
+
+    def _autocast(self):
+        return torch.autocast(device_type=self.device.type, dtype=torch.bfloat16, enabled=self.cuda and self.cfg.bf16)
+
+    def beta(self, iteration: int | None = None) -> float:
+        i = self.iteration if iteration is None else iteration
+        return self.cfg.beta0 * self.cfg.beta_decay ** i
+
+    # -- collection ---------------------------------------------------------------------------
+    @torch.no_grad()
+    def collect(self, beta: float, record_actions: bool = False) -> dict:
+        """One chunk: T steps of the B environments under the mixture; returns the chunk and its statistics.
+
+        ``record_actions`` also returns, per step, the seeds, the step and the executed
+        and learner's actions (what the tests replay).
+        """
+        c, dev = self.cfg, self.device
+        if self.sim is None:
+            self._new_episode()
+        B, T, M, N = self.sim.B, c.num_steps, self.sim.M, self.sim.N
+        h0, c0 = (s[0].clone().cpu() for s in self.state)
+        raws, starts, labels = [], [], {k: [] for k in HEADS}
+        stats = {"agree_dispatch": [], "agree_workforce": [], "oracle_share": [], "invalid_labels": 0,
+                 "label_hires": 0, "label_releases": 0}
+        episodes, trail = [], []
+        for _ in range(T):
+            if self.sim.done:
+                self._new_episode()
+            t0 = time.perf_counter()
+            raw = obs_to_torch(self.obs, dev)
+            x = featurize(raw, self.mcfg.coord_scale)
+            with self._autocast():
+                out, self.state = self.model(x, self.state, self.starts[None])
+            noise = None
+            if c.rollout_mode == "sample":
+                noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
+            mine = {k: v.cpu().numpy() for k, v in sample(out, x, noise).items()}
+            t1 = time.perf_counter()
+            label = self.planner.act(self.obs)
+            ld, lw, lp, bad = oracle_labels(label, self.obs)
+            t2 = time.perf_counter()
+            use = self.mix_rng.random(B) < beta  # per environment: the oracle's action or the learner's
+            action = {
+                "dispatch": np.where(use[:, None], label["dispatch"], mine["dispatch"]),
+                "workforce": np.where(use, label["workforce"], mine["workforce"]),
+                "positioning": np.where(use[:, None, None], label["positioning"],
+                                        positioning_weights(torch.from_numpy(mine["positioning"]), M).numpy()),
+            }
+            if record_actions:
+                trail.append({"t": int(self.obs["t"][0]), "seeds": self.sim.seeds.copy(), "use_oracle": use,
+                              "action": {k: v.copy() for k, v in action.items()},
+                              "learner": {k: v.copy() for k, v in mine.items()},
+                              "label": {"dispatch": ld, "workforce": lw, "positioning": lp}})
+            raws.append(raw if dev.type == "cpu" else {k: v.cpu() for k, v in raw.items()})
+            starts.append(self.starts.cpu())
+            for k, v in zip(HEADS, (ld, lw, lp), strict=True):
+                labels[k].append(torch.from_numpy(v))
+            choosing = x["dispatch_mask"][..., :N].any(-1).cpu().numpy()
+            if choosing.any():
+                stats["agree_dispatch"].append(float((mine["dispatch"] == ld)[choosing].mean()))
+            stats["agree_workforce"].append(float((mine["workforce"] == lw).mean()))
+            stats["oracle_share"].append(float(use.mean()))
+            stats["invalid_labels"] += bad
+            stats["label_hires"] += int(((lw >= 1) & (lw <= 3)).sum())
+            stats["label_releases"] += int((lw >= 4).sum())
+            self.planner.record(action)  # the shadow follows the episode the learner is in
+            t3 = time.perf_counter()
+            _, self.obs = self.sim.step_observe(action)
+            self.global_step += B
+            self.starts = torch.zeros(B, device=dev)
+            if self.sim.done:
+                means = self.sim.episode_means()
+                episodes.append({k: float(np.mean(means[k])) for k in ("nsw", "workforce_cost", "utilization",
+                                                                         "downtime")} | {"beta": beta})
+                self.episode += B
+                # the LSTM state is reset through the starts flags of the next episode's first step
+            t4 = time.perf_counter()
+            self.timing["forward"] += t1 - t0
+            self.timing["oracle"] += t2 - t1
+            self.timing["simulator"] += t4 - t3
+        chunk = {k: torch.stack([r[k] for r in raws], 1) for k in OBS_KEYS}  # (B, T, ...)
+        chunk["starts"] = torch.stack(starts, 1)
+        chunk["dispatch"] = torch.stack(labels["dispatch"], 1).to(torch.int16)
+        chunk["workforce"] = torch.stack(labels["workforce"], 1).to(torch.int8)
+        chunk["positioning"] = torch.stack(labels["positioning"], 1).to(torch.int16)
+        chunk["h"], chunk["c"] = h0, c0
+        return {"chunk": chunk, "stats": stats, "episodes": episodes, "trail": trail}
+
+    # -- supervised update --------------------------------------------------------------------
+    def losses(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, float]]:
+        """The weighted negative log-likelihood of the labels on a time-major batch of sequences."""
+        c = self.cfg
+        T, S = batch["starts"].shape
+        raw = {k: batch[k].flatten(0, 1) for k in OBS_KEYS}
+        x = featurize(raw, self.mcfg.coord_scale)
+        with self._autocast():
+            out, _ = self.model(x, (batch["h"], batch["c"]), batch["starts"])
+        acts = {k: batch[k].flatten(0, 1).long() for k in HEADS}
+        # a step counts once the LSTM state is trustworthy: after the burn-in, or from an episode start on
+        t_idx = torch.arange(T, device=batch["starts"].device)[:, None]
+        valid = (t_idx >= c.burn_in) | (torch.cummax(batch["starts"], 0).values > 0)
+        valid = valid.flatten().float()
+        denom = valid.sum().clamp_min(1.0)
+        loss = torch.zeros((), device=valid.device)
+        stats = {}
+        for k in HEADS:
+            logp, _, _ = log_prob_entropy({k: out[k]}, x, acts)
+            nll = -(logp * valid).sum() / denom
+            loss = loss + getattr(c, f"{k}_weight") * nll
+            stats[f"nll_{k}"] = nll.item()
+        stats["loss"] = loss.item()
+        return loss, stats
+
+    def learn(self) -> dict:
+        c = self.cfg
+        t0 = time.perf_counter()
+        self.model.train()
+        stats: dict[str, list] = {}
+        for _ in range(c.grad_steps):
+            idx = torch.randint(self.data.size, (min(c.batch_seqs, self.data.size),), generator=self.batch_gen)
+            loss, s = self.losses(self.data.batch(idx, self.device))
+            self.opt.zero_grad(set_to_none=True)
+            loss.backward()
+            s["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(self.model.parameters(), c.max_grad_norm))
+            self.opt.step()
+            for k, v in s.items():
+                stats.setdefault(k, []).append(v)
+        self.timing["update"] += time.perf_counter() - t0
+        out = {k: float(np.mean(v)) for k, v in stats.items()}
+        out["first_loss"], out["last_loss"] = stats["loss"][0], stats["loss"][-1]
+        return out
+
+    @torch.no_grad()
+    def dataset_loss(self, max_seqs: int = 256) -> dict[str, float]:
+        """The loss on (up to) the first ``max_seqs`` stored sequences, without training."""
+        idx = torch.arange(min(max_seqs, self.data.size))
+        return self.losses(self.data.batch(idx, self.device))[1]
+
+    # -- evaluation and checkpoints -------------------------------------------------------------
+    def policy(self, mode: str = "sample"):
+        return deployable(self.model, "joint", mode, name="hindsight-joint")
+
+    def evaluate_public(self) -> dict:
+        """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
+        t0 = time.perf_counter()
+        seeds = resolve_seeds(self.cfg.eval_seeds)
+        res = {}
+        for mode in ("sample", "greedy"):
+            df = evaluate(self.policy(mode), self.scenario, seeds, backend="serial", act_timeout_s=None)
+            res[mode] = float(df["nsw"].mean())
+            res[f"{mode}_workforce_cost"] = float(df["workforce_cost"].mean())
+        res["seeds"] = seeds
+        self.timing["evaluate"] += time.perf_counter() - t0
+        return res
+
+    def checkpoint(self) -> dict:
+        return {
+            "model": {k: v.detach().cpu() for k, v in self.model.state_dict().items()},
+            "model_config": self.mcfg.to_dict(),
+            "variant": "joint",
+            "algo": "hindsight",
+            "scenario": self.scenario.name,
+            "train_config": asdict(self.cfg),
+            "update": self.iteration,
+            "global_step": self.global_step,
+            "episode": self.episode,
+            "seed_cursor": self.seed_cursor,
+            "git_commit": self.commit,
+            "best": self.best,
+            "history": self.history,
+            "default_mode": "sample",
+        }
+
+    def save(self, path: Path, full: bool = True) -> Path:
+        ckpt = self.checkpoint()
+        if full:  # what resume needs on top of the policy
+            ckpt["optimizer"] = self.opt.state_dict()
+            ckpt["generator"] = self.gen.get_state()
+            ckpt["batch_generator"] = self.batch_gen.get_state()
+            ckpt["mix_rng"] = self.mix_rng.bit_generator.state
+            ckpt["torch_rng"] = torch.get_rng_state()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        torch.save(ckpt, tmp)
+        tmp.replace(path)
+        return path
+
+    def _load(self, path) -> None:
+        ckpt = load_checkpoint(path, str(self.device))
+        if ckpt.get("algo") != "hindsight" or "optimizer" not in ckpt:
+            raise ValueError(f"checkpoint {str(path)!r} is not a resumable hindsight-learning checkpoint "
+                             "(latest.pt or checkpoints/iter_*.pt of a hindsight run)")
+        if ckpt["model_config"] != self.mcfg.to_dict():
+            raise ValueError(f"checkpoint {str(path)!r} is a run of another model; resume with the settings of "
+                             "its config.json")
+        self.model.load_state_dict(ckpt["model"])
+        self.opt.load_state_dict(ckpt["optimizer"])
+        self.gen.set_state(ckpt["generator"].to(self.gen.device) if self.cuda else ckpt["generator"])
+        self.batch_gen.set_state(ckpt["batch_generator"])
+        self.mix_rng.bit_generator.state = ckpt["mix_rng"]
+        torch.set_rng_state(ckpt["torch_rng"])
+        self.iteration, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
+        self.seed_cursor = ckpt["seed_cursor"]
+        self.commit = ckpt.get("git_commit", self.commit)
+        self.best, self.history = ckpt["best"], ckpt["history"]
+
+    # -- the loop -----------------------------------------------------------------------------
+    def train(self, iterations: int | None = None) -> dict:
+        """Run until ``cfg.steps`` environment steps are collected (or ``iterations`` more); returns the last stats."""
+        c = self.cfg
+        stop = c.iterations if iterations is None else min(c.iterations, self.iteration + iterations)
+        per_iter = c.chunks_per_iter * c.chunk_steps
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        (self.run_dir / "config.json").write_text(json.dumps(
+            {**asdict(c), "algo": "hindsight", "git_commit": self.commit, "parameters": count_parameters(self.model),
+             "device": str(self.device), "model_config": self.mcfg.to_dict()}, indent=2))
+        writer = None
+        if self.log:
+            from torch.utils.tensorboard import SummaryWriter
+
+            writer = SummaryWriter(str(self.run_dir / "tb"))
+        bar = None
+        if self.progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=stop * per_iter, initial=self.iteration * per_iter, unit="step", unit_scale=True,
+                       desc=f"hindsight {self.scenario.name}")
+        stats: dict = {}
+        start, start_step = time.perf_counter(), self.global_step
+        try:
+            while self.iteration < stop:
+                beta = self.beta()
+                t_collect = time.perf_counter()
+                coll: dict[str, list] = {}
+                episodes = []
+                for _ in range(c.chunks_per_iter):
+                    res = self.collect(beta)
+                    self.data.add(res["chunk"])
+                    episodes += res["episodes"]
+                    for k, v in res["stats"].items():
+                        coll.setdefault(k, []).extend(v if isinstance(v, list) else [v])
+                collect_s = time.perf_counter() - t_collect
+                stats = self.learn()
+                self.iteration += 1
+                sps = (self.global_step - start_step) / (time.perf_counter() - start)
+                stats |= {"beta": beta, "dataset_steps": self.data.size * c.num_steps,
+                          "collect_steps_per_s": per_iter / collect_s, "env_steps_per_s": sps,
+                          "invalid_labels": sum(coll["invalid_labels"]), "label_hires": sum(coll["label_hires"]),
+                          "label_releases": sum(coll["label_releases"])}
+                for k in ("agree_dispatch", "agree_workforce", "oracle_share"):
+                    if coll[k]:
+                        stats[k] = float(np.mean(coll[k]))
+                if writer:
+                    for ep in episodes:
+                        for k, v in ep.items():
+                            writer.add_scalar(f"episode/{k}", v, self.global_step)
+                    for k in ("loss", "first_loss", "last_loss", "nll_dispatch", "nll_workforce",
+                              "nll_positioning", "grad_norm"):
+                        writer.add_scalar(f"loss/{k}", stats[k], self.global_step)
+                    for k in ("beta", "dataset_steps", "collect_steps_per_s", "env_steps_per_s", "invalid_labels",
+                              "agree_dispatch", "agree_workforce", "oracle_share", "label_hires", "label_releases"):
+                        if k in stats:
+                            writer.add_scalar(f"charts/{k}", stats[k], self.global_step)
+                record = {"update": self.iteration, "global_step": self.global_step, "beta": beta,
+                          "loss": stats["loss"], "episodes": episodes}
+                if c.eval_every and self.iteration % c.eval_every == 0:
+                    res = self.evaluate_public()
+                    record |= res
+                    if writer:
+                        writer.add_scalar("public/nsw_sample", res["sample"], self.global_step)
+                        writer.add_scalar("public/nsw_greedy", res["greedy"], self.global_step)
+                        writer.add_scalar("public/workforce_cost_sample", res["sample_workforce_cost"],
+                                          self.global_step)
+                    if res["sample"] > self.best["score"]:
+                        self.best = {"score": res["sample"], "update": self.iteration,
+                                     "global_step": self.global_step, "mode": "sample", "seeds": res["seeds"],
+                                     "greedy": res["greedy"]}
+                        self.save(self.run_dir / "best.pt", full=False)
+                self.history.append(record)
+                with (self.run_dir / "history.jsonl").open("a") as fh:
+                    fh.write(json.dumps({**record, **{k: v for k, v in stats.items()}, "timing": self.timing})
+                             + "\n")
+                if self.iteration % c.checkpoint_every == 0:
+                    self.save(self.run_dir / "checkpoints" / f"iter_{self.iteration:04d}.pt")
+                    self.save(self.run_dir / "latest.pt")
+                if bar:
+                    bar.update(per_iter)
+                    post = {"sps": f"{sps:.0f}", "beta": f"{beta:.2f}", "loss": f"{stats['loss']:.3f}"}
+                    if self.best["update"] is not None:
+                        post["public"] = f"{self.best['score']:.3f}"
+                    bar.set_postfix(post)
+        except KeyboardInterrupt:
+            self.save(self.run_dir / "latest.pt")
+            if bar:
+                bar.close()
+            print(f"interrupted: checkpoint saved to {self.run_dir / 'latest.pt'} (iteration {self.iteration}); "
+                  f"continue with resume={self.run_dir / 'latest.pt'}")
+            raise
+        finally:
+            if writer:
+                writer.close()
+        if bar:
+            bar.close()
+        self.save(self.run_dir / "latest.pt")
+        return stats
