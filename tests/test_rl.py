@@ -87,6 +87,46 @@ def test_rl__masked_entries_never_get_probability(paper_obs):
     assert (disp[~x["dispatch_mask"]] == 0).all()
 
 
+def _dispatch_logp_ent_by_loop(logits, mask, act):
+    """The definition, one facility at a time: slot order, people picked earlier are masked, no-op allowed."""
+    B, M, N1 = logits.shape
+    logp, ent = torch.zeros(B, dtype=torch.float64), torch.zeros(B, dtype=torch.float64)
+    for b in range(B):
+        taken = set()
+        for f in range(M):
+            if not mask[b, f, :-1].any():
+                continue  # no real choice: the no-op with probability 1
+            allowed = mask[b, f].clone()
+            allowed[list(taken)] = False
+            allowed[-1] = True
+            lp = torch.log_softmax(logits[b, f].double().masked_fill(~allowed, -1e9), -1)
+            logp[b] += lp[act[b, f]]
+            ent[b] -= (lp.exp() * lp.masked_fill(~allowed, 0.0)).sum()
+            if act[b, f] < N1 - 1:
+                taken.add(int(act[b, f]))
+    return logp, ent
+
+
+def test_rl__dispatch_log_prob_matches_its_definition(paper_obs):
+    """The sparse log-probability (choosing facilities only) equals the facility-by-facility definition."""
+    net = _net(("dispatch",))
+    x, out = _run(net, paper_obs)
+    gen = torch.Generator().manual_seed(1)
+    B, M, N1 = out["dispatch"].shape
+    for scale in (0.0, 1.0, 5.0):  # greedy, then hotter and hotter noise: people taken by earlier facilities
+        noise = {k: gumbel(s, gen) * scale for k, s in noise_shapes(B, M, N1 - 1).items()}
+        a = sample(out, x, noise)
+        logp, ent, parts = log_prob_entropy(out, x, a)
+        ref_logp, ref_ent = _dispatch_logp_ent_by_loop(out["dispatch"], x["dispatch_mask"], a["dispatch"])
+        torch.testing.assert_close(logp.double(), ref_logp, rtol=1e-5, atol=1e-5)
+        torch.testing.assert_close(parts["dispatch"].double(), ref_ent, rtol=1e-5, atol=1e-5)
+        assert (ref_logp < 0).any()  # some facilities had a real choice
+    # no facility with a choice at all: zero, not an error
+    none = {**x, "dispatch_mask": x["dispatch_mask"] & False}
+    logp, ent, _ = log_prob_entropy(out, none, a)
+    assert (logp == 0).all() and (ent == 0).all()
+
+
 def test_rl__garbage_in_empty_slots_changes_nothing(paper_obs):
     net = _net()
     _, out = _run(net, paper_obs)
@@ -120,6 +160,9 @@ def test_rl__one_network_two_scenario_sizes(paper_obs):
 
 def test_rl__presets_sizes():
     assert count_parameters(WorkforceNet(model_config("small"))) < 150_000
+    cpu = WorkforceNet(model_config("cpu"))
+    assert len(cpu.blocks) == 0 and len(cpu.fusion_fac) == 0  # the CPU preset has no attention
+    assert count_parameters(cpu) < count_parameters(WorkforceNet(model_config("small")))
     assert 350_000 <= count_parameters(WorkforceNet(model_config("paper"))) <= 600_000
     with pytest.raises(ValueError, match="unknown model preset"):
         model_config("huge")
@@ -175,6 +218,8 @@ def test_rl__train_resume_evaluate_end_to_end(tmp_path, capsys):
     assert "no optimizer state" in capsys.readouterr().err
     assert cli_main(["train", "--eval-seeds", "test:5", "--run-dir", str(tmp_path / "x"), "--no-progress"]) == 2
     assert "public seeds" in capsys.readouterr().err
+    assert cli_main(["train", "--gamma", "1.5", "--run-dir", str(tmp_path / "x"), "--no-progress"]) == 2
+    assert "gamma = 1.5 is not allowed; allowed: a number in (0, 1]" in capsys.readouterr().err
     assert cli_main(["evaluate", "--policy", f"ppo:{tmp_path / 'nope.pt'}", "--seeds", "1"]) == 2
     assert "does not exist" in capsys.readouterr().err
 
@@ -224,3 +269,34 @@ def test_rl__init_starts_from_a_checkpoints_weights(tmp_path):
     assert second.update == 0 and second.global_step == 0  # a new run, not a resume
     with pytest.raises(ValueError, match="is not this run's"):
         Trainer(_cfg(tmp_path / "c", model="small", init=str(ckpt)), progress=False, log=False)
+
+
+@pytest.mark.parametrize("algo", ["impala", "hindsight"])
+def test_rl__train_command_runs_every_algorithm(tmp_path, capsys, algo):
+    """`wfbench train --algo X`: the flags that apply, --set for the rest, --resume knows the run's algorithm."""
+    run = tmp_path / algo
+    extra = (["--set", "rho_bar=0.9", "--set", "c_bar=0.9"] if algo == "impala"
+             else ["--set", "iter_steps=32", "--set", "grad_steps=2", "--set", "burn_in=2"])
+    args = ["train", "--algo", algo, "--scenario", "small", "--model", "tiny", "--num-envs", "4", "--num-steps", "8",
+            "--steps", "64", "--eval-every", "0", "--run-dir", str(run), "--no-progress", "--no-tensorboard", *extra]
+    assert cli_main(args) == 0
+    assert f"({algo}) in {run}" in capsys.readouterr().out
+    saved = torch.load(run / "latest.pt", weights_only=False)
+    assert saved["algo"] == algo and saved["train_config"]["model"] == "tiny"
+    if algo == "impala":
+        assert saved["train_config"]["rho_bar"] == 0.9
+    df = wfbench.evaluate(f"ppo:{run / 'latest.pt'}", "small", [1000], backend="serial")
+    assert df["nsw"].between(0, 1).all()
+    # resume without --algo: the checkpoint says which trainer; a different --algo is refused
+    assert cli_main(["train", "--resume", str(run / "latest.pt"), "--steps", "96", "--no-progress",
+                     "--no-tensorboard"]) == 0
+    other = "ppo" if algo != "ppo" else "impala"
+    assert cli_main(["train", "--algo", other, "--resume", str(run / "latest.pt"), "--no-progress"]) == 2
+    assert f"is a {algo} run, not --algo {other}" in capsys.readouterr().err
+    # a flag of another algorithm, an unknown or badly typed --set: one line, exit 2
+    assert cli_main(["train", "--algo", algo, "--epochs", "3", "--run-dir", str(tmp_path / "x")]) == 2
+    assert f"--epochs does not apply to --algo {algo}" in capsys.readouterr().err
+    assert cli_main(["train", "--algo", algo, "--set", "nope=1", "--run-dir", str(tmp_path / "x")]) == 2
+    assert "expected KEY=VALUE with KEY one of" in capsys.readouterr().err
+    assert cli_main(["train", "--algo", algo, "--set", "seed=abc", "--run-dir", str(tmp_path / "x")]) == 2
+    assert "seed takes a int value" in capsys.readouterr().err

@@ -225,13 +225,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="measure every row this many times, interleaved (default 3; 1 with --quick)")
 
     tr = sub.add_parser("train", help="train a policy with PPO (docs/rl.md); needs torch (the rl extra)")
-    tr.add_argument("--algo", default="ppo", choices=["ppo"], help="the algorithm (ppo)")
+    tr.add_argument("--algo", default=None, choices=["ppo", "impala", "hindsight"],
+                    help="ppo (default), impala (actor-learner, V-trace) or hindsight (imitation of the hindsight "
+                         "oracles, DAgger); docs/rl.md, docs/impala.md, docs/hindsight-learning.md")
     tr.add_argument("--variant", default=None, choices=["joint", "dispatch"],
                     help="joint: all three decisions; dispatch: the dispatch head only, heuristic workforce and "
                          "positioning (default joint)")
     tr.add_argument("--scenario", default=None, help="scenario to train on (default paper-64)")
     tr.add_argument("--steps", type=_positive, default=None, help="environment steps in all (default 1000000)")
-    tr.add_argument("--model", default=None, help="network size: tiny, small (CPU) or paper (~0.5M parameters)")
+    tr.add_argument("--model", default=None,
+                    help="network size: cpu (no attention, fastest on CPU), tiny, small or paper (~0.5M parameters)")
     tr.add_argument("--num-envs", type=_positive, default=None, help="environments side by side (default 32)")
     tr.add_argument("--num-steps", type=_positive, default=None, help="steps per rollout (default 32)")
     tr.add_argument("--epochs", type=_positive, default=None, help="PPO epochs per rollout (default 2)")
@@ -252,9 +255,12 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--init", default=None, metavar="CKPT",
                     help="start from the network weights of a checkpoint (a new run: fresh optimizer and counters)")
     tr.add_argument("--gae-lambda", type=float, default=None, help="GAE lambda (default 0.95)")
+    tr.add_argument("--gamma", type=float, default=None, help="discount (default 0.995)")
     tr.add_argument("--resume", default=None, metavar="CKPT",
                     help="continue a run from its checkpoint (latest.pt); its settings are kept, --steps may raise "
                          "the total")
+    tr.add_argument("--set", action="append", metavar="KEY=VALUE",
+                    help="any other setting of the algorithm's config (repeatable), e.g. --set rho_bar=0.9")
     tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tr.add_argument("--no-tensorboard", action="store_true", help="write no TensorBoard logs")
     return p
@@ -548,12 +554,55 @@ _TRAIN_FLAGS = {"variant": "variant", "scenario": "scenario", "steps": "steps", 
                 "num_envs": "num_envs", "num_steps": "num_steps", "epochs": "epochs", "minibatches": "minibatches",
                 "lr": "lr", "ent_coef": "ent_coef", "seed": "seed", "device": "device", "threads": "threads",
                 "checkpoint_every": "checkpoint_every", "eval_every": "eval_every", "eval_seeds": "eval_seeds",
-                "run_dir": "run_dir", "init": "init", "gae_lambda": "gae_lambda"}
+                "run_dir": "run_dir", "init": "init", "gae_lambda": "gae_lambda", "gamma": "gamma"}
+
+
+# --algo -> (module under wfbench.train, its config class); each module has a Trainer(config, resume, ...)
+_TRAIN_ALGOS = {"ppo": ("ppo", "TrainConfig"), "impala": ("impala", "ImpalaConfig"),
+                "hindsight": ("hindsight", "HindsightConfig")}
+
+
+def _train_settings(config_cls, given: dict, algo: str, pairs: list[str]) -> dict:
+    """The flags given plus ``--set KEY=VALUE`` pairs, checked against the algorithm's config fields."""
+    import dataclasses
+    import json
+
+    fields = {f.name: f for f in dataclasses.fields(config_cls)}
+    for name in given:
+        if name not in fields:
+            raise ValueError(f"--{name.replace('_', '-')} does not apply to --algo {algo}; its settings: "
+                             f"{', '.join(fields)} (set any of them with --set KEY=VALUE)")
+    out = dict(given)
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep or key not in fields:
+            raise ValueError(f"--set {pair!r}: expected KEY=VALUE with KEY one of the --algo {algo} settings: "
+                             f"{', '.join(fields)}")
+        default = fields[key].default if fields[key].default is not dataclasses.MISSING else None
+        try:
+            if isinstance(default, bool):
+                if text.lower() not in ("true", "false", "1", "0"):
+                    raise ValueError
+                value = text.lower() in ("true", "1")
+            elif isinstance(default, int | float) and not isinstance(default, bool):
+                value = type(default)(text)
+            elif isinstance(default, str):
+                value = text
+            else:
+                value = json.loads(text)
+        except ValueError:
+            kind = type(default).__name__ if default is not None else "JSON"
+            raise ValueError(f"--set {pair!r}: {key} takes a {kind} value (its default: {default!r})") from None
+        out[key] = value
+    return out
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    import importlib
+
     try:  # torch is needed here only: the rest of the command line works without it
-        from wfbench.train.ppo import TrainConfig, Trainer
+        import torch  # noqa: F401
     except ImportError as exc:
         raise UsageError(f"wfbench train needs torch ({exc}); install the rl extra: "
                          "pip install 'wfbench[rl]'") from None
@@ -565,26 +614,37 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.no_bf16:
         given["bf16"] = False
     try:
+        saved = None
         if args.resume:
             saved = load_checkpoint(args.resume)
             if "optimizer" not in saved:
                 raise ValueError(f"checkpoint {args.resume!r} has no optimizer state (a best.pt?): resume from "
                                  "latest.pt or a checkpoints/update_*.pt")
+            run_algo = saved.get("algo", "ppo")
+            if args.algo is not None and args.algo != run_algo:
+                raise ValueError(f"checkpoint {args.resume!r} is a {run_algo} run, not --algo {args.algo}")
+        algo = saved.get("algo", "ppo") if saved is not None else (args.algo or "ppo")
+        module_name, cls_name = _TRAIN_ALGOS[algo]
+        module = importlib.import_module(f"wfbench.train.{module_name}")
+        config_cls = getattr(module, cls_name)
+        given = _train_settings(config_cls, given, algo, args.set or [])
+        if saved is not None:
             changed = sorted(k for k in given if k not in ("steps", "run_dir", "device", "threads")
                              and given[k] != saved["train_config"].get(k))
             if changed:
                 raise ValueError(f"--resume keeps the run's settings; these differ from it: {', '.join(changed)}")
-            config = TrainConfig.from_dict({**saved["train_config"], **given})
+            config = config_cls.from_dict({**saved["train_config"], **given})
         else:
-            given.setdefault("run_dir", str(Path("runs") / f"ppo-{given.get('variant', 'joint')}-"
+            given.setdefault("run_dir", str(Path("runs") / f"{algo}-{given.get('variant', 'joint')}-"
                                                             f"{given.get('scenario', 'paper-64')}"))
-            config = TrainConfig(**given)
-        trainer = Trainer(config, resume=args.resume, progress=not args.no_progress, log=not args.no_tensorboard)
-    except ValueError as exc:
+            config = config_cls(**given)
+        trainer = module.Trainer(config, resume=args.resume, progress=not args.no_progress,
+                                 log=not args.no_tensorboard)
+    except (ValueError, TypeError) as exc:
         raise UsageError(str(exc)) from None
     trainer.train()
     best = trainer.best
-    print(f"trained {trainer.global_step} environment steps ({trainer.update} updates) in {config.run_dir}")
+    print(f"trained {trainer.global_step} environment steps ({algo}) in {config.run_dir}")
     if best["update"] is not None:
         print(f"best.pt: update {best['update']}, mean NSW {best['score']:.4f} on public seeds "
               f"{best['seeds'][0]}-{best['seeds'][-1]} ({best['mode']}); evaluate with "

@@ -98,6 +98,37 @@ def taken_before(dispatch: torch.Tensor, N: int) -> torch.Tensor:
     return (torch.cumsum(onehot, 1) - onehot) > 0
 
 
+def _dispatch_logp_ent(logits: torch.Tensor, mask: torch.Tensor, act: torch.Tensor):
+    """Log-probability and entropy (B,) of the dispatch actions, summed over the facilities.
+
+    Only the facilities with a real choice (an allowed person) count: about one in seventy
+    on ``paper-64``, so the softmax runs on those rows alone, not on the (B, M, N + 1)
+    block. "Taken before" is then an exclusive cumulative sum of the picks within each
+    environment's choosing facilities, in slot order (the others pick the no-op).
+    The sums go through a dense (B, M) scatter, not an accumulating one: deterministic
+    on CPU and CUDA.
+    """
+    B, M, N1 = logits.shape
+    N = N1 - 1
+    rows, facs = mask[..., :N].any(-1).nonzero(as_tuple=True)  # row-major: slot order within an environment
+    if rows.numel() == 0:
+        zero = logits.new_zeros(B)
+        return zero, zero.clone()
+    a = act[rows, facs]
+    picks = F.one_hot(a, N1).to(torch.int32)
+    picks[:, N] = 0
+    before = torch.cumsum(picks, 0) - picks  # picks of every earlier choosing facility, any environment
+    first = torch.searchsorted(rows, rows)  # the first choosing facility of the same environment
+    taken = (before - before[first]) > 0
+    allowed = mask[rows, facs] & ~taken
+    allowed[:, N] = True  # the no-op is always allowed
+    lp, e = _cat_logp_ent(logits[rows, facs], allowed, a)
+    per_fac = logits.new_zeros(2, B, M)
+    per_fac[0, rows, facs] = lp
+    per_fac[1, rows, facs] = e
+    return per_fac[0].sum(-1), per_fac[1].sum(-1)
+
+
 def _cat_logp_ent(logits, mask, index):
     logp_all = torch.log_softmax(_masked(logits, mask), -1)
     logp = logp_all.gather(-1, index[..., None]).squeeze(-1)
@@ -112,14 +143,10 @@ def log_prob_entropy(out: dict, x: dict, acts: dict) -> tuple[torch.Tensor, torc
     ent = 0.0
     parts = {}
     if "dispatch" in out:
-        logits = out["dispatch"].float()
-        N = logits.shape[-1] - 1
-        mask = x["dispatch_mask"] & ~taken_before(acts["dispatch"], N)
-        mask[..., N] = True  # the no-op is always allowed
-        lp, e = _cat_logp_ent(logits, mask, acts["dispatch"])
-        logp = logp + lp.sum(-1)
-        ent = ent + e.sum(-1)
-        parts["dispatch"] = e.sum(-1)
+        lp, e = _dispatch_logp_ent(out["dispatch"].float(), x["dispatch_mask"], acts["dispatch"])
+        logp = logp + lp
+        ent = ent + e
+        parts["dispatch"] = e
     if "workforce" in out:
         w = acts["workforce"]
         lp, e = _cat_logp_ent(out["workforce"].float(), _safe_rows(x["workforce_mask"]), w)

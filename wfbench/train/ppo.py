@@ -118,6 +118,9 @@ class TrainConfig:
         for name in ("steps", "num_envs", "num_steps", "epochs", "minibatches", "threads", "checkpoint_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: an integer >= 1")
+        for name in ("gamma", "gae_lambda"):
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: a number in (0, 1]")
         if self.num_envs % self.minibatches:
             raise ValueError(f"num_envs = {self.num_envs} must be a multiple of minibatches = {self.minibatches}")
         ScenarioConfig.resolve(self.scenario)
