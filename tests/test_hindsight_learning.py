@@ -4,8 +4,8 @@
   ``oracle`` composite's planner, told the actions the mixture really took, is replayed
   on a fresh simulator and must say the same at every step, while the learner's own
   actions (taken at some steps) differ from them;
-- with beta = 1 the collection *is* the oracle: its episode scores what
-  ``wfbench.evaluate("oracle")`` scores on the same seeds;
+- with beta = 1 the collection *is* the teacher: its episode scores what
+  ``wfbench.evaluate(teacher)`` scores on the same seeds (both teachers);
 - the supervised loss falls; the same seed gives the same weights on CPU;
 - a checkpoint is a policy (``ppo:PATH``) scored through ``wfbench.evaluate``, resumes,
   and starts a PPO run (``init``);
@@ -70,15 +70,16 @@ def test_labels_are_the_oracles_action_in_the_learners_state(tmp_path):
     assert learner_steps_off_label >= 3
 
 
-def test_pure_oracle_collection_scores_what_the_oracle_scores(tmp_path):
-    tr = Trainer(_cfg(tmp_path, num_envs=2, num_steps=50), progress=False, log=False)
+@pytest.mark.parametrize("teacher", ["oracle", "nearest+oracle+oracle"])
+def test_pure_teacher_collection_scores_what_the_teacher_scores(tmp_path, teacher):
+    tr = Trainer(_cfg(tmp_path, num_envs=2, num_steps=50, teacher=teacher), progress=False, log=False)
     episodes = []
     seeds = None
     while not episodes:
         res = tr.collect(beta=1.0)
         seeds = seeds or [int(s) for s in tr.sim.seeds]
         episodes += res["episodes"]
-    df = wfbench.evaluate("oracle", "small", seeds, backend="serial")
+    df = wfbench.evaluate(teacher, "small", seeds, backend="serial")
     assert episodes[0]["nsw"] == pytest.approx(float(df["nsw"].mean()), abs=1e-12)
 
 
@@ -135,6 +136,7 @@ def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
 
 @pytest.mark.parametrize("change, words", [
     ({"variant": "dispatch"}, ["variant", "allowed: joint"]),
+    ({"teacher": "solver"}, ["teacher", "allowed: oracle, nearest+oracle+oracle"]),
     ({"num_steps": 0}, ["num_steps", "allowed: an integer >= 1"]),
     ({"burn_in": 16}, ["burn_in", "allowed"]),
     ({"beta0": 1.5}, ["beta0", "[0, 1]"]),

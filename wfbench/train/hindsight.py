@@ -4,9 +4,10 @@ After Sinclair et al., "Hindsight Learning for MDPs with Exogenous Inputs" (ICML
 the exogenous future of a training episode (failures, repairs, arrivals) is a pure
 function of its seed, so on *training* seeds a planner may read it and say what it
 would do; the network, which never reads it, learns to do the same from what it
-observes. The teacher is the full ``oracle`` of ``docs/hindsight.md`` (one
+observes. The teacher (``teacher``) is the full ``oracle`` of ``docs/hindsight.md`` (one
 :class:`~policies.hindsight.planner.Planner` deciding dispatch, workforce and
-positioning by exact look-ahead).
+positioning by exact look-ahead), or ``nearest+oracle+oracle``: the oracle's workforce
+and positioning planned beside nearest-first dispatch.
 
 The loop, per iteration i::
 
@@ -67,6 +68,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from policies.composite import Composite
+from policies.hindsight.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
 from policies.hindsight.planner import Planner
 from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
 from policies.neural.model import OBS_KEYS, WorkforceNet, count_parameters, featurize, model_config, obs_to_torch
@@ -74,10 +77,14 @@ from policies.neural.policy import load_checkpoint
 from wfbench.config import ScenarioConfig
 from wfbench.evaluation import evaluate
 from wfbench.seeds import SEED_SETS, resolve_seeds
-from wfbench.simulator import AGENTS, Simulator
+from wfbench.simulator import Simulator
 from wfbench.train.ppo import deployable, git_commit
 
 VARIANTS = ("joint",)
+# the teachers: the full oracle, or the oracle's workforce and positioning beside nearest-first dispatch
+# (stateless, so its action in the learner's state is exact; the oracle's dispatch uses knowledge of the
+# next repair outcome that no observation carries, and imitating it without that knowledge costs downtime)
+TEACHERS = ("oracle", "nearest+oracle+oracle")
 HEADS = ("dispatch", "workforce", "positioning")
 ROLLOUT_MODES = ("sample", "greedy")
 
@@ -87,7 +94,8 @@ class HindsightConfig:
     """Every setting of a run; saved as ``config.json`` in the run directory and in each checkpoint."""
 
     scenario: str = "paper-64"
-    variant: str = "joint"  # the oracle teaches all three decisions
+    variant: str = "joint"  # the teacher gives all three decisions
+    teacher: str = "oracle"  # TEACHERS
     model: str = "cpu"  # policies.neural.model.PRESETS
     steps: int = 200_000  # environment steps collected in all (B per simulator step)
     iter_steps: int = 8192  # environment steps collected per DAgger iteration (rounded up to whole chunks)
@@ -137,6 +145,8 @@ class HindsightConfig:
             raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
         if self.device == "cuda" and not torch.cuda.is_available():
             raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
+        if self.teacher not in TEACHERS:
+            raise ValueError(f"teacher {self.teacher!r} is not allowed; allowed: {', '.join(TEACHERS)}")
         if self.rollout_mode not in ROLLOUT_MODES:
             raise ValueError(f"rollout_mode {self.rollout_mode!r} is not allowed; allowed: {', '.join(ROLLOUT_MODES)}")
         for name in ("steps", "iter_steps", "num_envs", "num_steps", "dataset_steps", "grad_steps", "batch_seqs",
@@ -168,13 +178,26 @@ class HindsightConfig:
         if not set(seeds) <= set(SEED_SETS["public"]):
             raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
                              "(1000-1049) only, never on test seeds")
-        Planner(AGENTS, **self.oracle)  # the planner names what it does not allow
+        teacher_planner(self.teacher, self.oracle)  # the planner names what it does not allow
         model_config(self.model, HEADS, **self.model_overrides)
 
     @classmethod
     def from_dict(cls, d: dict) -> HindsightConfig:
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in d.items() if k in names})
+
+
+def teacher_planner(teacher: str, settings: dict) -> Planner:
+    """The planner of the teacher composite (built as the registry builds it), deciding its oracle parts.
+
+    Its ``act`` returns the joint action of the whole composite: the built-in dispatch
+    of ``nearest+oracle+oracle`` is the kernel's action, which the planner models exactly.
+    """
+    if teacher not in TEACHERS:
+        raise ValueError(f"teacher {teacher!r} is not allowed; allowed: {', '.join(TEACHERS)}")
+    dispatch = OracleDispatch(**settings) if teacher == "oracle" else "nearest"
+    comp = Composite(dispatch, OracleWorkforce(**settings), OraclePositioning(**settings), name=teacher)
+    return comp.parts["workforce"].planner
 
 
 def _device(name: str) -> torch.device:
@@ -285,7 +308,7 @@ class Trainer:
         seeds = self._take_seeds(self.cfg.num_envs)
         self.sim = Simulator(self.scenario, seeds, keep_series=False, threads=1)
         self.obs = self.sim.reset()
-        self.planner = Planner(AGENTS, **self.cfg.oracle)  # the registry's "oracle" composite is this planner
+        self.planner = teacher_planner(self.cfg.teacher, self.cfg.oracle)
         self.planner.attach(self.scenario)
         self.planner.reset(seeds)
         self.state = self.model.initial_state(self.sim.B, self.device)
