@@ -95,10 +95,10 @@ class HindsightConfig:
 
     scenario: str = "paper-64"
     variant: str = "joint"  # the teacher gives all three decisions
-    teacher: str = "oracle"  # TEACHERS
+    teacher: str = "nearest+oracle+oracle"  # TEACHERS (docs/hindsight-learning.md: the better plain policy)
     model: str = "cpu"  # policies.neural.model.PRESETS
     steps: int = 200_000  # environment steps collected in all (B per simulator step)
-    iter_steps: int = 8192  # environment steps collected per DAgger iteration (rounded up to whole chunks)
+    iter_steps: int = 4096  # environment steps collected per DAgger iteration (rounded up to whole chunks)
     num_envs: int = 16  # B
     num_steps: int = 32  # T: steps per stored sequence
     burn_in: int = 8  # first steps of a sequence that only warm up the LSTM (no loss)
@@ -106,7 +106,7 @@ class HindsightConfig:
     beta_decay: float = 0.3  # beta_i = beta0 * beta_decay ** i
     rollout_mode: str = "sample"  # the learner's actions while collecting: sample | greedy
     dataset_steps: int = 100_000  # cap of the aggregated dataset (oldest sequences dropped first)
-    grad_steps: int = 100  # Adam steps per iteration
+    grad_steps: int = 50  # Adam steps per iteration
     batch_seqs: int = 32  # sequences per minibatch
     lr: float = 1e-3
     max_grad_norm: float = 1.0
@@ -119,7 +119,7 @@ class HindsightConfig:
     bf16: bool = True  # CUDA only
     threads: int = 1  # torch CPU threads
     checkpoint_every: int = 1  # iterations
-    eval_every: int = 1  # iterations; 0: never
+    eval_every: int = 2  # iterations; 0: never
     eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
     run_dir: str = "runs/hindsight"
     init: str = ""  # a checkpoint whose network weights start this run
