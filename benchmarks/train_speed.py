@@ -1,6 +1,6 @@
 """Training speed of the PPO trainer: env-steps/s and where the time goes, per model size.
 
-    python benchmarks/train_speed.py [--scenario paper-64] [--models small,paper] [--threads 1,2]
+    python benchmarks/train_speed.py [--scenario paper-64] [--models cpu,small,paper] [--threads 1,2]
                                      [--updates 2] [--num-envs 32] [--num-steps 32] [--json out.json]
 
 For each model and thread count: one warm-up update (compiles, allocates), then
@@ -48,7 +48,7 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="paper-64")
-    ap.add_argument("--models", default="small,paper")
+    ap.add_argument("--models", default="cpu,small,paper")
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--updates", type=int, default=2)
     ap.add_argument("--num-envs", type=int, default=32)

@@ -58,6 +58,9 @@ LEARNED: dict[str, tuple[str, str]] = {
     "ppo-joint": ("ppo-joint-paper-64.pt", "the joint PPO network (all three decisions) trained on paper-64"),
     "ppo-dispatch": ("ppo-dispatch-paper-64.pt", "the dispatch-only PPO network trained on paper-64, heuristic "
                      "workforce and positioning"),
+    "impala-joint": ("impala-joint-paper-64.pt", "the joint network trained with IMPALA (V-trace) on paper-64"),
+    "hindsight-joint": ("hindsight-joint-paper-64.pt", "the joint network trained by imitating the hindsight "
+                        "oracles (DAgger) on paper-64"),
 }
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
 

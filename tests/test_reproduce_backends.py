@@ -29,8 +29,8 @@ def test_reproduce_writes_tables_and_figure(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "| 4 | Heuristic | Heuristic | Heuristic |" in text and "higher is better" in text
     assert "46 (42-50) / 0.6 (0.5-0.8) / 0.2 (0.2-0.3) / 4.1 (3-5.1)" in text, "the paper's row 4 beside ours"
-    assert "| 5 | PPO | Heuristic | Heuristic | not run yet (RL)" in text
-    assert "| 6 | PPO | PPO | PPO | not run" not in text, "row 6 comes from the shipped ppo-joint"
+    assert "| 5 | PPO | Heuristic | Heuristic | not" not in text, "row 5 comes from the shipped ppo-dispatch"
+    assert "| 6 | PPO | PPO | PPO | not" not in text, "row 6 comes from the shipped ppo-joint"
     assert "| O2 | Hindsight oracle | Hindsight oracle | Hindsight oracle |" in text and "| B | Upper bound |" in text
     df = pd.read_csv(out / "table3.csv")
     assert df["policy"].tolist()[:4] == ["random", "random-dispatch", "random-positioning", "heuristic"]

@@ -300,3 +300,21 @@ def test_rl__train_command_runs_every_algorithm(tmp_path, capsys, algo):
     assert "expected KEY=VALUE with KEY one of" in capsys.readouterr().err
     assert cli_main(["train", "--algo", algo, "--set", "seed=abc", "--run-dir", str(tmp_path / "x")]) == 2
     assert "seed takes a int value" in capsys.readouterr().err
+
+
+def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(capsys):
+    """Every shipped checkpoint is listed and loads; ppo-joint scores what it recorded on its public selection seeds."""
+    from policies.registry import CHECKPOINT_DIR, LEARNED, learned_names
+
+    assert set(learned_names()) == set(LEARNED), "a registered network has no shipped file"
+    assert cli_main(["policies"]) == 0
+    listed = capsys.readouterr().out
+    for name in LEARNED:
+        assert name in listed
+        pol = policies.get(name)
+        assert pol.name == name
+    best = torch.load(CHECKPOINT_DIR / LEARNED["ppo-joint"][0], weights_only=False)["best"]
+    assert set(best["seeds"]) <= set(range(1000, 1050)), "selected on public seeds only"
+    df = wfbench.evaluate("ppo-joint", "paper-64", best["seeds"], backend="serial")
+    assert df["nsw"].mean() == pytest.approx(best["score"], abs=5e-3)
+    assert (df["invalid_actions"] == 0).all()
