@@ -46,12 +46,11 @@ Checkpoints are PPO checkpoints (the same keys, plus ``algo: impala``), so
 from __future__ import annotations
 
 import copy
-import json
 import math
 import queue
 import threading
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import NamedTuple
 
@@ -59,12 +58,12 @@ import numpy as np
 import torch
 
 from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
-from policies.neural.model import OBS_KEYS, WorkforceNet, count_parameters, featurize, model_config, obs_to_torch
+from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
 from policies.neural.policy import load_checkpoint
 from wfbench.config import ScenarioConfig
-from wfbench.evaluation import evaluate
 from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
+from wfbench.train.common import log_public, policy_checkpoint, save_atomic, score_public, write_run_config
 from wfbench.train.ppo import VARIANTS, RunningStd, _device, deployable, git_commit
 
 MODES = ("async", "sync")
@@ -399,33 +398,14 @@ class Trainer:
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
-        seeds = resolve_seeds(self.cfg.eval_seeds)
-        res = {}
-        for mode in ("sample", "greedy"):
-            df = evaluate(self.policy(mode), self.scenario, seeds, backend="serial", act_timeout_s=None)
-            res[mode] = float(df["nsw"].mean())
-            res[f"{mode}_workforce_cost"] = float(df["workforce_cost"].mean())
-        res["seeds"] = seeds
-        return res
+        return score_public(self.policy, self.scenario, self.cfg.eval_seeds)
 
     def checkpoint(self) -> dict:
-        """ppo.py's checkpoint keys (so ``ppo:PATH`` loads it), plus ``algo``."""
-        return {
-            "model": {k: v.detach().cpu() for k, v in self.model.state_dict().items()},
-            "model_config": self.mcfg.to_dict(),
-            "variant": self.cfg.variant,
-            "scenario": self.scenario.name,
-            "train_config": asdict(self.cfg),
-            "algo": "impala",
-            "update": self.update,
-            "global_step": self.global_step,
-            "episode": self.actor_meta["episode"],
-            "seed_cursor": self.actor_meta["seed_cursor"],
-            "git_commit": self.commit,
-            "best": self.best,
-            "history": self.history,
-            "default_mode": "sample",
-        }
+        """The shared checkpoint keys (so ``ppo:PATH`` loads it), plus ``algo``."""
+        return policy_checkpoint(self.model, self.mcfg, self.cfg.variant, self.scenario.name, self.cfg,
+                                 algo="impala", update=self.update, global_step=self.global_step,
+                                 episode=self.actor_meta["episode"], seed_cursor=self.actor_meta["seed_cursor"],
+                                 git_commit=self.commit, best=self.best, history=self.history)
 
     def save(self, path: Path, full: bool = True) -> Path:
         ckpt = self.checkpoint()
@@ -435,11 +415,7 @@ class Trainer:
             ckpt["generator"] = self.actor_meta["generator"]
             ckpt["torch_rng"] = torch.get_rng_state()
             ckpt["lags"] = list(self.lags)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        torch.save(ckpt, tmp)
-        tmp.replace(path)
-        return path
+        return save_atomic(ckpt, path)
 
     def _load(self, path) -> None:
         ckpt = load_checkpoint(path, str(self.device))
@@ -519,10 +495,7 @@ class Trainer:
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        (self.run_dir / "config.json").write_text(json.dumps(
-            {**asdict(c), "algo": "impala", "git_commit": self.commit, "parameters": count_parameters(self.model),
-             "device": str(self.device), "model_config": self.mcfg.to_dict()}, indent=2))
+        write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="impala")
         writer = None
         if self.log:
             from torch.utils.tensorboard import SummaryWriter
@@ -565,10 +538,7 @@ class Trainer:
                     res = self.evaluate_public()
                     self.history.append({"update": self.update, "global_step": self.global_step, **res})
                     if writer:
-                        writer.add_scalar("public/nsw_sample", res["sample"], self.global_step)
-                        writer.add_scalar("public/nsw_greedy", res["greedy"], self.global_step)
-                        writer.add_scalar("public/workforce_cost_sample", res["sample_workforce_cost"],
-                                          self.global_step)
+                        log_public(writer, res, self.global_step)
                     if res["sample"] > self.best["score"]:
                         self.best = {"score": res["sample"], "update": self.update, "global_step": self.global_step,
                                      "mode": "sample", "seeds": res["seeds"], "greedy": res["greedy"]}

@@ -1,0 +1,74 @@
+"""What the trainers (ppo, impala, hindsight) share: the checkpoint format, scoring on the public seeds, run files.
+
+A checkpoint of any trainer loads as a policy (``ppo:PATH``, :mod:`policies.neural.policy`)
+because all three write the keys of :func:`policy_checkpoint`; each adds what its own
+resume needs. Checkpoints are selected on the public seeds only (:func:`score_public`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from policies.neural.model import count_parameters
+from wfbench.evaluation import evaluate
+from wfbench.seeds import resolve_seeds
+
+
+def score_public(policy: Callable[[str], Any], scenario, eval_seeds: str) -> dict:
+    """Mean NSW and workforce cost on the public selection seeds, sampled and greedy (the score is the sampled one).
+
+    ``policy(mode)`` gives the deployable policy in ``mode`` (``"sample"`` or ``"greedy"``).
+    """
+    seeds = resolve_seeds(eval_seeds)
+    res: dict = {}
+    for mode in ("sample", "greedy"):
+        df = evaluate(policy(mode), scenario, seeds, backend="serial", act_timeout_s=None)
+        res[mode] = float(df["nsw"].mean())
+        res[f"{mode}_workforce_cost"] = float(df["workforce_cost"].mean())
+    res["seeds"] = seeds
+    return res
+
+
+def log_public(writer, res: dict, step: int) -> None:
+    """The TensorBoard scalars of a :func:`score_public` result (``public/*``)."""
+    writer.add_scalar("public/nsw_sample", res["sample"], step)
+    writer.add_scalar("public/nsw_greedy", res["greedy"], step)
+    writer.add_scalar("public/workforce_cost_sample", res["sample_workforce_cost"], step)
+
+
+def policy_checkpoint(model: torch.nn.Module, model_config, variant: str, scenario: str, train_config,
+                      **fields) -> dict:
+    """The keys every checkpoint has (what ``ppo:PATH`` loads), plus the trainer's counters in ``fields``."""
+    return {
+        "model": {k: v.detach().cpu() for k, v in model.state_dict().items()},
+        "model_config": model_config.to_dict(),
+        "variant": variant,
+        "scenario": scenario,
+        "train_config": asdict(train_config),
+        "default_mode": "sample",
+        **fields,
+    }
+
+
+def save_atomic(ckpt: dict, path: Path) -> Path:
+    """``torch.save`` through a temporary file, so a crash never leaves half a checkpoint at ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    torch.save(ckpt, tmp)
+    tmp.replace(path)
+    return path
+
+
+def write_run_config(run_dir: Path, train_config, model: torch.nn.Module, model_config, device, commit: str,
+                     **extra) -> None:
+    """``RUN/config.json``: every setting, the git commit, the parameter count, the device and the network's sizes."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "config.json").write_text(json.dumps(
+        {**asdict(train_config), **extra, "git_commit": commit, "parameters": count_parameters(model),
+         "device": str(device), "model_config": model_config.to_dict()}, indent=2))
