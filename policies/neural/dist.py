@@ -91,13 +91,6 @@ def sample(out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
     return acts
 
 
-def taken_before(dispatch: torch.Tensor, N: int) -> torch.Tensor:
-    """(B, M, N + 1): True where the person was picked by an earlier facility slot of the same step."""
-    onehot = F.one_hot(dispatch, N + 1).to(torch.int32)
-    onehot[..., N] = 0
-    return (torch.cumsum(onehot, 1) - onehot) > 0
-
-
 def _dispatch_logp_ent(logits: torch.Tensor, mask: torch.Tensor, act: torch.Tensor):
     """Log-probability and entropy (B,) of the dispatch actions, summed over the facilities.
 
