@@ -269,6 +269,15 @@ def test_rl__init_starts_from_a_checkpoints_weights(tmp_path):
     assert second.update == 0 and second.global_step == 0  # a new run, not a resume
     with pytest.raises(ValueError, match="is not this run's"):
         Trainer(_cfg(tmp_path / "c", model="small", init=str(ckpt)), progress=False, log=False)
+    # value warm-up: for its first updates only the value head moves, then everything does
+    warm = Trainer(_cfg(tmp_path / "d", seed=9, init=str(ckpt), value_warmup=1, steps=64), progress=False, log=False)
+    before = {k: v.clone() for k, v in warm.model.state_dict().items()}
+    warm.train(updates=1)
+    moved = {k for k, v in warm.model.state_dict().items() if not torch.equal(v, before[k])}
+    assert moved and all(k.startswith("value_head.") for k in moved), moved
+    warm.train(updates=1)
+    assert any(not torch.equal(v, before[k]) for k, v in warm.model.state_dict().items()
+               if not k.startswith("value_head."))
 
 
 @pytest.mark.parametrize("algo", ["impala", "hindsight"])

@@ -256,6 +256,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="start from the network weights of a checkpoint (a new run: fresh optimizer and counters)")
     tr.add_argument("--gae-lambda", type=float, default=None, help="GAE lambda (default 0.95)")
     tr.add_argument("--gamma", type=float, default=None, help="discount (default 0.995)")
+    tr.add_argument("--agents", default=None, choices=["joint", "independent"],
+                    help="ppo: one network for the three decisions (joint, default) or one network per decision, "
+                         "each with its own critic, trained together (independent); docs/rl.md")
+    tr.add_argument("--address", default=None, metavar="ADDR",
+                    help="impala: run the actors on a Ray cluster ('auto', 'ray://host:10001' or 'local' for a "
+                         "Ray instance on this machine); docs/impala.md")
     tr.add_argument("--resume", default=None, metavar="CKPT",
                     help="continue a run from its checkpoint (latest.pt); its settings are kept, --steps may raise "
                          "the total")
@@ -554,7 +560,8 @@ _TRAIN_FLAGS = {"variant": "variant", "scenario": "scenario", "steps": "steps", 
                 "num_envs": "num_envs", "num_steps": "num_steps", "epochs": "epochs", "minibatches": "minibatches",
                 "lr": "lr", "ent_coef": "ent_coef", "seed": "seed", "device": "device", "threads": "threads",
                 "checkpoint_every": "checkpoint_every", "eval_every": "eval_every", "eval_seeds": "eval_seeds",
-                "run_dir": "run_dir", "init": "init", "gae_lambda": "gae_lambda", "gamma": "gamma"}
+                "run_dir": "run_dir", "init": "init", "gae_lambda": "gae_lambda", "gamma": "gamma",
+                "agents": "agents", "address": "address"}
 
 
 # --algo -> (module under wfbench.train, its config class); each module has a Trainer(config, resume, ...)

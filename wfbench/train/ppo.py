@@ -105,6 +105,7 @@ class TrainConfig:
     eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
     run_dir: str = "runs/ppo"
     init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
+    value_warmup: int = 0  # first updates that fit the value head alone, the policy frozen (fine-tuning --init)
     model_overrides: dict = field(default_factory=dict)
 
     def validate(self) -> None:
@@ -117,6 +118,8 @@ class TrainConfig:
         for name in ("steps", "num_envs", "num_steps", "epochs", "minibatches", "threads", "checkpoint_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: an integer >= 1")
+        if self.value_warmup < 0:
+            raise ValueError(f"value_warmup = {self.value_warmup} is not allowed; allowed: an integer >= 0")
         for name in ("gamma", "gae_lambda"):
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: a number in (0, 1]")
@@ -195,6 +198,9 @@ class Trainer:
         self.mcfg = model_config(c.model, self.decisions, **c.model_overrides)
         self.model = WorkforceNet(self.mcfg).to(self.device)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=1e-5)
+        # value warm-up (fine-tuning a network whose value head never learned, e.g. a hindsight-learned one):
+        # only the value head moves, so the policy that --init brought is not disturbed by a random critic
+        self.vopt = torch.optim.Adam(self.model.value_head.parameters(), lr=c.lr, eps=1e-5)
         self.gen = torch.Generator(device=self.device).manual_seed(c.seed)
         self.ret_std = RunningStd()
         self.update, self.global_step, self.episode, self.seed_cursor = 0, 0, 0, 0
@@ -364,11 +370,15 @@ class Trainer:
                 v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
                 v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).mean()
                 entropy = ent.mean()
-                loss = pg + c.vf_coef * v_loss - c.ent_coef * entropy
+                if self.update < c.value_warmup:  # the critic alone, unclipped: it starts far from the returns
+                    loss, opt = 0.5 * ((value - ret) ** 2).mean(), self.vopt
+                else:
+                    loss, opt = pg + c.vf_coef * v_loss - c.ent_coef * entropy, self.opt
+                opt.zero_grad(set_to_none=True)
                 self.opt.zero_grad(set_to_none=True)
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(self.model.parameters(), c.max_grad_norm)
-                self.opt.step()
+                opt.step()
                 with torch.no_grad():
                     log_ratio = logp - old_logp
                     stats["approx_kl"].append(float(((ratio - 1) - log_ratio).mean()))
@@ -399,6 +409,7 @@ class Trainer:
         ckpt = self.checkpoint()
         if full:  # what --resume needs on top of the policy
             ckpt["optimizer"] = self.opt.state_dict()
+            ckpt["value_optimizer"] = self.vopt.state_dict()
             ckpt["ret_std"] = vars(self.ret_std)
             ckpt["generator"] = self.gen.get_state()
             ckpt["torch_rng"] = torch.get_rng_state()
@@ -413,6 +424,8 @@ class Trainer:
                              "resume with the settings of its config.json")
         self.model.load_state_dict(ckpt["model"])
         self.opt.load_state_dict(ckpt["optimizer"])
+        if "value_optimizer" in ckpt:
+            self.vopt.load_state_dict(ckpt["value_optimizer"])
         self.ret_std.__dict__.update(ckpt["ret_std"])
         self.gen.set_state(ckpt["generator"].to(self.gen.device) if self.cuda else ckpt["generator"])
         torch.set_rng_state(ckpt["torch_rng"])
