@@ -224,6 +224,36 @@ def test_rl__train_resume_evaluate_end_to_end(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
 
 
+def test_rl__independent_agents_train_as_one_network_per_decision(tmp_path, capsys):
+    from policies.neural.model import AgentSet
+
+    tr = Trainer(_cfg(tmp_path, agents="independent", steps=32), progress=False, log=False)
+    assert isinstance(tr.model, AgentSet) and list(tr.model.members) == ["dispatch", "workforce", "positioning"]
+    for d, net in tr.model.members.items():  # each network has its own head alone, and its own critic
+        assert net.config.decisions == (d,)
+        assert [hasattr(net, h) for h in ("ptr_q", "wf_head", "pos_head")] == [d == x for x in tr.model.members]
+    ids = [{id(p) for p in m.parameters()} for m in tr.model.members.values()]
+    assert not (ids[0] & ids[1] or ids[0] & ids[2] or ids[1] & ids[2])  # no shared parameter
+    before = {k: v.clone() for k, v in tr.model.state_dict().items()}
+    roll = tr.rollout()
+    assert roll["value"].shape == (8, 4, 3) and roll["logp"].shape == (8, 4, 3) and roll["adv"].shape == (8, 4, 3)
+    # one shared reward, three critics: the advantages differ per agent
+    assert not torch.equal(roll["adv"][..., 0], roll["adv"][..., 1])
+    tr.learn(roll)
+    for d in tr.model.members:
+        assert any(not torch.equal(v, before[k]) for k, v in tr.model.state_dict().items()
+                   if k.startswith(f"members.{d}.")), f"agent {d} did not learn"
+    tr.save(tmp_path / "set.pt")
+    pol = policies.get(f"ppo:{tmp_path / 'set.pt'}")  # a trained set is a policy like any other
+    df = wfbench.evaluate(pol, "small", seeds=[0, 1], backend="serial")
+    assert df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()
+    with pytest.raises(ValueError, match="agents 'independent' needs variant 'joint'"):
+        _cfg(tmp_path, agents="independent", variant="dispatch").validate()
+    assert cli_main(["train", "--algo", "impala", "--agents", "independent", "--run-dir", str(tmp_path / "x"),
+                     "--no-progress"]) == 2
+    assert "--agents does not apply to --algo impala" in capsys.readouterr().err
+
+
 def test_rl__dispatch_variant_deploys_with_the_heuristics(tmp_path):
     tr = Trainer(_cfg(tmp_path, variant="dispatch", steps=32), progress=False, log=False)
     tr.train()

@@ -130,32 +130,30 @@ def _cat_logp_ent(logits, mask, index):
     return logp, ent
 
 
-def log_prob_entropy(out: dict, x: dict, acts: dict) -> tuple[torch.Tensor, torch.Tensor, dict]:
-    """Joint log-probability (B,) of the stored actions, the joint entropy (B,), and the entropy per head."""
-    logp = 0.0
-    ent = 0.0
-    parts = {}
+def head_log_prob_entropy(out: dict, x: dict, acts: dict) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+    """Per head of ``out``: the log-probability (B,) of its stored action and its entropy (B,)."""
+    heads = {}
     if "dispatch" in out:
-        lp, e = _dispatch_logp_ent(out["dispatch"].float(), x["dispatch_mask"], acts["dispatch"])
-        logp = logp + lp
-        ent = ent + e
-        parts["dispatch"] = e
+        heads["dispatch"] = _dispatch_logp_ent(out["dispatch"].float(), x["dispatch_mask"], acts["dispatch"])
     if "workforce" in out:
-        w = acts["workforce"]
-        lp, e = _cat_logp_ent(out["workforce"].float(), _safe_rows(x["workforce_mask"]), w)
-        logp = logp + lp
-        ent = ent + e
-        parts["workforce"] = e
+        heads["workforce"] = _cat_logp_ent(out["workforce"].float(), _safe_rows(x["workforce_mask"]),
+                                           acts["workforce"])
     if "positioning" in out:
         logits = out["positioning"].float()
         fm = _safe_rows(x["fac_mask"])[:, None, :].expand_as(logits)
         lp, e = _cat_logp_ent(logits, fm, acts["positioning"])  # (B, 2)
         w = acts["workforce"]
         use = torch.stack([(w >= 1) & (w <= 3), w >= 4], -1).to(lp.dtype)  # the row this step uses
-        logp = logp + (lp * use).sum(-1)
-        ent = ent + (e * use).sum(-1)
-        parts["positioning"] = (e * use).sum(-1)
-    return logp, ent, parts
+        heads["positioning"] = ((lp * use).sum(-1), (e * use).sum(-1))
+    return heads
+
+
+def log_prob_entropy(out: dict, x: dict, acts: dict) -> tuple[torch.Tensor, torch.Tensor, dict]:
+    """Joint log-probability (B,) of the stored actions, the joint entropy (B,), and the entropy per head."""
+    heads = head_log_prob_entropy(out, x, acts)
+    logp = sum(lp for lp, _ in heads.values())
+    ent = sum(e for _, e in heads.values())
+    return logp, ent, {k: e for k, (_, e) in heads.items()}
 
 
 def positioning_weights(index: torch.Tensor, M: int) -> torch.Tensor:

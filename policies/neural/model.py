@@ -306,5 +306,80 @@ class WorkforceNet(nn.Module):
         return self.heads(x, fac, per, g, mem.reshape(T * B, -1)), state
 
 
+@dataclass(frozen=True)
+class AgentSetConfig:
+    """The networks of ``--agents independent``: one :class:`ModelConfig` per decision."""
+
+    members: tuple[tuple[str, ModelConfig], ...]
+
+    @property
+    def decisions(self) -> tuple[str, ...]:
+        return tuple(d for d, _ in self.members)
+
+    @property
+    def coord_scale(self) -> float:
+        return self.members[0][1].coord_scale
+
+    def to_dict(self) -> dict:
+        return {"agents": "independent", "members": {d: m.to_dict() for d, m in self.members}}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> AgentSetConfig:
+        return cls(tuple((k, ModelConfig.from_dict(v)) for k, v in d["members"].items()))
+
+
+def agent_set_config(preset: str = "cpu", decisions: tuple[str, ...] = ("dispatch", "workforce", "positioning"),
+                     **overrides) -> AgentSetConfig:
+    """One network of ``preset`` per decision, each with that decision's head alone (and its own value)."""
+    if "positioning" in decisions and "workforce" not in decisions:
+        raise ValueError("independent agents: positioning needs the workforce agent (it places its hires)")
+    model_config(preset, decisions, **overrides)  # checks the preset and the decisions
+    return AgentSetConfig(tuple((d, ModelConfig(**{**PRESETS[preset], **overrides, "decisions": (d,)}))
+                                for d in decisions))
+
+
+class AgentSet(nn.Module):
+    """Independent agents: one :class:`WorkforceNet` per decision, no shared parameter.
+
+    It runs like a joint network: ``forward`` returns every head (each from its own
+    network) and ``out["value"]`` as (rows, A), one critic per agent in ``decisions``
+    order; the LSTM state is the members' states side by side on the last axis, so the
+    trainer's state handling (clone, select environments, reset) works unchanged. Each
+    member sees the whole observation, as every agent of the PettingZoo environment does
+    (``wfbench.envs.parallel``), and is trained on the shared reward with its own
+    advantage (``wfbench.train.ppo``, ``agents="independent"``).
+    """
+
+    def __init__(self, config: AgentSetConfig):
+        super().__init__()
+        self.config = config
+        self.members = nn.ModuleDict({d: WorkforceNet(c) for d, c in config.members})
+
+    def initial_state(self, B: int, device=None) -> tuple[torch.Tensor, torch.Tensor]:
+        z = torch.zeros(1, B, sum(m.config.lstm for m in self.members.values()), device=device)
+        return z, z.clone()
+
+    def forward(self, x: dict[str, torch.Tensor], state, starts: torch.Tensor):
+        out: dict[str, torch.Tensor] = {}
+        values, hs, cs, at = [], [], [], 0
+        for d, net in self.members.items():
+            k = net.config.lstm
+            o, (h, c) = net(x, (state[0][..., at:at + k], state[1][..., at:at + k]), starts)
+            at += k
+            out[d] = o[d]
+            values.append(o["value"])
+            hs.append(h)
+            cs.append(c)
+        out["value"] = torch.stack(values, -1)
+        return out, (torch.cat(hs, -1), torch.cat(cs, -1))
+
+
+def network_from_config(d: dict) -> WorkforceNet | AgentSet:
+    """The network a checkpoint's ``model_config`` describes: joint or a set of independent agents."""
+    if d.get("agents") == "independent":
+        return AgentSet(AgentSetConfig.from_dict(d))
+    return WorkforceNet(ModelConfig.from_dict(d))
+
+
 def count_parameters(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())

@@ -13,7 +13,9 @@ seed, ``act(obs)`` runs the network on the whole batch at once. Two modes:
 
 A checkpoint trained with ``--variant dispatch`` holds only the dispatch head; loaded,
 it is deployed inside ``policies.Composite`` with the heuristic workforce (``threshold``)
-and positioning (``spatial``) rules it was trained with.
+and positioning (``spatial``) rules it was trained with. A checkpoint of independent
+agents (``--agents independent``: one network per decision) runs the same way, each
+head from its own network.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import torch
 
 from policies.composite import Composite
 from policies.neural.dist import positioning_weights, sample
-from policies.neural.model import ModelConfig, WorkforceNet, featurize, obs_to_torch
+from policies.neural.model import AgentSet, WorkforceNet, featurize, network_from_config, obs_to_torch
 from policies.protocol import seeds_array
 
 MODES = ("sample", "greedy")
@@ -47,8 +49,8 @@ def load_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
     return ckpt
 
 
-def build_model(ckpt: dict, device: str = "cpu") -> WorkforceNet:
-    model = WorkforceNet(ModelConfig.from_dict(ckpt["model_config"]))
+def build_model(ckpt: dict, device: str = "cpu") -> WorkforceNet | AgentSet:
+    model = network_from_config(ckpt["model_config"])
     model.load_state_dict(ckpt["model"])
     return model.to(device).eval()
 

@@ -55,8 +55,16 @@ import numpy as np
 import torch
 
 import policies
-from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
-from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
+from policies.neural.dist import gumbel, head_log_prob_entropy, noise_shapes, positioning_weights, sample
+from policies.neural.model import (
+    OBS_KEYS,
+    AgentSet,
+    WorkforceNet,
+    agent_set_config,
+    featurize,
+    model_config,
+    obs_to_torch,
+)
 from policies.neural.policy import PPOPolicy, load_checkpoint
 from wfbench.config import ScenarioConfig
 from wfbench.seeds import SEED_SETS, resolve_seeds
@@ -64,6 +72,7 @@ from wfbench.simulator import Simulator
 from wfbench.state import METRICS
 from wfbench.train.common import log_public, policy_checkpoint, save_atomic, score_public, write_run_config
 
+AGENTS = ("joint", "independent")
 VARIANTS = {
     "joint": ("dispatch", "workforce", "positioning"),
     "dispatch": ("dispatch",),
@@ -77,6 +86,7 @@ class TrainConfig:
 
     scenario: str = "paper-64"
     variant: str = "joint"
+    agents: str = "joint"  # AGENTS: one network for all decisions, or one per decision (independent)
     model: str = "small"  # policies.neural.model.PRESETS
     steps: int = 1_000_000  # environment steps in all (B per simulator step)
     num_envs: int = 32  # B
@@ -111,6 +121,11 @@ class TrainConfig:
     def validate(self) -> None:
         if self.variant not in VARIANTS:
             raise ValueError(f"variant {self.variant!r} is not allowed; allowed: {', '.join(VARIANTS)}")
+        if self.agents not in AGENTS:
+            raise ValueError(f"agents {self.agents!r} is not allowed; allowed: {', '.join(AGENTS)}")
+        if self.agents == "independent" and self.variant != "joint":
+            raise ValueError(f"agents 'independent' needs variant 'joint' (variant {self.variant!r} has one "
+                             "decision, so one agent)")
         if self.device not in ("auto", "cpu", "cuda"):
             raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
         if self.device == "cuda" and not torch.cuda.is_available():
@@ -131,7 +146,13 @@ class TrainConfig:
         if not set(seeds) <= public:
             raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
                              "(1000-1049) only, never on test seeds")
-        model_config(self.model, VARIANTS[self.variant], **self.model_overrides)
+        self.network_config()
+
+    def network_config(self):
+        """The network's config: one ModelConfig (joint) or one per decision (independent agents)."""
+        if self.agents == "independent":
+            return agent_set_config(self.model, VARIANTS[self.variant], **self.model_overrides)
+        return model_config(self.model, VARIANTS[self.variant], **self.model_overrides)
 
     @classmethod
     def from_dict(cls, d: dict) -> TrainConfig:
@@ -174,7 +195,7 @@ def _device(name: str) -> torch.device:
     return torch.device(name)
 
 
-def deployable(model: WorkforceNet, variant: str, mode: str = "sample", name: str = "ppo"):
+def deployable(model: WorkforceNet | AgentSet, variant: str, mode: str = "sample", name: str = "ppo"):
     """The policy the network makes: alone (joint) or with the heuristic workforce and positioning (dispatch)."""
     net = PPOPolicy(copy.deepcopy(model).float().cpu(), mode=mode, device="cpu", name=name)
     if variant == "joint":
@@ -195,12 +216,21 @@ class Trainer:
         torch.manual_seed(c.seed)
         self.scenario = ScenarioConfig.resolve(c.scenario)
         self.decisions = VARIANTS[c.variant]
-        self.mcfg = model_config(c.model, self.decisions, **c.model_overrides)
-        self.model = WorkforceNet(self.mcfg).to(self.device)
+        self.mcfg = c.network_config()
+        self.independent = c.agents == "independent"
+        self.model = (AgentSet(self.mcfg) if self.independent else WorkforceNet(self.mcfg)).to(self.device)
+        # the agents: their heads, and the parameters each one's gradient is clipped over
+        if self.independent:
+            self.agents = {d: (d,) for d in self.decisions}
+            self.clip_groups = [list(m.parameters()) for m in self.model.members.values()]
+        else:
+            self.agents = {"joint": self.decisions}
+            self.clip_groups = [list(self.model.parameters())]
         self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=1e-5)
         # value warm-up (fine-tuning a network whose value head never learned, e.g. a hindsight-learned one):
         # only the value head moves, so the policy that --init brought is not disturbed by a random critic
-        self.vopt = torch.optim.Adam(self.model.value_head.parameters(), lr=c.lr, eps=1e-5)
+        self.vopt = torch.optim.Adam([p for n, p in self.model.named_parameters() if "value_head." in n],
+                                     lr=c.lr, eps=1e-5)
         self.gen = torch.Generator(device=self.device).manual_seed(c.seed)
         self.ret_std = RunningStd()
         self.update, self.global_step, self.episode, self.seed_cursor = 0, 0, 0, 0
@@ -216,7 +246,7 @@ class Trainer:
             start = load_checkpoint(c.init, str(self.device))
             if start["model_config"] != self.mcfg.to_dict():
                 raise ValueError(f"--init {c.init!r}: its network ({start['model_config']}) is not this run's "
-                                 f"--model {c.model} / --variant {c.variant}")
+                                 f"--model {c.model} / --variant {c.variant} / --agents {c.agents}")
             self.model.load_state_dict(start["model"])
         if resume is not None:
             self._load(resume)
@@ -255,6 +285,20 @@ class Trainer:
             nsw = np.sqrt(np.clip(last[:, _K_UPUR] * last[:, _K_UAFD], 0.0, None))
         return (nsw - self.cfg.reward_offset) * self.cfg.reward_scale
 
+    # -- agents -------------------------------------------------------------------------------
+    def agent_log_probs(self, out: dict, x: dict, acts: dict):
+        """Log-probabilities (rows, A) per agent (joint: A = 1, the sum over heads), entropy (rows,), per head."""
+        heads = head_log_prob_entropy(out, x, acts)
+        logp = torch.stack([sum(heads[h][0] for h in hs) for hs in self.agents.values()], -1)
+        ent = sum(e for _, e in heads.values())
+        return logp, ent, {k: e for k, (_, e) in heads.items()}
+
+    @staticmethod
+    def values(out: dict) -> torch.Tensor:
+        """The critics' values (rows, A): the joint network's one or one per independent agent."""
+        v = out["value"].float()
+        return v if v.dim() == 2 else v[:, None]
+
     # -- rollout ------------------------------------------------------------------------------
     def rollout(self) -> dict:
         c, dev, B, T = self.cfg, self.device, self.sim.B, self.cfg.num_steps
@@ -272,7 +316,7 @@ class Trainer:
                 out, self.state = self.net(x, self.state, self.starts[None])
             noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
             acts = sample(out, x, noise)
-            logp, _, _ = log_prob_entropy(out, x, acts)
+            logp, _, _ = self.agent_log_probs(out, x, acts)
             action = {"dispatch": acts["dispatch"].cpu().numpy()}
             t2 = time.perf_counter()
             if self.helper is not None:
@@ -286,7 +330,7 @@ class Trainer:
             for k in ("dispatch", "workforce", "positioning"):
                 buf[k].append(acts.get(k, torch.zeros(B, dtype=torch.long, device=dev)))
             buf["logp"].append(logp)
-            buf["value"].append(out["value"].float())
+            buf["value"].append(self.values(out))
             nsw, self.obs = self.sim.step_observe(action)
             reward = self._reward(nsw)
             ended = self.sim.dones | (self.sim.state.t >= self.cut)  # (B,) episodes over after this step
@@ -322,18 +366,19 @@ class Trainer:
         with torch.no_grad(), self._autocast():
             x = featurize(obs_to_torch(self.obs, dev), self.mcfg.coord_scale)
             out, _ = self.net(x, self.state, self.starts[None])
-            next_value = out["value"].float()
+            next_value = self.values(out)
         self.timing["forward"] += time.perf_counter() - t0
         roll = {k: torch.stack(v) for k, v in buf.items() if k != "raw"}
         roll["raw"] = {k: torch.stack([r[k] for r in buf["raw"]]) for k in OBS_KEYS}
         roll["init_state"] = init_state
-        # GAE; done[t] ends the episode after step t (no bootstrap across it)
-        adv = torch.zeros(T, B, device=dev)
-        last = torch.zeros(B, device=dev)
+        # GAE per agent (values (T, B, A); the agents share the reward); done[t] ends the episode after
+        # step t (no bootstrap across it)
+        adv = torch.zeros_like(roll["value"])
+        last = torch.zeros_like(next_value)
         for t in reversed(range(T)):
             nv = next_value if t == T - 1 else roll["value"][t + 1]
-            nonterminal = 1.0 - roll["done"][t]
-            delta = roll["reward"][t] + c.gamma * nv * nonterminal - roll["value"][t]
+            nonterminal = 1.0 - roll["done"][t][:, None]
+            delta = roll["reward"][t][:, None] + c.gamma * nv * nonterminal - roll["value"][t]
             last = delta + c.gamma * c.gae_lambda * nonterminal * last
             adv[t] = last
         roll["adv"], roll["ret"] = adv, adv + roll["value"]
@@ -359,25 +404,28 @@ class Trainer:
                 with self._autocast():
                     out, _ = self.net(x, state, roll["starts"][:, idx])
                 acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
-                logp, ent, parts = log_prob_entropy(out, x, acts)
-                old_logp = roll["logp"][:, idx].flatten()
-                adv = roll["adv"][:, idx].flatten()
-                adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                # (rows, A): one column per agent, each with its own ratio, advantage and critic; the
+                # losses are summed over the agents (independent networks: independent gradients)
+                logp, ent, parts = self.agent_log_probs(out, x, acts)
+                old_logp = roll["logp"][:, idx].flatten(0, 1)
+                adv = roll["adv"][:, idx].flatten(0, 1)
+                adv = (adv - adv.mean(0)) / (adv.std(0) + 1e-8)
                 ratio = (logp - old_logp).exp()
-                pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).mean()
-                value = out["value"].float()
-                old_v, ret = roll["value"][:, idx].flatten(), roll["ret"][:, idx].flatten()
+                pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).mean(0).sum()
+                value = self.values(out)
+                old_v, ret = roll["value"][:, idx].flatten(0, 1), roll["ret"][:, idx].flatten(0, 1)
                 v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
-                v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).mean()
+                v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).mean(0).sum()
                 entropy = ent.mean()
                 if self.update < c.value_warmup:  # the critic alone, unclipped: it starts far from the returns
-                    loss, opt = 0.5 * ((value - ret) ** 2).mean(), self.vopt
+                    loss, opt = 0.5 * ((value - ret) ** 2).mean(0).sum(), self.vopt
                 else:
                     loss, opt = pg + c.vf_coef * v_loss - c.ent_coef * entropy, self.opt
                 opt.zero_grad(set_to_none=True)
                 self.opt.zero_grad(set_to_none=True)
                 loss.backward()
-                torch.nn.utils.clip_grad_norm_(self.model.parameters(), c.max_grad_norm)
+                for group in self.clip_groups:
+                    torch.nn.utils.clip_grad_norm_(group, c.max_grad_norm)
                 opt.step()
                 with torch.no_grad():
                     log_ratio = logp - old_logp
