@@ -43,8 +43,10 @@ _N_STATUS = 6  # personnel status codes, wfbench.state.EMPTY..RETURNING
 class WorkforceVecEnv(VecEnv):
     """An SB3 ``VecEnv`` of ``num_envs`` wfbench environments in one batched simulator.
 
+    ``scenario``, ``num_envs``, ``kind``, ``fixed``, ``reward`` and ``threads`` are as in
+    :class:`WorkforceVectorEnv`.
+
     Args:
-        scenario, num_envs, kind, fixed, reward, threads: as :class:`WorkforceVectorEnv`.
         seed: the seed of the first episodes (environment i plays ``seed + i``); later
             episodes draw theirs as the single environment does. ``VecEnv.seed(s)``
             before a ``reset()`` sets it too.
