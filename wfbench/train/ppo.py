@@ -31,6 +31,20 @@ Rewards (documented in docs/rl.md):
   dispatch-only model); the network has only the dispatch head, the heuristic
   workforce (``threshold``) and positioning (``spatial``) rules make the other decisions.
 
+Agents (``agents``): ``joint`` (the default) is the paper's joint model, one network and
+one critic for the three decisions. ``independent`` is the multi-agent reading of the
+PettingZoo environment (``wfbench.envs.parallel``): one network per decision
+(:class:`policies.neural.model.AgentSet`), no shared parameter, each seeing the whole
+observation and each with its own critic; the agents share the environment's reward (the
+step's NSW, as every PettingZoo agent gets it), and each has its own GAE advantage and
+clipped ratio on its own head's log-probability (independent PPO). Their losses are
+summed and their gradients clipped per agent, which is the same as three PPO updates side
+by side. A trained set is saved and loaded like a joint network (``ppo:RUN/best.pt``).
+
+Value warm-up (``value_warmup``): the first updates fit the value heads alone, the policy
+frozen; for fine-tuning (``init``) a network whose value head never learned (a
+hindsight-learned one, :mod:`wfbench.train.hindsight`).
+
 Checkpoints: ``RUN/checkpoints/update_<n>.pt`` every ``checkpoint_every`` updates,
 ``RUN/latest.pt`` (also on Ctrl-C) and ``RUN/best.pt``: the checkpoint with the highest
 mean NSW on the **public** seeds (``eval_seeds``, a part of 1000-1049; never the test
