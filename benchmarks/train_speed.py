@@ -1,14 +1,16 @@
 """Training speed of the PPO trainer: env-steps/s and where the time goes, per model size.
 
     python benchmarks/train_speed.py [--scenario paper-64] [--models cpu,small,paper] [--threads 1,2]
-                                     [--updates 2] [--num-envs 32] [--num-steps 32] [--json out.json]
+                                     [--agents joint,independent] [--updates 2] [--num-envs 32]
+                                     [--num-steps 32] [--json out.json]
 
 For each model and thread count: one warm-up update (compiles, allocates), then
 ``--updates`` timed updates of the real trainer (``wfbench.train.ppo.Trainer``: rollout
 and PPO update, 2 epochs x 2 minibatches), split into the simulator (step and observe,
 the heuristic parts of the dispatch variant included), observation -> tensors, the
 rollout forward pass with sampling, and the update (forward and backward over the
-rollout). Checkpoints and public-seed scoring are off. Numbers go to docs/performance.md.
+rollout). ``--agents independent`` measures one network per decision (three networks).
+Checkpoints and public-seed scoring are off. Numbers go to docs/performance.md.
 """
 
 from __future__ import annotations
@@ -26,11 +28,12 @@ from policies.neural.model import count_parameters
 from wfbench.train.ppo import TrainConfig, Trainer
 
 
-def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int, num_steps: int) -> dict:
+def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int, num_steps: int,
+            agents: str = "joint") -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         cfg = TrainConfig(scenario=scenario, model=model, num_envs=num_envs, num_steps=num_steps,
                           steps=num_envs * num_steps * (updates + 1), eval_every=0, checkpoint_every=10**9,
-                          run_dir=tmp, threads=threads, device="cpu")
+                          run_dir=tmp, threads=threads, device="cpu", agents=agents)
         tr = Trainer(cfg, progress=False, log=False)
         tr.learn(tr.rollout())  # warm-up
         for k in tr.timing:
@@ -40,8 +43,8 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
             tr.learn(tr.rollout())
         wall = time.perf_counter() - t0
         steps = tr.global_step - steps0
-    return {"scenario": scenario, "model": model, "parameters": count_parameters(tr.model), "threads": threads,
-            "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
+    return {"scenario": scenario, "model": model, "agents": agents, "parameters": count_parameters(tr.model),
+            "threads": threads, "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
             **{f"{k}_share": v / wall for k, v in tr.timing.items()}}
 
 
@@ -50,17 +53,18 @@ def main() -> None:
     ap.add_argument("--scenario", default="paper-64")
     ap.add_argument("--models", default="cpu,small,paper")
     ap.add_argument("--threads", default="1,2")
+    ap.add_argument("--agents", default="joint")
     ap.add_argument("--updates", type=int, default=2)
     ap.add_argument("--num-envs", type=int, default=32)
     ap.add_argument("--num-steps", type=int, default=32)
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     rows = []
-    for model in a.models.split(","):
+    for model, agents in ((m, g) for m in a.models.split(",") for g in a.agents.split(",")):
         for threads in (int(t) for t in a.threads.split(",")):
-            r = measure(a.scenario, model, threads, a.updates, a.num_envs, a.num_steps)
+            r = measure(a.scenario, model, threads, a.updates, a.num_envs, a.num_steps, agents)
             rows.append(r)
-            print(f"{r['scenario']:9s} {r['model']:6s} {r['parameters']:>8,d} params  threads {threads}  "
+            print(f"{r['scenario']:9s} {r['model']:6s} {agents:11s} {r['parameters']:>8,d} params  threads {threads}  "
                   f"{r['env_steps_per_s']:7.0f} env-steps/s  simulator {r['simulator_share']:.0%}  "
                   f"obs->tensor {r['obs_to_tensor_share']:.0%}  forward {r['forward_share']:.0%}  "
                   f"update {r['update_share']:.0%}", flush=True)
