@@ -27,6 +27,13 @@ Two modes (``mode``):
 - ``sync``: the same actor and learner called in turn in one thread; the lag is exactly
   ``update mod K`` (0, 1, ..., K - 1, 0, ...). Deterministic on CPU given ``seed``.
 
+With ``address`` set (``"local"``, ``"auto"``, ``"ray://host:port"``) the actors are
+``ray_actors`` Ray actors instead of the thread (:class:`RemoteActor`, on this machine or
+a cluster; the plumbing is in :mod:`wfbench.train.ray_actors`, imported only then, so Ray
+stays optional). Each is an :class:`Actor` on CPU with its own Simulator on its own share
+of the training seeds, making the same rollouts; the learner stays in this process. Like
+``async``, such a run is **not** deterministic.
+
 V-trace (section 4.1 of the paper), per environment, for t = T-1 down to 0, with
 ``rho_t = min(rho_bar, pi/mu)``, ``c_t = lambda * min(c_bar, pi/mu)`` and
 ``gamma_t = gamma * (1 - done_t)`` (no bootstrap across an episode's end)::
@@ -48,6 +55,7 @@ from __future__ import annotations
 import copy
 import math
 import queue
+import re
 import threading
 import time
 from dataclasses import dataclass, field, fields
@@ -68,6 +76,9 @@ from wfbench.train.ppo import VARIANTS, RunningStd, _device, deployable, git_com
 
 MODES = ("async", "sync")
 OPTIMIZERS = ("adam", "rmsprop")
+# address: "" (no Ray), "local" (a Ray instance started on this machine), "auto" (the cluster this machine is in)
+# or a cluster's address, "ray://HOST:PORT" (Ray client) or "HOST:PORT" (its head node)
+RAY_ADDRESS = re.compile(r"local|auto|(ray://)?[^\s/]+:\d+")
 
 
 @dataclass
@@ -108,6 +119,8 @@ class ImpalaConfig:
     run_dir: str = "runs/impala"
     init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
     model_overrides: dict = field(default_factory=dict)
+    address: str = ""  # "": the actor thread of `mode`; else Ray actors: "local", "auto", "ray://HOST:PORT"
+    ray_actors: int = 2  # with address: Ray actors, each with num_envs environments (one CPU x threads each)
 
     def validate(self) -> None:
         if self.variant != "joint":
@@ -120,7 +133,8 @@ class ImpalaConfig:
             raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
         if self.device == "cuda" and not torch.cuda.is_available():
             raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
-        for name in ("steps", "num_envs", "num_steps", "queue_size", "sync_every", "threads", "checkpoint_every"):
+        for name in ("steps", "num_envs", "num_steps", "queue_size", "sync_every", "threads", "checkpoint_every",
+                     "ray_actors"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"{name} = {v!r} is not allowed; allowed: an integer >= 1")
@@ -144,6 +158,17 @@ class ImpalaConfig:
             raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
                              "(1000-1049) only, never on test seeds")
         model_config(self.model, VARIANTS[self.variant], **self.model_overrides)
+        if not isinstance(self.address, str) or (self.address and not RAY_ADDRESS.fullmatch(self.address)):
+            raise ValueError(f"address {self.address!r} is not allowed; allowed: '' (no Ray), 'local', 'auto', "
+                             "'ray://HOST:PORT' or 'HOST:PORT'")
+        if self.address:
+            if self.mode != "async":
+                raise ValueError(f"mode {self.mode!r} is not allowed with address (Ray actors run beside the "
+                                 "learner); allowed: async")
+            try:
+                import ray  # noqa: F401 - optional dependency: only its presence is checked here
+            except ImportError:
+                raise ValueError(f"address {self.address!r} needs Ray: pip install 'wfbench[ray]'") from None
 
     @classmethod
     def from_dict(cls, d: dict) -> ImpalaConfig:
@@ -184,15 +209,21 @@ def vtrace(log_rhos: torch.Tensor, rewards: torch.Tensor, discounts: torch.Tenso
 
 # -- the actor ----------------------------------------------------------------------------------
 class Actor:
-    """Steps the batched simulator with its own (lagging) copy of the network; makes rollouts."""
+    """Steps the batched simulator with its own (lagging) copy of the network; makes rollouts.
 
-    def __init__(self, cfg: ImpalaConfig, scenario: ScenarioConfig, model: WorkforceNet, device: torch.device):
+    ``index`` of ``count``: the thread path has one actor (0 of 1); the Ray path ``ray_actors``,
+    each on its own share of the training seeds and with its own random generator.
+    """
+
+    def __init__(self, cfg: ImpalaConfig, scenario: ScenarioConfig, model: WorkforceNet, device: torch.device,
+                 index: int = 0, count: int = 1):
         self.cfg, self.scenario, self.device = cfg, scenario, device
+        self.index, self.count = index, count
         self.model = copy.deepcopy(model).eval()
         for p in self.model.parameters():
             p.requires_grad_(False)
         self.version = -1  # the learner update whose parameters this copy holds
-        self.gen = torch.Generator(device=device).manual_seed(cfg.seed)
+        self.gen = torch.Generator(device=device).manual_seed(cfg.seed + 1_000_003 * index)
         self.ret_std = RunningStd()
         self.seed_cursor, self.episode, self.steps = 0, 0, 0
         self.timing = {"simulator": 0.0, "forward": 0.0}
@@ -213,11 +244,15 @@ class Actor:
         self.gen.set_state(meta["generator"].to(self.gen.device) if self.device.type == "cuda" else meta["generator"])
 
     def _take_seeds(self, k: int) -> list[int]:
-        """The next ``k`` seeds of the ``train`` set for this run (as ppo.py: a window per run seed)."""
-        train = SEED_SETS["train"]
-        start = (self.cfg.seed * 1_000_003 + self.seed_cursor) % (len(train) - k)
+        """The next ``k`` seeds of the ``train`` set for this run (as ppo.py: a window per run seed).
+
+        Actor ``index`` of ``count`` takes every ``count``-th seed of the window from ``index`` on,
+        so the actors' seeds are disjoint and together are the window one actor would take.
+        """
+        train, n = SEED_SETS["train"], self.count
+        start = (self.cfg.seed * 1_000_003 + self.seed_cursor * n + self.index) % (len(train) - k * n)
         self.seed_cursor += k
-        return list(train[start:start + k])
+        return list(train[start:start + k * n:n])
 
     def start(self) -> None:
         """A fresh Simulator; with ``stagger`` environment b's first episode is cut after (b + 1) / B of the horizon."""
@@ -292,8 +327,47 @@ class Actor:
         roll["init_state"] = init_state
         roll["episodes"] = episodes
         roll["version"] = self.version
+        roll["actor"] = self.index
         roll["meta"] = self.meta()
         return roll
+
+
+class RemoteActor:
+    """The Ray path's actor: an :class:`Actor` on CPU, ``index`` of ``cfg.ray_actors``, in a Ray worker process.
+
+    A plain class: :mod:`wfbench.train.ray_actors` makes it a Ray actor (``ray.remote``), so this
+    module needs no Ray. Ray pickles ``cfg`` and ``meta`` to the worker, which builds its own
+    network and Simulator; ``params`` arrive as a CPU state_dict from the learner's ``ray.put``.
+    """
+
+    def __init__(self, cfg: ImpalaConfig, index: int, meta: dict | None):
+        torch.set_num_threads(cfg.threads)
+        model = WorkforceNet(model_config(cfg.model, VARIANTS[cfg.variant], **cfg.model_overrides))
+        self.actor = Actor(cfg, ScenarioConfig.resolve(cfg.scenario), model, torch.device("cpu"), index,
+                           cfg.ray_actors)
+        if meta is not None:  # resume: this actor's return normalizer, generator and seed cursor
+            self.actor.restore(meta)
+        self.actor.start()  # its Simulator, on its first training seeds
+
+    def ready(self) -> int:
+        """Answers once the actor is built (the learner waits for all before it starts the clock)."""
+        return self.actor.index
+
+    def rollout(self, version: int, params: dict) -> dict:
+        """One rollout, acting with the learner's parameters of update ``version`` (loaded when they are new)."""
+        if version != self.actor.version:
+            self.actor.load(version, params)
+        return self.actor.rollout()
+
+
+def _to_device(roll: dict, device: torch.device) -> dict:
+    """A rollout made on CPU (by a Ray actor) on the learner's device."""
+    if device.type == "cpu":
+        return roll
+    out = {k: v.to(device) if isinstance(v, torch.Tensor) else v for k, v in roll.items()}
+    out["raw"] = {k: v.to(device) for k, v in roll["raw"].items()}
+    out["init_state"] = tuple(s.to(device) for s in roll["init_state"])
+    return out
 
 
 # -- the learner --------------------------------------------------------------------------------
@@ -329,20 +403,26 @@ class Trainer:
                 raise ValueError(f"--init {c.init!r}: its network ({start['model_config']}) is not this run's "
                                  f"--model {c.model}")
             self.model.load_state_dict(start["model"])
-        self.actor = Actor(c, self.scenario, self.model, self.device)
-        self.actor_meta = self.actor.meta()
+        # the thread path's actor, here; the Ray path's live in Ray workers (started by train())
+        self.actor = None if c.address else Actor(c, self.scenario, self.model, self.device)
+        self.n_actors = c.ray_actors if c.address else 1
+        # what a checkpoint needs of each actor, as of its last rollout the learner used (None: none yet)
+        self.actor_metas: list[dict | None] = [self.actor.meta()] if self.actor else [None] * self.n_actors
         if resume is not None:
             self._load(resume)
         self._lock = threading.Lock()
         self._published: tuple[int, dict] = (-1, {})
+        self._ray = None  # wfbench.train.ray_actors.RayActors while train() runs, with address set
         self.publish()
 
     # -- parameters from the learner to the actor ---------------------------------------------
     def publish(self) -> None:
-        """Make the learner's current parameters the ones the actor picks up next (version = update)."""
+        """Make the learner's current parameters the ones the actors pick up next (version = update)."""
         params = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
         with self._lock:
             self._published = (self.update, params)
+        if self._ray is not None:
+            self._ray.publish(self.update, params)
 
     def _refresh_actor(self) -> None:
         with self._lock:
@@ -402,17 +482,18 @@ class Trainer:
 
     def checkpoint(self) -> dict:
         """The shared checkpoint keys (so ``ppo:PATH`` loads it), plus ``algo``."""
+        metas = [m for m in self.actor_metas if m is not None]
         return policy_checkpoint(self.model, self.mcfg, self.cfg.variant, self.scenario.name, self.cfg,
                                  algo="impala", update=self.update, global_step=self.global_step,
-                                 episode=self.actor_meta["episode"], seed_cursor=self.actor_meta["seed_cursor"],
+                                 episode=sum(m["episode"] for m in metas),
+                                 seed_cursor=sum(m["seed_cursor"] for m in metas),  # training seeds taken, all actors
                                  git_commit=self.commit, best=self.best, history=self.history)
 
     def save(self, path: Path, full: bool = True) -> Path:
         ckpt = self.checkpoint()
         if full:  # what --resume needs on top of the policy
             ckpt["optimizer"] = self.opt.state_dict()
-            ckpt["ret_std"] = self.actor_meta["ret_std"]
-            ckpt["generator"] = self.actor_meta["generator"]
+            ckpt["actors"] = list(self.actor_metas)  # each actor's return normalizer, generator and seed cursor
             ckpt["torch_rng"] = torch.get_rng_state()
             ckpt["lags"] = list(self.lags)
         return save_atomic(ckpt, path)
@@ -432,9 +513,13 @@ class Trainer:
         self.update, self.global_step = ckpt["update"], ckpt["global_step"]
         self.commit = ckpt.get("git_commit", self.commit)
         self.best, self.history, self.lags = ckpt["best"], ckpt["history"], list(ckpt.get("lags", []))
-        self.actor_meta = {"seed_cursor": ckpt["seed_cursor"], "episode": ckpt["episode"],
-                           "ret_std": ckpt["ret_std"], "generator": ckpt["generator"]}
-        self.actor.restore(self.actor_meta)  # a fresh batch of episodes on the next training seeds
+        metas = ckpt.get("actors") or [{k: ckpt[k] for k in ("seed_cursor", "episode", "ret_std", "generator")}]
+        if len(metas) != self.n_actors:  # each actor's seeds are every n-th of the window: n cannot change
+            raise ValueError(f"checkpoint {str(path)!r} was made by {len(metas)} actor(s), this run has "
+                             f"{self.n_actors}; resume with its address and ray_actors (config.json)")
+        self.actor_metas = metas
+        if self.actor is not None:
+            self.actor.restore(metas[0])  # a fresh batch of episodes on the next training seeds
 
     # -- where rollouts come from -------------------------------------------------------------
     def _actor_thread(self, count: int) -> None:
@@ -456,6 +541,10 @@ class Trainer:
 
     def _next_rollout(self) -> dict:
         t0 = time.perf_counter()
+        if self._ray is not None:
+            roll = self._ray.next()
+            self.timing["wait"] += time.perf_counter() - t0
+            return _to_device(roll, self.device)
         if self.cfg.mode == "sync":
             self._refresh_actor()
             roll = self.actor.rollout()
@@ -488,6 +577,15 @@ class Trainer:
                 pass
         self._thread.join()
 
+    def _start_ray(self, count: int) -> None:
+        """Ray path: start (or join) Ray and the ``ray_actors`` actors, and ask for ``count`` rollouts."""
+        from wfbench.train.ray_actors import RayActors  # Ray is imported on this path only
+
+        with self._lock:
+            version, params = self._published
+        self._ray = RayActors(self.cfg, RemoteActor, self.actor_metas, version, params)
+        self._ray.run(count)
+
     # -- the loop -----------------------------------------------------------------------------
     def train(self, updates: int | None = None) -> dict:
         """Train until ``cfg.steps`` environment steps (or ``updates`` more updates); returns the last stats."""
@@ -505,20 +603,24 @@ class Trainer:
         if self.progress:
             from tqdm.auto import tqdm
 
+            how = f"ray x{c.ray_actors}" if c.address else c.mode
             bar = tqdm(total=stop * per_update, initial=self.update * per_update, unit="step", unit_scale=True,
-                       desc=f"impala {c.mode} {self.scenario.name}")
+                       desc=f"impala {how} {self.scenario.name}")
         stats: dict = {}
         ep_nsw = None
         start, start_step = time.perf_counter(), self.global_step
-        if c.mode == "async" and stop > self.update:
+        if c.mode == "async" and not c.address and stop > self.update:
             self._start_actor(stop - self.update)
         try:
+            if c.address and stop > self.update:
+                self._start_ray(stop - self.update)
+                start = time.perf_counter()  # env-steps/s once the actors are built (not Ray's start-up)
             while self.update < stop:
                 roll = self._next_rollout()
                 stats = self.learn(roll)
                 self.update += 1
                 self.global_step += per_update
-                self.actor_meta = roll["meta"]
+                self.actor_metas[roll["actor"]] = roll["meta"]
                 if self.update % c.sync_every == 0:
                     self.publish()
                 sps = (self.global_step - start_step) / (time.perf_counter() - start)
@@ -531,7 +633,7 @@ class Trainer:
                     for k, v in stats.items():
                         writer.add_scalar(f"loss/{k}", v, self.global_step)
                     writer.add_scalar("charts/env_steps_per_s", sps, self.global_step)
-                    writer.add_scalar("charts/reward_std", self.actor_meta["ret_std"]["var"] ** 0.5,
+                    writer.add_scalar("charts/reward_std", roll["meta"]["ret_std"]["var"] ** 0.5,
                                       self.global_step)
                     writer.add_scalar("charts/learner_wait_s", self.timing["wait"], self.global_step)
                 if c.eval_every and self.update % c.eval_every == 0:
@@ -565,6 +667,9 @@ class Trainer:
             if c.mode == "async" and hasattr(self, "_thread"):
                 self._stop_actor()
                 del self._thread
+            if self._ray is not None:  # kill the actors; shut Ray down if this run started it
+                self._ray.close()
+                self._ray = None
             if writer:
                 writer.close()
         if bar:

@@ -1,0 +1,113 @@
+"""The IMPALA trainer's actors as Ray actors (``ImpalaConfig.address`` set): the learner's side of the plumbing.
+
+Imported only by :meth:`wfbench.train.impala.Trainer.train` when ``address`` is set, so Ray
+stays an optional dependency (the ``ray`` extra). What runs where::
+
+    this process (the learner): the network being trained, the optimizer, V-trace, the
+        checkpoints and the public-seed scores; every K updates it publishes its parameters,
+        a CPU state_dict, with ray.put (one object in the object store per version)
+    ray_actors Ray actors (impala.RemoteActor, each `threads` CPUs, anywhere in the cluster):
+        an impala.Actor on CPU with its own copy of the network and its own Simulator of
+        num_envs environments on its own share of the training seeds;
+        rollout(version, params) loads the parameters when the version is new, makes one
+        rollout and returns it, pickled back: T + 1 observations, actions, log mu, rewards,
+        episode ends, the LSTM state, the version that acted, the actor's index and resume state
+
+Each actor has one rollout in flight. When the learner takes a finished one (the first to
+finish, whichever actor made it), it asks that actor for the next at once, with the newest
+published parameters, and then learns on the one it took; so the actors step their
+simulators while the learner computes its gradients. The lag of an update (learner updates
+done minus the version that acted) then depends on how fast each actor is relative to the
+learner: the run is not deterministic.
+
+Ray: ``address="local"`` starts a Ray instance on this machine (no dashboard, at least one
+CPU per actor) and ``"auto"``, ``"ray://HOST:PORT"`` or ``"HOST:PORT"`` join a running cluster;
+either way this process disconnects at the end of ``train()`` (a started instance is shut
+down, a cluster keeps running). A connection this process already had (``ray.init`` called
+before) is used as it is and left open. Every node must be able to import this version of
+wfbench (its Python environment), as for the ``ray`` evaluation backend.
+"""
+
+from __future__ import annotations
+
+import os
+
+import ray
+
+
+class RayActors:
+    """``cfg.ray_actors`` Ray actors of class ``actor_cls``, one rollout in flight each, fed the newest parameters.
+
+    Args:
+        cfg: the run's ``ImpalaConfig`` (``address``, ``ray_actors``, ``threads``).
+        actor_cls: the plain class to run as a Ray actor, built as ``actor_cls(cfg, index, meta)``,
+            with methods ``ready()`` and ``rollout(version, params)`` (``impala.RemoteActor``).
+        metas: each actor's resume state, or None for a fresh actor.
+        version: the learner update of ``params``.
+        params: the learner's parameters (a CPU state_dict) that the actors start with.
+    """
+
+    def __init__(self, cfg, actor_cls, metas: list, version: int, params: dict):
+        self.owns = not ray.is_initialized()  # True: this object started Ray (or connected) and shuts it down
+        if self.owns and cfg.address == "local":
+            ray.init(
+                address="local",
+                num_cpus=max(os.cpu_count() or 1, cfg.ray_actors * cfg.threads),
+                include_dashboard=False,
+                log_to_driver=False,
+                configure_logging=False,
+            )
+        elif self.owns:
+            ray.init(address=cfg.address, log_to_driver=False, configure_logging=False)
+        self.actors: list = []
+        self.pending: dict = {}  # ObjectRef of a rollout in flight -> the index of its actor
+        self.remaining = 0  # rollouts still to ask for
+        try:
+            remote = ray.remote(num_cpus=cfg.threads)(actor_cls)
+            self.actors = [remote.remote(cfg, i, meta) for i, meta in enumerate(metas)]
+            for i, ref in enumerate([a.ready.remote() for a in self.actors]):
+                self._get(ref, i)  # a worker that cannot import wfbench or build its simulator fails here
+            self.publish(version, params)
+        except BaseException:
+            self.close()
+            raise
+
+    def publish(self, version: int, params: dict) -> None:
+        """The parameters that the next rollouts asked for act with (CPU tensors: actors may be on other nodes)."""
+        self.version, self.params = version, ray.put({k: v.cpu() for k, v in params.items()})
+
+    def run(self, count: int) -> None:
+        """Ask for ``count`` rollouts in all: one to each actor now, the others as rollouts come in."""
+        self.remaining = count
+        for i in range(min(count, len(self.actors))):
+            self._ask(i)
+
+    def _ask(self, i: int) -> None:
+        # the ObjectRef as an argument: Ray hands the actor the state_dict itself
+        self.pending[self.actors[i].rollout.remote(self.version, self.params)] = i
+        self.remaining -= 1
+
+    def next(self) -> dict:
+        """The first rollout to finish; its actor is asked for the next one at once (while the learner learns)."""
+        [ref], _ = ray.wait(list(self.pending), num_returns=1)
+        i = self.pending.pop(ref)
+        roll = self._get(ref, i)
+        if self.remaining > 0:
+            self._ask(i)
+        return roll
+
+    def _get(self, ref, i: int):
+        try:
+            return ray.get(ref)
+        except ray.exceptions.RayTaskError as exc:  # the actor's own exception, with the remote trace in its message
+            raise RuntimeError(f"Ray actor {i} failed: {exc.cause!r}") from exc.cause
+        except ray.exceptions.RayActorError as exc:
+            raise RuntimeError(f"Ray actor {i} died: {exc}") from None
+
+    def close(self) -> None:
+        """Kill the actors (rollouts in flight are dropped); shut Ray down or disconnect if this object started it."""
+        for actor in self.actors:
+            ray.kill(actor)
+        self.actors, self.pending = [], {}
+        if self.owns and ray.is_initialized():
+            ray.shutdown()
