@@ -1,4 +1,5 @@
-"""What the trainers (ppo, impala, hindsight) share: the checkpoint format, scoring on the public seeds, run files.
+"""What the trainers (ppo, impala, hindsight) share: the checkpoint format, scoring on the public seeds, run files,
+the return normalizer, the deployable policy of a network, the device and the git commit.
 
 A checkpoint of any trainer loads as a policy (``ppo:PATH``, :mod:`policies.neural.policy`)
 because all three write the keys of :func:`policy_checkpoint`; each adds what its own
@@ -7,15 +8,21 @@ resume needs. Checkpoints are selected on the public seeds only (:func:`score_pu
 
 from __future__ import annotations
 
+import copy
 import json
+import math
+import subprocess
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
+import policies
 from policies.neural.model import count_parameters
+from policies.neural.policy import PPOPolicy
 from wfbench.evaluation import evaluate
 from wfbench.seeds import resolve_seeds
 
@@ -72,3 +79,46 @@ def write_run_config(run_dir: Path, train_config, model: torch.nn.Module, model_
     (run_dir / "config.json").write_text(json.dumps(
         {**asdict(train_config), **extra, "git_commit": commit, "parameters": count_parameters(model),
          "device": str(device), "model_config": model_config.to_dict()}, indent=2))
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10,
+                             cwd=Path(__file__).resolve().parent)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, timeout=10, cwd=Path(__file__).resolve().parent).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "") if out.returncode == 0 else "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+class RunningStd:
+    """Running variance of the discounted return, by which rewards are divided (return normalization)."""
+
+    def __init__(self):
+        self.mean, self.var, self.count = 0.0, 1.0, 1e-4
+
+    def update(self, x: np.ndarray) -> None:
+        m, v, n = float(x.mean()), float(x.var()), x.size
+        delta, total = m - self.mean, self.count + n
+        self.mean += delta * n / total
+        self.var = (self.var * self.count + v * n + delta**2 * self.count * n / total) / total
+        self.count = total
+
+    @property
+    def std(self) -> float:
+        return math.sqrt(self.var + 1e-8)
+
+
+def torch_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+def deployable(model: torch.nn.Module, variant: str, mode: str = "sample", name: str = "ppo"):
+    """The policy the network makes: alone (joint) or with the heuristic workforce and positioning (dispatch)."""
+    net = PPOPolicy(copy.deepcopy(model).float().cpu(), mode=mode, device="cpu", name=name)
+    if variant == "joint":
+        return net
+    return policies.Composite(net, "threshold", "spatial", name=name)

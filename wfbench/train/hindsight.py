@@ -77,8 +77,16 @@ from policies.neural.policy import load_checkpoint
 from wfbench.config import ScenarioConfig
 from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
-from wfbench.train.common import log_public, policy_checkpoint, save_atomic, score_public, write_run_config
-from wfbench.train.ppo import deployable, git_commit
+from wfbench.train.common import (
+    deployable,
+    git_commit,
+    log_public,
+    policy_checkpoint,
+    save_atomic,
+    score_public,
+    torch_device,
+    write_run_config,
+)
 
 VARIANTS = ("joint",)
 # the teachers: the full oracle, or the oracle's workforce and positioning beside nearest-first dispatch
@@ -200,12 +208,6 @@ def teacher_planner(teacher: str, settings: dict) -> Planner:
     return comp.parts["workforce"].planner
 
 
-def _device(name: str) -> torch.device:
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
-
-
 def oracle_labels(label: dict[str, np.ndarray], obs: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
     """The oracle's joint action as the network's heads express it, and the count of sanitized dispatch picks.
 
@@ -267,7 +269,7 @@ class Trainer:
                  log: bool = True):
         config.validate()
         self.cfg = c = config
-        self.device = _device(c.device)
+        self.device = torch_device(c.device)
         self.cuda = self.device.type == "cuda"
         torch.set_num_threads(c.threads)
         torch.manual_seed(c.seed)

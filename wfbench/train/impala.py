@@ -71,8 +71,18 @@ from policies.neural.policy import load_checkpoint
 from wfbench.config import ScenarioConfig
 from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
-from wfbench.train.common import log_public, policy_checkpoint, save_atomic, score_public, write_run_config
-from wfbench.train.ppo import VARIANTS, RunningStd, _device, deployable, git_commit
+from wfbench.train.common import (
+    RunningStd,
+    deployable,
+    git_commit,
+    log_public,
+    policy_checkpoint,
+    save_atomic,
+    score_public,
+    torch_device,
+    write_run_config,
+)
+from wfbench.train.ppo import VARIANTS
 
 MODES = ("async", "sync")
 OPTIMIZERS = ("adam", "rmsprop")
@@ -378,7 +388,7 @@ class Trainer:
                  log: bool = True):
         config.validate()
         self.cfg = c = config
-        self.device = _device(c.device)
+        self.device = torch_device(c.device)
         self.cuda = self.device.type == "cuda"
         torch.set_num_threads(c.threads)
         torch.manual_seed(c.seed)

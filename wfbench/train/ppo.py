@@ -58,9 +58,7 @@ On CPU a run is deterministic given ``seed``.
 
 from __future__ import annotations
 
-import copy
 import math
-import subprocess
 import time
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -79,12 +77,22 @@ from policies.neural.model import (
     model_config,
     obs_to_torch,
 )
-from policies.neural.policy import PPOPolicy, load_checkpoint
+from policies.neural.policy import load_checkpoint
 from wfbench.config import ScenarioConfig
 from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
 from wfbench.state import METRICS
-from wfbench.train.common import log_public, policy_checkpoint, save_atomic, score_public, write_run_config
+from wfbench.train.common import (
+    RunningStd,
+    deployable,
+    git_commit,
+    log_public,
+    policy_checkpoint,
+    save_atomic,
+    score_public,
+    torch_device,
+    write_run_config,
+)
 
 AGENTS = ("joint", "independent")
 VARIANTS = {
@@ -174,49 +182,6 @@ class TrainConfig:
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
-def git_commit() -> str:
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10,
-                             cwd=Path(__file__).resolve().parent)
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, timeout=10, cwd=Path(__file__).resolve().parent).stdout.strip()
-        return out.stdout.strip() + ("-dirty" if dirty else "") if out.returncode == 0 else "unknown"
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
-class RunningStd:
-    """Running variance of the discounted return, by which rewards are divided (return normalization)."""
-
-    def __init__(self):
-        self.mean, self.var, self.count = 0.0, 1.0, 1e-4
-
-    def update(self, x: np.ndarray) -> None:
-        m, v, n = float(x.mean()), float(x.var()), x.size
-        delta, total = m - self.mean, self.count + n
-        self.mean += delta * n / total
-        self.var = (self.var * self.count + v * n + delta**2 * self.count * n / total) / total
-        self.count = total
-
-    @property
-    def std(self) -> float:
-        return math.sqrt(self.var + 1e-8)
-
-
-def _device(name: str) -> torch.device:
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
-
-
-def deployable(model: WorkforceNet | AgentSet, variant: str, mode: str = "sample", name: str = "ppo"):
-    """The policy the network makes: alone (joint) or with the heuristic workforce and positioning (dispatch)."""
-    net = PPOPolicy(copy.deepcopy(model).float().cpu(), mode=mode, device="cpu", name=name)
-    if variant == "joint":
-        return net
-    return policies.Composite(net, "threshold", "spatial", name=name)
-
-
 class Trainer:
     """A PPO run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
 
@@ -224,7 +189,7 @@ class Trainer:
                  log: bool = True):
         config.validate()
         self.cfg = c = config
-        self.device = _device(c.device)
+        self.device = torch_device(c.device)
         self.cuda = self.device.type == "cuda"
         torch.set_num_threads(c.threads)
         torch.manual_seed(c.seed)
