@@ -62,7 +62,8 @@ def main() -> None:
         color = f"C{i}"
         cfg = json.loads((run / "config.json").read_text())
         s = scalars(run, init_offset(cfg))
-        label = f"{cfg.get('algo', 'ppo')} {cfg['variant']} ({cfg['model']}, {run.name})"
+        agents = " independent agents" if cfg.get("agents") == "independent" else ""
+        label = f"{cfg.get('algo', 'ppo')} {cfg['variant']}{agents} ({cfg['model']}, {run.name})"
         if "episode/nsw" in s:
             steps, values, _ = zip(*s["episode/nsw"], strict=True)
             axes[0, 0].plot(steps, values, color=color, lw=1, label=label)
