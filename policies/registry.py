@@ -61,6 +61,8 @@ LEARNED: dict[str, tuple[str, str]] = {
     "impala-joint": ("impala-joint-paper-64.pt", "the joint network trained with IMPALA (V-trace) on paper-64"),
     "hindsight-joint": ("hindsight-joint-paper-64.pt", "the joint network trained by imitating the hindsight "
                         "oracles (DAgger) on paper-64"),
+    "ppo-independent": ("ppo-independent-paper-64.pt", "three PPO networks, one per decision (independent "
+                        "agents), trained together on paper-64"),
 }
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
 
