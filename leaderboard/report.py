@@ -179,7 +179,26 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     figs.append(("Per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%; gray: the 0.75 +- 0.05 utilization band)",
                  _png(fig)))
     plt.close(fig)
-    return figs
+    diffs = _paired_difference_figure(r, shown)
+    return figs + ([diffs] if diffs else [])
+
+
+def _paired_difference_figure(r: Ranking, shown: pd.DataFrame) -> tuple[str, str] | None:
+    """The paired NSW differences to the baseline with their intervals, as in the table (none resampled here)."""
+    from wfbench.plots import draw_paired_differences, new_figure
+
+    if "diff" not in shown:
+        return None
+    rows = shown[shown["diff"].notna() & (shown["name"] != r.baseline)]
+    if rows.empty:
+        return None
+    n = len(r.track.test_seeds)
+    notes = [f"on {int(c)} seeds" if c < n else "" for c in rows["common_seeds"]]
+    fig = new_figure(figsize=(9, 1.2 + 0.45 * len(rows)), layout="constrained")
+    draw_paired_differences(fig.subplots(), rows["name"].tolist(), rows["diff"], rows["diff_low"],
+                            rows["diff_high"], r.baseline, notes)
+    return (f"NSW minus {r.baseline}, paired by seed, with bootstrap 95% intervals (green: above zero, red: "
+            "below, gray: contains zero)", _png(fig))
 
 
 def render_html(r: Ranking) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -76,11 +77,86 @@ def _write(out: Path, stem: str, md: str, df: pd.DataFrame) -> list[Path]:
 Progress = Callable[[str], None] | None
 
 
+TREND_KPIS = ("nsw", "downtime", "utilization", "workforce_cost")
+TREND_BETTER = {"nsw": "higher", "downtime": "lower", "workforce_cost": "lower",
+                "utilization": "closer to the target 0.75"}
+# each trend of the paper as chains of cells, each chain ordered from the cell expected worst to the one expected
+# best; one pairwise comparison per consecutive pair; (key, text, unit the chains run in)
+TABLE2_TRENDS = (
+    ("personnel", "More personnel is better for 25 facilities (5S < 10S < 25S)", "grids"),
+    ("facilities", "More facilities is worse for 25 personnel (25F > 50F > 100F)", "grids"),
+    ("grid", "A larger grid is worse (32 > 64 > 128 > 256 in each column)", "columns"),
+)
+
+
+class TrendCount(NamedTuple):
+    trend: str  # a key of TABLE2_TRENDS
+    held: int  # pairwise comparisons that go the paper's way
+    total: int
+    monotone: int  # chains (grids or columns) where every comparison holds
+    chains: int
+    ties: int = 0  # comparisons with equal values: neither held nor broken (workforce cost with a fixed workforce)
+
+    def cell(self) -> str:
+        unit = dict((k, u) for k, _, u in TABLE2_TRENDS)[self.trend]
+        tied = f", {self.ties} tied" if self.ties else ""
+        return f"{self.held}/{self.total}{tied} (monotone in {self.monotone}/{self.chains} {unit})"
+
+
+def _trend_chains(trend: str) -> list[list[tuple[int, int, int]]]:
+    if trend == "personnel":
+        return [[(g, 25, s) for s in (5, 10, 25)] for g in TABLE2_GRIDS]
+    if trend == "facilities":
+        return [[(g, f, 25) for f in (100, 50, 25)] for g in TABLE2_GRIDS]
+    return [[(g, f, s) for g in reversed(TABLE2_GRIDS)] for f, s in TABLE2_CELLS]
+
+
+def kpi_score(kpi: str, value: float, target_utilization: float = 0.75) -> float:
+    """A KPI as a score where higher is better.
+
+    NSW as it is, workforce cost and downtime negated, utilization as minus its distance
+    to the target (the centre of the band our NSW rewards).
+    """
+    if kpi == "nsw":
+        return value
+    if kpi in ("workforce_cost", "downtime"):
+        return -value
+    if kpi == "utilization":
+        return -abs(value - target_utilization)
+    raise ValueError(f"unknown KPI {kpi!r}; allowed: {', '.join(TREND_KPIS)}")
+
+
+def table2_trend_counts(score: dict[tuple[int, int, int], float]) -> list[TrendCount]:
+    """How many pairwise comparisons of each of the paper's trends hold, ``score`` higher = better."""
+    out = []
+    for key, _, _ in TABLE2_TRENDS:
+        chains = _trend_chains(key)
+        ok = [[score[b] > score[a] for a, b in zip(c, c[1:], strict=False)] for c in chains]
+        ties = sum(score[b] == score[a] for c in chains for a, b in zip(c, c[1:], strict=False))
+        out.append(TrendCount(key, sum(map(sum, ok)), sum(map(len, ok)), sum(map(all, ok)), len(chains), ties))
+    return out
+
+
+def table2_trends_per_kpi(values: dict[str, dict[tuple[int, int, int], float]],
+                          target_utilization: float = 0.75) -> dict[str, list[TrendCount]]:
+    """The trend counts of every KPI in ``values`` (KPI -> cell -> mean), each judged in its own direction."""
+    return {k: table2_trend_counts({c: kpi_score(k, v, target_utilization) for c, v in cells.items()})
+            for k, cells in values.items()}
+
+
 def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
            address: str | None = None, progress: Progress = None) -> Output:
-    """20 cells: heuristic dispatch, no hiring or letting go, ``runs`` seeds each; the paper's trends checked."""
+    """20 cells: heuristic dispatch, no hiring or letting go, ``runs`` seeds each; the paper's trends checked.
+
+    The trends are counted for NSW and for each KPI alone (:data:`TREND_BETTER` says
+    which way is better), since utilization sits inside our NSW and pulls against
+    downtime. Writes table2.md, table2.csv (every KPI per cell), table2_trends.csv
+    (the counts per KPI and trend) and the figure table2.png / table2.svg.
+    """
+    from wfbench.config import ScenarioConfig
+
     seeds = list(range(runs))
-    nsw: dict[tuple[int, int, int], float] = {}
+    values: dict[str, dict[tuple[int, int, int], float]] = {k: {} for k in TREND_KPIS}
     records = []
     for grid in TABLE2_GRIDS:
         for k, (f, s) in enumerate(TABLE2_CELLS):
@@ -88,47 +164,77 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
             if progress:
                 progress(name)
             df = evaluate("fixed-workforce", name, seeds, backend=backend, workers=workers, address=address)
-            nsw[grid, f, s] = float(df["nsw"].mean())
-            records.append({"grid": grid, "facilities": f, "personnel": s, "scenario": name, "runs": runs,
-                            "nsw": nsw[grid, f, s], "nsw_q25": df["nsw"].quantile(0.25),
-                            "nsw_q75": df["nsw"].quantile(0.75), "paper_nsw_cost": PAPER_TABLE2[grid][k]})
+            rec = {"grid": grid, "facilities": f, "personnel": s, "scenario": name, "runs": runs}
+            for kpi in KPIS:
+                values.setdefault(kpi, {})[grid, f, s] = float(df[kpi].mean())
+                rec.update({kpi: float(df[kpi].mean()), f"{kpi}_q25": df[kpi].quantile(0.25),
+                            f"{kpi}_q75": df[kpi].quantile(0.75)})
+            records.append({**rec, "paper_nsw_cost": PAPER_TABLE2[grid][k]})
+    target = ScenarioConfig.resolve(table2_name(TABLE2_GRIDS[0], *TABLE2_CELLS[0])).target_utilization
+    nsw = values["nsw"]
     header = ["Grid size", *[f"{f}F x {s}S" for f, s in TABLE2_CELLS]]
     rows = [[f"{g} x {g}", *[f"{nsw[g, f, s]:.3f} (paper {PAPER_TABLE2[g][k]:g})"
                              for k, (f, s) in enumerate(TABLE2_CELLS)]] for g in TABLE2_GRIDS]
     trends = table2_trends(nsw)
+    per_kpi = table2_trends_per_kpi({k: values[k] for k in TREND_KPIS}, target)
+    texts = {k: t for k, t, _ in TABLE2_TRENDS}
+    kpi_header = ["KPI (better is)", *[texts[k] for k, _, _ in TABLE2_TRENDS]]
+    kpi_rows = [[f"{KPI_LABELS[k]} ({TREND_BETTER[k]})", *[c.cell() for c in per_kpi[k]]] for k in TREND_KPIS]
+    other = [kpi for kpi in TREND_KPIS if kpi != "nsw"]
+    kpi_tables = []
+    for kpi in other:
+        kpi_tables += ["", f"{KPI_LABELS[kpi]} (mean over {runs} runs; better is {TREND_BETTER[kpi]}):", "",
+                       markdown_table(header, [[f"{g} x {g}", *[f"{values[kpi][g, f, s]:.3g}" for f, s in
+                                                                 TABLE2_CELLS]] for g in TABLE2_GRIDS])]
     md = "\n".join([
         f"Table 2: NSW (mean over {runs} runs), heuristic dispatch, fixed workforce (no hiring or letting go).",
         "", markdown_table(header, rows), "", DIRECTION, "", "Trends the paper states, checked here:", "",
         *[f"- {t}" for t in trends],
+        "", "The same trends per KPI, each KPI judged alone in its own direction (pairwise comparisons that hold; "
+        "utilization: closer to the target is better; a tie neither holds nor breaks a trend):", "",
+        markdown_table(kpi_header, kpi_rows),
+        *kpi_tables, "", "![table 2 per KPI](table2.png)",
     ])
-    return Output(md, _write(out, "table2", md, pd.DataFrame(records)))
+    trend_records = [{"kpi": k, "better": TREND_BETTER[k], **c._asdict()} for k in TREND_KPIS for c in per_kpi[k]]
+    files = _write(out, "table2", md, pd.DataFrame(records))
+    trends_csv = out / "table2_trends.csv"
+    pd.DataFrame(trend_records).to_csv(trends_csv, index=False)
+    figs = _table2_figure(out, values, per_kpi, runs, target)
+    return Output(md, [*files, trends_csv, *figs])
+
+
+def _table2_figure(out: Path, values: dict[str, dict[tuple[int, int, int], float]],
+                   per_kpi: dict[str, list[TrendCount]], runs: int, target: float) -> list[Path]:
+    from wfbench.plots import new_figure, save_figure
+
+    fig = new_figure(figsize=(4.6 * len(TREND_KPIS), 4.4), layout="constrained")
+    axes = fig.subplots(1, len(TREND_KPIS))
+    x = np.arange(len(TABLE2_CELLS))
+    colors = ("#4c72b0", "#55a868", "#dd8452", "#c44e52")
+    for ax, kpi in zip(axes, TREND_KPIS, strict=True):
+        if kpi == "utilization":
+            ax.axhspan(0.70, 0.80, color="0.9", zorder=0)
+            ax.axhline(target, color="0.6", ls="--", lw=1)
+        for g, c in zip(TABLE2_GRIDS, colors, strict=True):
+            ax.plot(x, [values[kpi][g, f, s] for f, s in TABLE2_CELLS], "o-", color=c, label=f"{g} x {g}")
+        ax.set_xticks(x, [f"{f}F x {s}S" for f, s in TABLE2_CELLS], rotation=30, ha="right", fontsize=8)
+        counts = ", ".join(f"{t.trend} {t.held}/{t.total}" + (f" ({t.ties} tied)" if t.ties else "")
+                           for t in per_kpi[kpi])
+        ax.set_title(f"{KPI_LABELS[kpi]} ({TREND_BETTER[kpi]} is better)\ntrends hold: {counts}", fontsize=8.5)
+    axes[0].legend(title="grid", fontsize=8)
+    fig.suptitle(f"Table 2 per KPI: heuristic dispatch, fixed workforce, mean over {runs} runs per cell",
+                 fontsize=10)
+    paths = [save_figure(fig, out / "table2.png"), save_figure(fig, out / "table2.svg")]
+    return paths
 
 
 def table2_trends(nsw: dict[tuple[int, int, int], float]) -> list[str]:
     """Each trend of the paper with how many of its pairwise comparisons hold here (higher NSW = better)."""
-    def count(pairs: list[tuple[tuple, tuple]]) -> tuple[int, int]:
-        return sum(nsw[b] > nsw[a] for a, b in pairs), len(pairs)  # b is expected better
-
-    # more personnel is better for 25 facilities: 5S -> 10S -> 25S
-    staff = [((g, 25, a), (g, 25, b)) for g in TABLE2_GRIDS for a, b in ((5, 10), (10, 25))]
-    staff_grids = sum(nsw[g, 25, 5] < nsw[g, 25, 10] < nsw[g, 25, 25] for g in TABLE2_GRIDS)
-    # more facilities is worse (25 personnel): 25F -> 50F -> 100F
-    fac = [((g, b, 25), (g, a, 25)) for g in TABLE2_GRIDS for a, b in ((25, 50), (50, 100))]
-    fac_grids = sum(nsw[g, 25, 25] > nsw[g, 50, 25] > nsw[g, 100, 25] for g in TABLE2_GRIDS)
-    # a larger grid is worse, in every column
-    grid = [((b, f, s), (a, f, s)) for f, s in TABLE2_CELLS for a, b in zip(TABLE2_GRIDS, TABLE2_GRIDS[1:],
-                                                                              strict=False)]
-    grid_cols = sum(all(nsw[a, f, s] > nsw[b, f, s] for a, b in zip(TABLE2_GRIDS, TABLE2_GRIDS[1:], strict=False))
-                    for f, s in TABLE2_CELLS)
     out = []
-    for text, (held, total), whole, unit, n_units in (
-        ("More personnel is better for 25 facilities (5S < 10S < 25S)", count(staff), staff_grids, "grids", 4),
-        ("More facilities is worse for 25 personnel (25F > 50F > 100F)", count(fac), fac_grids, "grids", 4),
-        ("A larger grid is worse (32 > 64 > 128 > 256 in each column)", count(grid), grid_cols, "columns", 5),
-    ):
-        verdict = "holds" if held == total else ("does not hold" if held == 0 else "holds in part")
-        out.append(f"{text}: {verdict} here: {held} of {total} pairwise comparisons, monotone in {whole} of "
-                   f"{n_units} {unit}.")
+    for (_, text, unit), t in zip(TABLE2_TRENDS, table2_trend_counts(nsw), strict=True):
+        verdict = "holds" if t.held == t.total else ("does not hold" if t.held == 0 else "holds in part")
+        out.append(f"{text}: {verdict} here: {t.held} of {t.total} pairwise comparisons, monotone in {t.monotone} "
+                   f"of {t.chains} {unit}.")
     return out
 
 
@@ -195,62 +301,105 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     return Output(md, _write(out, "table3", md, pd.DataFrame(records)))
 
 
-FIGURE3_METHODS = ("random", "random-dispatch", "random-positioning", "heuristic", "solver")
+# the methods of Figure 3, in groups drawn side by side; the paper's figure has the first group and PPO. The
+# learned group holds every network of the registry (policies.registry.LEARNED), drawn where it is shipped
+FIGURE3_GROUPS = (
+    ("Paper rows 1-4", ("random", "random-dispatch", "random-positioning", "heuristic")),
+    ("Solvers and tuned", ("solver", "heuristic-tuned", "solver-tuned")),
+    ("Learned (RL)", ("ppo-dispatch", "ppo-joint", *[n for n in LEARNED if n not in ("ppo-dispatch", "ppo-joint")])),
+    ("Hindsight oracles (read the future)", ("oracle-dispatch", "oracle")),
+)
+FIGURE3_METHODS = tuple(m for _, ms in FIGURE3_GROUPS for m in ms)
+FIGURE3_REFERENCE = "heuristic"  # drawn dashed in every group, for comparison
+FIGURE3_COLORS = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860", "#da8bc3", "#8c8c8c")
+
+
+def figure3_methods() -> tuple[str, ...]:
+    """The methods Figure 3 draws here: all of :data:`FIGURE3_METHODS` but the learned ones not available.
+
+    A learned policy (``policies.registry.LEARNED``) needs its shipped checkpoint and torch.
+    """
+    import importlib.util
+
+    have_torch = importlib.util.find_spec("torch") is not None
+    available = set(learned_names()) if have_torch else set()
+    return tuple(m for m in FIGURE3_METHODS if m not in LEARNED or m in available)
 
 
 def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
             address: str | None = None, progress: Progress = None,
-            methods: tuple[str, ...] = FIGURE3_METHODS) -> Output:
-    """Per-step 25th-75th percentile bands of WC, PUR and AFD over the episode, one column per method."""
-    import matplotlib
+            methods: tuple[str, ...] | None = None) -> Output:
+    """Per-step KPI bands over the episode: the paper's methods beside the solver, tuned, RL and oracle ones.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    One column per group of :data:`FIGURE3_GROUPS` (a method outside them gets a group of
+    its own), one row per KPI (workforce cost, utilization, downtime); each method of a
+    group is its per-step median and 25th-75th percentile band over ``runs`` episodes of
+    paper-64, and the heuristic is drawn dashed in every group. ``methods`` defaults to
+    :func:`figure3_methods` (the learned ones only where their checkpoint and torch are).
+    Writes figure3.png, figure3.svg, figure3.md and figure3.csv (the bands every 10 steps).
+    """
+    from wfbench.plots import new_figure, save_figure
     from wfbench.state import METRICS
 
+    methods = figure3_methods() if methods is None else tuple(methods)
+    grouped = [(title, tuple(m for m in ms if m in methods)) for title, ms in FIGURE3_GROUPS]
+    grouped = [(t, ms) for t, ms in grouped if ms]
+    known = {m for _, ms in FIGURE3_GROUPS for m in ms}
+    grouped += [("Other", tuple(m for m in methods if m not in known))] if set(methods) - known else []
     seeds = list(range(runs))
     rows_kpi = ("workforce_cost", "utilization", "downtime")
-    fig, axes = plt.subplots(3, len(methods), figsize=(3.2 * len(methods), 7.5), sharex=True, sharey="row",
-                             squeeze=False)
+    fig = new_figure(figsize=(4.4 * len(grouped), 8.2), layout="constrained")
+    axes = fig.subplots(3, len(grouped), sharex=True, sharey="row", squeeze=False)
     records = []
-    for j, m in enumerate(methods):
+    bands: dict[str, list[np.ndarray]] = {}
+    for m in dict.fromkeys([*methods, *([FIGURE3_REFERENCE] if len(grouped) > 1 else [])]):
         if progress:
             progress(m)
         _, series = evaluate(m, "paper-64", seeds, backend=backend, workers=workers, address=address,
                              return_series=True)
-        t = np.arange(series.shape[1])
+        bands[m] = []
+        for k in rows_kpi:
+            q = np.percentile(series[:, :, METRICS.index(k)].astype(np.float64), [25, 50, 75], axis=0)
+            bands[m].append(q)
+            if m in methods:
+                records += [{"method": m, "kpi": k, "step": step, "q25": q[0, step], "median": q[1, step],
+                             "q75": q[2, step]} for step in range(0, q.shape[1], 10)]
+    for j, (title, ms) in enumerate(grouped):
         for i, k in enumerate(rows_kpi):
-            x = series[:, :, METRICS.index(k)].astype(np.float64)
-            q25, q50, q75 = np.percentile(x, [25, 50, 75], axis=0)
             ax = axes[i, j]
             if k == "utilization":
-                ax.axhspan(0.70, 0.80, color="0.85", zorder=0, label="0.75 +- 0.05")
-            ax.fill_between(t, q25, q75, alpha=0.4, color="#4c72b0", lw=0)
-            ax.plot(t, q50, color="#4c72b0", lw=1)
+                ax.axhspan(0.70, 0.80, color="0.9", zorder=0)
+            if FIGURE3_REFERENCE in bands and FIGURE3_REFERENCE not in ms:
+                ref = bands[FIGURE3_REFERENCE][i][1]
+                ax.plot(np.arange(ref.size), ref, color="0.35", ls="--", lw=1,
+                        label=f"{FIGURE3_REFERENCE} (median)")
+            for m, c in zip(ms, FIGURE3_COLORS, strict=False):
+                q25, q50, q75 = bands[m][i]
+                t = np.arange(q50.size)
+                ax.fill_between(t, q25, q75, alpha=0.25, color=c, lw=0)
+                ax.plot(t, q50, color=c, lw=1.2, label=m)
             if i == 0:
-                ax.set_title(m)
+                ax.set_title(title, fontsize=10)
             if j == 0:
                 ax.set_ylabel(KPI_LABELS[k])
             if i == 2:
                 ax.set_xlabel("step")
-            for step in range(0, series.shape[1], 10):
-                records.append({"method": m, "kpi": k, "step": step, "q25": q25[step], "median": q50[step],
-                                "q75": q75[step]})
-    fig.suptitle(f"paper-64, {runs} episodes: per-step median and 25%-75% band (gray: utilization 0.75 +- 0.05)")
-    fig.tight_layout()
+                ax.legend(*axes[0, j].get_legend_handles_labels(), fontsize=8, ncols=2, loc="upper center",
+                          bbox_to_anchor=(0.5, -0.22), frameon=False)  # below the panels: it hides no band
+    fig.suptitle(f"paper-64, {runs} episodes: per-step median and 25%-75% band per method (dashed: the "
+                 f"{FIGURE3_REFERENCE}'s median; gray: utilization 0.75 +- 0.05)", fontsize=10)
     out.mkdir(parents=True, exist_ok=True)
-    png = out / "figure3.png"
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
+    png, svg = save_figure(fig, out / "figure3.png"), save_figure(fig, out / "figure3.svg")
+    listed = "; ".join(f"{t}: {', '.join(ms)}" for t, ms in grouped)
     md = "\n".join([
-        f"Figure 3: per-step 25th-75th percentile bands of workforce cost, utilization and downtime over "
-        f"{runs} episodes of paper-64, one column per method; the gray band is utilization 0.75 +- 0.05.",
+        f"Figure 3: per-step median and 25th-75th percentile band of workforce cost, utilization and downtime over "
+        f"{runs} episodes of paper-64, one column per group of methods ({listed}); the {FIGURE3_REFERENCE}'s "
+        "median is dashed in the other groups, the gray band is utilization 0.75 +- 0.05.",
         "", "![figure 3](figure3.png)", "",
-        "figure3.csv holds the bands every 10 steps.",
+        "figure3.csv holds the bands every 10 steps; figure3.svg is the same figure as SVG.",
     ])
     files = _write(out, "figure3", md, pd.DataFrame(records))
-    return Output(md, [png, *files])
+    return Output(md, [png, svg, *files])
 
 
 GAP_SCENARIOS = ("small", "paper-64", "nonstationary", "table2-g32-f25-s10")

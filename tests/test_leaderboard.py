@@ -235,7 +235,7 @@ def test_reports_in_every_format(db, tmp_path):
     csv = render(r, "csv")
     assert csv.splitlines()[0].startswith("name,policy") and len(csv.splitlines()) == 4
     html = render(r, "html")
-    assert html.count("<img") == 2 and "<table id='ranking'>" in html
+    assert html.count("<img") == 3 and "<table id='ranking'>" in html  # NSW, KPIs, paired differences
 
 
 def _chromium() -> str:
@@ -260,7 +260,7 @@ def test_html_report_renders_in_headless_chromium(db, tmp_path):
     dom = out.stdout
     assert "<table id=\"ranking\">" in dom, out.stderr[-2000:]
     assert dom.count("<tr>") == 4  # header + 3 entries
-    assert 'data-images-decoded="2"' in dom, "the browser decoded both embedded plots"
+    assert 'data-images-decoded="3"' in dom, "the browser decoded the three embedded plots"
 
 
 def _orphan_workers() -> set[int]:

@@ -48,7 +48,7 @@ def test_reproduce_writes_tables_and_figure(tmp_path, capsys):
     assert "More personnel is better for 25 facilities" in capsys.readouterr().out
 
     assert main(["reproduce", "figure3", "--out", str(out), "--runs", "2", "--backend", "serial",
-                 "--no-progress"]) == 0
+                 "--methods", "random,heuristic,solver", "--no-progress"]) == 0  # all: minutes (test_plots.py)
     png = (out / "figure3.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
     bands = pd.read_csv(out / "figure3.csv")

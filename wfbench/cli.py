@@ -21,7 +21,7 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from leaderboard.reproduce import TARGETS
+from leaderboard.reproduce import TARGETS, figure3_methods
 from leaderboard.store import Store, StoreError
 from leaderboard.submit import SubmitError, seed_builtins, submit
 from leaderboard.tracks import TRACKS, get_track
@@ -143,6 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_backend_args(c)
     add_policy_run_args(c)
     c.add_argument("--format", default="table", choices=["table", "md", "csv"], help="output format")
+    c.add_argument("--plot", default=None, metavar="PATH", help="also draw the KPIs per policy and the paired "
+                   "NSW differences with their intervals into this .png, .svg or .pdf file")
     c.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
     lb = sub.add_parser("leaderboard", help="submit policies to tracks and show the rankings")
@@ -176,6 +178,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "per scenario)")
     rp.add_argument("--out", default="results", help="output folder (default: ./results)")
     rp.add_argument("--runs", type=_positive, default=50, help="episodes per cell or row (default 50)")
+    rp.add_argument("--methods", default=None, help="figure3 only: comma-separated policies to draw (default: "
+                    "the paper's, solver, tuned, learned and oracle ones; the learned where their checkpoint and "
+                    "torch are)")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)
 
@@ -324,13 +329,23 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     # imported here, not at the top: wfbench.compare loads scipy.stats (wfbench.stats), which
     # took the warm start of 'wfbench evaluate --seeds 1' from 1.8 to 2.7 s of CPU (/usr/bin/time)
-    from wfbench.compare import compare, format_comparison
+    from wfbench.compare import compare, format_comparison, plot_comparison
+    from wfbench.plots import figure_format
 
     config = _resolve_scenario(args.scenario)
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
     if not names:
         raise UsageError("--policies: give at least one policy name")
     check_backend_args(args)
+    plot = None
+    if args.plot:  # checked before the runs, which may take long
+        try:
+            figure_format(args.plot)
+        except ValueError as exc:
+            raise UsageError(f"--plot: {exc}") from None
+        plot = _check_writable(args.plot, "--plot")
+        if plot.is_dir():
+            raise UsageError(f"--plot {args.plot!r} is a folder; give a file name")
     seeds = seed_list(args)
     try:  # compare loads every policy before running the first
         df = compare(names, config, seeds, baseline=args.baseline, backend=args.backend, workers=args.workers,
@@ -345,6 +360,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.format != "csv":
         print(f"{config.name}, seeds {describe(seeds)}: KPIs mean (25%-75%); NSW higher is "
               f"better; intervals are bootstrap 95% over seeds, differences paired by seed.")
+    if plot:
+        try:
+            plot_comparison(df, plot)
+        except OSError as exc:
+            raise UsageError(f"--plot: cannot write {str(plot)!r}: {exc.strerror or exc}") from None
+        print(f"wrote {plot}", file=sys.stderr)  # on stderr: a CSV on stdout stays clean
     return 0
 
 
@@ -419,6 +440,15 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     if args.target not in TARGETS:
         raise UsageError(f"unknown target {args.target!r}; allowed: {', '.join(TARGETS)}")
     check_backend_args(args)
+    kwargs = {}
+    if args.methods is not None:
+        if args.target != "figure3":
+            raise UsageError(f"--methods applies to figure3 only, not to {args.target}")
+        kwargs["methods"] = tuple(dict.fromkeys(m.strip() for m in args.methods.split(",") if m.strip()))
+        if not kwargs["methods"]:
+            raise UsageError("--methods: give at least one policy name")
+        for m in kwargs["methods"]:
+            _resolve_policy(m)  # an unknown name fails now, not after the others ran
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {args.out!r} exists and is not a folder")
@@ -429,7 +459,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     bar = None
     if not args.no_progress:
-        sizes = {"table2": 20, "table3": 13, "figure3": 5, "gap": 12}
+        sizes = {"table2": 20, "table3": 13, "figure3": len(kwargs.get("methods", figure3_methods())), "gap": 12}
         bar = tqdm(total=sizes[args.target], desc=f"reproduce {args.target}", unit="run", leave=False)
 
     def step(name: str) -> None:
@@ -439,7 +469,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
     try:
         result = TARGETS[args.target](out, runs=args.runs, backend=args.backend, workers=args.workers,
-                                      address=args.address, progress=step)
+                                      address=args.address, progress=step, **kwargs)
     finally:
         if bar:
             bar.close()
