@@ -59,11 +59,14 @@ class PPOPolicy:
     """The network of a checkpoint deciding every decision its heads cover."""
 
     def __init__(self, model: WorkforceNet, mode: str = "sample", device: str = "cpu", seed: int = 0,
-                 name: str = "ppo"):
+                 name: str = "ppo", threads: int | None = 1):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r} is not allowed; allowed: {', '.join(MODES)}")
         self.model = model.to(device).eval()
         self.mode, self.device, self.seed, self.name = mode, torch.device(device), int(seed), name
+        # torch CPU threads during act: an evaluation batch is small, and torch's default (all cores) made
+        # two paper-64 episodes take 120 s instead of 15 s when the cores were busy; None keeps torch's setting
+        self.threads = threads
         self.decisions = tuple(model.config.decisions)
         self._state = None
 
@@ -85,10 +88,20 @@ class PPOPolicy:
             at += n
         return out
 
-    @torch.no_grad()
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         if self._state is None:
             raise RuntimeError("call reset(seeds) before act(obs)")
+        if self.threads is None or self.device.type != "cpu":
+            return self._act(obs)
+        before = torch.get_num_threads()
+        torch.set_num_threads(self.threads)
+        try:
+            return self._act(obs)
+        finally:
+            torch.set_num_threads(before)
+
+    @torch.no_grad()
+    def _act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         B, M = obs["requesting"].shape
         N = obs["personnel"].shape[1]
         x = featurize(obs_to_torch(obs, self.device), self.model.config.coord_scale)
