@@ -238,6 +238,13 @@ def table2_trends(nsw: dict[tuple[int, int, int], float]) -> list[str]:
     return out
 
 
+def table3_size() -> int:
+    """The evaluations :func:`table3` runs with its default rows (for a progress bar): rows, tuned, oracles, bound."""
+    shipped = [n for n, *_ in PAPER_TABLE3
+               if TABLE3_POLICIES[n] not in LEARNED or TABLE3_POLICIES[n] in learned_names()]
+    return len(shipped) + len(SOLVER_ROWS) + len(TUNED_ROWS) + len(ORACLE_ROWS) + 1
+
+
 def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
            address: str | None = None, progress: Progress = None, solver_rows: bool = True,
            oracle_rows: bool = True, tuned_rows: bool = True) -> Output:

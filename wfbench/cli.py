@@ -21,7 +21,7 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from leaderboard.reproduce import TARGETS, figure3_methods
+from leaderboard.reproduce import TARGETS, figure3_methods, table3_size
 from leaderboard.store import Store, StoreError
 from leaderboard.submit import SubmitError, seed_builtins, submit
 from leaderboard.tracks import TRACKS, get_track
@@ -459,8 +459,9 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     bar = None
     if not args.no_progress:
-        sizes = {"table2": 20, "table3": 13, "figure3": len(kwargs.get("methods", figure3_methods())), "gap": 12}
-        bar = tqdm(total=sizes[args.target], desc=f"reproduce {args.target}", unit="run", leave=False)
+        sizes = {"table2": lambda: 20, "table3": table3_size, "gap": lambda: 12,
+                 "figure3": lambda: len(kwargs.get("methods", figure3_methods()))}
+        bar = tqdm(total=sizes[args.target](), desc=f"reproduce {args.target}", unit="run", leave=False)
 
     def step(name: str) -> None:
         if bar:
@@ -666,7 +667,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         config_cls = getattr(module, cls_name)
         given = _train_settings(config_cls, given, algo, args.set or [])
         if saved is not None:
-            changed = sorted(k for k in given if k not in ("steps", "run_dir", "device", "threads")
+            changed = sorted(k for k in given if k not in ("steps", "run_dir", "device", "threads", "address")
                              and given[k] != saved["train_config"].get(k))
             if changed:
                 raise ValueError(f"--resume keeps the run's settings; these differ from it: {', '.join(changed)}")
