@@ -120,7 +120,7 @@ def get(spec: Any) -> Any:
         path, _, mode = spec[4:].rpartition("@") if "@" in spec[4:] else (spec[4:], "", "sample")
         if not path:
             raise ValueError(f"policy {spec!r}: give a checkpoint path, e.g. ppo:runs/ppo/best.pt "
-                             "(@greedy for argmax)")
+                             "(@greedy for argmax, @greedy-dispatch for argmax dispatch only)")
         return load_learned(path, mode, name=spec)
     if _tuned.is_tuned_spec(spec):  # tuned:PATH or PATH.json / PATH.toml
         return load_tuned(_tuned.spec_path(spec))

@@ -357,3 +357,27 @@ def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(c
     df = wfbench.evaluate("ppo-joint", "paper-64", best["seeds"], backend="serial")
     assert df["nsw"].mean() == pytest.approx(best["score"], abs=5e-3)
     assert (df["invalid_actions"] == 0).all()
+
+
+def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
+    from wfbench.simulator import Simulator
+
+    pols = {m: policies.get(f"ppo-joint@{m}") for m in ("sample", "greedy", "greedy-dispatch")}
+    seeds = [1000, 1001, 1002, 1003]
+    sim = Simulator("paper-64", seeds)
+    obs = sim.reset()
+    for p in pols.values():
+        p.reset(seeds)
+    sent = 0
+    N = obs["personnel"].shape[1]
+    for _ in range(60):  # the three see the same observations, so their LSTM states stay equal
+        acts = {m: p.act(obs) for m, p in pols.items()}
+        mixed = acts["greedy-dispatch"]
+        assert np.array_equal(mixed["dispatch"], acts["greedy"]["dispatch"])
+        assert np.array_equal(mixed["workforce"], acts["sample"]["workforce"])  # the same random stream
+        assert np.array_equal(mixed["positioning"], acts["sample"]["positioning"])
+        sent += int((mixed["dispatch"] < N).sum())
+        _, obs = sim.step_observe(acts["sample"])
+    assert sent > 0, "no dispatch decision was compared"
+    with pytest.raises(ValueError, match="allowed: sample, greedy, greedy-dispatch"):
+        policies.get("ppo-joint@argmax")

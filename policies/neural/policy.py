@@ -10,6 +10,11 @@ seed, ``act(obs)`` runs the network on the whole batch at once. Two modes:
   greedy decisions mislead when the useful action is rare (letting people go), so the
   distribution the policy was trained as is the default.
 - ``greedy``: the most likely action of every head.
+- ``greedy-dispatch``: the most likely dispatch, sampled workforce and positioning (the
+  same random stream as ``sample``). For networks that imitate a dispatch they cannot
+  fully explain (``docs/hindsight-learning.md``: sampling an imitation of the oracle's
+  dispatch makes holds and swaps its argmax does not), while the rare workforce actions
+  stay sampled (their argmax is the no-op).
 
 A checkpoint trained with ``--variant dispatch`` holds only the dispatch head; loaded,
 it is deployed inside ``policies.Composite`` with the heuristic workforce (``threshold``)
@@ -31,7 +36,7 @@ from policies.neural.dist import positioning_weights, sample
 from policies.neural.model import AgentSet, WorkforceNet, featurize, network_from_config, obs_to_torch
 from policies.protocol import seeds_array
 
-MODES = ("sample", "greedy")
+MODES = ("sample", "greedy", "greedy-dispatch")
 POLICY_SEED = 0x99A
 
 
@@ -107,7 +112,12 @@ class PPOPolicy:
         x = featurize(obs_to_torch(obs, self.device), self.model.config.coord_scale)
         out, self._state = self.model(x, self._state, self._starts)
         self._starts = torch.zeros_like(self._starts)
-        acts = sample(out, x, self._noise(B, M, N) if self.mode == "sample" else None)
+        noise = None
+        if self.mode != "greedy":
+            noise = self._noise(B, M, N)
+            if self.mode == "greedy-dispatch":
+                noise["dispatch"] = torch.zeros_like(noise["dispatch"])
+        acts = sample(out, x, noise)
         result: dict[str, np.ndarray] = {}
         if "dispatch" in acts:
             result["dispatch"] = acts["dispatch"].cpu().numpy().astype(np.int64)
