@@ -150,6 +150,8 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from wfbench.plots import utilization_band
+
     if r.table.empty:
         return []
     shown = r.table[r.table["seeds"] > 0]
@@ -174,7 +176,7 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
         ax.set_xticks(range(1, len(names) + 1), names, rotation=30, ha="right", fontsize=8)
         ax.set_title(KPI_LABELS[k])
         if k == "utilization":
-            ax.axhspan(0.70, 0.80, color="0.85", zorder=0)
+            ax.axhspan(*utilization_band(r.track.config), color="0.85", zorder=0)
     fig.tight_layout()
     figs.append(("Per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%; gray: the 0.75 +- 0.05 utilization band)",
                  _png(fig)))

@@ -170,7 +170,8 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
                 rec.update({kpi: float(df[kpi].mean()), f"{kpi}_q25": df[kpi].quantile(0.25),
                             f"{kpi}_q75": df[kpi].quantile(0.75)})
             records.append({**rec, "paper_nsw_cost": PAPER_TABLE2[grid][k]})
-    target = ScenarioConfig.resolve(table2_name(TABLE2_GRIDS[0], *TABLE2_CELLS[0])).target_utilization
+    cell_config = ScenarioConfig.resolve(table2_name(TABLE2_GRIDS[0], *TABLE2_CELLS[0]))
+    target = cell_config.target_utilization
     nsw = values["nsw"]
     header = ["Grid size", *[f"{f}F x {s}S" for f, s in TABLE2_CELLS]]
     rows = [[f"{g} x {g}", *[f"{nsw[g, f, s]:.3f} (paper {PAPER_TABLE2[g][k]:g})"
@@ -199,13 +200,13 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     files = _write(out, "table2", md, pd.DataFrame(records))
     trends_csv = out / "table2_trends.csv"
     pd.DataFrame(trend_records).to_csv(trends_csv, index=False)
-    figs = _table2_figure(out, values, per_kpi, runs, target)
+    figs = _table2_figure(out, values, per_kpi, runs, cell_config)
     return Output(md, [*files, trends_csv, *figs])
 
 
 def _table2_figure(out: Path, values: dict[str, dict[tuple[int, int, int], float]],
-                   per_kpi: dict[str, list[TrendCount]], runs: int, target: float) -> list[Path]:
-    from wfbench.plots import new_figure, save_figure
+                   per_kpi: dict[str, list[TrendCount]], runs: int, config) -> list[Path]:
+    from wfbench.plots import new_figure, save_figure, utilization_band
 
     fig = new_figure(figsize=(4.6 * len(TREND_KPIS), 4.4), layout="constrained")
     axes = fig.subplots(1, len(TREND_KPIS))
@@ -213,8 +214,8 @@ def _table2_figure(out: Path, values: dict[str, dict[tuple[int, int, int], float
     colors = ("#4c72b0", "#55a868", "#dd8452", "#c44e52")
     for ax, kpi in zip(axes, TREND_KPIS, strict=True):
         if kpi == "utilization":
-            ax.axhspan(0.70, 0.80, color="0.9", zorder=0)
-            ax.axhline(target, color="0.6", ls="--", lw=1)
+            ax.axhspan(*utilization_band(config), color="0.9", zorder=0)
+            ax.axhline(config.target_utilization, color="0.6", ls="--", lw=1)
         for g, c in zip(TABLE2_GRIDS, colors, strict=True):
             ax.plot(x, [values[kpi][g, f, s] for f, s in TABLE2_CELLS], "o-", color=c, label=f"{g} x {g}")
         ax.set_xticks(x, [f"{f}F x {s}S" for f, s in TABLE2_CELLS], rotation=30, ha="right", fontsize=8)
@@ -345,7 +346,8 @@ def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | 
     :func:`figure3_methods` (the learned ones only where their checkpoint and torch are).
     Writes figure3.png, figure3.svg, figure3.md and figure3.csv (the bands every 10 steps).
     """
-    from wfbench.plots import new_figure, save_figure
+    from wfbench.config import ScenarioConfig
+    from wfbench.plots import new_figure, save_figure, utilization_band
     from wfbench.state import METRICS
 
     methods = figure3_methods() if methods is None else tuple(methods)
@@ -375,7 +377,7 @@ def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | 
         for i, k in enumerate(rows_kpi):
             ax = axes[i, j]
             if k == "utilization":
-                ax.axhspan(0.70, 0.80, color="0.9", zorder=0)
+                ax.axhspan(*utilization_band(ScenarioConfig.resolve("paper-64")), color="0.9", zorder=0)
             if FIGURE3_REFERENCE in bands and FIGURE3_REFERENCE not in ms:
                 ref = bands[FIGURE3_REFERENCE][i][1]
                 ax.plot(np.arange(ref.size), ref, color="0.35", ls="--", lw=1,

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
+from wfbench.config import ScenarioConfig
 from wfbench.evaluation import KPI_LABELS, KPIS
 from wfbench.seeds import describe
 
@@ -25,11 +26,19 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
 FIGURE_FORMATS = ("png", "svg", "pdf")
-# the utilization band our NSW rewards (docs/metrics.md); scenarios may move it, the figures mark the default
-UTILIZATION_BAND = (0.70, 0.80)
 HIGHER_IS_BETTER = "#55a868"
 LOWER_IS_BETTER = "#c44e52"
 UNDECIDED = "#8c8c8c"
+
+
+def utilization_band(config: ScenarioConfig | None = None) -> tuple[float, float]:
+    """The utilization band our NSW rewards in full (docs/metrics.md): target +- tolerance of ``config``.
+
+    Without a config, the band of :class:`~wfbench.config.ScenarioConfig`'s defaults (every shipped scenario's).
+    """
+    target = ScenarioConfig.target_utilization if config is None else config.target_utilization
+    tol = ScenarioConfig.utilization_tolerance if config is None else config.utilization_tolerance
+    return target - tol, target + tol
 
 
 def figure_format(path: str | Path) -> str:
@@ -68,7 +77,7 @@ def draw_kpi_distribution(ax: Axes, data: Sequence[np.ndarray], names: Sequence[
     """Box (25%-75%, whiskers 5%-95%) and the per-seed points of one KPI, one column per policy."""
     pos = np.arange(1, len(names) + 1)
     if kpi == "utilization":
-        ax.axhspan(*UTILIZATION_BAND, color="0.9", zorder=0)
+        ax.axhspan(*utilization_band(), color="0.9", zorder=0)
     ax.boxplot(data, positions=pos, whis=(5, 95), showfliers=False, widths=0.6, medianprops={"color": "#dd8452"})
     rng = np.random.default_rng(0)  # the jitter only spreads the points; fixed so a figure is reproducible
     for p, x in zip(pos, data, strict=True):
@@ -82,7 +91,7 @@ def draw_kpi_ranges(ax: Axes, mean: np.ndarray, q25: np.ndarray, q75: np.ndarray
     """Mean with its 25%-75% range per policy: what a table holds when the per-seed values are not at hand."""
     pos = np.arange(1, len(names) + 1)
     if kpi == "utilization":
-        ax.axhspan(*UTILIZATION_BAND, color="0.9", zorder=0)
+        ax.axhspan(*utilization_band(), color="0.9", zorder=0)
     ax.errorbar(pos, mean, yerr=np.vstack([mean - q25, q75 - mean]), fmt="o", color="#4c72b0", capsize=4)
     ax.set_xticks(pos, names, rotation=30, ha="right", fontsize=8)
     ax.set_title(KPI_LABELS.get(kpi, kpi) + (" (higher is better)" if kpi == "nsw" else ""), fontsize=10)
