@@ -2,7 +2,7 @@
 
 ``PPOPolicy`` follows the policy protocol (``docs/policies.md``): ``reset(seeds)``
 clears the LSTM memory and makes one random generator per environment keyed by its
-seed, ``act(obs)`` runs the network on the whole batch at once. Two modes:
+seed, ``act(obs)`` runs the network on the whole batch at once. Three modes:
 
 - ``sample`` (the default): actions drawn from the policy's distributions, the noise
   drawn from the environment's own generator, so a seed decides the same alone or in
@@ -63,7 +63,7 @@ def build_model(ckpt: dict, device: str = "cpu") -> WorkforceNet | AgentSet:
 class PPOPolicy:
     """The network of a checkpoint deciding every decision its heads cover."""
 
-    def __init__(self, model: WorkforceNet, mode: str = "sample", device: str = "cpu", seed: int = 0,
+    def __init__(self, model: WorkforceNet | AgentSet, mode: str = "sample", device: str = "cpu", seed: int = 0,
                  name: str = "ppo", threads: int | None = 1):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r} is not allowed; allowed: {', '.join(MODES)}")

@@ -1,6 +1,7 @@
-"""What the trainers (ppo, impala, hindsight) share: the checkpoint format, scoring on the public seeds, run files,
-the return normalizer, the deployable policy of a network, the device and the git commit.
+"""What the trainers (ppo, impala, hindsight) share, so a change to one of these cannot break the others.
 
+The checkpoint format, scoring on the public seeds, the run files, the return
+normalizer, the deployable policy of a network, the device and the git commit.
 A checkpoint of any trainer loads as a policy (``ppo:PATH``, :mod:`policies.neural.policy`)
 because all three write the keys of :func:`policy_checkpoint`; each adds what its own
 resume needs. Checkpoints are selected on the public seeds only (:func:`score_public`).

@@ -196,10 +196,10 @@ class Trainer:
         self.scenario = ScenarioConfig.resolve(c.scenario)
         self.decisions = VARIANTS[c.variant]
         self.mcfg = c.network_config()
-        self.independent = c.agents == "independent"
-        self.model = (AgentSet(self.mcfg) if self.independent else WorkforceNet(self.mcfg)).to(self.device)
+        independent = c.agents == "independent"
+        self.model = (AgentSet(self.mcfg) if independent else WorkforceNet(self.mcfg)).to(self.device)
         # the agents: their heads, and the parameters each one's gradient is clipped over
-        if self.independent:
+        if independent:
             self.agents = {d: (d,) for d in self.decisions}
             self.clip_groups = [list(m.parameters()) for m in self.model.members.values()]
         else:
