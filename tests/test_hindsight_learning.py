@@ -9,6 +9,11 @@
 - the supervised loss falls; the same seed gives the same weights on CPU;
 - a checkpoint is a policy (``ppo:PATH``) scored through ``wfbench.evaluate``, resumes,
   and starts a PPO run (``init``);
+- hindsight action values: the planner's value of each workforce action is its
+  roll-forward score minus the no-op's (the action it takes is their argmax, NaN where
+  masked); the values loss moves the head's mass to the best action; with
+  ``train_params="heads"`` only the weighted heads change (a PPO network keeps its
+  dispatch and its encoder bit for bit);
 - a bad setting raises a ValueError naming it and what is allowed; test seeds are refused.
 """
 
@@ -144,6 +149,9 @@ def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
     ({"dispatch_weight": 0.0, "workforce_weight": 0.0, "positioning_weight": 0.0}, ["weights", "at least one"]),
     ({"dataset_steps": 10}, ["dataset_steps", "at least one chunk"]),
     ({"oracle": {"workforce_every": 0}}, ["workforce_every", "allowed"]),
+    ({"workforce_target": "q"}, ["workforce_target", "allowed: action, values, improve"]),
+    ({"workforce_target": "improve", "improve_temperature": 0.0}, ["improve_temperature", "> 0"]),
+    ({"train_params": "trunk"}, ["train_params", "allowed: all, heads"]),
     ({"model": "huge"}, ["huge", "allowed"]),
     ({"device": "tpu"}, ["tpu", "allowed"]),
     ({"eval_seeds": "test:5"}, ["public", "never on test seeds"]),
@@ -154,3 +162,95 @@ def test_bad_config_raises_a_clear_error(tmp_path, change, words):
         Trainer(_cfg(tmp_path, **change), progress=False, log=False)
     for w in words:
         assert w in str(info.value), (w, str(info.value))
+
+
+def test_workforce_values_are_the_planners_scores_and_its_choice_their_argmax():
+    oracle = policies.get("nearest+oracle+oracle")
+    oracle.attach("small")
+    seeds = [1_000_000, 1_000_001, 1_000_002]
+    oracle.reset(seeds)
+    planner = oracle.parts["workforce"].planner
+    sim = wfbench.Simulator("small", seeds)
+    obs = sim.reset()
+    scored = acted = 0
+    while not sim.done and int(obs["t"][0]) < 120:
+        act = oracle.act(obs)
+        v = planner.workforce_values
+        if int(obs["t"][0]) % planner.workforce_every:
+            assert v is None
+        else:
+            scored += 1
+            assert v.shape == obs["workforce_mask"].shape and (v[:, 0] == 0).all()
+            assert np.isnan(v[obs["workforce_mask"] == 0]).all()  # a masked action is never scored
+            for b in range(len(seeds)):
+                best = np.nanmax(v[b])
+                # the no-op wins ties; otherwise the first action of the highest value
+                want = 0 if best <= 0 else int(np.flatnonzero(v[b] == best)[0])
+                assert int(act["workforce"][b]) == want, (b, v[b], act["workforce"][b])
+                acted += want != 0
+        _, obs = sim.step_observe(act)  # the composite told its planner the joint action already
+    assert scored >= 10 and acted >= 1  # it hired or let go at least once, so the argmax was put to work
+
+
+def test_values_loss_moves_mass_to_the_best_allowed_action():
+    logits = torch.zeros(2, 7, requires_grad=True)
+    mask = torch.ones(2, 7)
+    mask[1, 2] = 0  # action 2 masked in row 1: its (large) value must not pull
+    values = torch.tensor([[0.0, 1.0, -1.0, 0, 0, 0, 0], [0.0, -0.5, 9.0, 0.5, 0, 0, 0]])
+    batch = {"wf_values": values[None], "wf_scored": torch.ones(1, 2, dtype=torch.bool)}
+    valid = torch.ones(2)
+    loss = Trainer.values_loss(logits, mask, batch, valid).detach()
+    allowed = mask > 0
+    scale = values[allowed].std()
+    p = torch.softmax(torch.zeros(7).masked_fill(~allowed[1], -1e9), -1)
+    want = -((values[0] / scale).mean() + (p * values[1] / scale).sum()) / 2
+    assert float(loss) == pytest.approx(float(want), rel=1e-5)
+    opt = torch.optim.SGD([logits], lr=1.0)
+    for _ in range(50):
+        opt.zero_grad()
+        Trainer.values_loss(logits, mask, batch, valid).backward()
+        opt.step()
+    probs = torch.softmax(logits.detach().masked_fill(mask == 0, -1e9), -1)
+    assert probs[0].argmax() == 1 and probs[1].argmax() == 3 and probs[0, 1] > 0.9
+    batch["wf_scored"][:] = False  # no scored step: no loss, no gradient
+    assert float(Trainer.values_loss(logits, mask, batch, valid).detach()) == 0.0
+
+
+def test_improve_target_is_the_old_policy_tilted_by_the_values():
+    mask = torch.ones(2, 7)
+    mask[1, 2] = 0
+    old = torch.log_softmax(torch.tensor([[4.0, 0, 0, 0, 0, 0, 0], [4.0, 0, -1e9, 0, 0, 0, 0]]), -1)
+    values = torch.tensor([[0.0, 1.0, -1.0, 0, 0, 0, 0], [0.0, -0.5, 9.0, 0.5, 0, 0, 0]])
+    batch = {"wf_values": values[None], "wf_scored": torch.ones(1, 2, dtype=torch.bool), "wf_logp_old": old[None]}
+    valid = torch.ones(2)
+    scale = values[mask > 0].std()
+    logits = torch.zeros(2, 7, requires_grad=True)
+    opt = torch.optim.Adam([logits], lr=0.1)
+    for _ in range(400):  # the cross-entropy is smallest where the policy is the target
+        opt.zero_grad()
+        Trainer.values_loss(logits, mask, batch, valid, temperature=2.0).backward()
+        opt.step()
+    probs = torch.softmax(logits.detach().masked_fill(mask == 0, -1e9), -1)
+    want = torch.softmax((old + values / scale / 2.0).masked_fill(mask == 0, -1e9), -1)
+    assert torch.allclose(probs, want, atol=2e-3), (probs, want)
+    assert probs[1, 2] < 1e-6  # the masked action gets nothing, whatever its value
+    # a small step: the no-op keeps most of its mass (old 0.9), the better hire gains, the worse loses
+    assert probs[0, 0] > 0.8 and probs[0, 1] > torch.exp(old[0, 1]) > probs[0, 2]
+
+
+def test_heads_only_values_run_keeps_the_networks_other_parts(tmp_path):
+    base = Trainer(_cfg(tmp_path, run_dir=str(tmp_path / "base")), progress=False, log=False)
+    base.save(tmp_path / "init.pt", full=False)
+    init = {k: v.clone() for k, v in base.model.state_dict().items()}
+    tr = Trainer(_cfg(tmp_path, init=str(tmp_path / "init.pt"), beta0=0.0, dispatch_weight=0.0,
+                      workforce_target="values", train_params="heads", lr=1e-2, oracle={"workforce_every": 2}),
+                 progress=False, log=False)
+    res = tr.collect(beta=0.0)
+    chunk = res["chunk"]
+    assert chunk["wf_scored"].shape == chunk["starts"].shape
+    assert chunk["wf_scored"][:, 0::2].all() and not chunk["wf_scored"][:, 1::2].any()  # every other step
+    tr.data.add(chunk)
+    tr.learn()
+    after = tr.model.state_dict()
+    changed = {k.split(".")[0] for k in after if not torch.equal(after[k], init[k])}
+    assert changed == {"wf_head", "pos_head"}, changed

@@ -103,6 +103,9 @@ class Planner:
         self.base = {d: (_OWN_BASE[d] if d in self.decide else _OTHER_DEFAULT[d], hp_vector({}, "oracle base"), 0)
                      for d in AGENTS}
         self.timing: dict[str, float] = {}
+        # per environment, the hindsight value of each workforce action at the last step that scored them
+        # (its roll-forward score minus the no-op's; NaN: not scored, e.g. masked), None at other steps
+        self.workforce_values: np.ndarray | None = None
         self.shadow: Simulator | None = None
         self._reset_seeds: np.ndarray | None = None
         self._fresh = False
@@ -165,6 +168,7 @@ class Planner:
             return self._joint  # another part of the same composite asks again
         start = time.perf_counter()
         self._fresh = False
+        self.workforce_values = None
         self._advance_shadow(t)
         self._check(obs)
         t1 = time.perf_counter()
@@ -302,11 +306,17 @@ class Planner:
                 rows_w.append(a)
                 rows_p.append(mp)
         self.timing["workforce_rolls"] += B + len(rows_env)
+        self.workforce_values = values = np.full((B, obs["workforce_mask"].shape[1]), np.nan)
+        values[:, 0] = 0.0
         if not rows_env:
             return
         env_idx = np.asarray(rows_env, dtype=np.int64)
         scores = self._roll(env_idx, d[env_idx], np.asarray(rows_w, dtype=np.int64), np.stack(rows_p),
                             self.workforce_horizon)
+        for i, b in enumerate(rows_env):
+            a = rows_w[i]
+            if not scores[i] - noop[b] <= values[b, a]:  # a hire keeps its best site (NaN: first seen)
+                values[b, a] = scores[i] - noop[b]
         best = noop.copy()
         for i, b in enumerate(rows_env):
             if scores[i] > best[b]:

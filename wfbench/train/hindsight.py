@@ -48,6 +48,16 @@ become the no-op and is counted), the workforce code as it is (the oracle decide
 per-step rate of its decisions), and for positioning the facility of largest weight in
 each row of the oracle's map (its own maps put weight 1 on one facility).
 
+With ``workforce_target="values"`` or ``"improve"`` the workforce head learns instead
+from the planner's *hindsight action values* (``Planner.workforce_values``: each
+allowed action's roll-forward score minus the no-op's, at every step the planner
+scores them): ``values`` maximizes their expectation under the head's distribution
+(Hindsight MAC), ``improve`` fits the learner's own distribution at collection time
+tilted by ``exp(value / improve_temperature)`` (a bounded step of policy improvement).
+``train_params="heads"`` trains only the heads with a weight, so a PPO network given
+as ``init`` keeps its encoder, memory and dispatch (docs/hindsight-learning.md,
+"Hindsight action values").
+
 Checkpoints are those of ``wfbench.train.ppo`` (``model``, ``model_config``,
 ``variant``, ``default_mode``...), so ``ppo:RUN/best.pt`` loads one as a policy and
 ``wfbench train --algo ppo --init RUN/best.pt`` fine-tunes it with PPO. ``RUN/best.pt``
@@ -95,6 +105,13 @@ VARIANTS = ("joint",)
 TEACHERS = ("oracle", "nearest+oracle+oracle")
 HEADS = ("dispatch", "workforce", "positioning")
 ROLLOUT_MODES = ("sample", "greedy")
+# what the workforce head learns: the teacher's action, or the hindsight value of each of its actions
+WORKFORCE_TARGETS = ("action", "values", "improve")
+# which parameters train: all of them, or only the heads of the decisions with a weight > 0
+TRAIN_PARAMS = ("all", "heads")
+# the parameters of each decision's head in WorkforceNet
+HEAD_MODULES = {"dispatch": ("ptr_q", "ptr_k", "ptr_noop", "dist_scale"), "workforce": ("wf_head",),
+                "positioning": ("pos_head",)}
 
 
 @dataclass
@@ -121,6 +138,9 @@ class HindsightConfig:
     dispatch_weight: float = 1.0  # weights of each head's negative log-likelihood
     workforce_weight: float = 1.0
     positioning_weight: float = 1.0
+    workforce_target: str = "action"  # WORKFORCE_TARGETS (docs/hindsight-learning.md, "Hindsight action values")
+    improve_temperature: float = 1.0  # "improve": target pi_old * exp(A / temperature), A in standard deviations
+    train_params: str = "all"  # TRAIN_PARAMS: "heads" freezes the encoder, memory and the unweighted heads
     oracle: dict = field(default_factory=dict)  # Planner settings (dispatch_horizon, workforce_every, ...)
     seed: int = 0
     device: str = "auto"  # auto | cpu | cuda
@@ -155,6 +175,14 @@ class HindsightConfig:
             raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
         if self.teacher not in TEACHERS:
             raise ValueError(f"teacher {self.teacher!r} is not allowed; allowed: {', '.join(TEACHERS)}")
+        if self.workforce_target not in WORKFORCE_TARGETS:
+            raise ValueError(f"workforce_target {self.workforce_target!r} is not allowed; allowed: "
+                             f"{', '.join(WORKFORCE_TARGETS)}")
+        if not self.improve_temperature > 0.0:
+            raise ValueError(f"improve_temperature = {self.improve_temperature!r} is not allowed; "
+                             "allowed: a number > 0")
+        if self.train_params not in TRAIN_PARAMS:
+            raise ValueError(f"train_params {self.train_params!r} is not allowed; allowed: {', '.join(TRAIN_PARAMS)}")
         if self.rollout_mode not in ROLLOUT_MODES:
             raise ValueError(f"rollout_mode {self.rollout_mode!r} is not allowed; allowed: {', '.join(ROLLOUT_MODES)}")
         for name in ("steps", "iter_steps", "num_envs", "num_steps", "dataset_steps", "grad_steps", "batch_seqs",
@@ -276,7 +304,7 @@ class Trainer:
         self.scenario = ScenarioConfig.resolve(c.scenario)
         self.mcfg = model_config(c.model, HEADS, **c.model_overrides)
         self.model = WorkforceNet(self.mcfg).to(self.device)
-        self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr)
+        self.opt = torch.optim.Adam(self.trainable(), lr=c.lr)
         self.gen = torch.Generator(device=self.device).manual_seed(c.seed)  # the learner's sampling noise
         self.batch_gen = torch.Generator().manual_seed(c.seed * 7919 + 1)  # minibatch draws
         self.mix_rng = np.random.default_rng([c.seed, 0x4D1])  # oracle-or-learner draws
@@ -297,6 +325,18 @@ class Trainer:
         if resume is not None:
             self._load(resume)
         self.sim = None
+
+    def trainable(self) -> list[torch.nn.Parameter]:
+        """The parameters the update trains (``train_params``); the others are frozen (requires_grad False)."""
+        if self.cfg.train_params == "all":
+            return list(self.model.parameters())
+        names = {m for h in HEADS if getattr(self.cfg, f"{h}_weight") > 0 for m in HEAD_MODULES[h]}
+        keep = []
+        for name, param in self.model.named_parameters():
+            param.requires_grad_(name.split(".")[0] in names)
+            if param.requires_grad:
+                keep.append(param)
+        return keep
 
     # -- environments -------------------------------------------------------------------------
     def _take_seeds(self, k: int) -> list[int]:
@@ -337,6 +377,7 @@ class Trainer:
         B, T, M, N = self.sim.B, c.num_steps, self.sim.M, self.sim.N
         h0, c0 = (s[0].clone().cpu() for s in self.state)
         raws, starts, labels = [], [], {k: [] for k in HEADS}
+        values, scored, logp_old = [], [], []
         stats = {"agree_dispatch": [], "agree_workforce": [], "oracle_share": [], "invalid_labels": 0,
                  "label_hires": 0, "label_releases": 0}
         episodes, trail = [], []
@@ -355,6 +396,14 @@ class Trainer:
             t1 = time.perf_counter()
             label = self.planner.act(self.obs)
             ld, lw, lp, bad = oracle_labels(label, self.obs)
+            if c.workforce_target != "action":
+                logits = out["workforce"].float().masked_fill(x["workforce_mask"] <= 0, -1e9)
+                logp_old.append(torch.log_softmax(logits, -1).cpu())
+                v = self.planner.workforce_values
+                scored.append(torch.full((B,), v is not None))
+                # an allowed action the planner did not score (nobody it could let go) counts as the no-op
+                values.append(torch.from_numpy(np.nan_to_num(v, nan=0.0)).float() if v is not None
+                              else torch.zeros((B, self.obs["workforce_mask"].shape[1])))
             t2 = time.perf_counter()
             use = self.mix_rng.random(B) < beta  # per environment: the oracle's action or the learner's
             action = {
@@ -400,6 +449,10 @@ class Trainer:
         chunk["dispatch"] = torch.stack(labels["dispatch"], 1).to(torch.int16)
         chunk["workforce"] = torch.stack(labels["workforce"], 1).to(torch.int8)
         chunk["positioning"] = torch.stack(labels["positioning"], 1).to(torch.int16)
+        if c.workforce_target != "action":
+            chunk["wf_logp_old"] = torch.stack(logp_old, 1)  # (B, T, 7): the learner's policy when it acted
+            chunk["wf_values"] = torch.stack(values, 1)  # (B, T, 7)
+            chunk["wf_scored"] = torch.stack(scored, 1)  # (B, T)
         chunk["h"], chunk["c"] = h0, c0
         return {"chunk": chunk, "stats": stats, "episodes": episodes, "trail": trail}
 
@@ -421,12 +474,52 @@ class Trainer:
         loss = torch.zeros((), device=valid.device)
         stats = {}
         for k in HEADS:
-            logp, _, _ = log_prob_entropy({k: out[k]}, x, acts)
-            nll = -(logp * valid).sum() / denom
+            if k == "workforce" and c.workforce_target != "action":
+                temperature = c.improve_temperature if c.workforce_target == "improve" else None
+                nll = self.values_loss(out[k], x["workforce_mask"], batch, valid, temperature)
+            else:
+                logp, _, _ = log_prob_entropy({k: out[k]}, x, acts)
+                nll = -(logp * valid).sum() / denom
             loss = loss + getattr(c, f"{k}_weight") * nll
             stats[f"nll_{k}"] = nll.item()
         stats["loss"] = loss.item()
         return loss, stats
+
+    @staticmethod
+    def values_loss(logits: torch.Tensor, mask: torch.Tensor, batch: dict[str, torch.Tensor],
+                    valid: torch.Tensor, temperature: float | None = None) -> torch.Tensor:
+        """The workforce head's loss on the hindsight action values, over the valid steps the planner scored.
+
+        A is the roll-forward score of each action minus the no-op's, divided by its
+        standard deviation over the allowed actions of those steps (the scale of NSW sums
+        varies with the horizon; dividing keeps the loss comparable with the other heads').
+
+        - ``temperature`` None (``values``, Hindsight MAC): ``-sum_a pi(a | obs) A(a)``.
+          Its minimum puts all the mass on the action of highest mean value in each
+          observation: the hindsight-optimal choice given what the network sees, where
+          the imitation of the teacher's argmax learns how often each action was best.
+        - a temperature (``improve``): the cross-entropy to the target
+          ``pi_old(a) exp(A(a) / temperature)`` (normalized over the allowed actions),
+          ``pi_old`` the learner's distribution when it acted: a step of policy
+          improvement whose size the temperature bounds (the KL-regularized
+          improvement of MPO), so the policy moves towards the better actions of its
+          own states without jumping to the argmax of one iteration's noisy values.
+        """
+        A = batch["wf_values"].flatten(0, 1).float()  # (T*S, 7)
+        use = valid * batch["wf_scored"].flatten().float()
+        allowed = mask > 0
+        logits = logits.float().masked_fill(~allowed, -1e9)
+        probs = torch.softmax(logits, -1)
+        sel = allowed & (use[:, None] > 0)
+        scale = A[sel].std() if sel.sum() > 1 else torch.ones(())
+        A = A / scale.clamp_min(1e-6)
+        if temperature is None:
+            return -((probs * A).sum(-1) * use).sum() / use.sum().clamp_min(1.0)
+        old = batch["wf_logp_old"].flatten(0, 1).float()
+        target = torch.softmax((old + A / temperature).masked_fill(~allowed, -1e9), -1)
+        logp = torch.log_softmax(logits, -1)
+        ce = -(target * logp).masked_fill(~allowed, 0.0).sum(-1)
+        return (ce * use).sum() / use.sum().clamp_min(1.0)
 
     def learn(self) -> dict:
         c = self.cfg
@@ -438,7 +531,8 @@ class Trainer:
             loss, s = self.losses(self.data.batch(idx, self.device))
             self.opt.zero_grad(set_to_none=True)
             loss.backward()
-            s["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(self.model.parameters(), c.max_grad_norm))
+            s["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(self.opt.param_groups[0]["params"],
+                                                                  c.max_grad_norm))
             self.opt.step()
             for k, v in s.items():
                 stats.setdefault(k, []).append(v)
