@@ -150,7 +150,7 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from wfbench.plots import utilization_band
+    from wfbench.plots import draw_kpi_distribution, utilization_band
 
     if r.table.empty:
         return []
@@ -169,17 +169,14 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     ax.set_title(f"Nash social welfare on {r.track.name}")
     figs.append(("Nash social welfare with bootstrap 95% intervals", _png(fig)))
     plt.close(fig)
+    low, high = band = utilization_band(r.track.config)
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
     for ax, k in zip(axes, KPI_COLUMNS, strict=True):
         data = [r.per_seed.loc[r.per_seed["name"] == n, k].to_numpy() for n in names]
-        ax.boxplot(data, whis=(5, 95), showfliers=False)
-        ax.set_xticks(range(1, len(names) + 1), names, rotation=30, ha="right", fontsize=8)
-        ax.set_title(KPI_LABELS[k])
-        if k == "utilization":
-            ax.axhspan(*utilization_band(r.track.config), color="0.85", zorder=0)
+        draw_kpi_distribution(ax, data, names, k, band=band)
     fig.tight_layout()
-    figs.append(("Per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%; gray: the 0.75 +- 0.05 utilization band)",
-                 _png(fig)))
+    figs.append((f"Per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%, points: seeds; gray: the utilization band "
+                 f"{low:.2f}-{high:.2f})", _png(fig)))
     plt.close(fig)
     diffs = _paired_difference_figure(r, shown)
     return figs + ([diffs] if diffs else [])

@@ -119,7 +119,7 @@ def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
         assert (run / name).is_file(), name
     assert list((run / "tb").iterdir())
     ckpt = torch.load(run / "best.pt", weights_only=False)
-    assert ckpt["best"]["seeds"] == [1000, 1001] and ckpt["default_mode"] == "sample"
+    assert ckpt["best"]["seeds"] == [1000, 1001]
     df = wfbench.evaluate(f"ppo:{run / 'best.pt'}", "small", [1000, 1001], backend="serial")
     assert float(df["nsw"].mean()) == pytest.approx(ckpt["best"]["score"], abs=1e-9)
     assert (df["invalid_actions"] == 0).all()

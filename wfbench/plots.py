@@ -73,11 +73,15 @@ def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
     return path
 
 
-def draw_kpi_distribution(ax: Axes, data: Sequence[np.ndarray], names: Sequence[str], kpi: str) -> None:
-    """Box (25%-75%, whiskers 5%-95%) and the per-seed points of one KPI, one column per policy."""
+def draw_kpi_distribution(ax: Axes, data: Sequence[np.ndarray], names: Sequence[str], kpi: str,
+                          band: tuple[float, float] | None = None) -> None:
+    """Box (25%-75%, whiskers 5%-95%) and the per-seed points of one KPI, one column per policy.
+
+    ``band``: the utilization band shaded behind the utilization panel (default: :func:`utilization_band`).
+    """
     pos = np.arange(1, len(names) + 1)
     if kpi == "utilization":
-        ax.axhspan(*utilization_band(), color="0.9", zorder=0)
+        ax.axhspan(*(band or utilization_band()), color="0.9", zorder=0)
     ax.boxplot(data, positions=pos, whis=(5, 95), showfliers=False, widths=0.6, medianprops={"color": "#dd8452"})
     rng = np.random.default_rng(0)  # the jitter only spreads the points; fixed so a figure is reproducible
     for p, x in zip(pos, data, strict=True):

@@ -59,7 +59,6 @@ def policy_checkpoint(model: torch.nn.Module, model_config, variant: str, scenar
         "variant": variant,
         "scenario": scenario,
         "train_config": asdict(train_config),
-        "default_mode": "sample",
         **fields,
     }
 

@@ -59,7 +59,7 @@ as ``init`` keeps its encoder, memory and dispatch (docs/hindsight-learning.md,
 "Hindsight action values").
 
 Checkpoints are those of ``wfbench.train.ppo`` (``model``, ``model_config``,
-``variant``, ``default_mode``...), so ``ppo:RUN/best.pt`` loads one as a policy and
+``variant``, ``scenario``...), so ``ppo:RUN/best.pt`` loads one as a policy and
 ``wfbench train --algo ppo --init RUN/best.pt`` fine-tunes it with PPO. ``RUN/best.pt``
 is the iterate with the highest mean NSW on the **public** seeds (``eval_seeds``; test
 seeds are refused), sampled mode. Resume restores the weights, the optimizer, the random
