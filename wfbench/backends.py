@@ -44,10 +44,15 @@ def check_backend(backend: str, address: str | None = None) -> None:
     if address is not None and backend != "ray":
         raise ValueError(f"address={address!r} only applies to backend 'ray', not {backend!r}")
     if backend == "ray":
-        try:
-            import ray  # noqa: F401 - optional dependency: only its presence is checked here
-        except ImportError:
-            raise ValueError("backend 'ray' needs Ray: pip install 'wfbench[ray]'") from None
+        require_ray("backend 'ray'")
+
+
+def require_ray(what: str) -> None:
+    """Raise ValueError saying that ``what`` needs Ray and how to install it, unless Ray imports."""
+    try:
+        import ray  # noqa: F401 - optional dependency: only its presence is checked here
+    except ImportError:
+        raise ValueError(f"{what} needs Ray: pip install 'wfbench[ray]'") from None
 
 
 def split(seeds: Sequence[int], n_chunks: int) -> list[list[int]]:

@@ -68,6 +68,7 @@ import torch
 from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
 from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
 from policies.neural.policy import load_checkpoint
+from wfbench.backends import require_ray
 from wfbench.config import ScenarioConfig
 from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
@@ -175,10 +176,7 @@ class ImpalaConfig:
             if self.mode != "async":
                 raise ValueError(f"mode {self.mode!r} is not allowed with address (Ray actors run beside the "
                                  "learner); allowed: async")
-            try:
-                import ray  # noqa: F401 - optional dependency: only its presence is checked here
-            except ImportError:
-                raise ValueError(f"address {self.address!r} needs Ray: pip install 'wfbench[ray]'") from None
+            require_ray(f"address {self.address!r}")
 
     @classmethod
     def from_dict(cls, d: dict) -> ImpalaConfig:
