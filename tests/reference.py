@@ -144,7 +144,7 @@ class ReferenceEnv:
             return cells[max(range(len(cells)), key=lambda i: (heat[i], -i))]
         u = uniform(self.key, STREAM_PLACEMENT, self.n_hires, 0, 0) * sum(heat)
         acc = 0.0
-        for (x, y), h in zip(cells, heat):
+        for (x, y), h in zip(cells, heat, strict=True):
             acc += h
             if acc > u:
                 return x, y

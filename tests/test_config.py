@@ -37,7 +37,7 @@ def test_load_reports_bad_file(tmp_path):
 
 
 def test_schedules():
-    assert RateSchedule(kind="piecewise", times=(0, 10), values=(1.0, 2.0)).multipliers(20)[[0, 9, 10, 20]].tolist() == [
-        1.0, 1.0, 2.0, 2.0]
+    piecewise = RateSchedule(kind="piecewise", times=(0, 10), values=(1.0, 2.0))
+    assert piecewise.multipliers(20)[[0, 9, 10, 20]].tolist() == [1.0, 1.0, 2.0, 2.0]
     drift = RateSchedule(kind="drift", start=1.0, end=3.0).multipliers(10)
     assert drift[0] == 1.0 and drift[-1] == 3.0

@@ -20,7 +20,7 @@ def digest(series: np.ndarray) -> str:
 def test_trace_is_a_pure_function():
     config = ScenarioConfig.preset("paper-64")
     a, b = trace(config, 7), trace(config, 7)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         assert np.array_equal(x, y)
     c = trace(config, 8)
     assert not np.array_equal(a.fac0_x, c.fac0_x)

@@ -65,5 +65,5 @@ def test_core_matches_reference(case):
                 assert (bool(S.fac_down[0, f]), S.fac_assigned[0, f]) == (fac.down, fac.assigned), (
                     f"case {case} step {t}: facility {f}")
     counters = sim.counters(0)
-    names = dict(zip(ref.counts, counters))
+    names = dict(zip(ref.counts, counters, strict=True))
     assert [int(counters[names[k]]) for k in ref.counts] == list(ref.counts.values())

@@ -123,7 +123,8 @@ class ScenarioConfig:
         if not all(s > 0 for s in self.level_salaries):
             self._fail("level_salaries", "three salaries > 0")
         if max(self.level_multipliers) * self.base_fix_rate > 1.0 + 1e-12:
-            self._fail("level_multipliers", f"multipliers with base_fix_rate * multiplier <= 1 (base_fix_rate={self.base_fix_rate})")
+            self._fail("level_multipliers",
+                       f"multipliers with base_fix_rate * multiplier <= 1 (base_fix_rate={self.base_fix_rate})")
 
     # -- derived -------------------------------------------------------------------------------
     @property
@@ -140,7 +141,8 @@ class ScenarioConfig:
         """A copy with some fields changed (validated like any config)."""
         unknown = set(changes) - {f.name for f in fields(self)}
         if unknown:
-            raise ValueError(f"unknown ScenarioConfig field(s) {sorted(unknown)}; allowed: {[f.name for f in fields(self)]}")
+            raise ValueError(f"unknown ScenarioConfig field(s) {sorted(unknown)}; "
+                             f"allowed: {[f.name for f in fields(self)]}")
         return replace(self, **changes)
 
     @classmethod
@@ -159,7 +161,8 @@ class ScenarioConfig:
             if scenario.endswith((".toml", ".json")):
                 return cls.load(scenario)
             return cls.preset(scenario)
-        raise TypeError(f"scenario must be a preset name, a .toml/.json path or a ScenarioConfig, got {type(scenario).__name__}")
+        raise TypeError("scenario must be a preset name, a .toml/.json path or a ScenarioConfig, "
+                        f"got {type(scenario).__name__}")
 
     # -- serialization ---------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

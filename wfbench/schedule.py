@@ -47,7 +47,7 @@ class RateSchedule:
                     "piecewise schedule needs times and values of equal, non-zero length, "
                     f"got {len(self.times)} times and {len(self.values)} values"
                 )
-            if self.times[0] != 0 or any(b <= a for a, b in zip(self.times, self.times[1:])):
+            if self.times[0] != 0 or any(b <= a for a, b in zip(self.times, self.times[1:], strict=False)):
                 raise ValueError(f"piecewise schedule times must start at 0 and increase, got {self.times}")
             if any(not (math.isfinite(v) and v > 0) for v in self.values):
                 raise ValueError(f"piecewise schedule values must be finite and > 0, got {self.values}")
@@ -84,5 +84,6 @@ class RateSchedule:
     def from_dict(cls, d: dict) -> RateSchedule:
         unknown = set(d) - set(cls.__dataclass_fields__)
         if unknown:
-            raise ValueError(f"unknown schedule field(s) {sorted(unknown)}; allowed: {sorted(cls.__dataclass_fields__)}")
+            raise ValueError(f"unknown schedule field(s) {sorted(unknown)}; "
+                             f"allowed: {sorted(cls.__dataclass_fields__)}")
         return cls(**d)

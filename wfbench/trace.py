@@ -125,7 +125,7 @@ def stack(traces: list[Trace]) -> Trace:
     for t in traces:
         parts.append(t._replace(arr_t=pad(t.arr_t, NEVER), arr_x=pad(t.arr_x, 0), arr_y=pad(t.arr_y, 0),
                                 arr_leave=pad(t.arr_leave, NEVER)))
-    return Trace(*(np.ascontiguousarray(np.concatenate(cols)) for cols in zip(*parts)))
+    return Trace(*(np.ascontiguousarray(np.concatenate(cols)) for cols in zip(*parts, strict=True)))
 
 
 def trace_batch(config: ScenarioConfig, seeds) -> Trace:

@@ -104,7 +104,8 @@ class WorkforceEnv(_Base):
         """Flat mask over the MultiDiscrete choices (MaskablePPO's convention)."""
         obs = self.core.obs
         pos = np.ones(2 * self.M * POSITIONING_LEVELS, dtype=bool)
-        return np.concatenate([obs["dispatch_mask"][0].ravel().astype(bool), obs["workforce_mask"][0].astype(bool), pos])
+        return np.concatenate([obs["dispatch_mask"][0].ravel().astype(bool),
+                               obs["workforce_mask"][0].astype(bool), pos])
 
     def step(self, action):
         M = self.M
