@@ -52,6 +52,8 @@ from policies import get
 from wfbench.simulator import ActionError, Simulator
 
 DEFAULT_ACT_TIMEOUT_S = 10.0
+# the file name that cloudpickle (3.1.3, which joblib 1.6 uses) gives the code it sends by value (__main__'s)
+DYNAMIC_CODE = "<dynamic-code>"
 
 # frames in these folders are not the user's: the innermost frame outside them is "where"
 _ROOT = Path(__file__).resolve().parents[1]
@@ -139,7 +141,7 @@ def load_policy(policy: Any, act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S
         raise PolicyError(f"policy {name!r} could not be loaded: {_what(exc)}{_at(exc.__traceback__)}",
                           _format(exc)) from exc
     name = policy if isinstance(policy, str) else str(getattr(obj, "name", None) or type(obj).__qualname__)
-    return LoadedPolicy(obj, name, None if builtin else Guard(name, timeout))
+    return LoadedPolicy(obj, name, None if builtin else Guard(name, timeout, _source_file(obj)))
 
 
 @dataclass(frozen=True)
@@ -148,6 +150,7 @@ class Guard:
 
     name: str
     act_timeout_s: float | None
+    source: str | None = None  # the file of the policy's class, for its frames in a worker (see _at)
 
     def call(self, what: str, fn: Callable[..., Any], *args: Any) -> Any:
         """``fn(*args)`` (the policy's ``reset`` or ``act``) under the time limit."""
@@ -155,16 +158,18 @@ class Guard:
             with _time_limit(self.act_timeout_s):
                 return fn(*args)
         except ActTimeout as exc:
-            stopped = _at(exc.__traceback__, " (stopped at ")
+            stopped = _at(exc.__traceback__, " (stopped at ", self.source)
             raise PolicyError(
                 f"policy {self.name!r} did not return from {what} within the act timeout of {self.act_timeout_s:g} s"
                 f"{stopped + ')' if stopped else ''}; if it is only slow, raise the limit with --act-timeout "
                 "(act_timeout_s= in Python)", _format(exc)) from None
         except MemoryError as exc:
-            raise PolicyError(f"policy {self.name!r} ran out of memory in {what}{_at(exc.__traceback__)} "
-                              f"({_what(exc)})", _format(exc)) from exc
+            where = _at(exc.__traceback__, source=self.source)
+            raise PolicyError(f"policy {self.name!r} ran out of memory in {what}{where} ({_what(exc)})",
+                              _format(exc)) from exc
         except Exception as exc:  # noqa: BLE001 - anything the user's code raises is its failure
-            raise PolicyError(f"policy {self.name!r} failed in {what}{_at(exc.__traceback__)}: {_what(exc)}",
+            where = _at(exc.__traceback__, source=self.source)
+            raise PolicyError(f"policy {self.name!r} failed in {what}{where}: {_what(exc)}",
                               _format(exc)) from exc
 
     def step(self, sim: Simulator, actions: Any, act: Callable[..., Any]) -> None:
@@ -186,15 +191,30 @@ def _format(exc: BaseException) -> str:
     return "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
 
 
-def _at(tb: TracebackType | None, prefix: str = " at ") -> str:
-    """`` at file:line`` of the innermost frame in the user's code (else the innermost frame)."""
+def _at(tb: TracebackType | None, prefix: str = " at ", source: str | None = None) -> str:
+    """`` at file:line`` of the innermost frame in the user's code (else the innermost frame).
+
+    In a worker process a policy defined in a script or notebook (``__main__``) runs
+    from code that cloudpickle sent by value, whose file name it replaces with
+    ``<dynamic-code>`` (the line numbers stay); ``source``, the file of the policy's
+    class in the parent, names it again.
+    """
     frames = traceback.extract_tb(tb)
     if not frames:
         return ""
     for fr in reversed(frames):
-        if _is_user_file(fr.filename):
-            return f"{prefix}{fr.filename}:{fr.lineno}"
+        filename = source if source and fr.filename == DYNAMIC_CODE else fr.filename
+        if _is_user_file(filename):
+            return f"{prefix}{filename}:{fr.lineno}"
     return f"{prefix}{frames[-1].filename}:{frames[-1].lineno}"
+
+
+def _source_file(obj: Any) -> str | None:
+    """The file that defines ``obj``'s class, or None (built in, or defined where no file is)."""
+    try:
+        return inspect.getsourcefile(type(obj))
+    except (TypeError, OSError):
+        return None
 
 
 def _is_user_file(filename: str) -> bool:
