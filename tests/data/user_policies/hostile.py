@@ -59,8 +59,8 @@ class EatsMemory(_Heuristic):
         if soft == resource.RLIM_INFINITY:  # never hog a machine that has no limit set
             raise RuntimeError("EatsMemory runs only under a memory limit (RLIMIT_AS)")
         hog = []
-        while True:  # 256 MiB blocks, each touched, until the limit stops it
-            hog.append(np.ones(2**25))
+        while True:  # 256 MiB blocks until the limit stops it; RLIMIT_AS counts address space, so they are
+            hog.append(np.empty(2**25))  # not touched (touching 1.5 GB outlasted the 2 s act timeout on a busy VM)
 
 
 class BrokenInit(_Heuristic):
