@@ -14,6 +14,10 @@
   masked); the values loss moves the head's mass to the best action; with
   ``train_params="heads"`` only the weighted heads change (a PPO network keeps its
   dispatch and its encoder bit for bit);
+- the learner's own action values (``value_rollout="learner"``): over one step they are
+  the reward of each workforce action taken in a copy of the environment minus the
+  no-op's, computed here by hand with ``fork``; longer roll-forwards are deterministic
+  given the noise generator, and none of it moves the real episode;
 - a bad setting raises a ValueError naming it and what is allowed; test seeds are refused.
 """
 
@@ -152,6 +156,10 @@ def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
     ({"workforce_target": "q"}, ["workforce_target", "allowed: action, values, improve"]),
     ({"workforce_target": "improve", "improve_temperature": 0.0}, ["improve_temperature", "> 0"]),
     ({"train_params": "trunk"}, ["train_params", "allowed: all, heads"]),
+    ({"workforce_target": "improve", "value_rollout": "mc"}, ["value_rollout", "allowed: planner, learner"]),
+    ({"value_rollout": "learner"}, ["value_rollout 'learner'", "allowed: workforce_target values or improve"]),
+    ({"workforce_target": "improve", "value_horizon": 0}, ["value_horizon", "allowed: an integer >= 1"]),
+    ({"workforce_target": "improve", "value_samples": 1.5}, ["value_samples", "allowed: an integer >= 1"]),
     ({"model": "huge"}, ["huge", "allowed"]),
     ({"device": "tpu"}, ["tpu", "allowed"]),
     ({"eval_seeds": "test:5"}, ["public", "never on test seeds"]),
@@ -254,3 +262,41 @@ def test_heads_only_values_run_keeps_the_networks_other_parts(tmp_path):
     after = tr.model.state_dict()
     changed = {k.split(".")[0] for k in after if not torch.equal(after[k], init[k])}
     assert changed == {"wf_head", "pos_head"}, changed
+
+
+def test_learner_values_are_roll_forwards_in_copies_that_leave_the_episode_alone(tmp_path):
+    from wfbench.lookahead import fork, state_equal
+
+    tr = Trainer(_cfg(tmp_path, beta0=0.0, workforce_target="improve", value_rollout="learner", value_horizon=1,
+                      value_every=4), progress=False, log=False)
+    chunk = tr.collect(beta=0.0)["chunk"]
+    assert chunk["wf_scored"][:, 0::4].all() and not chunk["wf_scored"][:, 1::4].any()  # t = 0, 4, 8, 12
+    scored = chunk["wf_values"][chunk["wf_scored"]]
+    assert (scored[:, 0] == 0).all() and scored.abs().sum() > 0  # relative to the no-op, and not all ties
+
+    sim, B, M, N = tr.sim, tr.sim.B, tr.sim.M, tr.sim.N
+    mask = tr.obs["workforce_mask"].astype(bool)
+    assert mask[:, 1:].any()  # some hire or let-go is allowed: there is something to compare
+    mine = {"dispatch": np.full((B, M), N), "workforce": np.zeros(B, dtype=np.int64),
+            "positioning": np.zeros((B, 2), dtype=np.int64)}
+    before = fork(sim)
+    v = tr.learner_values(mine)
+    assert state_equal(before, sim) == [] and sim.t == before.t  # the copies moved, the episode did not
+    weights = np.zeros((B, 2, M))
+    weights[:, :, 0] = 1.0  # what positioning index 0 means
+    reward = np.zeros(mask.shape)
+    for a in range(mask.shape[1]):
+        copy = fork(sim)
+        reward[:, a] = copy.step({"dispatch": mine["dispatch"], "workforce": np.where(mask[:, a], a, 0),
+                                  "positioning": weights})
+    want = np.where(mask, reward - reward[:, :1], np.nan)
+    np.testing.assert_array_equal(v, want)
+
+    tr.cfg.value_horizon, tr.cfg.value_samples = 6, 2  # the learner acts for 5 more steps, two noise samples
+    tr.value_fork = None
+    state = tr.value_gen.get_state()
+    first = tr.learner_values(mine)
+    tr.value_gen.set_state(state)
+    np.testing.assert_array_equal(tr.learner_values(mine), first)
+    assert np.isnan(first[~mask]).all() and not np.isnan(first[mask]).any()
+    assert state_equal(before, sim) == []

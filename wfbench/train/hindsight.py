@@ -85,6 +85,7 @@ from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positio
 from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
 from policies.neural.policy import load_checkpoint
 from wfbench.config import ScenarioConfig
+from wfbench.lookahead import copy_state, fork, fork_index
 from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
 from wfbench.train.common import (
@@ -109,6 +110,8 @@ ROLLOUT_MODES = ("sample", "greedy")
 WORKFORCE_TARGETS = ("action", "values", "improve")
 # which parameters train: all of them, or only the heads of the decisions with a weight > 0
 TRAIN_PARAMS = ("all", "heads")
+# who rolls the workforce actions forward for their values: the planner's base kernels, or the learner itself
+VALUE_ROLLOUTS = ("planner", "learner")
 # the parameters of each decision's head in WorkforceNet
 HEAD_MODULES = {"dispatch": ("ptr_q", "ptr_k", "ptr_noop", "dist_scale"), "workforce": ("wf_head",),
                 "positioning": ("pos_head",)}
@@ -141,6 +144,10 @@ class HindsightConfig:
     workforce_target: str = "action"  # WORKFORCE_TARGETS (docs/hindsight-learning.md, "Hindsight action values")
     improve_temperature: float = 1.0  # "improve": target pi_old * exp(A / temperature), A in standard deviations
     train_params: str = "all"  # TRAIN_PARAMS: "heads" freezes the encoder, memory and the unweighted heads
+    value_rollout: str = "planner"  # VALUE_ROLLOUTS: what acts after each workforce action in its roll-forward
+    value_horizon: int = 60  # "learner": steps of each roll-forward, the action's step included
+    value_every: int = 10  # "learner": steps between two scored states
+    value_samples: int = 1  # "learner": roll-forwards per action (common noise across the actions)
     oracle: dict = field(default_factory=dict)  # Planner settings (dispatch_horizon, workforce_every, ...)
     seed: int = 0
     device: str = "auto"  # auto | cpu | cuda
@@ -181,12 +188,18 @@ class HindsightConfig:
         if not self.improve_temperature > 0.0:
             raise ValueError(f"improve_temperature = {self.improve_temperature!r} is not allowed; "
                              "allowed: a number > 0")
+        if self.value_rollout not in VALUE_ROLLOUTS:
+            raise ValueError(f"value_rollout {self.value_rollout!r} is not allowed; allowed: "
+                             f"{', '.join(VALUE_ROLLOUTS)}")
+        if self.value_rollout == "learner" and self.workforce_target == "action":
+            raise ValueError("value_rollout 'learner' is not allowed with workforce_target 'action' (it computes "
+                             "action values); allowed: workforce_target values or improve")
         if self.train_params not in TRAIN_PARAMS:
             raise ValueError(f"train_params {self.train_params!r} is not allowed; allowed: {', '.join(TRAIN_PARAMS)}")
         if self.rollout_mode not in ROLLOUT_MODES:
             raise ValueError(f"rollout_mode {self.rollout_mode!r} is not allowed; allowed: {', '.join(ROLLOUT_MODES)}")
         for name in ("steps", "iter_steps", "num_envs", "num_steps", "dataset_steps", "grad_steps", "batch_seqs",
-                     "threads", "checkpoint_every"):
+                     "threads", "checkpoint_every", "value_horizon", "value_every", "value_samples"):
             v = getattr(self, name)
             if type(v) is not int or v < 1:
                 raise ValueError(f"{name} = {v!r} is not allowed; allowed: an integer >= 1")
@@ -308,6 +321,7 @@ class Trainer:
         self.gen = torch.Generator(device=self.device).manual_seed(c.seed)  # the learner's sampling noise
         self.batch_gen = torch.Generator().manual_seed(c.seed * 7919 + 1)  # minibatch draws
         self.mix_rng = np.random.default_rng([c.seed, 0x4D1])  # oracle-or-learner draws
+        self.value_gen = torch.Generator(device=self.device).manual_seed(c.seed * 7919 + 2)  # roll-forward noise
         self.data = Dataset(max(c.dataset_steps // c.num_steps, c.num_envs), c.num_steps)
         self.iteration, self.global_step, self.episode, self.seed_cursor = 0, 0, 0, 0
         self.best = {"score": -math.inf, "update": None}
@@ -355,6 +369,7 @@ class Trainer:
         self.planner.reset(seeds)
         self.state = self.model.initial_state(self.sim.B, self.device)
         self.starts = torch.ones(self.sim.B, device=self.device)
+        self.value_fork = None  # the copies the learner's roll-forwards run in (value_rollout "learner")
 
     def _autocast(self):
         return torch.autocast(device_type=self.device.type, dtype=torch.bfloat16, enabled=self.cuda and self.cfg.bf16)
@@ -399,7 +414,11 @@ class Trainer:
             if c.workforce_target != "action":
                 logits = out["workforce"].float().masked_fill(x["workforce_mask"] <= 0, -1e9)
                 logp_old.append(torch.log_softmax(logits, -1).cpu())
-                v = self.planner.workforce_values
+                if c.value_rollout == "learner":
+                    t_obs = int(self.obs["t"][0])
+                    v = self.learner_values(mine) if t_obs % c.value_every == 0 else None
+                else:
+                    v = self.planner.workforce_values
                 scored.append(torch.full((B,), v is not None))
                 # an allowed action the planner did not score (nobody it could let go) counts as the no-op
                 values.append(torch.from_numpy(np.nan_to_num(v, nan=0.0)).float() if v is not None
@@ -455,6 +474,52 @@ class Trainer:
             chunk["wf_scored"] = torch.stack(scored, 1)  # (B, T)
         chunk["h"], chunk["c"] = h0, c0
         return {"chunk": chunk, "stats": stats, "episodes": episodes, "trail": trail}
+
+    @torch.no_grad()
+    def learner_values(self, mine: dict[str, np.ndarray]) -> np.ndarray:
+        """Each workforce action's hindsight value under the learner's own policy, minus the no-op's: (B, A).
+
+        Every environment is copied ``A * value_samples`` times (:func:`wfbench.lookahead.fork`:
+        the copies meet the same future). Copy (s, a) takes this step's learner action
+        (``mine``) with workforce code ``a``, then the learner acts, sampled, for
+        ``value_horizon - 1`` more steps from its memory of now; the copies of sample s
+        share their Gumbel noise, so two actions differ by their consequences, not by
+        the dice. The value is the mean sum of ``NSW_t`` over the roll-forward minus the
+        no-op's; NaN where the action is masked. Called after the network acted on the
+        current observation (``self.state`` is its memory after this step's input).
+        """
+        c, dev = self.cfg, self.device
+        mask = np.asarray(self.obs["workforce_mask"], dtype=bool)  # (B, A)
+        B, A = mask.shape
+        M, N, S = self.sim.M, self.sim.N, c.value_samples
+        R = A * S  # copies per environment: row b * R + s * A + a
+        if self.value_fork is None:
+            self.value_fork = fork(self.sim, copies=R, threads=1)
+        copy_state(self.value_fork, self.sim, fork_index(B, None, R))
+        codes = np.tile(np.arange(A), B * S).reshape(B, S, A)
+        codes = np.where(mask[:, None, :], codes, 0).reshape(-1)  # a masked action is rolled as the no-op
+        action = {"dispatch": np.repeat(mine["dispatch"], R, axis=0), "workforce": codes,
+                  "positioning": np.repeat(positioning_weights(torch.from_numpy(mine["positioning"]), M).numpy(),
+                                           R, axis=0)}
+        state = tuple(h.repeat_interleave(R, dim=1) for h in self.state)
+        starts = torch.zeros(1, B * R, device=dev)
+        noise_row = torch.arange(B * S, device=dev).repeat_interleave(A)  # copies (b, s, .) share noise b * S + s
+        score = np.zeros(B * R)
+        for k in range(c.value_horizon):
+            reward, obs = self.value_fork.step_observe(action)
+            score += reward
+            if k == c.value_horizon - 1 or self.value_fork.done:
+                break
+            x = featurize(obs_to_torch(obs, dev), self.mcfg.coord_scale)
+            with self._autocast():
+                out, state = self.model(x, state, starts)
+            noise = {key: gumbel(shape, self.value_gen, dev)[noise_row]
+                     for key, shape in noise_shapes(B * S, M, N).items()}
+            acts = sample(out, x, noise)
+            action = {"dispatch": acts["dispatch"].cpu().numpy(), "workforce": acts["workforce"].cpu().numpy(),
+                      "positioning": positioning_weights(acts["positioning"], M).cpu().numpy()}
+        mean = score.reshape(B, S, A).mean(axis=1)
+        return np.where(mask, mean - mean[:, :1], np.nan)
 
     # -- supervised update --------------------------------------------------------------------
     def losses(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, float]]:
@@ -571,6 +636,7 @@ class Trainer:
             ckpt["generator"] = self.gen.get_state()
             ckpt["batch_generator"] = self.batch_gen.get_state()
             ckpt["mix_rng"] = self.mix_rng.bit_generator.state
+            ckpt["value_generator"] = self.value_gen.get_state()
             ckpt["torch_rng"] = torch.get_rng_state()
         return save_atomic(ckpt, path)
 
@@ -587,6 +653,9 @@ class Trainer:
         self.gen.set_state(ckpt["generator"].to(self.gen.device) if self.cuda else ckpt["generator"])
         self.batch_gen.set_state(ckpt["batch_generator"])
         self.mix_rng.bit_generator.state = ckpt["mix_rng"]
+        if "value_generator" in ckpt:  # runs saved before value_rollout existed have none
+            self.value_gen.set_state(ckpt["value_generator"].to(self.value_gen.device) if self.cuda
+                                     else ckpt["value_generator"])
         torch.set_rng_state(ckpt["torch_rng"])
         self.iteration, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
         self.seed_cursor = ckpt["seed_cursor"]
