@@ -63,6 +63,8 @@ LEARNED: dict[str, tuple[str, str]] = {
                         "oracles (DAgger) on paper-64"),
     "ppo-independent": ("ppo-independent-paper-64.pt", "three PPO networks, one per decision (independent "
                         "agents), trained together on paper-64"),
+    "hindsight-ppo": ("hindsight-ppo-paper-64.pt", "ppo-joint with its workforce head improved by hindsight "
+                      "learning on its own action values (the known future, its own policy acting) on paper-64"),
 }
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
 

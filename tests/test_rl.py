@@ -357,6 +357,15 @@ def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(c
     df = wfbench.evaluate("ppo-joint", "paper-64", best["seeds"], backend="serial")
     assert df["nsw"].mean() == pytest.approx(best["score"], abs=5e-3)
     assert (df["invalid_actions"] == 0).all()
+    # hindsight-ppo is ppo-joint with its workforce head trained by hindsight learning, nothing else
+    improved = torch.load(CHECKPOINT_DIR / LEARNED["hindsight-ppo"][0], weights_only=False)
+    base = torch.load(CHECKPOINT_DIR / LEARNED["ppo-joint"][0], weights_only=False)["model"]
+    changed = {k.split(".")[0] for k, v in improved["model"].items() if not torch.equal(v, base[k])}
+    assert changed == {"wf_head"}, changed
+    assert improved["algo"] == "hindsight" and improved["train_config"]["value_rollout"] == "learner"
+    assert set(improved["best"]["seeds"]) <= set(range(1000, 1050)), "selected on public seeds only"
+    df = wfbench.evaluate("hindsight-ppo", "paper-64", improved["best"]["seeds"], backend="serial")
+    assert df["nsw"].mean() == pytest.approx(improved["best"]["score"], abs=5e-3)
 
 
 def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():

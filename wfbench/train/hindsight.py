@@ -56,7 +56,10 @@ scores them): ``values`` maximizes their expectation under the head's distributi
 tilted by ``exp(value / improve_temperature)`` (a bounded step of policy improvement).
 ``train_params="heads"`` trains only the heads with a weight, so a PPO network given
 as ``init`` keeps its encoder, memory and dispatch (docs/hindsight-learning.md,
-"Hindsight action values").
+"Hindsight action values"). ``value_rollout="learner"`` computes the values with the
+learner itself acting after each action, in copies of the environment that meet the
+same future (:meth:`Trainer.learner_values`): the values of the policy that will act on
+them, which is how the shipped ``hindsight-ppo`` improved ``ppo-joint``'s workforce head.
 
 Checkpoints are those of ``wfbench.train.ppo`` (``model``, ``model_config``,
 ``variant``, ``scenario``...), so ``ppo:RUN/best.pt`` loads one as a policy and
