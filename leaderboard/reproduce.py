@@ -51,6 +51,12 @@ ORACLE_ROWS = [("O1", "oracle-dispatch"), ("O2", "oracle")]
 # beyond the paper: the heuristic and solver composites with their parameters tuned on the public seeds
 # (wfbench tune, policies/tuned/, docs/policies.md#tuning)
 TUNED_ROWS = [("T1", "heuristic-tuned"), ("T2", "solver-tuned")]
+# beyond the paper: the shipped networks that are not rows 5-7 (docs/rl.md, docs/hindsight-learning.md); a row
+# whose checkpoint is not shipped says so, like rows 5-7
+LEARNED_ROWS = [("L1", "ppo-independent"), ("L2", "hindsight-joint"), ("L3", "hindsight-ppo")]
+LEARNED_PARTS = {"ppo-independent": ("PPO (own net)", "PPO (own net)", "PPO (own net)"),
+                 "hindsight-joint": ("Hindsight learning", "Hindsight learning", "Hindsight learning"),
+                 "hindsight-ppo": ("PPO", "PPO + hindsight learning", "PPO")}
 TUNED_PARTS = {"heuristic-tuned": ("Heuristic (tuned)", "Heuristic (tuned)", "Heuristic (tuned)"),
                "solver-tuned": ("Assignment (tuned)", "Staffing (tuned)", "p-median (tuned)")}
 ORACLE_PARTS = {"oracle-dispatch": ("Hindsight oracle", "Heuristic", "Heuristic"),
@@ -243,16 +249,19 @@ def table3_size() -> int:
     """The evaluations :func:`table3` runs with its default rows (for a progress bar): rows, tuned, oracles, bound."""
     shipped = [n for n, *_ in PAPER_TABLE3
                if TABLE3_POLICIES[n] not in LEARNED or TABLE3_POLICIES[n] in learned_names()]
-    return len(shipped) + len(SOLVER_ROWS) + len(TUNED_ROWS) + len(ORACLE_ROWS) + 1
+    learned = [n for _, n in LEARNED_ROWS if n in learned_names()]
+    return len(shipped) + len(SOLVER_ROWS) + len(TUNED_ROWS) + len(learned) + len(ORACLE_ROWS) + 1
 
 
 def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
            address: str | None = None, progress: Progress = None, solver_rows: bool = True,
-           oracle_rows: bool = True, tuned_rows: bool = True) -> Output:
-    """The paper's rows 1-4 (exactly its combinations), the solver rows and open rows for RL.
+           oracle_rows: bool = True, tuned_rows: bool = True, learned_rows: bool = True) -> Output:
+    """The paper's rows 1-4 (exactly its combinations), the solver rows and the RL rows 5-7.
 
     Beyond the paper, rows T1-T2: the heuristic and solver composites tuned on the public
-    seeds (``wfbench tune``; the files in ``policies/tuned/``).
+    seeds (``wfbench tune``; the files in ``policies/tuned/``); rows L1-L3: the other
+    shipped networks (independent agents, hindsight learning, PPO improved by hindsight
+    learning).
 
     Then the hindsight oracles and the proven upper bound on NSW (docs/hindsight.md): not
     deployable, a reference.
@@ -270,11 +279,14 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
                         **{f"{k}_q25": summ[k][1] for k in KPIS}, **{f"{k}_q75": summ[k][2] for k in KPIS},
                         "paper": paper_text})
 
+    def not_shipped(num: str, parts: tuple[str, str, str], paper_cell: str) -> None:  # a network whose file is absent
+        rows.append([num, *parts, "not shipped yet (RL)", *["-"] * (len(KPIS) - 1), paper_cell])
+
     for num, d, w, p, *paper in PAPER_TABLE3:
         policy = TABLE3_POLICIES[num]
         paper_text = " / ".join(paper)
-        if policy in LEARNED and policy not in learned_names():  # a trained network whose file is not shipped
-            rows.append([num, d, w, p, "not shipped yet (RL)", *["-"] * (len(KPIS) - 1), paper_text])
+        if policy in LEARNED and policy not in learned_names():
+            not_shipped(num, (d, w, p), paper_text)
         else:
             run(num, policy, (d, w, p), paper_text, paper_text)
     if solver_rows:
@@ -283,6 +295,13 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     if tuned_rows:
         for num, policy in TUNED_ROWS:
             run(num, policy, TUNED_PARTS[policy], "", "(beyond the paper: tuned on public seeds)")
+    if learned_rows:
+        for num, policy in LEARNED_ROWS:
+            cell = "(beyond the paper: trained on paper-64)"
+            if policy in learned_names():
+                run(num, policy, LEARNED_PARTS[policy], "", cell)
+            else:
+                not_shipped(num, LEARNED_PARTS[policy], cell)
     if oracle_rows:
         for num, policy in ORACLE_ROWS:
             run(num, policy, ORACLE_PARTS[policy], "", "(not in the paper; reads the future)")
@@ -301,7 +320,9 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
         "combinations; rows 5-7 are the shipped ppo-dispatch, ppo-joint and impala-joint checkpoints "
         "(docs/rl.md; a row whose checkpoint is not shipped says so); S1-S4 are wfbench's solver rows; "
         "T1-T2 (beyond the paper) are the heuristic and solver composites with their parameters tuned on the "
-        "public seeds 1000-1049 (wfbench tune, docs/policies.md); "
+        "public seeds 1000-1049 (wfbench tune, docs/policies.md); L1-L3 (beyond the paper) are the other shipped "
+        "networks: independent agents, hindsight learning, and ppo-joint with its workforce head improved by "
+        "hindsight learning (docs/hindsight-learning.md); "
         "O1-O2 are hindsight oracles (they read the episode's future: not deployable) and B is a proven upper "
         "bound on NSW per seed (docs/hindsight.md).",
         "", markdown_table(header, rows), "", DIRECTION,

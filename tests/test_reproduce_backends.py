@@ -38,6 +38,11 @@ def test_reproduce_writes_tables_and_figure(tmp_path, capsys):
     assert nsw["oracle"] > nsw["solver"] and nsw["bound"] > nsw.drop("bound").max(), "the bound is above every row"
     assert "| T1 | Heuristic (tuned) |" in text and "| T2 | Assignment (tuned) |" in text and "beyond the paper" in text
     assert nsw["heuristic-tuned"] > nsw["heuristic"] and nsw["solver-tuned"] > nsw["solver"]  # means over seeds 0-1
+    assert df["policy"].tolist()[13:19] == ["ppo-independent", "hindsight-joint", "hindsight-ppo", "oracle-dispatch",
+                                            "oracle", "bound"], "L1-L3 after the tuned rows, before the oracles"
+    assert "| L3 | PPO | PPO + hindsight learning | PPO |" in text and "| L1 | PPO (own net) |" in text
+    assert "not shipped yet (RL)" not in text, "every network row comes from its shipped checkpoint"
+    assert nsw[["ppo-independent", "hindsight-joint", "hindsight-ppo"]].between(0.5, nsw["oracle"]).all()
     assert (out / "table3.md").read_text().startswith("Table 3")
 
     assert main(["reproduce", "table2", "--out", str(out), "--runs", "1", "--backend", "serial",
