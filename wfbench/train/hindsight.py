@@ -92,9 +92,9 @@ from wfbench.lookahead import copy_state, fork, fork_index
 from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
 from wfbench.train.common import (
+    RunOutputs,
     deployable,
     git_commit,
-    log_public,
     policy_checkpoint,
     save_atomic,
     score_public,
@@ -672,20 +672,10 @@ class Trainer:
         stop = c.iterations if iterations is None else min(c.iterations, self.iteration + iterations)
         per_iter = c.chunks_per_iter * c.chunk_steps
         write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="hindsight")
-        writer = None
-        if self.log:
-            from torch.utils.tensorboard import SummaryWriter
-
-            writer = SummaryWriter(str(self.run_dir / "tb"))
-        bar = None
-        if self.progress:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=stop * per_iter, initial=self.iteration * per_iter, unit="step", unit_scale=True,
-                       desc=f"hindsight {self.scenario.name}")
         stats: dict = {}
         start, start_step = time.perf_counter(), self.global_step
-        try:
+        with RunOutputs(self, "iteration", f"hindsight {self.scenario.name}", stop * per_iter,
+                        self.iteration * per_iter) as out:
             while self.iteration < stop:
                 beta = self.beta()
                 t_collect = time.perf_counter()
@@ -708,53 +698,23 @@ class Trainer:
                 for k in ("agree_dispatch", "agree_workforce", "oracle_share"):
                     if coll[k]:
                         stats[k] = float(np.mean(coll[k]))
-                if writer:
-                    for ep in episodes:
-                        for k, v in ep.items():
-                            writer.add_scalar(f"episode/{k}", v, self.global_step)
-                    for k in ("loss", "first_loss", "last_loss", "nll_dispatch", "nll_workforce",
-                              "nll_positioning", "grad_norm"):
-                        writer.add_scalar(f"loss/{k}", stats[k], self.global_step)
-                    for k in ("beta", "dataset_steps", "collect_steps_per_s", "env_steps_per_s", "invalid_labels",
-                              "agree_dispatch", "agree_workforce", "oracle_share", "label_hires", "label_releases"):
-                        if k in stats:
-                            writer.add_scalar(f"charts/{k}", stats[k], self.global_step)
+                out.episodes(episodes)
+                out.scalars("loss", stats, ("loss", "first_loss", "last_loss", "nll_dispatch", "nll_workforce",
+                                            "nll_positioning", "grad_norm"))
+                out.scalars("charts", stats, ("beta", "dataset_steps", "collect_steps_per_s", "env_steps_per_s",
+                                              "invalid_labels", "agree_dispatch", "agree_workforce", "oracle_share",
+                                              "label_hires", "label_releases"))
                 record = {"update": self.iteration, "global_step": self.global_step, "beta": beta,
                           "loss": stats["loss"], "episodes": episodes}
                 if c.eval_every and self.iteration % c.eval_every == 0:
                     res = self.evaluate_public()
                     record |= res
-                    if writer:
-                        log_public(writer, res, self.global_step)
-                    if res["sample"] > self.best["score"]:
-                        self.best = {"score": res["sample"], "update": self.iteration,
-                                     "global_step": self.global_step, "mode": "sample", "seeds": res["seeds"],
-                                     "greedy": res["greedy"]}
-                        self.save(self.run_dir / "best.pt", full=False)
+                    out.public(res, self.iteration)
                 self.history.append(record)
                 with (self.run_dir / "history.jsonl").open("a") as fh:
                     fh.write(json.dumps({**record, **{k: v for k, v in stats.items()}, "timing": self.timing})
                              + "\n")
                 if self.iteration % c.checkpoint_every == 0:
-                    self.save(self.run_dir / "checkpoints" / f"iter_{self.iteration:04d}.pt")
-                    self.save(self.run_dir / "latest.pt")
-                if bar:
-                    bar.update(per_iter)
-                    post = {"sps": f"{sps:.0f}", "beta": f"{beta:.2f}", "loss": f"{stats['loss']:.3f}"}
-                    if self.best["update"] is not None:
-                        post["public"] = f"{self.best['score']:.3f}"
-                    bar.set_postfix(post)
-        except KeyboardInterrupt:
-            self.save(self.run_dir / "latest.pt")
-            if bar:
-                bar.close()
-            print(f"interrupted: checkpoint saved to {self.run_dir / 'latest.pt'} (iteration {self.iteration}); "
-                  f"continue with resume={self.run_dir / 'latest.pt'}")
-            raise
-        finally:
-            if writer:
-                writer.close()
-        if bar:
-            bar.close()
-        self.save(self.run_dir / "latest.pt")
+                    out.checkpoint(f"iter_{self.iteration:04d}.pt")
+                out.advance(per_iter, {"sps": f"{sps:.0f}", "beta": f"{beta:.2f}", "loss": f"{stats['loss']:.3f}"})
         return stats

@@ -74,9 +74,9 @@ from wfbench.seeds import SEED_SETS, resolve_seeds
 from wfbench.simulator import Simulator
 from wfbench.train.common import (
     RunningStd,
+    RunOutputs,
     deployable,
     git_commit,
-    log_public,
     policy_checkpoint,
     save_atomic,
     score_public,
@@ -594,6 +594,15 @@ class Trainer:
         self._ray = RayActors(self.cfg, RemoteActor, self.actor_metas, version, params)
         self._ray.run(count)
 
+    def _stop_actors(self) -> None:
+        """Stop the actor thread, or kill the Ray actors and shut Ray down if this run started it."""
+        if self.cfg.mode == "async" and hasattr(self, "_thread"):
+            self._stop_actor()
+            del self._thread
+        if self._ray is not None:
+            self._ray.close()
+            self._ray = None
+
     # -- the loop -----------------------------------------------------------------------------
     def train(self, updates: int | None = None) -> dict:
         """Train until ``cfg.steps`` environment steps (or ``updates`` more updates); returns the last stats."""
@@ -602,24 +611,13 @@ class Trainer:
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
         write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="impala")
-        writer = None
-        if self.log:
-            from torch.utils.tensorboard import SummaryWriter
-
-            writer = SummaryWriter(str(self.run_dir / "tb"))
-        bar = None
-        if self.progress:
-            from tqdm.auto import tqdm
-
-            how = f"ray x{c.ray_actors}" if c.address else c.mode
-            bar = tqdm(total=stop * per_update, initial=self.update * per_update, unit="step", unit_scale=True,
-                       desc=f"impala {how} {self.scenario.name}")
+        how = f"ray x{c.ray_actors}" if c.address else c.mode
         stats: dict = {}
-        ep_nsw = None
         start, start_step = time.perf_counter(), self.global_step
-        if c.mode == "async" and not c.address and stop > self.update:
-            self._start_actor(stop - self.update)
-        try:
+        with RunOutputs(self, "update", f"impala {how} {self.scenario.name}", stop * per_update,
+                        self.update * per_update, cleanup=self._stop_actors) as out:
+            if c.mode == "async" and not c.address and stop > self.update:
+                self._start_actor(stop - self.update)
             if c.address and stop > self.update:
                 self._start_ray(stop - self.update)
                 start = time.perf_counter()  # env-steps/s once the actors are built (not Ray's start-up)
@@ -632,55 +630,15 @@ class Trainer:
                 if self.update % c.sync_every == 0:
                     self.publish()
                 sps = (self.global_step - start_step) / (time.perf_counter() - start)
-                for ep in roll["episodes"]:
-                    ep_nsw = ep["nsw"]
-                    if writer:
-                        for k, v in ep.items():
-                            writer.add_scalar(f"episode/{k}", v, self.global_step)
-                if writer:
-                    for k, v in stats.items():
-                        writer.add_scalar(f"loss/{k}", v, self.global_step)
-                    writer.add_scalar("charts/env_steps_per_s", sps, self.global_step)
-                    writer.add_scalar("charts/reward_std", roll["meta"]["ret_std"]["var"] ** 0.5,
-                                      self.global_step)
-                    writer.add_scalar("charts/learner_wait_s", self.timing["wait"], self.global_step)
+                out.episodes(roll["episodes"])
+                out.scalars("loss", stats)
+                out.scalars("charts", {"env_steps_per_s": sps, "reward_std": roll["meta"]["ret_std"]["var"] ** 0.5,
+                                       "learner_wait_s": self.timing["wait"]})
                 if c.eval_every and self.update % c.eval_every == 0:
                     res = self.evaluate_public()
                     self.history.append({"update": self.update, "global_step": self.global_step, **res})
-                    if writer:
-                        log_public(writer, res, self.global_step)
-                    if res["sample"] > self.best["score"]:
-                        self.best = {"score": res["sample"], "update": self.update, "global_step": self.global_step,
-                                     "mode": "sample", "seeds": res["seeds"], "greedy": res["greedy"]}
-                        self.save(self.run_dir / "best.pt", full=False)
+                    out.public(res, self.update)
                 if self.update % c.checkpoint_every == 0:
-                    self.save(self.run_dir / "checkpoints" / f"update_{self.update:06d}.pt")
-                    self.save(self.run_dir / "latest.pt")
-                if bar:
-                    bar.update(per_update)
-                    post = {"sps": f"{sps:.0f}", "lag": f"{np.mean(self.lags[-20:]):.1f}"}
-                    if ep_nsw is not None:
-                        post["ep_nsw"] = f"{ep_nsw:.3f}"
-                    if self.best["update"] is not None:
-                        post["public"] = f"{self.best['score']:.3f}"
-                    bar.set_postfix(post)
-        except KeyboardInterrupt:
-            self.save(self.run_dir / "latest.pt")
-            if bar:
-                bar.close()
-            print(f"interrupted: checkpoint saved to {self.run_dir / 'latest.pt'} (update {self.update}); "
-                  f"continue with --resume {self.run_dir / 'latest.pt'}")
-            raise
-        finally:
-            if c.mode == "async" and hasattr(self, "_thread"):
-                self._stop_actor()
-                del self._thread
-            if self._ray is not None:  # kill the actors; shut Ray down if this run started it
-                self._ray.close()
-                self._ray = None
-            if writer:
-                writer.close()
-        if bar:
-            bar.close()
-        self.save(self.run_dir / "latest.pt")
+                    out.checkpoint(f"update_{self.update:06d}.pt")
+                out.advance(per_update, {"sps": f"{sps:.0f}", "lag": f"{np.mean(self.lags[-20:]):.1f}"})
         return stats

@@ -84,9 +84,9 @@ from wfbench.simulator import Simulator
 from wfbench.state import METRICS
 from wfbench.train.common import (
     RunningStd,
+    RunOutputs,
     deployable,
     git_commit,
-    log_public,
     policy_checkpoint,
     save_atomic,
     score_public,
@@ -469,67 +469,23 @@ class Trainer:
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
         write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit)
-        writer = None
-        if self.log:
-            from torch.utils.tensorboard import SummaryWriter
-
-            writer = SummaryWriter(str(self.run_dir / "tb"))
-        bar = None
-        if self.progress:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=stop * per_update, initial=self.update * per_update, unit="step", unit_scale=True,
-                       desc=f"ppo {c.variant} {self.scenario.name}")
         stats: dict = {}
-        ep_nsw = None
         start, start_step = time.perf_counter(), self.global_step
-        try:
+        with RunOutputs(self, "update", f"ppo {c.variant} {self.scenario.name}", stop * per_update,
+                        self.update * per_update) as out:
             while self.update < stop:
                 roll = self.rollout()
                 stats = self.learn(roll)
                 self.update += 1
                 sps = (self.global_step - start_step) / (time.perf_counter() - start)
-                for ep in roll["episodes"]:
-                    ep_nsw = ep["nsw"]
-                    if writer:
-                        for k, v in ep.items():
-                            writer.add_scalar(f"episode/{k}", v, self.global_step)
-                if writer:
-                    for k, v in stats.items():
-                        writer.add_scalar(f"loss/{k}", v, self.global_step)
-                    writer.add_scalar("charts/env_steps_per_s", sps, self.global_step)
-                    writer.add_scalar("charts/reward_std", self.ret_std.std, self.global_step)
+                out.episodes(roll["episodes"])
+                out.scalars("loss", stats)
+                out.scalars("charts", {"env_steps_per_s": sps, "reward_std": self.ret_std.std})
                 if c.eval_every and self.update % c.eval_every == 0:
                     res = self.evaluate_public()
                     self.history.append({"update": self.update, "global_step": self.global_step, **res})
-                    if writer:
-                        log_public(writer, res, self.global_step)
-                    if res["sample"] > self.best["score"]:
-                        self.best = {"score": res["sample"], "update": self.update, "global_step": self.global_step,
-                                     "mode": "sample", "seeds": res["seeds"], "greedy": res["greedy"]}
-                        self.save(self.run_dir / "best.pt", full=False)
+                    out.public(res, self.update)
                 if self.update % c.checkpoint_every == 0:
-                    self.save(self.run_dir / "checkpoints" / f"update_{self.update:06d}.pt")
-                    self.save(self.run_dir / "latest.pt")
-                if bar:
-                    bar.update(per_update)
-                    post = {"sps": f"{sps:.0f}"}
-                    if ep_nsw is not None:
-                        post["ep_nsw"] = f"{ep_nsw:.3f}"
-                    if self.best["update"] is not None:
-                        post["public"] = f"{self.best['score']:.3f}"
-                    bar.set_postfix(post)
-        except KeyboardInterrupt:
-            self.save(self.run_dir / "latest.pt")
-            if bar:
-                bar.close()
-            print(f"interrupted: checkpoint saved to {self.run_dir / 'latest.pt'} (update {self.update}); "
-                  f"continue with --resume {self.run_dir / 'latest.pt'}")
-            raise
-        finally:
-            if writer:
-                writer.close()
-        if bar:
-            bar.close()
-        self.save(self.run_dir / "latest.pt")
+                    out.checkpoint(f"update_{self.update:06d}.pt")
+                out.advance(per_update, {"sps": f"{sps:.0f}"})
         return stats
