@@ -1,10 +1,11 @@
 """Learning curves of training runs (PPO, IMPALA, hindsight learning) from their TensorBoard scalars, as a PNG.
 
-    python benchmarks/plot_rl_curve.py RUN_DIR [RUN_DIR ...] --out docs/img/rl-curve.png
+    python benchmarks/plot_rl_curve.py RUN_DIR [RUN_DIR ...] --out docs/img/rl-curve.png [--reference heuristic]
 
 Top left: the training episodes' mean NSW (training seeds); top right: the mean NSW on
 the public selection seeds (sampled, and greedy dashed) by environment steps, with the
-heuristic composite on the same seeds as a reference line; bottom left: the same by
+reference policy (``--reference``, any policy name; the heuristic composite by default)
+on the same seeds as a line; bottom left: the same by
 wall-clock minutes since the run's start; bottom right: the workforce cost on the
 public seeds. A run started with ``--init`` is drawn after the steps of the run it
 started from. The selection seeds of the last run give the reference line.
@@ -56,6 +57,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", nargs="+")
     ap.add_argument("--out", default="docs/img/rl-curve.png")
+    ap.add_argument("--reference", default="heuristic", help="the policy drawn as a line, on the same seeds")
     a = ap.parse_args()
     fig, axes = plt.subplots(2, 2, figsize=(12, 7))
     for i, run in enumerate(map(Path, a.runs)):
@@ -78,10 +80,10 @@ def main() -> None:
             steps, values, _ = zip(*s["public/workforce_cost_sample"], strict=True)
             axes[1, 1].plot(steps, values, marker="o", ms=3, color=color, label=label)
     seeds = resolve_seeds(cfg["eval_seeds"])
-    ref = wfbench.evaluate("heuristic", cfg["scenario"], seeds, backend="serial")
+    ref = wfbench.evaluate(a.reference, cfg["scenario"], seeds, backend="serial")
     for ax in (axes[0, 1], axes[1, 0]):
-        ax.axhline(ref["nsw"].mean(), color="grey", ls=":", label="heuristic (same seeds)")
-    axes[1, 1].axhline(ref["workforce_cost"].mean(), color="grey", ls=":", label="heuristic")
+        ax.axhline(ref["nsw"].mean(), color="grey", ls=":", label=f"{a.reference} (same seeds)")
+    axes[1, 1].axhline(ref["workforce_cost"].mean(), color="grey", ls=":", label=a.reference)
     axes[0, 0].set_title("training episodes (train seeds)")
     axes[0, 1].set_title(f"selection seeds ({cfg['eval_seeds']}); greedy dashed")
     axes[1, 0].set_title("selection seeds, by wall-clock (shared 2-core VM)")
