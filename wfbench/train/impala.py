@@ -249,7 +249,7 @@ class Actor:
     def restore(self, meta: dict) -> None:
         self.seed_cursor, self.episode = meta["seed_cursor"], meta["episode"]
         self.ret_std.__dict__.update(meta["ret_std"])
-        self.gen.set_state(meta["generator"].to(self.gen.device) if self.device.type == "cuda" else meta["generator"])
+        self.gen.set_state(meta["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
 
     def _take_seeds(self, k: int) -> list[int]:
         """The next ``k`` seeds of the ``train`` set for this run (as ppo.py: a window per run seed).
@@ -517,7 +517,7 @@ class Trainer:
                              "its config.json")
         self.model.load_state_dict(ckpt["model"])
         self.opt.load_state_dict(ckpt["optimizer"])
-        torch.set_rng_state(ckpt["torch_rng"])
+        torch.set_rng_state(ckpt["torch_rng"].cpu())
         self.update, self.global_step = ckpt["update"], ckpt["global_step"]
         self.commit = ckpt.get("git_commit", self.commit)
         self.best, self.history, self.lags = ckpt["best"], ckpt["history"], list(ckpt.get("lags", []))

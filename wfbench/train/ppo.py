@@ -454,8 +454,8 @@ class Trainer:
         if "value_optimizer" in ckpt:
             self.vopt.load_state_dict(ckpt["value_optimizer"])
         self.ret_std.__dict__.update(ckpt["ret_std"])
-        self.gen.set_state(ckpt["generator"].to(self.gen.device) if self.cuda else ckpt["generator"])
-        torch.set_rng_state(ckpt["torch_rng"])
+        self.gen.set_state(ckpt["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
+        torch.set_rng_state(ckpt["torch_rng"].cpu())
         self.update, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
         self.seed_cursor = ckpt.get("seed_cursor", 0)
         self.commit = ckpt.get("git_commit", self.commit)
