@@ -130,3 +130,20 @@ def test_a_hostile_submission_ends_with_one_line_from_the_command_line(tmp_path,
     assert err.startswith(f"wfbench: submission 'hangs' on tiny-test failed: policy '{SPEC}:Hangs' did not return "
                           f"from act within the act timeout of 2 s (stopped at {HOSTILE}:")
     assert "--traceback prints the whole trace" in err  # and not the two-minute wall time that stopped it
+
+
+def test_a_failure_in_code_sent_by_value_is_named_at_the_policys_file(tmp_path):
+    """Code cloudpickle sends to a worker is named <dynamic-code>; the error names the class's file instead.
+
+    The end-to-end check (a script's policy in a process pool) is tests/test_backends_script.py; it needs
+    the cloudpickle that renames files. This one makes such code here, on any version.
+    """
+    from wfbench.guard import DYNAMIC_CODE, Guard
+
+    namespace: dict = {}
+    exec(compile("def act(obs):\n    x = 1\n    return obs['missing']\n", DYNAMIC_CODE, "exec"), namespace)
+    script = str(tmp_path / "my_script.py")
+    with pytest.raises(PolicyError, match=r"failed in act at .*my_script\.py:3: KeyError"):
+        Guard("mine", None, source=script).call("act", namespace["act"], {})
+    with pytest.raises(PolicyError, match=r"failed in act at <dynamic-code>:3: KeyError"):
+        Guard("mine", None).call("act", namespace["act"], {})  # without the class's file: the frame as it is
