@@ -158,6 +158,8 @@ def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
     ({"train_params": "trunk"}, ["train_params", "allowed: all, heads"]),
     ({"workforce_target": "improve", "value_rollout": "mc"}, ["value_rollout", "allowed: planner, learner"]),
     ({"value_rollout": "learner"}, ["value_rollout 'learner'", "allowed: workforce_target values or improve"]),
+    ({"workforce_target": "improve", "workforce_weight": 0.0}, ["workforce_weight = 0.0", "not used",
+                                                                "allowed: workforce_weight > 0"]),
     ({"workforce_target": "improve", "value_horizon": 0}, ["value_horizon", "allowed: an integer >= 1"]),
     ({"workforce_target": "improve", "value_samples": 1.5}, ["value_samples", "allowed: an integer >= 1"]),
     ({"model": "huge"}, ["huge", "allowed"]),
@@ -300,3 +302,27 @@ def test_learner_values_are_roll_forwards_in_copies_that_leave_the_episode_alone
     np.testing.assert_array_equal(tr.learner_values(mine), first)
     assert np.isnan(first[~mask]).all() and not np.isnan(first[mask]).any()
     assert state_equal(before, sim) == []
+
+
+def test_learner_scores_share_the_dice_across_actions_and_not_across_samples(tmp_path):
+    """Copy (b, s, a) of ``learner_scores``: the actions of one sample meet the same noise, the samples differ."""
+    tr = Trainer(_cfg(tmp_path, beta0=0.0, workforce_target="improve", value_rollout="learner", value_horizon=12,
+                      value_samples=3, value_every=100), progress=False, log=False)
+    tr.collect(beta=0.0)
+    mask = tr.obs["workforce_mask"].astype(bool)
+    B, A = mask.shape
+    assert (~mask).any() and mask[:, 1:].any(), "a masked action and an allowed one to compare"
+    mine = {"dispatch": np.full((B, tr.sim.M), tr.sim.N), "workforce": np.zeros(B, dtype=np.int64),
+            "positioning": np.zeros((B, 2), dtype=np.int64)}
+    state = tr.value_gen.get_state()
+    scores = tr.learner_scores(mine)
+    assert scores.shape == (B, 3, A)
+    # a masked action is rolled as the no-op: with the same dice, its 12 steps score the same, bit for bit
+    noop = np.broadcast_to(scores[:, :, :1], scores.shape)
+    np.testing.assert_array_equal(scores[np.broadcast_to(~mask[:, None, :], scores.shape)],
+                                  noop[np.broadcast_to(~mask[:, None, :], scores.shape)])
+    assert (scores[:, 0, 0] != scores[:, 1, 0]).any(), "the samples draw their own dice"
+    tr.value_gen.set_state(state)
+    v = tr.learner_values(mine)  # the same dice again: the mean over the samples, minus the no-op's
+    mean = scores.mean(axis=1)
+    np.testing.assert_array_equal(v, np.where(mask, mean - mean[:, :1], np.nan))

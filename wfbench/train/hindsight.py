@@ -197,6 +197,10 @@ class HindsightConfig:
         if self.value_rollout == "learner" and self.workforce_target == "action":
             raise ValueError("value_rollout 'learner' is not allowed with workforce_target 'action' (it computes "
                              "action values); allowed: workforce_target values or improve")
+        if self.workforce_target != "action" and not self.workforce_weight > 0.0:
+            raise ValueError(f"workforce_target {self.workforce_target!r} with workforce_weight = "
+                             f"{self.workforce_weight!r} is not allowed (the values would be computed and not "
+                             "used); allowed: workforce_weight > 0, or workforce_target action")
         if self.train_params not in TRAIN_PARAMS:
             raise ValueError(f"train_params {self.train_params!r} is not allowed; allowed: {', '.join(TRAIN_PARAMS)}")
         if self.rollout_mode not in ROLLOUT_MODES:
@@ -332,7 +336,8 @@ class Trainer:
         self.progress, self.log = progress, log
         self.run_dir = Path(c.run_dir)
         self.commit = git_commit()
-        self.timing = {"oracle": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0, "evaluate": 0.0}
+        self.timing = {"oracle": 0.0, "values": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0,
+                       "evaluate": 0.0}  # seconds; "values": the learner's roll-forwards (value_rollout learner)
         if c.init and resume is None:
             start = load_checkpoint(c.init, str(self.device))
             if start["model_config"] != self.mcfg.to_dict():
@@ -412,6 +417,7 @@ class Trainer:
                 noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
             mine = {k: v.cpu().numpy() for k, v in sample(out, x, noise).items()}
             t1 = time.perf_counter()
+            values_s = 0.0
             label = self.planner.act(self.obs)
             ld, lw, lp, bad = oracle_labels(label, self.obs)
             if c.workforce_target != "action":
@@ -419,7 +425,9 @@ class Trainer:
                 logp_old.append(torch.log_softmax(logits, -1).cpu())
                 if c.value_rollout == "learner":
                     t_obs = int(self.obs["t"][0])
+                    t_values = time.perf_counter()
                     v = self.learner_values(mine) if t_obs % c.value_every == 0 else None
+                    values_s = time.perf_counter() - t_values
                 else:
                     v = self.planner.workforce_values
                 scored.append(torch.full((B,), v is not None))
@@ -464,7 +472,8 @@ class Trainer:
                 # the LSTM state is reset through the starts flags of the next episode's first step
             t4 = time.perf_counter()
             self.timing["forward"] += t1 - t0
-            self.timing["oracle"] += t2 - t1
+            self.timing["oracle"] += t2 - t1 - values_s
+            self.timing["values"] += values_s
             self.timing["simulator"] += t4 - t3
         chunk = {k: torch.stack([r[k] for r in raws], 1) for k in OBS_KEYS}  # (B, T, ...)
         chunk["starts"] = torch.stack(starts, 1)
@@ -482,14 +491,23 @@ class Trainer:
     def learner_values(self, mine: dict[str, np.ndarray]) -> np.ndarray:
         """Each workforce action's hindsight value under the learner's own policy, minus the no-op's: (B, A).
 
+        The mean over the samples of :meth:`learner_scores`, minus the no-op's; NaN where the
+        action is masked.
+        """
+        mean = self.learner_scores(mine).mean(axis=1)
+        return np.where(np.asarray(self.obs["workforce_mask"], dtype=bool), mean - mean[:, :1], np.nan)
+
+    def learner_scores(self, mine: dict[str, np.ndarray]) -> np.ndarray:
+        """The sum of ``NSW_t`` of each roll-forward: (B, S, A), S = ``value_samples``.
+
         Every environment is copied ``A * value_samples`` times (:func:`wfbench.lookahead.fork`:
         the copies meet the same future). Copy (s, a) takes this step's learner action
         (``mine``) with workforce code ``a``, then the learner acts, sampled, for
         ``value_horizon - 1`` more steps from its memory of now; the copies of sample s
         share their Gumbel noise, so two actions differ by their consequences, not by
-        the dice. The value is the mean sum of ``NSW_t`` over the roll-forward minus the
-        no-op's; NaN where the action is masked. Called after the network acted on the
-        current observation (``self.state`` is its memory after this step's input).
+        the dice. A masked action is rolled as the no-op, so its score equals the no-op's.
+        Called after the network acted on the current observation (``self.state`` is its
+        memory after this step's input).
         """
         c, dev = self.cfg, self.device
         mask = np.asarray(self.obs["workforce_mask"], dtype=bool)  # (B, A)
@@ -521,8 +539,7 @@ class Trainer:
             acts = sample(out, x, noise)
             action = {"dispatch": acts["dispatch"].cpu().numpy(), "workforce": acts["workforce"].cpu().numpy(),
                       "positioning": positioning_weights(acts["positioning"], M).cpu().numpy()}
-        mean = score.reshape(B, S, A).mean(axis=1)
-        return np.where(mask, mean - mean[:, :1], np.nan)
+        return score.reshape(B, S, A)
 
     # -- supervised update --------------------------------------------------------------------
     def losses(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, float]]:
@@ -653,13 +670,12 @@ class Trainer:
                              "its config.json")
         self.model.load_state_dict(ckpt["model"])
         self.opt.load_state_dict(ckpt["optimizer"])
-        self.gen.set_state(ckpt["generator"].to(self.gen.device) if self.cuda else ckpt["generator"])
-        self.batch_gen.set_state(ckpt["batch_generator"])
+        self.gen.set_state(ckpt["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
+        self.batch_gen.set_state(ckpt["batch_generator"].cpu())
         self.mix_rng.bit_generator.state = ckpt["mix_rng"]
         if "value_generator" in ckpt:  # runs saved before value_rollout existed have none
-            self.value_gen.set_state(ckpt["value_generator"].to(self.value_gen.device) if self.cuda
-                                     else ckpt["value_generator"])
-        torch.set_rng_state(ckpt["torch_rng"])
+            self.value_gen.set_state(ckpt["value_generator"].cpu())
+        torch.set_rng_state(ckpt["torch_rng"].cpu())
         self.iteration, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
         self.seed_cursor = ckpt["seed_cursor"]
         self.commit = ckpt.get("git_commit", self.commit)
