@@ -18,6 +18,7 @@ the environment's seed, and greedy decisions pass ``None`` (argmax).
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -159,3 +160,14 @@ def log_prob_entropy(out: dict, x: dict, acts: dict) -> tuple[torch.Tensor, torc
 def positioning_weights(index: torch.Tensor, M: int) -> torch.Tensor:
     """(B, 2, M) weights: 1 on the chosen facility of each row."""
     return F.one_hot(index, M).to(torch.float64)
+
+
+def env_action(acts: dict[str, torch.Tensor], M: int) -> dict[str, np.ndarray]:
+    """The simulator's action of the sampled heads present in ``acts``.
+
+    Dispatch and workforce as int64 indices, positioning as its (B, 2, M) weights.
+    """
+    out = {k: acts[k].cpu().numpy().astype(np.int64) for k in ("dispatch", "workforce") if k in acts}
+    if "positioning" in acts:
+        out["positioning"] = positioning_weights(acts["positioning"], M).cpu().numpy()
+    return out

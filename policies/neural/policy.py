@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from policies.composite import Composite
-from policies.neural.dist import positioning_weights, sample
+from policies.neural.dist import env_action, sample
 from policies.neural.model import AgentSet, WorkforceNet, featurize, network_from_config, obs_to_torch
 from policies.protocol import seeds_array
 
@@ -117,15 +117,7 @@ class PPOPolicy:
             noise = self._noise(B, M, N)
             if self.mode == "greedy-dispatch":
                 noise["dispatch"] = torch.zeros_like(noise["dispatch"])
-        acts = sample(out, x, noise)
-        result: dict[str, np.ndarray] = {}
-        if "dispatch" in acts:
-            result["dispatch"] = acts["dispatch"].cpu().numpy().astype(np.int64)
-        if "workforce" in acts:
-            result["workforce"] = acts["workforce"].cpu().numpy().astype(np.int64)
-        if "positioning" in acts:
-            result["positioning"] = positioning_weights(acts["positioning"], M).cpu().numpy()
-        return result
+        return env_action(sample(out, x, noise), M)
 
 
 def from_checkpoint(path: str | Path, mode: str = "sample", device: str = "cpu", name: str | None = None):

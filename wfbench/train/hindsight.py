@@ -84,7 +84,7 @@ import torch
 from policies.composite import Composite
 from policies.hindsight.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
 from policies.hindsight.planner import Planner
-from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
+from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
 from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
 from policies.neural.policy import load_checkpoint
 from wfbench.config import ScenarioConfig
@@ -537,8 +537,7 @@ class Trainer:
             noise = {key: gumbel(shape, self.value_gen, dev)[noise_row]
                      for key, shape in noise_shapes(B * S, M, N).items()}
             acts = sample(out, x, noise)
-            action = {"dispatch": acts["dispatch"].cpu().numpy(), "workforce": acts["workforce"].cpu().numpy(),
-                      "positioning": positioning_weights(acts["positioning"], M).cpu().numpy()}
+            action = env_action(acts, M)
         return score.reshape(B, S, A)
 
     # -- supervised update --------------------------------------------------------------------

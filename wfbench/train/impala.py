@@ -65,7 +65,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from policies.neural.dist import gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
+from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, sample
 from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
 from policies.neural.policy import load_checkpoint
 from wfbench.backends import require_ray
@@ -295,8 +295,7 @@ class Actor:
             noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
             acts = sample(out, x, noise)
             logp, _, _ = log_prob_entropy(out, x, acts)
-            action = {"dispatch": acts["dispatch"].cpu().numpy(), "workforce": acts["workforce"].cpu().numpy(),
-                      "positioning": positioning_weights(acts["positioning"], M).cpu().numpy()}
+            action = env_action(acts, M)
             t1 = time.perf_counter()
             buf["raw"].append(raw)
             buf["starts"].append(self.starts)
