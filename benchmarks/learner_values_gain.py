@@ -47,11 +47,9 @@ def main() -> None:
         ap.error(f"--states {a.states} x --every {a.every} = {a.states * a.every} is not allowed; allowed: fewer "
                  f"than the episode's {steps} steps of {a.scenario}")
     cfg = HindsightConfig(scenario=a.scenario, model=a.model, device="cpu", num_envs=a.envs, num_steps=a.every,
-                          burn_in=0, beta0=0.0, workforce_target="improve", value_rollout="learner",
-                          value_horizon=a.horizon, value_samples=a.samples, seed=a.seed,
+                          burn_in=0, beta0=0.0, value_horizon=a.horizon, value_samples=a.samples, seed=a.seed,
                           init=a.checkpoint, eval_every=0, run_dir="/tmp/learner_values_gain")
-    tr = Trainer(cfg, progress=False, log=False)
-    tr.cfg.workforce_target = "action"  # collect() then computes no values: this script asks for them itself
+    tr = Trainer(cfg, progress=False, log=False)  # workforce_target "action": collect() computes no values
     gains, own, picks, noop = [], [], [], []
     start = time.perf_counter()
     for _ in range(a.states):

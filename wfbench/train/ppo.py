@@ -67,7 +67,7 @@ import numpy as np
 import torch
 
 import policies
-from policies.neural.dist import gumbel, head_log_prob_entropy, noise_shapes, positioning_weights, sample
+from policies.neural.dist import env_action, gumbel, head_log_prob_entropy, noise_shapes, sample
 from policies.neural.model import (
     OBS_KEYS,
     AgentSet,
@@ -296,14 +296,11 @@ class Trainer:
             noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
             acts = sample(out, x, noise)
             logp, _, _ = self.agent_log_probs(out, x, acts)
-            action = {"dispatch": acts["dispatch"].cpu().numpy()}
+            action = env_action(acts, M)  # the dispatch variant's network has the dispatch head only
             t2 = time.perf_counter()
             if self.helper is not None:
                 h = self.helper.act(self.obs)
                 action["workforce"], action["positioning"] = h["workforce"], h["positioning"]
-            else:
-                action["workforce"] = acts["workforce"].cpu().numpy()
-                action["positioning"] = positioning_weights(acts["positioning"], M).cpu().numpy()
             buf["raw"].append(raw)
             buf["starts"].append(self.starts)
             for k in ("dispatch", "workforce", "positioning"):
