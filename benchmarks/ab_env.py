@@ -18,7 +18,7 @@ sys.path.insert(0, sys.argv[1])
 
 import wfbench  # noqa: E402
 from wfbench.bench import _pettingzoo_rate  # noqa: E402
-from wfbench.config import ScenarioConfig  # noqa: E402
+from wfbench.core.config import ScenarioConfig  # noqa: E402
 
 if not wfbench.__file__.startswith(sys.argv[1]):
     sys.exit(f"wfbench was imported from {wfbench.__file__}, not from {sys.argv[1]}")

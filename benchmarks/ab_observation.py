@@ -16,10 +16,10 @@ from numba import njit
 
 from policies import get
 from policies.kernels import act_env
-from wfbench.config import ScenarioConfig
-from wfbench.dynamics import reset_env, step_env
-from wfbench.observe import observe_env
-from wfbench.simulator import Simulator
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.dynamics import reset_env, step_env
+from wfbench.core.observe import observe_env
+from wfbench.core.simulator import Simulator
 
 
 @njit(_nrt=False)

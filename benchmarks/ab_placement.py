@@ -15,8 +15,8 @@ import time
 import numpy as np
 from numba import njit
 
-from wfbench.placement import gauss_table, heat_factors, heat_row, place_hire, positioning_weights
-from wfbench.simulator import Simulator
+from wfbench.core.placement import gauss_table, heat_factors, heat_row, place_hire, positioning_weights
+from wfbench.core.simulator import Simulator
 
 
 @njit

@@ -22,9 +22,9 @@ import numpy as np  # noqa: E402
 
 from policies import get  # noqa: E402
 from policies.rollout import rollout_parallel  # noqa: E402
-from wfbench.config import ScenarioConfig  # noqa: E402
+from wfbench.core.config import ScenarioConfig  # noqa: E402
+from wfbench.core.simulator import Simulator  # noqa: E402
 from wfbench.runner import run_batch  # noqa: E402
-from wfbench.simulator import Simulator  # noqa: E402
 
 config = ScenarioConfig.resolve("paper-64")
 run_batch("heuristic", config, [0], threads=1)  # loads (or compiles) the kernels

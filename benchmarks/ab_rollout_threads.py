@@ -24,7 +24,7 @@ CHILD = r"""
 import json, sys, time
 from policies import get
 from policies.rollout import rollout
-from wfbench.simulator import Simulator
+from wfbench.core.simulator import Simulator
 B, counts = int(sys.argv[1]), [int(t) for t in sys.argv[2].split(",")]
 seeds = list(range(B))
 warm = Simulator("paper-64", [0], keep_series=False)

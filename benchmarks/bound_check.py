@@ -22,8 +22,8 @@ import numpy as np
 
 import policies
 import wfbench
-from wfbench.bound import score_upper_bound
-from wfbench.config import ScenarioConfig
+from wfbench.core.bound import score_upper_bound
+from wfbench.core.config import ScenarioConfig
 
 SCENARIOS = ["small", "paper-64", "nonstationary", "table2-g32-f25-s10"]
 POLICIES = ["random", "heuristic", "heuristic-stochastic", "solver", "random-dispatch", "fixed-workforce"]

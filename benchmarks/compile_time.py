@@ -55,7 +55,7 @@ event.register("numba:compile", Timer())
 target = sys.argv[1]
 import numpy as np
 if target in ("simulator", "both"):
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
     sim = Simulator("paper-64", [0])
     sim.reset()
     M, N = sim.M, sim.N
@@ -67,7 +67,7 @@ if target in ("simulator", "both"):
 if target in ("rollout", "both"):
     from policies import get
     from policies.rollout import rollout
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
     sim = Simulator("paper-64", [0], keep_series=False)
     rollout(sim, *get("heuristic").compiled_plan([0], sim.M, sim.N), threads=1)
 wall = time.perf_counter() - t_start

@@ -26,7 +26,7 @@ import torch
 from policies.neural.dist import gumbel, noise_shapes, sample
 from policies.neural.model import featurize, obs_to_torch
 from policies.registry import CHECKPOINT_DIR, LEARNED
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
 from wfbench.train.hindsight import HindsightConfig, Trainer
 
 

@@ -23,7 +23,7 @@ the copy (the code changed: update the mutant), *invalid* when it does not compi
 pass.
 
 numba's cache checks only the file of a cached function. Where the copy has no
-dependency-aware cache locator (``wfbench/jit.py``), the entries of every module that
+dependency-aware cache locator (``wfbench/core/jit.py``), the entries of every module that
 imports the mutated file (transitively) are deleted before each run, so no mutant runs
 stale machine code. The whole-episode rollout takes minutes to compile, so the groups
 leave out the tests that run it (``evaluate``, ``run_batch``).
@@ -57,7 +57,8 @@ GROUPS = {
                     "tests/test_metrics.py", "tests/test_workforce_threshold.py", "tests/test_policy_kernels.py"],
 }
 
-D, O, K = ("wfbench/dynamics.py", "wfbench/placement.py"), ("wfbench/observe.py",), ("policies/kernels.py",)
+D, O, K = (("wfbench/core/dynamics.py", "wfbench/core/placement.py"), ("wfbench/core/observe.py",),
+           ("policies/kernels.py",))
 
 
 @dataclass(frozen=True)
@@ -74,36 +75,38 @@ def m(name: str, files: tuple[str, ...] | str, old: str, new: str, what: str, *a
 
 MUTANTS = [
     # -- schedules, trace, parameters (plain Python) ----------------------------------------------
-    m("sched-seasonal-period", "wfbench/schedule.py", "np.sin(2.0 * np.pi * (t / self.period",
+    m("sched-seasonal-period", "wfbench/core/schedule.py", "np.sin(2.0 * np.pi * (t / self.period",
       "np.sin(np.pi * (t / self.period", "seasonal period doubled (planted in issue #11)"),
-    m("sched-default-period", "wfbench/schedule.py", "period: float = 200.0", "period: float = 100.0",
+    m("sched-default-period", "wfbench/core/schedule.py", "period: float = 200.0", "period: float = 100.0",
       "default seasonal period 100"),
-    m("sched-phase", "wfbench/schedule.py", "(t / self.period + self.phase)", "((t + self.phase) / self.period)",
+    m("sched-phase", "wfbench/core/schedule.py", "(t / self.period + self.phase)", "((t + self.phase) / self.period)",
       "phase in steps instead of periods"),
-    m("sched-drift-end", "wfbench/schedule.py", "t / max(horizon, 1)", "t / max(horizon + 1, 1)",
+    m("sched-drift-end", "wfbench/core/schedule.py", "t / max(horizon, 1)", "t / max(horizon + 1, 1)",
       "drift reaches its end one step late"),
-    m("sched-amplitude-bound", "wfbench/schedule.py", "0.0 <= self.amplitude < 1.0", "0.0 <= self.amplitude <= 1.0",
+    m("sched-amplitude-bound", "wfbench/core/schedule.py", "0.0 <= self.amplitude < 1.0",
+      "0.0 <= self.amplitude <= 1.0",
       "amplitude 1 accepted (a zero rate)"),
-    m("sched-piecewise-side", "wfbench/schedule.py", 'side="right") - 1', 'side="left") - 1',
+    m("sched-piecewise-side", "wfbench/core/schedule.py", 'side="right") - 1', 'side="left") - 1',
       "piecewise value starts a step late"),
-    m("trace-arrival-at-0", "wfbench/trace.py", "rate[0] = 0.0", "rate[0] = rate[1]", "arrivals at step 0"),
-    m("trace-lifetime-mean", "wfbench/trace.py", "life_mean = max(c.initial_facilities, 1) * c.churn_interval",
+    m("trace-arrival-at-0", "wfbench/core/trace.py", "rate[0] = 0.0", "rate[0] = rate[1]", "arrivals at step 0"),
+    m("trace-lifetime-mean", "wfbench/core/trace.py", "life_mean = max(c.initial_facilities, 1) * c.churn_interval",
       "life_mean = max(c.initial_facilities, 1) * c.churn_interval / 2", "facility lifetimes halved"),
-    m("trace-arrival-lifetime", "wfbench/trace.py", "arr_t + _lifetimes(arr_rng, A, life_mean)",
+    m("trace-arrival-lifetime", "wfbench/core/trace.py", "arr_t + _lifetimes(arr_rng, A, life_mean)",
       "arr_t + _lifetimes(arr_rng, A, c.churn_interval)", "arrivals' lifetimes of the wrong mean"),
-    m("trace-initial-facilities", "wfbench/trace.py", "fac0_active[: c.initial_facilities] = True",
+    m("trace-initial-facilities", "wfbench/core/trace.py", "fac0_active[: c.initial_facilities] = True",
       "fac0_active[: max(0, c.initial_facilities - 1)] = True", "one initial facility short"),
-    m("trace-initial-personnel", "wfbench/trace.py", "per0_active[: c.initial_personnel] = True",
+    m("trace-initial-personnel", "wfbench/core/trace.py", "per0_active[: c.initial_personnel] = True",
       "per0_active[1 : c.initial_personnel] = True", "one initial person short"),
-    m("trace-level-probs", "wfbench/trace.py", "p=np.asarray(c.level_probs)", "p=np.asarray(c.level_probs)[[1, 0, 2]]",
+    m("trace-level-probs", "wfbench/core/trace.py", "p=np.asarray(c.level_probs)",
+      "p=np.asarray(c.level_probs)[[1, 0, 2]]",
       "initial levels drawn with swapped probabilities"),
-    m("trace-y-by-width", "wfbench/trace.py", "fac0_y = fac_rng.integers(0, c.grid_height, size=M)",
+    m("trace-y-by-width", "wfbench/core/trace.py", "fac0_y = fac_rng.integers(0, c.grid_height, size=M)",
       "fac0_y = fac_rng.integers(0, c.grid_width, size=M)", "initial facility rows drawn over the width"),
-    m("config-max-cost", "wfbench/config.py", "self.max_personnel * max(self.level_salaries)",
+    m("config-max-cost", "wfbench/core/config.py", "self.max_personnel * max(self.level_salaries)",
       "self.max_personnel * min(self.level_salaries)", "u_WC scaled by the lowest salary"),
-    m("params-placement", "wfbench/state.py", 'placement=0 if c.placement == "argmax" else 1',
+    m("params-placement", "wfbench/core/state.py", 'placement=0 if c.placement == "argmax" else 1',
       'placement=1 if c.placement == "argmax" else 0', "argmax and sample placement swapped"),
-    m("params-hazard", "wfbench/state.py", "request_hazard=c.request_schedule.multipliers",
+    m("params-hazard", "wfbench/core/state.py", "request_hazard=c.request_schedule.multipliers",
       "request_hazard=c.churn_schedule.multipliers", "failures follow the churn schedule"),
     # -- dynamics -------------------------------------------------------------------------------------
     m("dyn-onboarding-end", D, "st == ONBOARDING and ready[b, p] <= t", "st == ONBOARDING and ready[b, p] < t",
@@ -209,7 +212,7 @@ MUTANTS = [
 ]
 
 # Modules whose constants compiled code freezes although they define no compiled function.
-CONSTANT_MODULES = {"wfbench/state.py"}
+CONSTANT_MODULES = {"wfbench/core/state.py"}
 
 
 def copy_sources(dst: Path, rev: str | None) -> None:

@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator  # noqa: E402
 
 import wfbench  # noqa: E402
-from wfbench.seeds import resolve_seeds  # noqa: E402
+from wfbench.core.seeds import resolve_seeds  # noqa: E402
 
 
 def scalars(run: Path, offset: int = 0) -> dict[str, list[tuple[int, float, float]]]:

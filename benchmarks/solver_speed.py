@@ -29,7 +29,7 @@ from policies import kernels as K
 from policies.builtin import BuiltinDecision
 from solvers import facility_location
 from wfbench.bench import machine
-from wfbench.observe import make_obs
+from wfbench.core.observe import make_obs
 
 
 def random_obs(M: int, N: int, n_active: int, n_req: int, n_people: int, seed: int = 0, grid: int = 64):
@@ -134,8 +134,8 @@ def positioning_per_step(repeats):
 
 
 def episodes(n_seeds: int, slow_seeds: int, slow_steps: int):
+    from wfbench.core.simulator import Simulator
     from wfbench.runner import run_batch
-    from wfbench.simulator import Simulator
 
     rows = []
     for name in ("heuristic", "solver-dispatch", "solver-workforce", "solver-positioning", "solver"):

@@ -25,10 +25,10 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from wfbench.dynamics import step_env
-from wfbench.observe import observe_env
-from wfbench.simulator import Simulator, bind
-from wfbench.state import METRICS
+from wfbench.core.dynamics import step_env
+from wfbench.core.observe import observe_env
+from wfbench.core.simulator import Simulator, bind
+from wfbench.core.state import METRICS
 
 
 @njit(_nrt=False)

@@ -25,8 +25,8 @@ from sb3_contrib import MaskablePPO
 
 import wfbench
 from policies import Composite
+from wfbench.core.seeds import TRAIN_START
 from wfbench.envs.sb3 import EntitySetExtractor, SB3Policy, WorkforceVecEnv
-from wfbench.seeds import TRAIN_START
 
 
 def main(argv: list[str] | None = None) -> dict[str, float]:

@@ -18,8 +18,8 @@ import numpy as np
 import pandas as pd
 
 from policies.registry import LEARNED, learned_names
+from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
 from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
-from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
 from wfbench.tables import markdown_table
 
 DIRECTION = ("Direction: our NSW is a welfare in [0, 1] (docs/metrics.md), higher is better; the paper's NSW "
@@ -159,7 +159,7 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     downtime. Writes table2.md, table2.csv (every KPI per cell), table2_trends.csv
     (the counts per KPI and trend) and the figure table2.png / table2.svg.
     """
-    from wfbench.config import ScenarioConfig
+    from wfbench.core.config import ScenarioConfig
 
     seeds = list(range(runs))
     values: dict[str, dict[tuple[int, int, int], float]] = {k: {} for k in TREND_KPIS}
@@ -305,7 +305,7 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     if oracle_rows:
         for num, policy in ORACLE_ROWS:
             run(num, policy, ORACLE_PARTS[policy], "", "(not in the paper; reads the future)")
-        from wfbench.bound import score_upper_bound
+        from wfbench.core.bound import score_upper_bound
 
         if progress:
             progress("bound")
@@ -367,9 +367,9 @@ def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | 
     :func:`figure3_methods` (the learned ones only where their checkpoint and torch are).
     Writes figure3.png, figure3.svg, figure3.md and figure3.csv (the bands every 10 steps).
     """
-    from wfbench.config import ScenarioConfig
+    from wfbench.core.config import ScenarioConfig
+    from wfbench.core.state import METRICS
     from wfbench.plots import new_figure, save_figure, utilization_band
-    from wfbench.state import METRICS
 
     methods = figure3_methods() if methods is None else tuple(methods)
     grouped = [(title, tuple(m for m in ms if m in methods)) for title, ms in FIGURE3_GROUPS]
@@ -450,7 +450,7 @@ def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from wfbench.bound import score_upper_bound
+    from wfbench.core.bound import score_upper_bound
     from wfbench.stats import bootstrap_ci, paired_difference
 
     seeds = list(range(runs))

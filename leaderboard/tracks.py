@@ -15,8 +15,8 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from wfbench.config import ScenarioConfig
-from wfbench.seeds import PUBLIC, TEST
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.seeds import PUBLIC, TEST
 
 TRACK_SCHEMA = 1
 
@@ -49,7 +49,7 @@ def _track(name: str, description: str, preset: str | None = None) -> Track:
     return Track(
         name=name,
         config=ScenarioConfig.preset(preset or name),
-        public_seeds=tuple(PUBLIC),  # the named seed sets of wfbench.seeds
+        public_seeds=tuple(PUBLIC),  # the named seed sets of wfbench.core.seeds
         test_seeds=tuple(TEST),
         description=description,
     )

@@ -1,9 +1,9 @@
 """Compiled decision rules of the built-in policies, one environment ``b`` at a time.
 
-Every kernel reads only the observation (:class:`wfbench.observe.Obs`) and its own
+Every kernel reads only the observation (:class:`wfbench.core.observe.Obs`) and its own
 policy state, so the same kernel serves ``Policy.act(obs)`` and the compiled whole-
 episode rollout (:mod:`policies.rollout`), which therefore give identical results.
-Randomized kernels draw from :func:`wfbench.rng.uniform` with the policy's own key per
+Randomized kernels draw from :func:`wfbench.core.rng.uniform` with the policy's own key per
 environment, indexed by (step, purpose, item): a seed gives the same decisions alone
 or inside any batch.
 
@@ -31,7 +31,7 @@ from numba import njit
 from solvers.facility_location import greedy_open, local_search
 from solvers.lap import lap_min
 from solvers.staffing import sqrt_staffing_servers
-from wfbench.observe import (
+from wfbench.core.observe import (
     FAC_DOWNTIME,
     FAC_REQUESTING,
     FAC_X,
@@ -44,7 +44,7 @@ from wfbench.observe import (
     PER_X,
     PER_Y,
 )
-from wfbench.rng import STREAM_POLICY_DISPATCH, STREAM_POLICY_POSITIONING, STREAM_POLICY_WORKFORCE, normal, uniform
+from wfbench.core.rng import STREAM_POLICY_DISPATCH, STREAM_POLICY_POSITIONING, STREAM_POLICY_WORKFORCE, normal, uniform
 
 D_NOOP, D_NEAREST, D_INVERSE, D_RANDOM, D_ASSIGN = 0, 1, 2, 3, 4
 W_NOOP, W_THRESHOLD, W_EPSILON, W_RANDOM, W_STAFFING = 0, 1, 2, 3, 4
@@ -738,7 +738,7 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
     does not read them then, and the demand history they come from is still updated, so
     the episode is the same. ``Policy.act`` always fills them (another agent may hire).
 
-    Callers compile this without numba's runtime (see ``wfbench.dynamics.step_env``): the
+    Callers compile this without numba's runtime (see ``wfbench.core.dynamics.step_env``): the
     heuristic and random kernels work in the scratch arrays of the policy state, and the
     solver kernels, which allocate, are compiled with ``_nrt=True`` set explicitly.
     """

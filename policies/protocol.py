@@ -15,8 +15,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from policies import kernels as K
-from wfbench.observe import Obs
-from wfbench.rng import key_from_seed
+from wfbench.core.observe import Obs
+from wfbench.core.rng import key_from_seed
 
 DECISION_INDEX = {"dispatch": 0, "workforce": 1, "positioning": 2}
 

@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from wfbench.seeds import TEST
+from wfbench.core.seeds import TEST
 
 FORMAT = "wfbench-tuned-policy"
 FORMAT_VERSION = 1

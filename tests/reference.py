@@ -1,7 +1,7 @@
 """A small, readable per-entity reference implementation of one environment.
 
 It follows docs/model.md rule by rule with plain Python objects and shares nothing with
-the compiled core except the counter-based draws (wfbench.rng) and the trace. The
+the compiled core except the counter-based draws (wfbench.core.rng) and the trace. The
 differential test runs both on the same traces and actions and demands identical
 trajectories and metrics.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from wfbench.rng import STREAM_FAILURE, STREAM_PLACEMENT, STREAM_REPAIR, exponential, uniform
+from wfbench.core.rng import STREAM_FAILURE, STREAM_PLACEMENT, STREAM_REPAIR, exponential, uniform
 
 EMPTY, ONBOARDING, IDLE, TO_FACILITY, SERVICING, RETURNING = range(6)
 

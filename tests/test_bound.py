@@ -11,10 +11,10 @@ import pytest
 
 import policies
 import wfbench
-from wfbench.bound import bound_parts, occupancies, score_upper_bound
-from wfbench.config import ScenarioConfig
-from wfbench.state import METRICS
-from wfbench.trace import trace
+from wfbench.core.bound import bound_parts, occupancies, score_upper_bound
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.state import METRICS
+from wfbench.core.trace import trace
 
 BUILTIN = ["random", "heuristic", "heuristic-stochastic", "solver", "random-dispatch", "fixed-workforce"]
 K_NSW, K_UWC, K_UPUR, K_AFD = (METRICS.index(k) for k in ("nsw", "u_cost", "u_utilization", "downtime"))
@@ -138,7 +138,7 @@ def test_bound__occupancies_follow_the_slots_of_the_simulator():
 def _edge_config():
     """``small`` at the edges of the rules the bound uses: a failure rate that swings 10x within 40 steps, fast churn
     (slots reused often), one-step service, let-gos that take effect at once, nobody kept on."""
-    from wfbench.schedule import RateSchedule
+    from wfbench.core.schedule import RateSchedule
 
     return ScenarioConfig.preset("small").replace(
         name="bound-edges", request_schedule=RateSchedule(kind="seasonal", amplitude=0.9, period=40.0),

@@ -1,8 +1,8 @@
 import pytest
 
 from wfbench import RateSchedule, ScenarioConfig
-from wfbench.config import PRESETS
-from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
+from wfbench.core.config import PRESETS
+from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
 
 
 def test_table2_has_twenty_cells_with_the_papers_sizes():

@@ -21,14 +21,16 @@ API_PAGES = ("wfbench", "simulator", "envs", "policies", "oracles", "solvers", "
 
 # Names without an __all__ that a reader looks up first, by the page that must have them.
 KEY_NAMES = {
-    "simulator": ["wfbench.simulator.Simulator", "wfbench.simulator.Simulator.step", "wfbench.simulator.ActionError"],
-    "wfbench": ["wfbench.evaluation.evaluate", "wfbench.compare.compare", "wfbench.config.ScenarioConfig"],
+    "simulator": ["wfbench.core.simulator.Simulator", "wfbench.core.simulator.Simulator.step",
+                  "wfbench.core.simulator.ActionError"],
+    "wfbench": ["wfbench.evaluation.evaluate", "wfbench.compare.compare", "wfbench.core.config.ScenarioConfig"],
     "envs": ["wfbench.envs.gym_env.WorkforceEnv", "wfbench.envs.gym_env.DispatchEnv",
              "wfbench.envs.parallel.WorkforceParallelEnv", "wfbench.envs.vector.WorkforceVectorEnv",
              "wfbench.envs.sb3.WorkforceVecEnv"],
     "policies": ["policies.protocol.Policy", "policies.protocol.Policy.act", "policies.protocol.Policy.reset",
                  "policies.registry.get", "policies.composite.Composite"],
-    "oracles": ["wfbench.lookahead.fork", "wfbench.bound.score_upper_bound", "policies.hindsight.planner.Planner"],
+    "oracles": ["wfbench.core.lookahead.fork", "wfbench.core.bound.score_upper_bound",
+                "policies.hindsight.planner.Planner"],
     "solvers": ["solvers.assignment.solve", "solvers.facility_location.solve_p_median",
                 "solvers.staffing.square_root_staffing", "solvers.result.SolveResult"],
     "leaderboard": ["leaderboard.tracks.Track", "leaderboard.submit.submit", "leaderboard.store.Store",

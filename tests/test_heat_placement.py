@@ -9,7 +9,7 @@ does not decrease (where the bound would not hold and the full scan must be used
 import numpy as np
 import pytest
 
-from wfbench.placement import argmax_heat, full_argmax, gauss_table
+from wfbench.core.placement import argmax_heat, full_argmax, gauss_table
 
 
 def python_argmax(wk, xk, yk, g, grid_w, grid_h):

@@ -23,7 +23,7 @@ import policies  # noqa: E402
 import wfbench  # noqa: E402
 from policies.neural.model import WorkforceNet, model_config  # noqa: E402
 from wfbench.cli import main  # noqa: E402
-from wfbench.config import ScenarioConfig  # noqa: E402
+from wfbench.core.config import ScenarioConfig  # noqa: E402
 from wfbench.train import ray_actors  # noqa: E402
 from wfbench.train.impala import Actor, ImpalaConfig, Trainer  # noqa: E402
 from wfbench.train.ppo import VARIANTS  # noqa: E402

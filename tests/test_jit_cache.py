@@ -1,4 +1,4 @@
-"""numba's cache of wfbench is keyed by every source file the compiled code depends on (wfbench.jit)."""
+"""numba's cache of wfbench is keyed by every source file the compiled code depends on (wfbench.core.jit)."""
 
 import ast
 import importlib
@@ -14,7 +14,7 @@ import pytest
 from numba.core import caching
 from numba.core.registry import CPUDispatcher
 
-from wfbench import jit
+from wfbench.core import jit
 
 ROOT = jit.ROOT
 PACKAGES = ("wfbench", "policies", "solvers")
@@ -96,7 +96,7 @@ def test_the_digest_covers_every_numba_module_and_what_it_imports():
     numba_modules = [p for p in sources() if uses_numba(p)]
     names = {module_name(p) for p in numba_modules}
     # the modules with compiled code at the time of writing, and wherever they moved
-    assert {"wfbench.dynamics", "wfbench.observe", "wfbench.rng", "policies.kernels", "policies.rollout",
+    assert {"wfbench.core.dynamics", "wfbench.core.observe", "wfbench.core.rng", "policies.kernels", "policies.rollout",
             "solvers.lap"} <= names
     for path in numba_modules:
         expected = ast_closure(path.resolve())
@@ -107,12 +107,12 @@ def test_the_digest_covers_every_numba_module_and_what_it_imports():
         else:
             assert jit.is_ours(path), path
     rollout = {p.relative_to(ROOT).as_posix() for p in map(Path, jit.dependencies(ROOT / "policies/rollout.py"))}
-    assert {"wfbench/dynamics.py", "wfbench/observe.py", "wfbench/state.py", "wfbench/rng.py",
+    assert {"wfbench/core/dynamics.py", "wfbench/core/observe.py", "wfbench/core/state.py", "wfbench/core/rng.py",
             "policies/kernels.py", "solvers/lap.py"} <= rollout
 
 
 def test_every_cached_function_of_ours_uses_the_digest_locator():
-    # pins the numba internals wfbench.jit relies on
+    # pins the numba internals wfbench.core.jit relies on
     assert caching.CacheImpl._locator_classes[0] is jit.DigestLocator
     assert issubclass(jit.DigestLocator, caching._CacheLocator)
     checked = 0
@@ -141,17 +141,18 @@ def test_functions_of_other_files_keep_numba_locators(tmp_path):
 
 
 def test_digests_follow_imports_only():
-    observe, rollout = jit.source_digest(ROOT / "wfbench/observe.py"), jit.source_digest(ROOT / "policies/rollout.py")
+    observe = jit.source_digest(ROOT / "wfbench/core/observe.py")
+    rollout = jit.source_digest(ROOT / "policies/rollout.py")
     assert observe != rollout and len(observe) == 64
     # the simulator core does not depend on the policies
-    assert not any("policies" in p for p in jit.dependencies(ROOT / "wfbench/observe.py"))
+    assert not any("policies" in p for p in jit.dependencies(ROOT / "wfbench/core/observe.py"))
 
 
 # -- end to end: edit a copy, see new numbers ----------------------------------------------------------------
 SCRIPT = """
 import numpy as np
-from wfbench.simulator import Simulator
-from wfbench.state import IDLE
+from wfbench.core.simulator import Simulator
+from wfbench.core.state import IDLE
 sim = Simulator("small", [0, 1])
 S = sim.state
 S.per_status[:, :4] = IDLE   # four idle people in each environment, nobody under notice
@@ -201,7 +202,7 @@ def test_editing_a_function_inlined_from_another_file_recompiles(tmp_path):
 
 @pytest.mark.parametrize("value", [0, -1, 1.5, "2"])
 def test_simulator_threads_must_be_a_positive_integer(value):
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
 
     with pytest.raises(ValueError, match="threads"):
         Simulator("small", [0], threads=value)
@@ -210,7 +211,7 @@ def test_simulator_threads_must_be_a_positive_integer(value):
 def test_step_observe_gives_the_same_bits_on_one_and_two_threads():
     import numpy as np
 
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
 
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.fail("numba has one thread here; this test needs NUMBA_NUM_THREADS >= 2")

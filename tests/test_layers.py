@@ -22,7 +22,7 @@ def test_layers__import_contracts_hold():
 
 
 def test_layers__importing_the_core_pulls_nothing_above_it():
-    code = ("import sys, wfbench; import wfbench.simulator, wfbench.observe, wfbench.placement; "
+    code = ("import sys, wfbench; import wfbench.core.simulator, wfbench.core.observe, wfbench.core.placement; "
             "above = sorted(m for m in sys.modules if m.split('.')[0] in ('policies', 'leaderboard', 'solvers') "
             "or m in ('wfbench.evaluation', 'wfbench.envs', 'wfbench.runner', 'wfbench.backends', 'wfbench.cli')); "
             "print(above); assert not above")

@@ -19,7 +19,7 @@ from leaderboard.store import Store, StoreError
 from leaderboard.submit import SubmitError, submit
 from leaderboard.tracks import TRACKS, Track, get_track
 from wfbench.cli import main
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 

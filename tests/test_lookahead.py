@@ -1,4 +1,4 @@
-"""Exact look-ahead (wfbench.lookahead, policies.hindsight.rollout): a fork follows its source bit for bit."""
+"""Exact look-ahead (wfbench.core.lookahead, policies.hindsight.rollout): a fork follows its source bit for bit."""
 
 import numpy as np
 import pytest
@@ -7,8 +7,8 @@ import policies
 from policies import kernels as K
 from policies.hindsight.rollout import RollBuffers, roll_forward
 from wfbench import ScenarioConfig, Simulator
-from wfbench.lookahead import copy_state, fork, fork_index, state_equal
-from wfbench.state import K_NSW
+from wfbench.core.lookahead import copy_state, fork, fork_index, state_equal
+from wfbench.core.state import K_NSW
 
 CONFIG = ScenarioConfig.preset("small").replace(horizon=120)
 SEEDS = [3, 8, 21]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from wfbench import Simulator
-from wfbench.state import METRICS
+from wfbench.core.state import METRICS
 
 from .reference import EMPTY, ReferenceEnv
 from .test_reference_differential import random_actions, random_config

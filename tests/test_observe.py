@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from wfbench import RateSchedule, ScenarioConfig, Simulator
-from wfbench.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
+from wfbench.core.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
 
 from .reference import EMPTY, IDLE, ONBOARDING, RETURNING, SERVICING, TO_FACILITY, ReferenceEnv
 from .test_reference_differential import random_actions, random_config
@@ -57,7 +57,7 @@ def test_observe__utilization_window_is_config_window(window):
         assert obs["personnel"][0, 0, util] == expected, (
             f"window {window}, step {t}: personnel utilization feature {obs['personnel'][0, 0, util]} != {expected} "
             "(work steps among the last `window` steps / min(window, steps since onboarded)); "
-            "wfbench/observe.py must roll over ScenarioConfig.window")
+            "wfbench/core/observe.py must roll over ScenarioConfig.window")
 
 
 @pytest.mark.parametrize("window", [3, 10])
@@ -67,7 +67,7 @@ def test_observe__downtime_window_is_config_window(window):
         expected = np.float32(rolling(DOWN, t, 0, window))
         assert obs["facilities"][0, 0, down] == expected, (
             f"window {window}, step {t}: facility downtime feature {obs['facilities'][0, 0, down]} != {expected}; "
-            "wfbench/observe.py must roll over ScenarioConfig.window")
+            "wfbench/core/observe.py must roll over ScenarioConfig.window")
 
 
 def reference_observation(ref: ReferenceEnv, config: ScenarioConfig) -> dict[str, np.ndarray]:
@@ -139,7 +139,7 @@ def test_observe__every_array_matches_the_reference_entities(case):
             np.testing.assert_array_equal(
                 obs[name][0], want,
                 err_msg=f"case {case}, t={ref.t}: observation {name!r} differs from the reference entities "
-                        "(docs/model.md, 'Observations and actions'); fix wfbench/observe.py")
+                        "(docs/model.md, 'Observations and actions'); fix wfbench/core/observe.py")
         if step == config.horizon - 1:
             break
         d, w, p = random_actions(rng, M, N)

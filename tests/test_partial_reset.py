@@ -5,7 +5,7 @@ import pytest
 
 import wfbench
 from wfbench import ScenarioConfig, Simulator
-from wfbench.state import State
+from wfbench.core.state import State
 
 CONFIG = ScenarioConfig.preset("small").replace(horizon=40)
 

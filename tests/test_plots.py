@@ -20,8 +20,8 @@ from leaderboard.reproduce import (
 from policies.registry import LEARNED, learned_names
 from wfbench.cli import main
 from wfbench.compare import compare, plot_comparison
+from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS
 from wfbench.plots import figure_format
-from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

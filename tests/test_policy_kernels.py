@@ -1,6 +1,6 @@
 """The built-in dispatch, workforce and positioning rules (docs/model.md, Policies), probed through ``act``.
 
-Each test builds an observation by hand (``wfbench.observe.make_obs``) and checks a
+Each test builds an observation by hand (``wfbench.core.observe.make_obs``) and checks a
 decision against the rule worked out by hand; randomized rules are checked by their
 frequencies over many environment seeds (one batch, so one call).
 """
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import policies
-from wfbench.observe import FACILITY_FEATURES, GLOBAL_FEATURES, make_obs
+from wfbench.core.observe import FACILITY_FEATURES, GLOBAL_FEATURES, make_obs
 
 DOWNTIME = FACILITY_FEATURES.index("downtime")
 PUR = GLOBAL_FEATURES.index("utilization")

@@ -5,7 +5,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from wfbench import ScenarioConfig, Simulator
-from wfbench.state import EMPTY, ONBOARDING, SERVICING, TO_FACILITY
+from wfbench.core.state import EMPTY, ONBOARDING, SERVICING, TO_FACILITY
 
 
 @st.composite

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from wfbench import ScenarioConfig, Simulator
-from wfbench.schedule import RateSchedule
-from wfbench.state import EMPTY
+from wfbench.core.schedule import RateSchedule
+from wfbench.core.state import EMPTY
 
 from .reference import ReferenceEnv
 

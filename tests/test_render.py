@@ -7,8 +7,8 @@ from PIL import Image
 from policies import get
 from wfbench import Simulator
 from wfbench.cli import main
+from wfbench.core.state import EMPTY, SERVICING, TO_FACILITY
 from wfbench.envs.render import FACILITY_COLORS, LEVEL_COLORS, Renderer, render_rgb, save_gif
-from wfbench.state import EMPTY, SERVICING, TO_FACILITY
 
 
 @pytest.fixture(scope="module")

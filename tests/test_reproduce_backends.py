@@ -8,8 +8,8 @@ import pytest
 
 from leaderboard.reproduce import table2_trends
 from wfbench.cli import main
+from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS
 from wfbench.evaluation import evaluate
-from wfbench.presets import TABLE2_CELLS, TABLE2_GRIDS
 
 # identical numbers from the serial, process and Ray backends: tests/test_backends_script.py, which
 # runs them from a script without a __main__ guard, with a registry policy and a class from __main__

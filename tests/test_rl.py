@@ -369,7 +369,7 @@ def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(c
 
 
 def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
 
     pols = {m: policies.get(f"ppo-joint@{m}") for m in ("sample", "greedy", "greedy-dispatch")}
     seeds = [1000, 1001, 1002, 1003]

@@ -2,7 +2,7 @@
 
 The reference implementation (tests/reference.py) reads its failure hazard from
 ``RateSchedule.multipliers`` too, so the differential test cannot see a change to a
-schedule: the values here are worked out from the formulas of wfbench/schedule.py's
+schedule: the values here are worked out from the formulas of wfbench/core/schedule.py's
 docstring with ``math``, not with the class under test.
 """
 
@@ -32,7 +32,7 @@ def test_schedule__seasonal_follows_its_formula(amplitude, period, phase):
     m = RateSchedule(kind="seasonal", amplitude=amplitude, period=period, phase=phase).multipliers(300)
     want = [seasonal(t, amplitude, period, phase) for t in range(301)]
     np.testing.assert_allclose(m, want, rtol=0, atol=1e-12,
-                               err_msg="m(t) = 1 + amplitude sin(2 pi (t / period + phase)) (wfbench/schedule.py)")
+                               err_msg="m(t) = 1 + amplitude sin(2 pi (t / period + phase)) (wfbench/core/schedule.py)")
 
 
 def test_schedule__seasonal_default_period_is_200_steps():

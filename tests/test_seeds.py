@@ -4,7 +4,7 @@ import pytest
 
 from leaderboard.tracks import TRACKS
 from wfbench.cli import main
-from wfbench.seeds import PUBLIC, TEST, TRAIN_START, describe, resolve_seeds, seed_set
+from wfbench.core.seeds import PUBLIC, TEST, TRAIN_START, describe, resolve_seeds, seed_set
 
 
 def test_the_sets_are_disjoint_and_the_tracks_use_them():

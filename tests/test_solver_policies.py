@@ -14,8 +14,8 @@ from policies import kernels as K
 from policies.solver import AssignmentDispatch
 from solvers.lap import lap_min
 from wfbench import Simulator
+from wfbench.core.observe import make_obs
 from wfbench.evaluation import evaluate
-from wfbench.observe import make_obs
 
 
 @pytest.mark.parametrize("seed", range(4))

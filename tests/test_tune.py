@@ -12,7 +12,7 @@ from policies import tuned as tuned_file
 from policies.composite import Composite
 from wfbench import tune as tune_mod
 from wfbench.cli import main
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
 from wfbench.envs.parallel import resolve_fixed
 from wfbench.evaluation import evaluate
 from wfbench.tune import check_tuning_seeds, search_space, tune

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import policies
-from wfbench.observe import GLOBAL_FEATURES, make_obs
+from wfbench.core.observe import GLOBAL_FEATURES, make_obs
 
 PUR = GLOBAL_FEATURES.index("utilization")
 HIRES, LET_GOS = (1, 2, 3), (4, 5, 6)

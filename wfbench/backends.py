@@ -29,7 +29,7 @@ from collections.abc import Iterator, Sequence
 
 from joblib.externals.loky import FIRST_COMPLETED, get_reusable_executor, wait
 
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
 from wfbench.guard import LoadedPolicy
 from wfbench.runner import BatchResult, run_batch
 

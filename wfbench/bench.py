@@ -36,7 +36,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
 
 
 def machine() -> dict[str, str | int]:
@@ -82,7 +82,7 @@ def reference_times() -> dict[str, float]:
 def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) -> float:
     from policies import get
     from policies.rollout import rollout
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
 
     seeds = list(range(B))
     sim = Simulator(config, seeds, keep_series=False)
@@ -109,7 +109,7 @@ def _run_batch_rate(config: ScenarioConfig, B: int, repeats: int) -> float:
 
 def _step_observe_rate(config: ScenarioConfig, B: int, threads: int, repeats: int, steps: int = 50) -> float:
     """``Simulator.step_observe`` on ``threads`` threads, random actions drawn before the clock."""
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
 
     sim = Simulator(config, list(range(B)), keep_series=False, threads=threads)
     rng = np.random.default_rng(0)
@@ -131,7 +131,7 @@ def _step_observe_rate(config: ScenarioConfig, B: int, threads: int, repeats: in
 
 def _python_loop_rate(config: ScenarioConfig, B: int) -> float:
     from policies import get
-    from wfbench.simulator import Simulator
+    from wfbench.core.simulator import Simulator
 
     policy = get("heuristic")
     sim = Simulator(config, list(range(B)), keep_series=False)

@@ -29,11 +29,11 @@ from policies import DECISIONS, get
 from policies.registry import COMPOSITES, LEARNED, TUNED, learned_names
 from wfbench.backends import check_backend
 from wfbench.bench import run as run_bench
-from wfbench.config import PRESETS, ScenarioConfig
+from wfbench.core.config import PRESETS, ScenarioConfig
+from wfbench.core.seeds import SPEC_HELP as SEEDS_HELP
+from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, summarize
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError
-from wfbench.seeds import SPEC_HELP as SEEDS_HELP
-from wfbench.seeds import describe, resolve_seeds
 from wfbench.tables import markdown_table, text_table
 
 EXIT_POLICY_FAILED = 1
@@ -69,7 +69,7 @@ _nonneg = _int_at_least(0)
 
 
 def _seeds(text: str) -> str:
-    """An argparse type: anything :func:`wfbench.seeds.resolve_seeds` takes, checked now."""
+    """An argparse type: anything :func:`wfbench.core.seeds.resolve_seeds` takes, checked now."""
     try:
         resolve_seeds(text)
     except ValueError as exc:
@@ -549,8 +549,8 @@ def cmd_policies(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    from wfbench.core.simulator import Simulator
     from wfbench.envs.render import Renderer, save_gif
-    from wfbench.simulator import Simulator
 
     config = _resolve_scenario(args.scenario)
     policy = _resolve_policy(args.policy)

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
 from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, resolve_seeds, summarize
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.plots import comparison_figure, figure_format, save_figure
@@ -35,7 +35,7 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         policies: registry names, ``module:attr`` entry points or policy objects.
         scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
         seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
-            :mod:`wfbench.seeds`) or a sequence of seeds.
+            :mod:`wfbench.core.seeds`) or a sequence of seeds.
         baseline: the policy the differences are taken to (a name or entry point).
         backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluation.evaluate`).
         workers: processes or Ray tasks.

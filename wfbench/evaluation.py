@@ -19,10 +19,10 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from wfbench.backends import BACKENDS, check_backend, run_chunks
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.seeds import resolve_seeds
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.runner import BatchResult, results_frame
-from wfbench.seeds import resolve_seeds
 
 __all__ = ["BACKENDS", "KPIS", "KPI_LABELS", "evaluate", "format_kpi", "resolve_seeds", "summarize"]
 
@@ -48,7 +48,7 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
             :class:`wfbench.guard.LoadedPolicy`. Resolved once per call.
         scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
         seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
-            :mod:`wfbench.seeds`) or a sequence of seeds.
+            :mod:`wfbench.core.seeds`) or a sequence of seeds.
         backend: ``"serial"`` (this process; built-in composites use ``threads``
             numba threads, all cores by default), ``"process"`` (a pool of ``workers``
             processes over chunks of seeds; works from a script without a
@@ -66,7 +66,7 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
     Returns:
         The DataFrame (columns ``seed``, the KPIs, utilities, ``episode_length`` and the
         action counters), and with ``return_series`` the series array whose last axis
-        follows ``wfbench.state.METRICS``.
+        follows ``wfbench.core.state.METRICS``.
 
     Raises:
         ValueError: a bad scenario, seed list, backend or limit;

@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from wfbench.config import ScenarioConfig
-from wfbench.evaluation import KPI_LABELS, KPIS
-from wfbench.seeds import describe
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.kpis import KPI_LABELS, KPI_NAMES, SCORE
+from wfbench.core.seeds import describe
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -34,7 +34,7 @@ UNDECIDED = "#8c8c8c"
 def utilization_band(config: ScenarioConfig | None = None) -> tuple[float, float]:
     """The utilization band our NSW rewards in full (docs/metrics.md): target +- tolerance of ``config``.
 
-    Without a config, the band of :class:`~wfbench.config.ScenarioConfig`'s defaults (every shipped scenario's).
+    Without a config, the band of :class:`~wfbench.core.config.ScenarioConfig`'s defaults (every shipped scenario's).
     """
     target = ScenarioConfig.target_utilization if config is None else config.target_utilization
     tol = ScenarioConfig.utilization_tolerance if config is None else config.utilization_tolerance
@@ -87,7 +87,7 @@ def draw_kpi_distribution(ax: Axes, data: Sequence[np.ndarray], names: Sequence[
     for p, x in zip(pos, data, strict=True):
         ax.scatter(p + rng.uniform(-0.18, 0.18, len(x)), x, s=6, color="#4c72b0", alpha=0.45, lw=0, zorder=3)
     ax.set_xticks(pos, names, rotation=30, ha="right", fontsize=8)
-    ax.set_title(KPI_LABELS.get(kpi, kpi) + (" (higher is better)" if kpi == "nsw" else ""), fontsize=10)
+    ax.set_title(KPI_LABELS.get(kpi, kpi) + (" (higher is better)" if kpi == SCORE else ""), fontsize=10)
 
 
 def draw_kpi_ranges(ax: Axes, mean: np.ndarray, q25: np.ndarray, q75: np.ndarray, names: Sequence[str],
@@ -98,7 +98,7 @@ def draw_kpi_ranges(ax: Axes, mean: np.ndarray, q25: np.ndarray, q75: np.ndarray
         ax.axhspan(*utilization_band(), color="0.9", zorder=0)
     ax.errorbar(pos, mean, yerr=np.vstack([mean - q25, q75 - mean]), fmt="o", color="#4c72b0", capsize=4)
     ax.set_xticks(pos, names, rotation=30, ha="right", fontsize=8)
-    ax.set_title(KPI_LABELS.get(kpi, kpi) + (" (higher is better)" if kpi == "nsw" else ""), fontsize=10)
+    ax.set_title(KPI_LABELS.get(kpi, kpi) + (" (higher is better)" if kpi == SCORE else ""), fontsize=10)
 
 
 def draw_paired_differences(ax: Axes, names: Sequence[str], diff: Sequence[float], low: Sequence[float],
@@ -140,11 +140,11 @@ def comparison_figure(df: pd.DataFrame) -> Figure:
     runs = df.attrs.get("runs") or {}
     baseline = str(df.attrs.get("baseline", names[0]))
     seeds = df.attrs.get("seeds") or []
-    fig = new_figure(figsize=(min(16.0, max(12.0, 0.5 * len(names) * len(KPIS) + 4)), 6.4 + 0.45 * len(names)),
+    fig = new_figure(figsize=(min(16.0, max(12.0, 0.5 * len(names) * len(KPI_NAMES) + 4)), 6.4 + 0.45 * len(names)),
                      layout="constrained")
     top, bottom = fig.subfigures(2, 1, height_ratios=[4.6, 1.8 + 0.45 * len(names)])  # own layouts: the long
-    axes = top.subplots(1, len(KPIS))  # difference labels do not squeeze the KPI panels
-    for ax, k in zip(axes, KPIS, strict=True):
+    axes = top.subplots(1, len(KPI_NAMES))  # difference labels do not squeeze the KPI panels
+    for ax, k in zip(axes, KPI_NAMES, strict=True):
         if all(n in runs for n in names):
             draw_kpi_distribution(ax, [runs[n][k].to_numpy() for n in names], names, k)
         else:

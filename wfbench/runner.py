@@ -21,10 +21,10 @@ import pandas as pd
 
 from policies import Composite
 from policies.rollout import rollout
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import Simulator
+from wfbench.core.state import COUNTERS, INVALID_COUNTERS, METRICS
 from wfbench.guard import load_policy
-from wfbench.simulator import Simulator
-from wfbench.state import COUNTERS, INVALID_COUNTERS, METRICS
 
 
 @dataclass

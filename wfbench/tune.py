@@ -39,9 +39,9 @@ from policies import get
 from policies import tuned as tuned_file
 from policies.tunable import Param
 from wfbench import __version__
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.seeds import PUBLIC, TEST, TRAIN_START, describe, resolve_seeds
 from wfbench.evaluation import evaluate
-from wfbench.seeds import PUBLIC, TEST, TRAIN_START, describe, resolve_seeds
 
 DEFAULT_DB = "wfbench-tune.db"
 OBJECTIVE = "mean nsw"

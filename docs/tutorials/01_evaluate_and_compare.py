@@ -35,7 +35,7 @@ import numpy as np
 
 import wfbench
 from wfbench.compare import compare, format_comparison
-from wfbench.state import METRICS  # the names of the last axis of the per-step series
+from wfbench.core.state import METRICS  # the names of the last axis of the per-step series
 
 QUICK = os.environ.get("WFBENCH_TUTORIAL_QUICK") == "1"  # set by the test suite: fewer seeds
 SCENARIO = "small"
@@ -127,7 +127,7 @@ plt.show()
 # ## The KPIs over the episode
 #
 # `wfbench.evaluate(..., return_series=True)` also returns the per-step metrics, an
-# array of shape (seeds, steps, metrics) whose last axis follows `wfbench.state.METRICS`.
+# array of shape (seeds, steps, metrics) whose last axis follows `wfbench.core.state.METRICS`.
 # An episode's score is the mean of its per-step NSW, which the next cell checks.
 
 # %%
@@ -168,7 +168,7 @@ plt.show()
 # %% [markdown]
 # ## One world, every policy
 #
-# The trace of a seed (`wfbench.trace`) holds every exogenous draw of its episode, and
+# The trace of a seed (`wfbench.core.trace`) holds every exogenous draw of its episode, and
 # none of them depends on a decision. Below, seed 0: the headcount each policy keeps,
 # with the facility arrivals of the trace, which are the same for all of them.
 

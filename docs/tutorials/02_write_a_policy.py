@@ -59,7 +59,7 @@ print(workdir)
 import numpy as np
 
 import policies
-from wfbench.observe import FAC_DOWNTIME, FAC_X, FAC_Y, PER_X, PER_Y
+from wfbench.core.observe import FAC_DOWNTIME, FAC_X, FAC_Y, PER_X, PER_Y
 
 
 class LongestDownFirst:

@@ -5,7 +5,7 @@ teach one later. Modules: ``rollout`` (compiled roll-forward of a batch from its
 current state), ``dispatch``, ``workforce`` and ``positioning`` (each decision's
 candidates and maps), ``planner`` (the shadow simulator, forks and scoring),
 ``oracles`` (the per-decision policies). ``docs/hindsight.md`` explains them; the
-look-ahead itself is :mod:`wfbench.lookahead`.
+look-ahead itself is :mod:`wfbench.core.lookahead`.
 """
 
 from policies.hindsight.oracles import OracleDispatch, OraclePositioning, OracleWorkforce

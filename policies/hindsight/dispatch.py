@@ -2,7 +2,7 @@
 
 The oracle knows, for every open request, the repair outcome of its next visit: the
 draw ``u`` of (facility slot, request, visit) is a pure function of the seed
-(:mod:`wfbench.rng`), and the visit fixes the fault iff ``u < base_fix_rate *
+(:mod:`wfbench.core.rng`), and the visit fixes the fault iff ``u < base_fix_rate *
 level_multiplier[level]``. So it knows which levels would fix the fault on the next
 visit and which would come back empty-handed. The candidates for one environment are:
 
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wfbench.rng import STREAM_REPAIR, uniform
+from wfbench.core.rng import STREAM_REPAIR, uniform
 
 
 def next_visit_fixes(key: np.uint64, f: int, request: int, visit: int, fix_prob: np.ndarray) -> np.ndarray:

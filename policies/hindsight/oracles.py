@@ -23,7 +23,7 @@ import numpy as np
 
 from policies.builtin import BuiltinDecision
 from policies.hindsight.planner import Planner
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
 
 
 class _OraclePart:

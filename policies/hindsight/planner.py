@@ -26,7 +26,7 @@ At each step it decides the decisions in ``decide``:
    roll-forward of ``dispatch_horizon`` steps.
 
 A roll-forward copies the shadow's rows into a preallocated fork
-(:func:`wfbench.lookahead.copy_state`) together with the base kernels' state, takes the
+(:func:`wfbench.core.lookahead.copy_state`) together with the base kernels' state, takes the
 candidate as the first step's action and then runs the base kernels compiled
 (:func:`policies.hindsight.rollout.roll_forward`); its score is the sum of ``NSW_t``
 over the steps. Everything is deterministic: the same seeds give the same actions.
@@ -51,10 +51,10 @@ from policies.hindsight.positioning import (
 from policies.hindsight.rollout import RollBuffers, roll_forward
 from policies.hindsight.workforce import workforce_candidates
 from policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
-from wfbench.config import ScenarioConfig
-from wfbench.lookahead import copy_state, fork
-from wfbench.simulator import AGENTS, Simulator
-from wfbench.state import EMPTY, IDLE, RETURNING
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.lookahead import copy_state, fork
+from wfbench.core.simulator import AGENTS, Simulator
+from wfbench.core.state import EMPTY, IDLE, RETURNING
 
 # the base kernel of each decision the planner makes itself
 _OWN_BASE = {"dispatch": K.D_NEAREST, "workforce": K.W_NOOP, "positioning": K.P_SPATIAL}

@@ -2,7 +2,7 @@
 
 :func:`roll_forward` is :func:`policies.rollout.rollout` without the reset and for a
 number of steps: every environment of a simulator (usually a fork,
-:func:`wfbench.lookahead.fork`) optionally takes one explicit first action, then
+:func:`wfbench.core.lookahead.fork`) optionally takes one explicit first action, then
 observes, acts with the built-in kernels of ``codes`` and steps, ``steps`` steps in
 all (fewer at the horizon). It calls the same ``step_env``, ``observe_env`` and
 ``act_env`` as ``Simulator.step`` and the whole-episode rollout, so a roll-forward is
@@ -20,9 +20,9 @@ import numpy as np
 from numba import njit
 
 from policies.kernels import act_env
-from wfbench.dynamics import step_env
-from wfbench.observe import observe_env
-from wfbench.simulator import bind
+from wfbench.core.dynamics import step_env
+from wfbench.core.observe import observe_env
+from wfbench.core.simulator import bind
 
 
 @njit(cache=True, inline="always")
@@ -42,7 +42,7 @@ def _record_onsets(b, S, seen, onset_xy, n_onsets):
                 n_onsets[b] = k + 1
 
 
-@njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the loop (see wfbench.dynamics.step_env)
+@njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the loop (see wfbench.core.dynamics.step_env)
 def roll_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning, first, first_d, first_w,
                first_p, steps, record, seen, onset_xy, n_onsets, score):
     """Roll environments lo..hi-1 forward ``steps`` steps (capped by the horizon).
@@ -94,7 +94,7 @@ def roll_forward(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, fir
     """Roll every environment of ``sim`` forward ``steps`` steps under the built-in kernels ``codes``.
 
     Args:
-        sim: a reset :class:`~wfbench.simulator.Simulator` (typically a fork); its
+        sim: a reset :class:`~wfbench.core.simulator.Simulator` (typically a fork); its
             state advances in place.
         steps: steps to run (fewer where the horizon comes first).
         codes: the kernel codes (dispatch, workforce, positioning), int64 (3,), as in

@@ -21,11 +21,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import ActionError
+from wfbench.core.state import K_UAFD, K_UPUR
 from wfbench.envs.parallel import WorkforceCore
 from wfbench.envs.spaces import POSITIONING_LEVELS, SHARED_KEYS, shared_spaces, single
-from wfbench.simulator import ActionError
-from wfbench.state import K_UAFD, K_UPUR
 
 REWARDS = ("nsw", "nsw-no-cost")
 

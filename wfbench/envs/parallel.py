@@ -27,7 +27,9 @@ from pettingzoo.utils import parallel_to_aec, wrappers
 from policies import DECISIONS, get
 from policies.registry import names
 from policies.tuned import is_tuned_spec
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import AGENTS, ActionError, Simulator, actions_in_range, validate_actions
+from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
 from wfbench.envs.spaces import (
     OBS_KEYS,
     SHARED_KEYS,
@@ -37,8 +39,6 @@ from wfbench.envs.spaces import (
     single,
     workforce_action_space,
 )
-from wfbench.simulator import AGENTS, ActionError, Simulator, actions_in_range, validate_actions
-from wfbench.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
 
 _INFO_METRICS = tuple((k, METRICS.index(k)) for k in ("workforce_cost", "utilization", "downtime", "nsw"))
 
@@ -66,7 +66,7 @@ class WorkforceCore:
     actions of the expected kinds (integer dispatch and workforce, float positioning) are
     copied into preallocated plain buffers and checked by one compiled range test; any
     other form, and every malformed action, goes through
-    :func:`wfbench.simulator.validate_actions`, which converts it or names the bad index.
+    :func:`wfbench.core.simulator.validate_actions`, which converts it or names the bad index.
     """
 
     def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None):

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wfbench.state import EMPTY, K_AFD, K_NSW, K_PUR, K_WC, ONBOARDING, SERVICING, TO_FACILITY
+from wfbench.core.state import EMPTY, K_AFD, K_NSW, K_PUR, K_WC, ONBOARDING, SERVICING, TO_FACILITY
 
 LEVEL_COLORS = ("#6baed6", "#2171b5", "#08306b")  # novice, mid, expert
 FACILITY_COLORS = {"operational": "#31a354", "down, nobody assigned": "#e31a1c", "down, a person assigned": "#fd8d3c"}

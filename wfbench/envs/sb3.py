@@ -32,12 +32,12 @@ import torch as th
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.vec_env import VecEnv
 
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.state import N_WORKFORCE_ACTIONS
 from wfbench.envs.spaces import POSITIONING_LEVELS
 from wfbench.envs.vector import WorkforceVectorEnv
-from wfbench.state import N_WORKFORCE_ACTIONS
 
-_N_STATUS = 6  # personnel status codes, wfbench.state.EMPTY..RETURNING
+_N_STATUS = 6  # personnel status codes, wfbench.core.state.EMPTY..RETURNING
 
 
 class WorkforceVecEnv(VecEnv):

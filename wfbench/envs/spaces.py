@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from wfbench.config import ScenarioConfig
-from wfbench.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
-from wfbench.state import N_WORKFORCE_ACTIONS
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
+from wfbench.core.state import N_WORKFORCE_ACTIONS
 
 # Positioning weights are quantized to this many levels in MultiDiscrete action spaces.
 POSITIONING_LEVELS = 11

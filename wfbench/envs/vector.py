@@ -1,4 +1,4 @@
-"""A Gymnasium ``VectorEnv`` over one batched :class:`~wfbench.simulator.Simulator`.
+"""A Gymnasium ``VectorEnv`` over one batched :class:`~wfbench.core.simulator.Simulator`.
 
 ``WorkforceVectorEnv(scenario, num_envs, kind="workforce")`` is B copies of
 ``wfbench/Workforce-v0`` (or, ``kind="dispatch"``, of ``wfbench/Dispatch-v0``) stepped
@@ -37,11 +37,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import ActionError, Simulator, validate_actions
+from wfbench.core.state import K_UAFD, K_UPUR
 from wfbench.envs.gym_env import REWARDS, DispatchEnv, WorkforceEnv
 from wfbench.envs.spaces import POSITIONING_LEVELS
-from wfbench.simulator import ActionError, Simulator, validate_actions
-from wfbench.state import K_UAFD, K_UPUR
 
 KINDS = {"workforce": WorkforceEnv, "dispatch": DispatchEnv}
 _SEED_HIGH = 2**31 - 1  # the single environments draw their next seeds below this

@@ -26,8 +26,8 @@ import torch
 import policies
 from policies.neural.model import count_parameters
 from policies.neural.policy import PPOPolicy
+from wfbench.core.seeds import resolve_seeds
 from wfbench.evaluation import evaluate
-from wfbench.seeds import resolve_seeds
 
 
 def score_public(policy: Callable[[str], Any], scenario, eval_seeds: str) -> dict:

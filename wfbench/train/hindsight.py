@@ -87,10 +87,10 @@ from policies.hindsight.planner import Planner
 from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
 from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
 from policies.neural.policy import load_checkpoint
-from wfbench.config import ScenarioConfig
-from wfbench.lookahead import copy_state, fork, fork_index
-from wfbench.seeds import SEED_SETS, resolve_seeds
-from wfbench.simulator import Simulator
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.lookahead import copy_state, fork, fork_index
+from wfbench.core.seeds import SEED_SETS, resolve_seeds
+from wfbench.core.simulator import Simulator
 from wfbench.train.common import (
     RunOutputs,
     deployable,
@@ -500,7 +500,7 @@ class Trainer:
     def learner_scores(self, mine: dict[str, np.ndarray]) -> np.ndarray:
         """The sum of ``NSW_t`` of each roll-forward: (B, S, A), S = ``value_samples``.
 
-        Every environment is copied ``A * value_samples`` times (:func:`wfbench.lookahead.fork`:
+        Every environment is copied ``A * value_samples`` times (:func:`wfbench.core.lookahead.fork`:
         the copies meet the same future). Copy (s, a) takes this step's learner action
         (``mine``) with workforce code ``a``, then the learner acts, sampled, for
         ``value_horizon - 1`` more steps from its memory of now; the copies of sample s

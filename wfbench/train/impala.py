@@ -69,9 +69,9 @@ from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_sha
 from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
 from policies.neural.policy import load_checkpoint
 from wfbench.backends import require_ray
-from wfbench.config import ScenarioConfig
-from wfbench.seeds import SEED_SETS, resolve_seeds
-from wfbench.simulator import Simulator
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.seeds import SEED_SETS, resolve_seeds
+from wfbench.core.simulator import Simulator
 from wfbench.train.common import (
     RunningStd,
     RunOutputs,

@@ -13,7 +13,7 @@ The loop, per update::
 Episodes (``stagger``, the default for ``joint``) are staggered by partial reset: the
 first episode of environment b is cut after (b + 1) / B of the horizon, and from then on
 every environment that reaches the horizon is reset alone onto the next seed of the
-``train`` set (``wfbench.seeds``) with ``Simulator.reset(indices, seeds)``, so a rollout
+``train`` set (``wfbench.core.seeds``) with ``Simulator.reset(indices, seeds)``, so a rollout
 mixes every phase of the episode. The ``dispatch`` variant (whose heuristic parts keep
 per-environment memory that resets with the batch) and ``stagger=False`` run synchronized
 episodes: the B environments end together and a new Simulator is made on the next B
@@ -78,10 +78,10 @@ from policies.neural.model import (
     obs_to_torch,
 )
 from policies.neural.policy import load_checkpoint
-from wfbench.config import ScenarioConfig
-from wfbench.seeds import SEED_SETS, resolve_seeds
-from wfbench.simulator import Simulator
-from wfbench.state import METRICS
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.seeds import SEED_SETS, resolve_seeds
+from wfbench.core.simulator import Simulator
+from wfbench.core.state import METRICS
 from wfbench.train.common import (
     RunningStd,
     RunOutputs,

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from wfbench import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
+from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 
 # Stream identifiers: one per purpose.
 STREAM_FAILURE = 1

@@ -2,14 +2,14 @@
 
 Every exogenous draw of an episode is a pure function of (config, seed)
 (``docs/design.md``, "The trace and common random numbers"), and the state of a batch
-is a tuple of plain arrays (:class:`wfbench.state.State`). So a copy of the state of
+is a tuple of plain arrays (:class:`wfbench.core.state.State`). So a copy of the state of
 environment b, stepped with the same actions as the original, follows the original
 bit for bit: the copy meets the same failures, arrivals, repair outcomes and
 placement draws, because they are indexed by what they are for (slot, request, visit,
 hire number), not by when they are asked for. That is what the hindsight oracles
 (``policies/hindsight``, ``docs/hindsight.md``) use to score candidate actions.
 
-- :func:`fork` makes a new :class:`~wfbench.simulator.Simulator` whose environments
+- :func:`fork` makes a new :class:`~wfbench.core.simulator.Simulator` whose environments
   are copies (``copies`` each) of chosen environments of another, at the same step.
   The fork owns deep copies of the state arrays; it is an ordinary simulator:
   ``step``, ``observe``, ``episode_means``, and the compiled roll-forward of built-in
@@ -30,8 +30,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from wfbench.simulator import Simulator
-from wfbench.state import State
+from wfbench.core.simulator import Simulator
+from wfbench.core.state import State
 
 
 def fork_index(B: int, envs: int | Sequence[int] | None = None, copies: int = 1) -> np.ndarray:

@@ -6,7 +6,7 @@ over active facilities (all-zero weights mean "no preference": every active faci
 weighs 1). A hire's home is the first cell of maximal heat in row-major order
 (``placement = "argmax"``) or a cell drawn with probability proportional to its heat
 (``"sample"``, from the trace's placement stream); a let-go removes the person of the
-chosen level whose home is hottest (``wfbench.dynamics``). ``docs/model.md`` has the
+chosen level whose home is hottest (``wfbench.core.dynamics``). ``docs/model.md`` has the
 rule and its source; ``docs/design.md`` where this module sits.
 
 The functions work on environment ``b`` of the state arrays and allocate only scratch;
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from wfbench.rng import STREAM_PLACEMENT, uniform
+from wfbench.core.rng import STREAM_PLACEMENT, uniform
 
 
 @njit(cache=True)

@@ -2,7 +2,7 @@
 
 Every field is checked on construction; a bad value raises ``ValueError`` naming the
 field, the value and what is allowed. Presets (``PRESETS``, built from the
-data in :mod:`wfbench.presets`) are looked up by name with
+data in :mod:`wfbench.core.presets`) are looked up by name with
 :meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON.
 See ``docs/model.md`` for what each field means in the model.
 """
@@ -18,8 +18,8 @@ from typing import Any
 
 import tomli_w
 
-from wfbench.presets import PRESET_FIELDS
-from wfbench.schedule import RateSchedule
+from wfbench.core.presets import PRESET_FIELDS
+from wfbench.core.schedule import RateSchedule
 
 PLACEMENTS = ("argmax", "sample")
 
@@ -216,5 +216,5 @@ class ScenarioConfig:
             raise ValueError(f"config file {str(path)!r} is not valid {path.suffix[1:].upper()}: {exc}") from None
 
 
-# name -> config; the presets' fields are data in wfbench.presets (it imports nothing of the config)
+# name -> config; the presets' fields are data in wfbench.core.presets (it imports nothing of the config)
 PRESETS: dict[str, ScenarioConfig] = {name: ScenarioConfig(name=name, **f) for name, f in PRESET_FIELDS.items()}

@@ -1,8 +1,8 @@
 """Named scenarios as data: the paper's settings and a few of our own.
 
-Each preset is the set of :class:`wfbench.config.ScenarioConfig` fields that differ
+Each preset is the set of :class:`wfbench.core.config.ScenarioConfig` fields that differ
 from the defaults (the defaults are ``paper-64``). This module is plain data below the
-config: ``wfbench.config`` builds ``PRESETS`` (name -> config) from ``PRESET_FIELDS``,
+config: ``wfbench.core.config`` builds ``PRESETS`` (name -> config) from ``PRESET_FIELDS``,
 so neither module imports the other's dependants (``docs/design.md``, layers).
 
 - ``paper-64``: the paper's 'Quantitative comparison' setting (64x64, 50 facility and
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from wfbench.schedule import RateSchedule
+from wfbench.core.schedule import RateSchedule
 
 TABLE2_GRIDS = (32, 64, 128, 256)
 TABLE2_CELLS = ((25, 5), (25, 10), (25, 25), (50, 25), (100, 25))

@@ -2,7 +2,7 @@
 
 numba's cache checks only the file of the cached function (numba's "Notes on caching":
 changes in symbols defined in another file are not seen). The compiled rollout in
-``policies/rollout.py`` inlines the step from ``wfbench/dynamics.py``, so after an edit
+``policies/rollout.py`` inlines the step from ``wfbench/core/dynamics.py``, so after an edit
 of ``dynamics.py`` it kept running the old step. Module-level constants are frozen into
 compiled code the same way.
 
@@ -44,7 +44,7 @@ stamps.
 
 numba picks a function's locator when its ``@njit(cache=True)`` decorator runs, so this
 module must be imported before any module with cached functions: ``wfbench/__init__``
-imports it first (``wfbench.rng``, ``wfbench.observe`` and ``wfbench.simulator`` also do),
+imports it first (``wfbench.core.rng``, ``wfbench.core.observe`` and ``wfbench.core.simulator`` also do),
 and ``tests/test_jit_cache.py`` checks that every cached function of ours got this locator.
 
 The first compilation of one of our functions in a process prints one line to stderr,
@@ -75,7 +75,7 @@ import numba
 import numpy as np
 from numba.core import caching, event
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]  # the folder that holds wfbench/, policies/, solvers/
 PACKAGES = ("wfbench", "policies", "solvers")  # in-project imports are followed into these
 CACHED_PACKAGES = ("wfbench", "policies")  # functions located by DigestLocator
 ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
@@ -85,7 +85,7 @@ ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
 # machine has recorded its own. reset_batch: a Simulator (reset, step, observe);
 # rollout_range: the compiled rollout that ``wfbench evaluate`` runs.
 ESTIMATE_S = {
-    "wfbench.dynamics.reset_batch": 45,
+    "wfbench.core.dynamics.reset_batch": 45,
     "policies.rollout.rollout_range": 75,
 }
 DEFAULT_ESTIMATE_S = 60

@@ -11,7 +11,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from wfbench.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.kpis import METRICS as _KPI_METRICS
 
 # Personnel status codes.
 EMPTY, ONBOARDING, IDLE, TO_FACILITY, SERVICING, RETURNING = 0, 1, 2, 3, 4, 5
@@ -40,11 +41,8 @@ C_NOT_REQ, C_UNAVAIL, C_DUP, C_HIRE, C_RELEASE, C_DROPPED, C_HIRES, C_RELEASES, 
 )
 INVALID_COUNTERS = COUNTERS[:5]
 
-# Metric columns of ``last``, ``totals`` and ``series``.
-METRICS = (
-    "workforce_cost", "utilization", "downtime", "nsw", "u_cost", "u_utilization", "u_downtime", "headcount",
-    "log_headcount",
-)
+# Metric columns of ``last``, ``totals`` and ``series``: the KPI table's KPIs, utilities and extras.
+METRICS = _KPI_METRICS
 K_WC, K_PUR, K_AFD, K_NSW, K_UWC, K_UPUR, K_UAFD, K_HEAD, K_LOGH = range(len(METRICS))
 
 

@@ -17,7 +17,7 @@ rule with its source):
    metrics, utilities and NSW of step t.
 5. ``t += 1`` and the exogenous events of the new step.
 
-All functions mutate the arrays of :class:`wfbench.state.State` in place for
+All functions mutate the arrays of :class:`wfbench.core.state.State` in place for
 environment ``b`` only, so environments are independent (and can run in parallel).
 """
 
@@ -26,9 +26,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from wfbench.placement import gauss_table, heat_at, place_hire, positioning_weights
-from wfbench.rng import STREAM_FAILURE, STREAM_REPAIR, exponential, uniform
-from wfbench.state import (
+from wfbench.core.placement import gauss_table, heat_at, place_hire, positioning_weights
+from wfbench.core.rng import STREAM_FAILURE, STREAM_REPAIR, exponential, uniform
+from wfbench.core.state import (
     C_DROPPED,
     C_DUP,
     C_HIRE,

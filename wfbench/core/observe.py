@@ -15,9 +15,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from wfbench import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
-from wfbench.dynamics import dispatchable, kept_on, releasable, step_env
-from wfbench.state import (
+from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
+from wfbench.core.dynamics import dispatchable, kept_on, releasable, step_env
+from wfbench.core.state import (
     EMPTY,
     IDLE,
     K_AFD,
@@ -210,11 +210,11 @@ def observe_env(b, S, P, O, with_masks, full):
 
 
 # The batch entry points take a range lo..hi-1 of environments and release the GIL, so
-# that wfbench.simulator.run_split can spread a batch over threads (environment b reads
+# that wfbench.core.simulator.run_split can spread a batch over threads (environment b reads
 # and writes only row b of every array: any split gives the same bits). One compiled
 # function serves one thread and many; numba's prange would compile a second, parallel
 # copy of the whole step (docs/performance.md, "Threads").
-@njit(cache=True, _nrt=False, nogil=True)  # allocates nothing: no reference counting (see wfbench.dynamics.step_env)
+@njit(cache=True, _nrt=False, nogil=True)  # allocates nothing: no reference counting (see dynamics.step_env)
 def observe_range(lo, hi, S, P, O, with_masks):
     """Fill the observations of environments lo..hi-1."""
     for b in range(lo, hi):

@@ -7,7 +7,7 @@ Contents (``docs/design.md``, "The trace and common random numbers"; ``docs/mode
   ``churn_schedule(t) / churn_interval`` per step, each arrival with its cell and its
   exit time (an exponential lifetime of mean ``initial_facilities * churn_interval``,
   so that the active count is an M/M/infinity system that stays near its start);
-- ``key``: the 64-bit key of the counter-based draws (:mod:`wfbench.rng`) for the
+- ``key``: the 64-bit key of the counter-based draws (:mod:`wfbench.core.rng`) for the
   per-slot failure clocks, the per-(slot, request, visit) repair outcomes and the
   per-hire placement draws, which are computed on demand from their index.
 
@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from wfbench.config import ScenarioConfig
-from wfbench.rng import key_from_seed
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.rng import key_from_seed
 
 NEVER = np.iinfo(np.int64).max // 4  # a time that never comes
 

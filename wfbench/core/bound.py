@@ -39,9 +39,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from wfbench.config import ScenarioConfig
-from wfbench.rng import STREAM_FAILURE, STREAM_REPAIR, exponential, uniform
-from wfbench.trace import trace as make_trace
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.rng import STREAM_FAILURE, STREAM_REPAIR, exponential, uniform
+from wfbench.core.trace import trace as make_trace
 
 _NO_FAILURE = -1
 _MAX_VISITS = 256  # a request that needs more visits than this is counted as needing this many
@@ -85,7 +85,7 @@ def occupancies(config: ScenarioConfig, tr) -> list[tuple[int, int, int]]:
 
     Args:
         config: the scenario.
-        tr: a single-episode :class:`wfbench.trace.Trace` (batch size 1).
+        tr: a single-episode :class:`wfbench.core.trace.Trace` (batch size 1).
 
     Returns:
         ``(slot, start, end)`` per activation: active on steps ``start .. end - 1``
@@ -315,14 +315,14 @@ def bound_parts(config: ScenarioConfig, seed: int) -> BoundParts:
 
     Args:
         config: the scenario.
-        seed: the episode seed (as in :func:`wfbench.trace`).
+        seed: the episode seed (as in :func:`wfbench.core.trace`).
 
     Returns:
         The :class:`BoundParts` of the seed.
     """
     T = config.horizon
     tr = make_trace(config, seed)
-    hazard = config.request_schedule.multipliers(T) / config.request_interval  # as wfbench.state.make_params
+    hazard = config.request_schedule.multipliers(T) / config.request_interval  # as wfbench.core.state.make_params
     cum = np.concatenate([[0.0], np.cumsum(hazard[1:])])  # cum[t] = hazard[1] + ... + hazard[t]
     occ = occupancies(config, tr)
     t_first = _first_failures(config, tr, occ, hazard)

@@ -25,12 +25,12 @@ import numba
 import numpy as np
 from numba import njit
 
-from wfbench import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
-from wfbench.config import ScenarioConfig
-from wfbench.dynamics import reset_batch, reset_env
-from wfbench.observe import allocate_obs, observe_env, observe_range, step_observe_range, step_range
-from wfbench.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS, allocate, make_params
-from wfbench.trace import NEVER, Trace, trace, trace_batch
+from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.dynamics import reset_batch, reset_env
+from wfbench.core.observe import allocate_obs, observe_env, observe_range, step_observe_range, step_range
+from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS, allocate, make_params
+from wfbench.core.trace import NEVER, Trace, trace, trace_batch
 
 AGENTS = ("dispatch", "workforce", "positioning")
 _NSW = METRICS.index("nsw")
@@ -91,7 +91,7 @@ def reset_observe_at(S, Tr, P, O, idx, with_masks):
         observe_env(b, S, P, O, with_masks, True)
 
 
-# The arrival columns of a trace and their padding (see wfbench.trace.stack).
+# The arrival columns of a trace and their padding (see wfbench.core.trace.stack).
 _ARRIVALS = (("arr_t", NEVER), ("arr_x", 0), ("arr_y", 0), ("arr_leave", NEVER))
 _PADDING = dict(_ARRIVALS)
 

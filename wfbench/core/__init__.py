@@ -1,0 +1,11 @@
+"""The simulator core: everything a simulation needs and nothing that decides or reports.
+
+Configuration and presets, seed sets, rate schedules, counter-based random numbers, the
+trace, the state arrays, the KPI table and rewards, the model rules (``dynamics``), hire
+placement, the observation, the batched :class:`~wfbench.core.simulator.Simulator`, the
+numba cache (``jit``), and two analyses of the core: ``lookahead`` (copy and fork a
+simulator) and ``bound`` (the proven upper bound on the score). It imports nothing of
+wfbench above it and no solver (``docs/design.md``, layers). The names users need are on
+the package ``wfbench`` itself (``wfbench.ScenarioConfig``, ``wfbench.Simulator``,
+``wfbench.trace``).
+"""
