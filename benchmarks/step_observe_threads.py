@@ -26,8 +26,9 @@ import numpy as np
 from numba import njit, prange
 
 from wfbench.core.dynamics import step_env
+from wfbench.core.entrypoints import bind
 from wfbench.core.observe import observe_env
-from wfbench.core.simulator import Simulator, bind
+from wfbench.core.simulator import Simulator
 from wfbench.core.state import METRICS
 
 

@@ -13,7 +13,8 @@ import pandas as pd
 from leaderboard.store import KPI_COLUMNS, Store
 from leaderboard.tracks import Track
 from policies import get
-from wfbench.evaluation import KPI_LABELS, format_kpi, summarize
+from wfbench.core.kpis import KPI_LABELS
+from wfbench.evaluation import format_kpi, summarize
 from wfbench.stats import bootstrap_ci, paired_difference
 from wfbench.tables import markdown_table, text_table
 

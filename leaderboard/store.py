@@ -33,10 +33,11 @@ from typing import Any
 import pandas as pd
 
 from leaderboard.tracks import Track
+from wfbench.core.kpis import KPI_NAMES
 
 APPLICATION_ID = 0x57464231  # "WFB1"
 SCHEMA_VERSION = 1
-KPI_COLUMNS = ("workforce_cost", "utilization", "downtime", "nsw")
+KPI_COLUMNS = KPI_NAMES  # the KPI table (wfbench.core.kpis); a new KPI there is a new column here
 ROW_COLUMNS = (*KPI_COLUMNS, "episode_length", "invalid_actions")
 
 _SCHEMA = """

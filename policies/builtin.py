@@ -14,8 +14,8 @@ import numpy as np
 from policies import kernels as K
 from policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
 from policies.tunable import Param, kernel_params
+from wfbench.core.actions import AGENTS
 from wfbench.core.observe import Obs
-from wfbench.core.simulator import AGENTS
 
 
 class BuiltinDecision:

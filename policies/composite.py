@@ -18,7 +18,7 @@ from policies.builtin import BuiltinDecision
 from policies.decisions import DECISIONS
 from policies.protocol import decision_key, seeds_array
 from policies.tunable import Param
-from wfbench.core.simulator import AGENTS
+from wfbench.core.actions import AGENTS
 
 
 def _decision_policy(decision: str, spec: Any) -> Any:

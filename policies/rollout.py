@@ -6,7 +6,7 @@ the built-in kernels, step. It calls the same kernels as ``Simulator.step`` and
 the Python API (a test checks this); it only removes the per-step Python overhead.
 
 Environments are independent, so the batch is split into contiguous ranges, one per
-thread (``wfbench.core.simulator.run_split``), without changing a bit of any result. The
+thread (``wfbench.core.entrypoints.run_split``), without changing a bit of any result. The
 kernel takes its range and releases the GIL. It was a ``prange`` loop: numba then
 compiled the whole episode twice, once as the loop body and once more inside the
 parallel shell, and the shell took more compile time than the episode itself
@@ -22,8 +22,8 @@ from numba import njit
 
 from policies.kernels import act_env
 from wfbench.core.dynamics import reset_env, step_env
+from wfbench.core.entrypoints import bind, run_split
 from wfbench.core.observe import observe_env
-from wfbench.core.simulator import bind, run_split
 
 
 @njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the episode loop (dynamics.step_env)

@@ -73,7 +73,7 @@ def test_fingerprint_separates_what_numba_types_apart():
     differently must fingerprint differently, or a call would misread its arguments."""
     import numba
 
-    from wfbench.core.simulator import _fingerprint
+    from wfbench.core.entrypoints import _fingerprint
 
     a = np.zeros((3, 4))
     ro = a.copy()

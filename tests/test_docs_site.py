@@ -22,7 +22,7 @@ API_PAGES = ("wfbench", "simulator", "envs", "policies", "oracles", "solvers", "
 # Names without an __all__ that a reader looks up first, by the page that must have them.
 KEY_NAMES = {
     "simulator": ["wfbench.core.simulator.Simulator", "wfbench.core.simulator.Simulator.step",
-                  "wfbench.core.simulator.ActionError"],
+                  "wfbench.core.actions.ActionError"],
     "wfbench": ["wfbench.evaluation.evaluate", "wfbench.compare.compare", "wfbench.core.config.ScenarioConfig"],
     "envs": ["wfbench.envs.gym_env.WorkforceEnv", "wfbench.envs.gym_env.DispatchEnv",
              "wfbench.envs.parallel.WorkforceParallelEnv", "wfbench.envs.vector.WorkforceVectorEnv",

@@ -13,9 +13,10 @@ import importlib
 
 import gymnasium as _gymnasium
 
+from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.schedule import RateSchedule
-from wfbench.core.simulator import ActionError, Simulator
+from wfbench.core.simulator import Simulator
 from wfbench.core.trace import trace
 
 # Gymnasium imports an entry point's module only when an environment is made.

@@ -9,7 +9,9 @@ from typing import TYPE_CHECKING, Any
 import pandas as pd
 
 from wfbench.core.config import ScenarioConfig
-from wfbench.evaluation import KPI_LABELS, KPIS, evaluate, format_kpi, resolve_seeds, summarize
+from wfbench.core.kpis import KPI_LABELS
+from wfbench.core.kpis import KPI_NAMES as KPIS
+from wfbench.evaluation import evaluate, format_kpi, resolve_seeds, summarize
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.plots import comparison_figure, figure_format, save_figure
 from wfbench.stats import bootstrap_ci, paired_difference

@@ -20,19 +20,14 @@ from tqdm.auto import tqdm
 
 from wfbench.backends import BACKENDS, check_backend, run_chunks
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.core.seeds import resolve_seeds
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.runner import BatchResult, results_frame
 
 __all__ = ["BACKENDS", "KPIS", "KPI_LABELS", "evaluate", "format_kpi", "resolve_seeds", "summarize"]
 
-KPIS = ("workforce_cost", "utilization", "downtime", "nsw")
-KPI_LABELS = {
-    "workforce_cost": "Workforce cost",
-    "utilization": "Personnel util. rate",
-    "downtime": "Facility downtime",
-    "nsw": "Nash social welfare",
-}
+KPIS = KPI_NAMES  # the KPI table's names (wfbench.core.kpis), the columns every summary shows
 
 
 def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,

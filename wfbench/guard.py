@@ -12,7 +12,7 @@ Built-in registry policies are our own code and run as they are. Every other pol
   message is one line naming the policy, the user's file and line and what was wrong,
   with the whole traceback kept in ``PolicyError.trace`` (formatted where the policy
   ran, so a worker process's trace survives the trip back);
-- an action the simulator refuses (:class:`~wfbench.core.simulator.ActionError`) becomes a
+- an action the simulator refuses (:class:`~wfbench.core.actions.ActionError`) becomes a
   :class:`PolicyError` naming the policy, the step and where its ``act`` is defined;
 - each ``reset`` and ``act`` call has a time limit (``act_timeout_s``, default
   :data:`DEFAULT_ACT_TIMEOUT_S`, like a competition's act timeout): a call still running
@@ -49,7 +49,8 @@ from typing import Any
 from numba.core import event as numba_event
 
 from policies import get
-from wfbench.core.simulator import ActionError, Simulator
+from wfbench.core.actions import ActionError
+from wfbench.core.simulator import Simulator
 
 DEFAULT_ACT_TIMEOUT_S = 10.0
 # the file name that cloudpickle (3.1.3, which joblib 1.6 uses) gives the code it sends by value (__main__'s)

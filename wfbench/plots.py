@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.kpis import KPI_LABELS, KPI_NAMES, SCORE
+from wfbench.core.kpis import BY_NAME, KPI_LABELS, KPI_NAMES, SCORE
 from wfbench.core.seeds import describe
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -80,7 +80,7 @@ def draw_kpi_distribution(ax: Axes, data: Sequence[np.ndarray], names: Sequence[
     ``band``: the utilization band shaded behind the utilization panel (default: :func:`utilization_band`).
     """
     pos = np.arange(1, len(names) + 1)
-    if kpi == "utilization":
+    if BY_NAME[kpi].better == "band":
         ax.axhspan(*(band or utilization_band()), color="0.9", zorder=0)
     ax.boxplot(data, positions=pos, whis=(5, 95), showfliers=False, widths=0.6, medianprops={"color": "#dd8452"})
     rng = np.random.default_rng(0)  # the jitter only spreads the points; fixed so a figure is reproducible
@@ -94,7 +94,7 @@ def draw_kpi_ranges(ax: Axes, mean: np.ndarray, q25: np.ndarray, q75: np.ndarray
                     kpi: str) -> None:
     """Mean with its 25%-75% range per policy: what a table holds when the per-seed values are not at hand."""
     pos = np.arange(1, len(names) + 1)
-    if kpi == "utilization":
+    if BY_NAME[kpi].better == "band":
         ax.axhspan(*utilization_band(), color="0.9", zorder=0)
     ax.errorbar(pos, mean, yerr=np.vstack([mean - q25, q75 - mean]), fmt="o", color="#4c72b0", capsize=4)
     ax.set_xticks(pos, names, rotation=30, ha="right", fontsize=8)

@@ -51,9 +51,10 @@ from policies.hindsight.positioning import (
 from policies.hindsight.rollout import RollBuffers, roll_forward
 from policies.hindsight.workforce import workforce_candidates
 from policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
+from wfbench.core.actions import AGENTS
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.lookahead import copy_state, fork
-from wfbench.core.simulator import AGENTS, Simulator
+from wfbench.core.simulator import Simulator
 from wfbench.core.state import EMPTY, IDLE, RETURNING
 
 # the base kernel of each decision the planner makes itself

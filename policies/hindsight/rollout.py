@@ -21,8 +21,8 @@ from numba import njit
 
 from policies.kernels import act_env
 from wfbench.core.dynamics import step_env
+from wfbench.core.entrypoints import bind
 from wfbench.core.observe import observe_env
-from wfbench.core.simulator import bind
 
 
 @njit(cache=True, inline="always")

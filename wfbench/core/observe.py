@@ -17,6 +17,7 @@ from numba import njit
 
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.core.dynamics import dispatchable, kept_on, releasable, step_env
+from wfbench.core.kpis import KPI_NAMES
 from wfbench.core.state import (
     EMPTY,
     IDLE,
@@ -34,7 +35,7 @@ FACILITY_FEATURES = ("x", "y", "operational", "requesting", "assigned", "assigne
 PERSONNEL_FEATURES = ("home_x", "home_y", "x", "y", "level", "busy", "assigned_facility", "heading_out", "utilization")
 GLOBAL_FEATURES = (
     "time_fraction", "headcount", "onboarding", "under_notice", "novices", "mids", "experts",
-    "workforce_cost", "utilization", "downtime", "nsw", "active_facilities",
+    *KPI_NAMES, "active_facilities",
 )
 # column indices of the features, by name: kernels and shells read features through these
 FAC_X, FAC_Y, FAC_OPERATIONAL, FAC_REQUESTING, FAC_ASSIGNED, FAC_PERSON, FAC_DOWNTIME = range(len(FACILITY_FEATURES))
@@ -210,7 +211,7 @@ def observe_env(b, S, P, O, with_masks, full):
 
 
 # The batch entry points take a range lo..hi-1 of environments and release the GIL, so
-# that wfbench.core.simulator.run_split can spread a batch over threads (environment b reads
+# that wfbench.core.entrypoints.run_split can spread a batch over threads (environment b reads
 # and writes only row b of every array: any split gives the same bits). One compiled
 # function serves one thread and many; numba's prange would compile a second, parallel
 # copy of the whole step (docs/performance.md, "Threads").

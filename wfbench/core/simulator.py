@@ -1,81 +1,37 @@
 """The batched simulator: holds a trace batch and state and steps them with the compiled core.
 
 ``Simulator(scenario, seeds)`` runs ``len(seeds)`` independent episodes side by side.
-Actions are a dict with the batched decision of each agent:
-
-- ``"dispatch"``: (B, M) integers in ``0..N``; entry f names the person sent to
-  facility slot f, ``N`` is the no-op;
-- ``"workforce"``: (B,) integers in ``0..6``: 0 no-op, ``1 + l`` hire level l,
-  ``4 + l`` let go a person of level l;
-- ``"positioning"``: (B, 2, M) weights in [0, 1]; row 0 places a hire, row 1 picks
-  who is let go (see ``docs/model.md``).
-
-Malformed actions (wrong shape, out of range, NaN) raise :class:`ActionError` naming
-the agent and the index; well-formed but impossible ones are ignored and counted.
+Actions are a dict with the batched decision of each agent (:mod:`wfbench.core.actions`
+says what each holds); malformed actions raise :class:`~wfbench.core.actions.ActionError`
+naming the agent and the index, well-formed but impossible ones are ignored and counted.
+The compiled functions are called through entry points bound to this simulator's arrays
+and spread over threads by :mod:`wfbench.core.entrypoints`.
 """
 
 from __future__ import annotations
 
-import os
-import threading
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
 from numba import njit
 
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
+from wfbench.core.actions import AGENTS, ActionError, validate_actions
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.dynamics import reset_batch, reset_env
+from wfbench.core.entrypoints import bind, run_split
 from wfbench.core.observe import allocate_obs, observe_env, observe_range, step_observe_range, step_range
-from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS, allocate, make_params
+from wfbench.core.state import COUNTERS, K_NSW, METRICS, allocate, make_params
 from wfbench.core.trace import NEVER, Trace, trace, trace_batch
 
-AGENTS = ("dispatch", "workforce", "positioning")
-_NSW = METRICS.index("nsw")
-
-
-class ActionError(ValueError):
-    """A malformed action: wrong shape, out of range or not a number."""
+__all__ = ["AGENTS", "ActionError", "Simulator", "validate_actions"]
 
 
 def _listed(idx: np.ndarray, limit: int = 10) -> str:
     """Up to ``limit`` indices, then how many more."""
     shown = ", ".join(str(int(i)) for i in idx[:limit])
     return f"[{shown}{f', ... ({len(idx) - limit} more)' if len(idx) > limit else ''}]"
-
-
-def _first_bad(mask: np.ndarray) -> tuple[int, ...]:
-    return tuple(int(i) for i in np.argwhere(mask)[0])
-
-
-@njit(cache=True)
-def _all_in(a, hi):
-    """Every entry of the flat integer array ``a`` is in 0..hi."""
-    for i in range(a.shape[0]):
-        if a[i] < 0 or a[i] > hi:
-            return False
-    return True
-
-
-@njit(cache=True)
-def _all_unit(a):
-    """Every entry of the flat float array ``a`` is a number in [0, 1] (NaN fails both tests)."""
-    for i in range(a.shape[0]):
-        if not (a[i] >= 0.0 and a[i] <= 1.0):
-            return False
-    return True
-
-
-@njit(cache=True)
-def actions_in_range(dispatch, workforce, positioning, n_dispatch, n_workforce):
-    """Every entry of the plain batched actions is valid.
-
-    Dispatch in 0..n_dispatch, workforce in 0..n_workforce, positioning a number in [0, 1].
-    """
-    return (_all_in(dispatch.reshape(-1), n_dispatch) and _all_in(workforce, n_workforce)
-            and _all_unit(positioning.reshape(-1)))
 
 
 @njit(cache=True, nogil=True)
@@ -105,144 +61,6 @@ def _repad(tr: Trace, A: int) -> Trace:
         out[:, : a.shape[1]] = a
         fields[name] = out
     return tr._replace(**fields)
-
-
-def _plain(a, dtype) -> bool:
-    """``a`` is an ndarray of ``dtype`` in the plain form the compiled entry points are bound to."""
-    return (type(a) is np.ndarray and a.dtype == dtype and a.flags.c_contiguous and a.flags.aligned
-            and a.flags.writeable)
-
-
-def _fingerprint(x):
-    """What numba's type of an argument depends on, cheap to compute and hashable.
-
-    Arrays: dtype, ndim, contiguity, writeable, aligned (numba's layout, readonly and
-    aligned attributes); tuples: their class and members; Python ints: whether they fit
-    int64 (numba types larger ones otherwise); any other value: its Python type.
-    """
-    if isinstance(x, np.ndarray):
-        f = x.flags
-        return (type(x), x.dtype.str, x.ndim, f.c_contiguous, f.f_contiguous, f.writeable, f.aligned)
-    if isinstance(x, tuple):
-        return (type(x), tuple(_fingerprint(v) for v in x))
-    if type(x) is int:
-        return (int, -(2**63) <= x < 2**63)
-    return type(x)
-
-
-_ENTRY_POINTS: dict = {}  # (dispatcher, fingerprint of the arguments) -> entry point
-
-
-def bind(dispatcher, *args):
-    """The compiled entry point of a numba ``dispatcher`` for the types of ``args``.
-
-    Calling a dispatcher resolves the numba type of every argument first; for the state,
-    trace, parameter and observation tuples (about 80 arrays and scalars) that costs
-    ~13 us, against ~1 us for the call itself. The entry point skips the resolution, so
-    it must only ever get arguments of exactly these types: ``Simulator._call`` binds it
-    to the simulator's own tuples and passes actions that :func:`validate_actions` made
-    plain (C-contiguous, aligned, writeable int64 and float64 arrays).
-    """
-    key = (dispatcher, _fingerprint(args))
-    entry = _ENTRY_POINTS.get(key)
-    if entry is None:
-        # numba's typeof of the namedtuples takes ~1 ms; the fingerprint ~0.05 ms
-        entry = _ENTRY_POINTS[key] = dispatcher.compile(tuple(dispatcher.typeof_pyval(a) for a in args))
-    return entry
-
-
-_POOL: list = [None, 0, 0]  # [ThreadPoolExecutor, its number of threads, the pid that made it]
-_POOL_LOCK = threading.Lock()
-
-
-def _thread_pool(workers: int) -> ThreadPoolExecutor:
-    """A pool of at least ``workers`` threads, kept for the life of the process (remade after a fork).
-
-    A larger pool replaces a smaller one without shutting it down (a caller in another
-    thread may still be using it); its idle threads exit when it is garbage collected.
-    """
-    with _POOL_LOCK:
-        pool, size, pid = _POOL
-        if pool is None or size < workers or pid != os.getpid():
-            pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="wfbench")
-            _POOL[:] = [pool, workers, os.getpid()]
-        return pool
-
-
-def run_split(entry, B: int, threads: int, *args) -> None:
-    """Call ``entry(lo, hi, *args)`` on ``threads`` contiguous ranges that cover environments 0..B-1.
-
-    ``entry`` is a compiled range kernel that releases the GIL (``nogil=True``); the
-    first range runs in the calling thread, the others in a shared thread pool, and
-    this returns when all have finished (re-raising the first error). The ranges are
-    numba's static ``prange`` schedule: sizes differing by at most one. Environments
-    are independent, so the results do not depend on ``threads``.
-    """
-    n = max(1, min(threads, B))
-    if n == 1:
-        entry(0, B, *args)
-        return
-    bounds = [B * i // n for i in range(n + 1)]
-    futures = [_thread_pool(n - 1).submit(entry, bounds[i], bounds[i + 1], *args) for i in range(1, n)]
-    try:
-        entry(bounds[0], bounds[1], *args)
-    finally:
-        for f in futures:
-            f.result()
-
-
-def validate_actions(actions: dict, B: int, M: int, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Check and convert a batched action dict; raise :class:`ActionError` on malformed input.
-
-    Well-formed int64 and float arrays take a compiled check; anything else, and every
-    malformed input, goes through the numpy checks that name the bad index.
-    """
-    if type(actions) is dict and len(actions) == 3:
-        d, w, p = actions.get("dispatch"), actions.get("workforce"), actions.get("positioning")
-        if (_plain(d, np.int64) and d.shape == (B, M) and _plain(w, np.int64) and w.shape == (B,)
-                and (_plain(p, np.float64) or _plain(p, np.float32)) and p.shape == (B, 2, M)
-                and actions_in_range(d, w, p, N, N_WORKFORCE_ACTIONS - 1)):
-            return d, w, p.astype(np.float64, copy=False)
-    if not isinstance(actions, dict):
-        raise ActionError(f"actions must be a dict with keys {AGENTS}, got {type(actions).__name__}")
-    missing = [a for a in AGENTS if a not in actions]
-    extra = [a for a in actions if a not in AGENTS]
-    if missing or extra:
-        raise ActionError(f"actions must have exactly the keys {AGENTS}; missing {missing}, unknown {extra}")
-
-    def integers(agent: str, shape: tuple[int, ...], hi: int) -> np.ndarray:
-        a = np.asarray(actions[agent])
-        if a.shape != shape:
-            raise ActionError(f"{agent} action has shape {a.shape}, expected {shape}")
-        if a.dtype.kind not in "iub":
-            if a.dtype.kind != "f":
-                raise ActionError(f"{agent} action has dtype {a.dtype}; allowed: integers")
-            bad = ~np.isfinite(a) | (a != np.round(a))
-            if bad.any():
-                idx = _first_bad(bad)
-                raise ActionError(f"{agent} action: {a[idx].item()!r} at index {idx} is not an integer; "
-                                  f"allowed: integers 0..{hi}")
-        out = a.astype(np.int64)
-        bad = (out < 0) | (out > hi)
-        if bad.any():
-            idx = _first_bad(bad)
-            raise ActionError(f"{agent} action: {out[idx]} at index {idx} is out of range; allowed: integers 0..{hi}")
-        return np.ascontiguousarray(out)
-
-    dispatch = integers("dispatch", (B, M), N)
-    workforce = integers("workforce", (B,), N_WORKFORCE_ACTIONS - 1)
-    pos = np.asarray(actions["positioning"])
-    if pos.shape != (B, 2, M):
-        raise ActionError(f"positioning action has shape {pos.shape}, expected {(B, 2, M)}")
-    if pos.dtype.kind not in "fiub":
-        raise ActionError(f"positioning action has dtype {pos.dtype}; allowed: numbers in [0, 1]")
-    pos = pos.astype(np.float64)
-    bad = ~np.isfinite(pos) | (pos < 0.0) | (pos > 1.0)
-    if bad.any():
-        idx = _first_bad(bad)
-        raise ActionError(f"positioning action: {pos[idx].item()!r} at index {idx} is not allowed; "
-                          "allowed: numbers in [0, 1]")
-    return dispatch, workforce, np.ascontiguousarray(pos)
 
 
 class Simulator:
@@ -470,7 +288,7 @@ class Simulator:
         """Apply one batched action; returns the rewards (B,) of the step (NSW_t)."""
         d, w, p = self._checked(actions)
         self._split(step_range, self.state, self.trace, self.params, d, w, p)
-        return self.state.last[:, _NSW].copy()
+        return self.state.last[:, K_NSW].copy()
 
     def step_observe(self, actions: dict, with_masks: bool = True) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """``step`` then ``observe`` in one compiled call: the rewards (B,) and the new observation.
@@ -491,7 +309,7 @@ class Simulator:
         """
         self._split(step_observe_range, self.state, self.trace, self.params, self.obs_buffers, d, w, p,
                     bool(with_masks))
-        return self.state.last[:, _NSW].copy(), self._obs_dict()
+        return self.state.last[:, K_NSW].copy(), self._obs_dict()
 
     # -- results -----------------------------------------------------------------------------
     def counters(self, b: int | None = None) -> dict[str, np.ndarray]:

@@ -21,13 +21,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.simulator import ActionError
-from wfbench.core.state import K_UAFD, K_UPUR
+from wfbench.core.reward import check_reward, step_reward
 from wfbench.envs.parallel import WorkforceCore
 from wfbench.envs.spaces import POSITIONING_LEVELS, SHARED_KEYS, shared_spaces, single
-
-REWARDS = ("nsw", "nsw-no-cost")
 
 
 class _Base(gym.Env):
@@ -37,8 +35,7 @@ class _Base(gym.Env):
                  reward: str):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None, 'rgb_array'")
-        if reward not in REWARDS:
-            raise ValueError(f"reward {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
+        check_reward(reward)
         self.core = WorkforceCore(scenario, fixed)
         self.config = self.core.config
         self.render_mode = render_mode
@@ -58,8 +55,7 @@ class _Base(gym.Env):
     def _reward(self, nsw: float) -> float:
         if self.reward_kind == "nsw":
             return nsw
-        last = self.core.sim.state.last[0]  # type: ignore[union-attr]
-        return float((last[K_UPUR] * last[K_UAFD]) ** 0.5)
+        return float(step_reward(self.reward_kind, np.array([nsw]), self.core.sim.state.last)[0])  # type: ignore
 
     def _step(self, given: dict[str, np.ndarray]):
         if self.core.sim is None:

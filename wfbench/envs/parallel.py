@@ -27,8 +27,10 @@ from pettingzoo.utils import parallel_to_aec, wrappers
 from policies import DECISIONS, get
 from policies.registry import names
 from policies.tuned import is_tuned_spec
+from wfbench.core.actions import AGENTS, ActionError, actions_in_range, validate_actions
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.simulator import AGENTS, ActionError, Simulator, actions_in_range, validate_actions
+from wfbench.core.kpis import KPI_NAMES
+from wfbench.core.simulator import Simulator
 from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
 from wfbench.envs.spaces import (
     OBS_KEYS,
@@ -40,7 +42,7 @@ from wfbench.envs.spaces import (
     workforce_action_space,
 )
 
-_INFO_METRICS = tuple((k, METRICS.index(k)) for k in ("workforce_cost", "utilization", "downtime", "nsw"))
+_INFO_METRICS = tuple((k, METRICS.index(k)) for k in KPI_NAMES)
 
 
 def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
@@ -66,7 +68,7 @@ class WorkforceCore:
     actions of the expected kinds (integer dispatch and workforce, float positioning) are
     copied into preallocated plain buffers and checked by one compiled range test; any
     other form, and every malformed action, goes through
-    :func:`wfbench.core.simulator.validate_actions`, which converts it or names the bad index.
+    :func:`wfbench.core.actions.validate_actions`, which converts it or names the bad index.
     """
 
     def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None):

@@ -37,10 +37,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from wfbench.core.actions import ActionError, validate_actions
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.simulator import ActionError, Simulator, validate_actions
-from wfbench.core.state import K_UAFD, K_UPUR
-from wfbench.envs.gym_env import REWARDS, DispatchEnv, WorkforceEnv
+from wfbench.core.reward import check_reward, step_reward
+from wfbench.core.simulator import Simulator
+from wfbench.envs.gym_env import DispatchEnv, WorkforceEnv
 from wfbench.envs.spaces import POSITIONING_LEVELS
 
 KINDS = {"workforce": WorkforceEnv, "dispatch": DispatchEnv}
@@ -58,8 +59,7 @@ class WorkforceVectorEnv(VectorEnv):
             raise ValueError(f"num_envs = {num_envs!r} is not allowed; allowed: an integer >= 1")
         if kind not in KINDS:
             raise ValueError(f"kind {kind!r} is not allowed; allowed: {', '.join(KINDS)}")
-        if reward not in REWARDS:
-            raise ValueError(f"reward {reward!r} is not allowed; allowed: {', '.join(REWARDS)}")
+        check_reward(reward)
         if kind == "workforce" and fixed:
             raise ValueError("kind='workforce' learns every decision; fix decisions with kind='dispatch'")
         single = DispatchEnv(scenario, fixed=fixed) if kind == "dispatch" else WorkforceEnv(scenario)
@@ -180,11 +180,7 @@ class WorkforceVectorEnv(VectorEnv):
         d, w, p = self._actions(actions)
         self.sim.check_ready()
         nsw, obs = self.sim.step_observe_checked(d, w, p)
-        if self.reward_kind == "nsw":
-            rewards = nsw
-        else:
-            last = self.sim.state.last
-            rewards = np.sqrt(last[:, K_UPUR] * last[:, K_UAFD])
+        rewards = step_reward(self.reward_kind, nsw, self.sim.state.last)
         self._obs = obs
         truncated = self.sim.dones
         terminated = np.zeros(self.num_envs, dtype=bool)
