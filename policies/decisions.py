@@ -50,3 +50,21 @@ DECISIONS: dict[str, dict[str, Callable[[], Any]]] = {
         "oracle": OraclePositioning,  # reads the trace: not deployable
     },
 }
+
+# How tables name each built-in decision (the columns of Table 3: the paper's "Random" and "Heuristic",
+# wfbench's "Assignment", "Staffing", "p-median" and "Hindsight oracle"); :func:`label` falls back to the name.
+LABELS: dict[str, dict[str, str]] = {
+    "dispatch": {"nearest": "Heuristic", "inverse-distance": "Heuristic (stochastic)", "random": "Random",
+                 "assignment": "Assignment", "assignment-scipy": "Assignment", "assignment-milp": "Assignment",
+                 "assignment-lp": "Assignment", "assignment-lp-osqp": "Assignment", "none": "None",
+                 "oracle": "Hindsight oracle"},
+    "workforce": {"threshold": "Heuristic", "threshold-epsilon": "Heuristic (stochastic)", "random": "Random",
+                  "staffing": "Staffing", "fixed": "Fixed", "oracle": "Hindsight oracle"},
+    "positioning": {"spatial": "Heuristic", "spatial-gaussian": "Heuristic (stochastic)", "random": "Random",
+                    "facility-location": "p-median", "none": "None", "oracle": "Hindsight oracle"},
+}
+
+
+def label(decision: str, name: str) -> str:
+    """How tables name the built-in policy ``name`` of ``decision`` (the name itself if it has no label)."""
+    return LABELS.get(decision, {}).get(name, name)

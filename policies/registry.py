@@ -149,3 +149,33 @@ def get(spec: Any) -> Any:
         return obj
     raise ValueError(f"unknown policy {spec!r}; available: {', '.join(names())}, a tuned-policy file "
                      "(path.json, tuned:path) or a module:attr entry point")
+
+
+# name -> the labels of its dispatch, workforce and positioning in tables (Table 3): a network has no decision
+# names to take them from, so each says what decides (PPO, hindsight learning, or both)
+LEARNED_PARTS: dict[str, tuple[str, str, str]] = {
+    "ppo-joint": ("PPO", "PPO", "PPO"),
+    "ppo-dispatch": ("PPO", "Heuristic", "Heuristic"),
+    "impala-joint": ("IMPALA", "IMPALA", "IMPALA"),
+    "hindsight-joint": ("Hindsight learning", "Hindsight learning", "Hindsight learning"),
+    "ppo-independent": ("PPO (own net)", "PPO (own net)", "PPO (own net)"),
+    "hindsight-ppo": ("PPO", "PPO + hindsight learning", "PPO"),
+}
+
+
+def parts(name: str) -> tuple[str, str, str]:
+    """How tables name the dispatch, workforce and positioning of the registered policy ``name``.
+
+    A composite's parts are the labels of its decisions (``policies.decisions.LABELS``), a
+    tuned file's are its base's with " (tuned)", a network's are in :data:`LEARNED_PARTS`.
+    """
+    from policies.decisions import DECISIONS, label
+
+    if name in COMPOSITES:
+        return tuple(label(decision, n) for decision, n in zip(DECISIONS, COMPOSITES[name][:3], strict=True))
+    if name in TUNED:
+        base = _tuned.read(_tuned.TUNED_DIR / TUNED[name][0]).base
+        return tuple(f"{p} (tuned)" for p in parts(base))
+    if name in LEARNED_PARTS:
+        return LEARNED_PARTS[name]
+    raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join([*COMPOSITES, *TUNED, *LEARNED])}")

@@ -7,21 +7,14 @@ import importlib.util
 import pandas as pd
 import pytest
 
-from leaderboard.reproduce import (
-    FIGURE3_METHODS,
-    TREND_KPIS,
-    figure3,
-    figure3_methods,
-    kpi_score,
-    table2,
-    table2_trend_counts,
-    table2_trends_per_kpi,
-)
 from policies.registry import LEARNED, learned_names
 from wfbench.cli import main
 from wfbench.compare import compare, plot_comparison
+from wfbench.core.kpis import kpi_score
 from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS
 from wfbench.plots import figure_format
+from wfbench.reproduce.figure3 import FIGURE3_METHODS, figure3, figure3_methods
+from wfbench.reproduce.table2 import TREND_KPIS, table2, table2_trend_counts, table2_trends_per_kpi
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -106,7 +99,7 @@ def test_compare_cli_plot_write_failure_is_one_line(tmp_path, capsys):
 
 
 def _trend_counts_by_hand(v: dict, kpi: str, target: float) -> dict[str, tuple[int, int, int]]:
-    """The paper's three trends counted pair by pair (held, total, tied), apart from the chains of reproduce.py."""
+    """The paper's three trends counted pair by pair (held, total, tied), apart from the chains of table2.py."""
     def compare(b, a):  # +1: cell b is better than cell a in this KPI, 0: a tie, -1: worse
         x, y = (v[b], v[a]) if kpi == "nsw" else (-abs(v[b] - target), -abs(v[a] - target)) \
             if kpi == "utilization" else (-v[b], -v[a])

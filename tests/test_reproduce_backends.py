@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from leaderboard.reproduce import table2_trends
 from wfbench.cli import main
 from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS
 from wfbench.evaluation import evaluate
+from wfbench.reproduce.table2 import table2_trends
 
 # identical numbers from the serial, process and Ray backends: tests/test_backends_script.py, which
 # runs them from a script without a __main__ guard, with a registry policy and a class from __main__
@@ -86,7 +86,7 @@ def test_table2_trend_counting_by_hand():
 
 
 def test_reproduce_gap_draws_the_methods_and_the_bound(tmp_path):
-    from leaderboard.reproduce import gap
+    from wfbench.reproduce.gap import gap
 
     result = gap(tmp_path, runs=3, backend="serial", scenarios=("small", "paper-64"))
     df = pd.read_csv(tmp_path / "gap.csv")

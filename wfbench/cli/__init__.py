@@ -1,0 +1,86 @@
+"""The ``wfbench`` command line: one module per command, each adding its subparser and holding its handler.
+
+User mistakes (unknown policy or scenario, bad numbers, unwritable output) print one
+line saying what is wrong and what is allowed, and exit with status 2. A policy that
+fails (raises, overruns its act timeout, returns a malformed action) prints one line
+naming the policy, its file and line, and exits with status 1; ``--traceback`` prints
+the whole trace first. ``module:attr`` policies are looked up in the current folder
+first, as ``python -m`` does.
+
+A command module has ``add_parser(subparsers)`` and ``run(args) -> int``; it imports
+what its handler needs inside ``run``, so ``wfbench --help`` stays fast. The shared
+argument types and :class:`UsageError` are in :mod:`wfbench.cli.common`.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from wfbench.cli import (
+    bench,
+    compare,
+    evaluate,
+    leaderboard,
+    policies,
+    reproduce,
+    scenarios,
+    simulate,
+    train,
+    tune,
+)
+from wfbench.cli.common import EXIT_POLICY_FAILED, EXIT_USAGE, Parser, UsageError
+
+# the commands in the order --help lists them
+COMMANDS = {"evaluate": evaluate, "compare": compare, "leaderboard": leaderboard, "reproduce": reproduce,
+            "tune": tune, "scenarios": scenarios, "policies": policies, "simulate": simulate, "bench": bench,
+            "train": train}
+
+__all__ = ["COMMANDS", "EXIT_POLICY_FAILED", "EXIT_USAGE", "UsageError", "build_parser", "main"]
+
+
+def build_parser() -> Parser:
+    p = Parser(prog="wfbench", description="A benchmark suite for service workforce optimization.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for module in COMMANDS.values():
+        module.add_parser(sub)
+    return p
+
+
+def _search_current_folder() -> None:
+    """Put the current folder first on ``sys.path``, as ``python -m`` does.
+
+    The ``wfbench`` script's own folder is what Python puts there, so without this a
+    ``--policy mypkg.mod:MyPolicy`` next to the user would not be found. The absolute
+    path: worker processes inherit ``sys.path`` and may start elsewhere.
+    """
+    cwd = os.getcwd()
+    if cwd not in sys.path:
+        sys.path.insert(0, cwd)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``) and return its exit status."""
+    from wfbench.guard import PolicyError
+
+    args = None
+    try:
+        _search_current_folder()
+        args = build_parser().parse_args(argv)
+        args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded by commands that write provenance
+        return COMMANDS[args.command].run(args)
+    except UsageError as exc:
+        print(f"wfbench: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except PolicyError as exc:
+        if getattr(args, "traceback", False):
+            print(exc.trace or "(no trace)", end="" if exc.trace.endswith("\n") else "\n", file=sys.stderr)
+            hint = ""
+        else:
+            hint = " (--traceback prints the whole trace)"
+        print(f"wfbench: error: {exc}{hint}", file=sys.stderr)
+        return EXIT_POLICY_FAILED
+    except KeyboardInterrupt:
+        print("wfbench: interrupted", file=sys.stderr)
+        return 130
+

@@ -1,0 +1,7 @@
+"""``python -m wfbench.cli``: the ``wfbench`` command line."""
+
+import sys
+
+from wfbench.cli import main
+
+sys.exit(main())

@@ -1,0 +1,139 @@
+"""What the commands share: the one-line usage error, argument types, and the checks of names and paths.
+
+A command module adds its subparser with these types and raises :class:`UsageError` for
+a user's mistake; :func:`wfbench.cli.main` prints it as one line and exits with
+:data:`EXIT_USAGE`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from wfbench.core.seeds import resolve_seeds
+
+EXIT_POLICY_FAILED = 1
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """A mistake in the command line: printed as one line, exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, no usage dump
+        raise UsageError(message)
+
+
+def int_at_least(lo: int):
+    """An argparse type: an integer >= ``lo``, with a one-line message otherwise."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{v} is not allowed; allowed: an integer >= {lo}")
+        return v
+
+    return parse
+
+
+positive = int_at_least(1)
+nonneg = int_at_least(0)
+
+
+def seeds_spec(text: str) -> str:
+    """An argparse type: anything :func:`wfbench.core.seeds.resolve_seeds` takes, checked now."""
+    try:
+        resolve_seeds(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def seed_list(args: argparse.Namespace) -> list[int]:
+    """The seeds of ``--seeds`` (a count starts at ``--seed-start``)."""
+    if args.seeds.strip().isdigit():
+        return list(range(args.seed_start, args.seed_start + int(args.seeds)))
+    if args.seed_start:
+        raise UsageError("--seed-start applies to a count of seeds only, not to a set, range or list")
+    return resolve_seeds(args.seeds)
+
+
+def add_backend_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--backend", default="process",
+                   help="process (default: a pool over all cores), serial (this process) or ray")
+    p.add_argument("--workers", type=positive, default=None, help="processes or Ray tasks (default: all cores)")
+    p.add_argument("--address", default=None, help="Ray cluster address for --backend ray (default: start a local one)")
+
+
+def act_timeout(text: str) -> float | None:
+    """An argparse type: seconds > 0, or 0 for no limit."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not math.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"{text} is not allowed; allowed: seconds > 0, or 0 for no limit")
+    return v or None
+
+
+def add_policy_run_args(p: argparse.ArgumentParser) -> None:
+    """The options of commands that run a user's policy: its act timeout and --traceback."""
+    from wfbench.guard import DEFAULT_ACT_TIMEOUT_S
+
+    p.add_argument("--act-timeout", type=act_timeout, default=DEFAULT_ACT_TIMEOUT_S, metavar="SECONDS",
+                   help=f"limit of each reset/act call of a module:attr policy (default {DEFAULT_ACT_TIMEOUT_S:g}; "
+                        "0: none)")
+    p.add_argument("--traceback", action="store_true", help="when the policy fails, print the whole trace")
+
+
+def check_backend_args(args: argparse.Namespace) -> None:
+    from wfbench.backends import check_backend
+
+    try:
+        check_backend(args.backend, args.address)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def resolve_scenario(name: str):
+    """The scenario of a preset name or a config file; a bad name is a usage error."""
+    from wfbench.core.config import ScenarioConfig
+
+    try:
+        return ScenarioConfig.resolve(name)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def resolve_policy(spec: str):
+    """A fresh policy for ``spec`` (:func:`policies.get`); a bad spec is a usage error."""
+    from policies import get
+
+    try:
+        return get(spec)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def check_writable(path: str, what: str) -> Path:
+    """``path`` as a Path if its folder exists; otherwise a usage error naming the option ``what``."""
+    out = Path(path)
+    if not out.parent.exists() or not out.parent.is_dir():
+        raise UsageError(f"{what} {path!r}: folder {str(out.parent)!r} does not exist")
+    return out
+
+
+def add_run_args(p: argparse.ArgumentParser) -> None:
+    """The options of commands that run policies over seeds: scenario, seeds, backend, act timeout."""
+    from wfbench.core.seeds import SPEC_HELP
+
+    p.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
+    p.add_argument("--seeds", type=seeds_spec, default="50", help=f"{SPEC_HELP} (default 50: the test set)")
+    p.add_argument("--seed-start", type=nonneg, default=0, help="first seed of a count (default 0)")
+    add_backend_args(p)
+    add_policy_run_args(p)

@@ -1,0 +1,59 @@
+"""``wfbench evaluate``: score a policy over seeds, one Table 3 style row."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from wfbench.cli.common import (
+    UsageError,
+    add_run_args,
+    check_backend_args,
+    check_writable,
+    resolve_scenario,
+    seed_list,
+)
+
+
+def add_parser(sub) -> None:
+    e = sub.add_parser("evaluate", help="score a policy over seeds (Table 3 style row)")
+    e.add_argument("--policy", required=True, help="registry name (see 'wfbench policies') or module:attr")
+    add_run_args(e)
+    e.add_argument("--format", default="table", choices=["table", "md", "csv", "json"], help="output format")
+    e.add_argument("--out", default=None, help="also write the per-seed rows to this CSV file")
+    e.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
+    from wfbench.core.seeds import describe
+    from wfbench.evaluation import evaluate, format_kpi, summarize
+    from wfbench.guard import PolicyLoadError
+    from wfbench.tables import markdown_table, text_table
+
+    config = resolve_scenario(args.scenario)
+    check_backend_args(args)
+    out = check_writable(args.out, "--out") if args.out else None
+    seeds = seed_list(args)
+    try:  # evaluate loads the policy once; a spec that names none is a usage error
+        df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers, address=args.address,
+                      progress=not args.no_progress, act_timeout_s=args.act_timeout)
+    except PolicyLoadError as exc:
+        raise UsageError(str(exc)) from None
+    if out:
+        df.to_csv(out, index=False)
+    summary = summarize(df)
+    if args.format == "csv":
+        df.to_csv(sys.stdout, index=False)
+    elif args.format == "json":
+        print(json.dumps({"policy": args.policy, "scenario": config.name, "seeds": seeds,
+                          "summary": {k: dict(zip(("mean", "q25", "q75"), v, strict=True))
+                                      for k, v in summary.items()}}, indent=2))
+    else:
+        header = ["Policy", *[KPI_LABELS[k] for k in KPI_NAMES]]
+        rows = [[args.policy, *[format_kpi(*summary[k]) for k in KPI_NAMES]]]
+        print((markdown_table if args.format == "md" else text_table)(header, rows))
+        print(f"{config.name}, seeds {describe(seeds)}: mean (25%-75%) over seeds of the "
+              "episode means; NSW higher is better.")
+    return 0

@@ -1,0 +1,115 @@
+"""``wfbench leaderboard``: submit policies to tracks, seed the built-in entries, show the rankings."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from wfbench.cli.common import (
+    EXIT_POLICY_FAILED,
+    Parser,
+    UsageError,
+    add_backend_args,
+    add_policy_run_args,
+    check_backend_args,
+    check_writable,
+    positive,
+)
+
+
+def add_parser(sub) -> None:
+    lb = sub.add_parser("leaderboard", help="submit policies to tracks and show the rankings")
+    lsub = lb.add_subparsers(dest="lb_command", required=True, parser_class=Parser)
+    ls = lsub.add_parser("submit", help="evaluate a policy on a track's test seeds and store the results")
+    ls.add_argument("--policy", required=True, help="registry name or module:attr entry point")
+    ls.add_argument("--name", required=True, help="the entry's name on the leaderboard (resubmit it to resume)")
+    ls.add_argument("--track", default="paper-64", help="track name (see 'wfbench leaderboard tracks')")
+    ls.add_argument("--submitter", default=None, help="who submits (default: the user name)")
+    ls.add_argument("--db", default=None, help="store file (default: $WFBENCH_DB or the user data folder)")
+    ls.add_argument("--wall-time", type=float, default=3600.0, help="seconds before the evaluation is stopped")
+    ls.add_argument("--memory", type=positive, default=8192, help="memory limit of the evaluation in MiB")
+    ls.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_backend_args(ls)
+    add_policy_run_args(ls)
+    lw = lsub.add_parser("show", help="the ranking of a track")
+    lw.add_argument("--track", default="paper-64")
+    lw.add_argument("--format", default="table", help="table, md, csv or html")
+    lw.add_argument("--out", default=None, help="write to this file instead of printing")
+    lw.add_argument("--baseline", default="heuristic", help="entry the paired differences are taken to")
+    lw.add_argument("--db", default=None, help="store file (default: $WFBENCH_DB or the user data folder)")
+    ld = lsub.add_parser("seed", help="fill in the built-in entries (random, heuristic, solver, ...)")
+    ld.add_argument("--track", default=None, help="one track (default: all)")
+    ld.add_argument("--db", default=None)
+    ld.add_argument("--no-progress", action="store_true")
+    add_backend_args(ld)
+    lsub.add_parser("tracks", help="list the tracks with their hashes and seeds")
+
+
+def run(args: argparse.Namespace) -> int:
+    # the report is imported here: it loads scipy.stats, which slows every start of the command line
+    from leaderboard.report import FORMATS, ranking, render
+    from leaderboard.store import Store, StoreError
+    from leaderboard.submit import SubmitError, seed_builtins, submit
+    from leaderboard.tracks import TRACKS, get_track
+
+    def track(name: str):
+        try:
+            return get_track(name)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+
+    try:
+        if args.lb_command == "tracks":
+            for t in TRACKS.values():
+                print(f"{t.name:<14s} hash {t.hash}  test seeds {t.test_seeds[0]}..{t.test_seeds[-1]}  "
+                      f"public seeds {t.public_seeds[0]}..{t.public_seeds[-1]}  {t.description}")
+            return 0
+        if args.lb_command == "submit":
+            tr = track(args.track)
+            check_backend_args(args)
+            out = submit(tr, args.policy, args.name, submitter=args.submitter, db=args.db, backend=args.backend,
+                         workers=args.workers, address=args.address, wall_time_s=args.wall_time,
+                         memory_mb=args.memory, progress=not args.no_progress, act_timeout_s=args.act_timeout)
+            store = Store(args.db)
+            if out.status == "complete":
+                print(f"{args.name} on {tr.name}: complete, {out.stored_rows} seeds stored ({out.new_rows} new) "
+                      f"in {store.path}, {out.seconds:.1f} s")
+                return 0
+            if args.traceback and out.trace:
+                print(out.trace, end="" if out.trace.endswith("\n") else "\n", file=sys.stderr)
+            print(f"wfbench: submission {args.name!r} on {tr.name} failed: {out.reason} "
+                  f"({out.stored_rows} seeds kept in {store.path}; fix the policy and submit again to resume"
+                  f"{'' if args.traceback or not out.trace else '; --traceback prints the whole trace'})",
+                  file=sys.stderr)
+            return EXIT_POLICY_FAILED
+        if args.lb_command == "seed":
+            check_backend_args(args)
+            tracks = [track(args.track)] if args.track else list(TRACKS.values())
+            failed = 0
+            for tr in tracks:
+                for out in seed_builtins(tr, db=args.db, backend=args.backend, workers=args.workers,
+                                         address=args.address, progress=not args.no_progress):
+                    print(f"{tr.name:<14s} {out.submission.name:<20s} {out.status} ({out.stored_rows} seeds, "
+                          f"{out.new_rows} new, {out.seconds:.1f} s){': ' + out.reason if out.reason else ''}")
+                    failed += out.status != "complete"
+            return 1 if failed else 0
+        # show
+        tr = track(args.track)
+        if args.format not in FORMATS:
+            raise UsageError(f"--format {args.format!r} is not allowed; allowed: {', '.join(FORMATS)}")
+        out_path = check_writable(args.out, "--out") if args.out else None
+        r = ranking(Store(args.db, create=False), tr, baseline=args.baseline)  # showing never creates a store
+        for msg in r.refused:
+            print(f"wfbench: warning: {msg}", file=sys.stderr)
+        text = render(r, args.format)
+        if out_path:
+            try:
+                out_path.write_text(text)
+            except OSError as exc:
+                raise UsageError(f"cannot write {out_path}: {exc.strerror or exc}") from None
+            print(f"wrote {out_path}")
+        else:
+            print(text, end="" if text.endswith("\n") else "\n")
+        return 0
+    except (StoreError, SubmitError) as exc:
+        raise UsageError(str(exc)) from None

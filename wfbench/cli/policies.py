@@ -1,0 +1,24 @@
+"""``wfbench policies``: list the registered policies and the decisions a composite is made of."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(sub) -> None:
+    sub.add_parser("policies", help="list the registered policies")
+
+
+def run(args: argparse.Namespace) -> int:
+    from policies import DECISIONS
+    from policies.registry import COMPOSITES, LEARNED, TUNED, learned_names
+
+    for name, (d, w, p, text) in COMPOSITES.items():
+        print(f"{name:<22s} dispatch={d}, workforce={w}, positioning={p}: {text}")
+    for name, (file, text) in TUNED.items():
+        print(f"{name:<22s} policies/tuned/{file}: {text}")
+    for name in learned_names():
+        print(f"{name:<22s} policies/neural/checkpoints/{LEARNED[name][0]}: {LEARNED[name][1]}")
+    for decision, table in DECISIONS.items():
+        print(f"{decision} decisions (for Composite and fixed agents): {', '.join(table)}")
+    return 0

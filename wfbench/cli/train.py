@@ -1,0 +1,126 @@
+"""``wfbench train``: train a network with one of the algorithms of :mod:`wfbench.train.registry`.
+
+The algorithms, ``--algo``'s choices and its help come from
+:data:`wfbench.train.registry.ALGORITHMS`, which imports no torch; torch is imported
+when the command runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from wfbench.cli.common import UsageError, nonneg, positive, seeds_spec
+from wfbench.train.registry import ALGORITHMS, DEFAULT_ALGORITHM, get_algorithm
+
+# the flags that set a field of the same name in the algorithm's config (when given)
+TRAIN_FLAGS = ("variant", "scenario", "steps", "model", "num_envs", "num_steps", "epochs", "minibatches", "lr",
+               "ent_coef", "seed", "device", "threads", "checkpoint_every", "eval_every", "eval_seeds", "run_dir",
+               "init", "gae_lambda", "gamma", "agents", "address")
+# what --resume may change of a run: how long it goes on, and where and on what it runs
+RESUME_MAY_CHANGE = ("steps", "run_dir", "device", "threads", "address")
+
+
+def add_parser(sub) -> None:
+    names = ", ".join(ALGORITHMS)
+    tr = sub.add_parser("train", help=f"train a policy ({names}; docs/rl.md); needs torch (the rl extra)")
+    tr.add_argument("--algo", default=None, choices=list(ALGORITHMS),
+                    help="; ".join(f"{a.name}{' (default)' if a.name == DEFAULT_ALGORITHM else ''}: {a.summary}"
+                                   for a in ALGORITHMS.values())
+                    + "; docs/rl.md, docs/impala.md, docs/hindsight-learning.md")
+    tr.add_argument("--variant", default=None, choices=["joint", "dispatch"],
+                    help="joint: all three decisions; dispatch: the dispatch head only, heuristic workforce and "
+                         "positioning (default joint)")
+    tr.add_argument("--scenario", default=None, help="scenario to train on (default paper-64)")
+    tr.add_argument("--steps", type=positive, default=None, help="environment steps in all (default 1000000)")
+    tr.add_argument("--model", default=None,
+                    help="network size: cpu (no attention, fastest on CPU), tiny, small or paper (~0.5M parameters)")
+    tr.add_argument("--num-envs", type=positive, default=None, help="environments side by side (default 32)")
+    tr.add_argument("--num-steps", type=positive, default=None, help="steps per rollout (default 32)")
+    tr.add_argument("--epochs", type=positive, default=None, help="PPO epochs per rollout (default 2)")
+    tr.add_argument("--minibatches", type=positive, default=None, help="minibatches of whole sequences (default 2)")
+    tr.add_argument("--lr", type=float, default=None, help="Adam learning rate (default 3e-4)")
+    tr.add_argument("--ent-coef", type=float, default=None, help="entropy bonus (default 0.003)")
+    tr.add_argument("--seed", type=nonneg, default=None, help="run seed: network init, sampling, training seeds")
+    tr.add_argument("--device", default=None, choices=["auto", "cpu", "cuda"], help="default auto")
+    tr.add_argument("--compile", action="store_true", help="torch.compile the network (CUDA)")
+    tr.add_argument("--no-bf16", action="store_true", help="no bf16 autocast on CUDA")
+    tr.add_argument("--threads", type=positive, default=None, help="torch CPU threads (default 1)")
+    tr.add_argument("--checkpoint-every", type=positive, default=None, help="updates between checkpoints (20)")
+    tr.add_argument("--eval-every", type=nonneg, default=None,
+                    help="updates between scores on the public seeds that pick best.pt (default 20; 0: never)")
+    tr.add_argument("--eval-seeds", type=seeds_spec, default=None,
+                    help="public seeds that select the checkpoint (default public:10; test seeds are refused)")
+    tr.add_argument("--run-dir", default=None, help="folder of the run (default runs/ALGO-VARIANT-SCENARIO, e.g. "
+                    f"runs/{DEFAULT_ALGORITHM}-joint-paper-64)")
+    tr.add_argument("--init", default=None, metavar="CKPT",
+                    help="start from the network weights of a checkpoint (a new run: fresh optimizer and counters)")
+    tr.add_argument("--gae-lambda", type=float, default=None, help="GAE lambda (default 0.95)")
+    tr.add_argument("--gamma", type=float, default=None, help="discount (default 0.995)")
+    tr.add_argument("--agents", default=None, choices=["joint", "independent"],
+                    help="ppo: one network for the three decisions (joint, default) or one network per decision, "
+                         "each with its own critic, trained together (independent); docs/rl.md")
+    tr.add_argument("--address", default=None, metavar="ADDR",
+                    help="impala: run the actors on a Ray cluster ('auto', 'ray://host:10001' or 'local' for a "
+                         "Ray instance on this machine); docs/impala.md")
+    tr.add_argument("--resume", default=None, metavar="CKPT",
+                    help="continue a run from its checkpoint (latest.pt); its settings are kept, --steps may raise "
+                         "the total")
+    tr.add_argument("--set", action="append", metavar="KEY=VALUE",
+                    help="any other setting of the algorithm's config (repeatable), e.g. --set rho_bar=0.9")
+    tr.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    tr.add_argument("--no-tensorboard", action="store_true", help="write no TensorBoard logs")
+
+
+def run(args: argparse.Namespace) -> int:
+    from wfbench.cli.settings import train_settings
+
+    try:  # torch is needed here only: the rest of the command line works without it
+        import torch  # noqa: F401
+    except ImportError as exc:
+        raise UsageError(f"wfbench train needs torch ({exc}); install the rl extra: "
+                         "pip install 'wfbench[rl]'") from None
+    from policies.neural.policy import load_checkpoint
+
+    given = {flag: getattr(args, flag) for flag in TRAIN_FLAGS if getattr(args, flag) is not None}
+    if args.compile:
+        given["compile"] = True
+    if args.no_bf16:
+        given["bf16"] = False
+    try:
+        saved = None
+        if args.resume:
+            saved = load_checkpoint(args.resume)
+            if "optimizer" not in saved:
+                raise ValueError(f"checkpoint {args.resume!r} has no optimizer state (a best.pt?): resume from "
+                                 "latest.pt or a checkpoints/update_*.pt")
+            run_algo = saved.get("algo", DEFAULT_ALGORITHM)
+            if args.algo is not None and args.algo != run_algo:
+                raise ValueError(f"checkpoint {args.resume!r} is a {run_algo} run, not --algo {args.algo}")
+        algo = saved.get("algo", DEFAULT_ALGORITHM) if saved is not None else (args.algo or DEFAULT_ALGORITHM)
+        algorithm = get_algorithm(algo)
+        config_cls = algorithm.config_class()
+        given = train_settings(config_cls, given, algo, args.set or [])
+        if saved is not None:
+            kept = saved["train_config"]
+            changed = sorted(k for k in given if k not in RESUME_MAY_CHANGE and given[k] != kept.get(k))
+            if changed:
+                raise ValueError(f"--resume keeps the run's settings; these differ from it: {', '.join(changed)}")
+            config = config_cls.from_dict({**saved["train_config"], **given})
+        else:
+            given.setdefault("run_dir", str(Path("runs") / f"{algo}-{given.get('variant', 'joint')}-"
+                                                            f"{given.get('scenario', 'paper-64')}"))
+            config = config_cls(**given)
+        trainer = algorithm.trainer_class()(config, resume=args.resume, progress=not args.no_progress,
+                                            log=not args.no_tensorboard)
+    except (ValueError, TypeError) as exc:
+        raise UsageError(str(exc)) from None
+    trainer.train()
+    best = trainer.best
+    print(f"trained {trainer.global_step} environment steps ({algo}) in {config.run_dir}")
+    if best["update"] is not None:
+        print(f"best.pt: update {best['update']}, mean NSW {best['score']:.4f} on public seeds "
+              f"{best['seeds'][0]}-{best['seeds'][-1]} ({best['mode']}); evaluate with "
+              f"wfbench evaluate --policy {algo}:{Path(config.run_dir) / 'best.pt'}")
+    print(f"latest.pt: {Path(config.run_dir) / 'latest.pt'}")
+    return 0
