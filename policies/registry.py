@@ -11,6 +11,7 @@ from typing import Any
 
 from policies import tuned as _tuned
 from policies.composite import Composite
+from policies.neural import CHECKPOINT_ALGORITHMS
 
 # name -> (dispatch, workforce, positioning, description)
 COMPOSITES: dict[str, tuple[str, str, str, str]] = {
@@ -52,8 +53,9 @@ TUNED: dict[str, tuple[str, str]] = {
 }
 
 
-# name -> (checkpoint under policies/neural/checkpoints/, description): trained networks (docs/rl.md);
-# a name is offered only when its file is there, and loading it needs torch (the rl extra)
+# name -> (checkpoint under policies/neural/checkpoints/, description): trained networks (docs/rl.md), each
+# named by the algorithm that trained it (its checkpoint's algo key: no key is ppo); a name is offered only when
+# its file is there, and loading it needs torch (the rl extra)
 LEARNED: dict[str, tuple[str, str]] = {
     "ppo-joint": ("ppo-joint-paper-64.pt", "the joint PPO network (all three decisions) trained on paper-64"),
     "ppo-dispatch": ("ppo-dispatch-paper-64.pt", "the dispatch-only PPO network trained on paper-64, heuristic "
@@ -78,14 +80,30 @@ def names() -> list[str]:
     return [*COMPOSITES, *TUNED, *learned_names()]
 
 
-def load_learned(path: Any, mode: str = "sample", name: str | None = None) -> Any:
-    """The policy of a PPO checkpoint (:mod:`policies.neural.policy`, imported here so torch loads only now)."""
+def load_learned(path: Any, mode: str = "sample", name: str | None = None, algo: str | None = None) -> Any:
+    """The policy of a trained checkpoint (:mod:`policies.neural.policy`, imported here so torch loads only now).
+
+    ``algo`` (the prefix of ``ALGO:PATH``) must be the algorithm the checkpoint records, or
+    ``ppo`` (the alias that loads any); None takes the checkpoint's own.
+    """
     try:
         from policies.neural.policy import from_checkpoint
     except ImportError as exc:
-        raise ValueError(f"PPO checkpoints need torch ({exc}); install the rl extra: "
+        raise ValueError(f"trained checkpoints need torch ({exc}); install the rl extra: "
                          "pip install 'wfbench[rl]'") from None
-    return from_checkpoint(path, mode=mode, name=name)
+    return from_checkpoint(path, mode=mode, name=name, algo=algo)
+
+
+def _checkpoint_spec(spec: str) -> tuple[str, str, str] | None:
+    """``ALGO:PATH[@MODE]`` -> (algo, path, mode) when ALGO is a training algorithm's name, else None."""
+    algo, sep, rest = spec.partition(":")
+    if not sep or algo not in CHECKPOINT_ALGORITHMS:
+        return None
+    path, _, mode = rest.rpartition("@") if "@" in rest else (rest, "", "sample")
+    if not path:
+        raise ValueError(f"policy {spec!r}: give a checkpoint path, e.g. {algo}:runs/{algo}/best.pt "
+                         "(@greedy for argmax, @greedy-dispatch for argmax dispatch only)")
+    return algo, path, mode
 
 
 def load_tuned(path: Any) -> Any:
@@ -102,9 +120,10 @@ def get(spec: Any) -> Any:
     example ``"assignment+threshold+spatial"``; see ``DECISIONS``). A tuned-policy file
     (``path.json``, ``path.toml`` or ``tuned:path``, written by ``wfbench tune``) is its
     base policy with the tuned parameters; ``heuristic-tuned`` and ``solver-tuned`` are
-    the files shipped in ``policies/tuned/``. ``ppo:PATH`` is a PPO checkpoint
-    (``wfbench train``; ``ppo:PATH@greedy`` for argmax decisions, sampled by default), and
-    ``ppo-joint`` / ``ppo-dispatch`` the shipped ones (``LEARNED``).
+    the files shipped in ``policies/tuned/``. ``ALGO:PATH`` is a checkpoint of ``wfbench
+    train --algo ALGO`` (``ppo``, ``impala``, ``hindsight``; ``ppo:PATH`` loads any of them;
+    ``ALGO:PATH@greedy`` for argmax decisions, sampled by default), and ``ppo-joint``,
+    ``impala-joint``, ... the shipped ones (``LEARNED``).
     """
     if not isinstance(spec, str):
         if hasattr(spec, "act") and hasattr(spec, "reset"):
@@ -118,12 +137,10 @@ def get(spec: Any) -> Any:
     name, _, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
     if name in LEARNED and name in learned_names():
         return load_learned(CHECKPOINT_DIR / LEARNED[name][0], mode or "sample", name=spec)
-    if spec.startswith("ppo:"):
-        path, _, mode = spec[4:].rpartition("@") if "@" in spec[4:] else (spec[4:], "", "sample")
-        if not path:
-            raise ValueError(f"policy {spec!r}: give a checkpoint path, e.g. ppo:runs/ppo/best.pt "
-                             "(@greedy for argmax, @greedy-dispatch for argmax dispatch only)")
-        return load_learned(path, mode, name=spec)
+    checkpoint = _checkpoint_spec(spec)
+    if checkpoint is not None:
+        algo, path, mode = checkpoint
+        return load_learned(path, mode, name=spec, algo=algo)
     if _tuned.is_tuned_spec(spec):  # tuned:PATH or PATH.json / PATH.toml
         return load_tuned(_tuned.spec_path(spec))
     if "+" in spec and ":" not in spec:

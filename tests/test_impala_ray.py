@@ -48,7 +48,7 @@ def test_impala_ray__actors_take_disjoint_training_seeds():
 
     def taken(index, count, sizes):
         actor = Actor(cfg, scenario, model, torch.device("cpu"), index, count)
-        return [s for k in sizes for s in actor._take_seeds(k)]
+        return [s for k in sizes for s in actor.env.take_seeds(k)]
 
     two = [taken(i, 2, (4, 3)) for i in range(2)]
     assert not set(two[0]) & set(two[1])

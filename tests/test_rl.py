@@ -273,7 +273,7 @@ def test_rl__importing_wfbench_and_policies_does_not_import_torch():
 
 def test_rl__episodes_are_staggered_by_partial_reset(tmp_path):
     tr = Trainer(_cfg(tmp_path, num_steps=20), progress=False, log=False)  # small: horizon 200, B = 4
-    assert list(tr.cut) == [50, 100, 150, 200]
+    assert list(tr.env.cut) == [50, 100, 150, 200]
     seeds0 = tr.sim.seeds.copy()
     dones = []
     for _ in range(8):  # 160 steps: envs 0, 1, 2 cut at 50, 100, 150
@@ -286,7 +286,7 @@ def test_rl__episodes_are_staggered_by_partial_reset(tmp_path):
     assert np.flatnonzero(done[:, 0])[0] == 49 and tr.sim.seeds[0] not in seeds0  # onto a fresh train seed
     assert tr.sim.seeds[0] >= 1_000_000
     sync = Trainer(_cfg(tmp_path / "s", stagger=False), progress=False, log=False)
-    assert list(sync.cut) == [200] * 4
+    assert list(sync.env.cut) == [200] * 4
 
 
 def test_rl__init_starts_from_a_checkpoints_weights(tmp_path):

@@ -1,6 +1,10 @@
-"""A trained checkpoint as a policy: ``policies.get("ppo:path/to/ckpt.pt")``.
+"""A trained checkpoint as a policy: ``policies.get("impala:path/to/ckpt.pt")``, by the algorithm that trained it.
 
-``PPOPolicy`` follows the policy protocol (``docs/policies.md``): ``reset(seeds)``
+Every checkpoint records its algorithm (the ``algo`` key: ``ppo``, ``impala`` or
+``hindsight``, :data:`CHECKPOINT_ALGORITHMS`; a checkpoint without one is PPO's) and
+loads as ``ALGO:PATH``; ``ppo:PATH`` is kept as an alias that loads any checkpoint.
+
+``NetworkPolicy`` follows the policy protocol (``docs/policies.md``): ``reset(seeds)``
 clears the LSTM memory and makes one random generator per environment keyed by its
 seed, ``act(obs)`` runs the network on the whole batch at once. Three modes:
 
@@ -32,12 +36,18 @@ import numpy as np
 import torch
 
 from policies.composite import Composite
+from policies.neural import ALIAS, CHECKPOINT_ALGORITHMS
 from policies.neural.dist import env_action, sample
 from policies.neural.model import AgentSet, WorkforceNet, featurize, network_from_config, obs_to_torch
 from policies.protocol import seeds_array
 
 MODES = ("sample", "greedy", "greedy-dispatch")
 POLICY_SEED = 0x99A
+
+
+def checkpoint_algorithm(ckpt: dict) -> str:
+    """The algorithm that wrote ``ckpt`` (``ppo`` for checkpoints written before the key existed)."""
+    return ckpt.get("algo", "ppo")
 
 
 def load_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
@@ -50,7 +60,7 @@ def load_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
     except Exception as exc:  # noqa: BLE001  (a corrupt or foreign file: say so in one line)
         raise ValueError(f"checkpoint {str(path)!r} cannot be read: {type(exc).__name__}: {exc}") from None
     if not isinstance(ckpt, dict) or "model" not in ckpt or "model_config" not in ckpt:
-        raise ValueError(f"{str(path)!r} is not a wfbench PPO checkpoint (no model or model_config)")
+        raise ValueError(f"{str(path)!r} is not a wfbench checkpoint (no model or model_config)")
     return ckpt
 
 
@@ -60,11 +70,11 @@ def build_model(ckpt: dict, device: str = "cpu") -> WorkforceNet | AgentSet:
     return model.to(device).eval()
 
 
-class PPOPolicy:
-    """The network of a checkpoint deciding every decision its heads cover."""
+class NetworkPolicy:
+    """The network of a checkpoint (of any training algorithm) deciding every decision its heads cover."""
 
     def __init__(self, model: WorkforceNet | AgentSet, mode: str = "sample", device: str = "cpu", seed: int = 0,
-                 name: str = "ppo", threads: int | None = 1):
+                 name: str = "network", threads: int | None = 1):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r} is not allowed; allowed: {', '.join(MODES)}")
         self.model = model.to(device).eval()
@@ -120,12 +130,28 @@ class PPOPolicy:
         return env_action(sample(out, x, noise), M)
 
 
-def from_checkpoint(path: str | Path, mode: str = "sample", device: str = "cpu", name: str | None = None):
-    """The deployable policy of a checkpoint: the network alone, or inside a composite with the heuristics."""
+PPOPolicy = NetworkPolicy  # the name before every algorithm's checkpoints loaded by their own
+
+
+def from_checkpoint(path: str | Path, mode: str = "sample", device: str = "cpu", name: str | None = None,
+                    algo: str | None = None):
+    """The deployable policy of a checkpoint: the network alone, or inside a composite with the heuristics.
+
+    ``algo``: the algorithm the caller names (``ALGO:PATH``); a checkpoint of another one is
+    refused with a one-line ValueError that says how it loads. None or ``ppo`` (the alias)
+    loads any checkpoint. The default name is ``ALGO:PATH`` with the checkpoint's own algorithm.
+    """
     ckpt = load_checkpoint(path, device)
+    trained_by = checkpoint_algorithm(ckpt)
+    if algo is not None and algo not in CHECKPOINT_ALGORITHMS:
+        raise ValueError(f"{algo!r} is not a training algorithm; allowed: {', '.join(CHECKPOINT_ALGORITHMS)}")
+    if algo not in (None, ALIAS, trained_by):
+        allowed = [f"{a}:{path}" for a in dict.fromkeys((trained_by, ALIAS))]
+        raise ValueError(f"checkpoint {str(path)!r} was trained by {trained_by}, not {algo}; allowed: "
+                         f"{' or '.join(allowed)}")
     model = build_model(ckpt, device)
-    name = name or f"ppo:{path}"
-    net = PPOPolicy(model, mode=mode, device=device, name=name)
+    name = name or f"{trained_by}:{path}"
+    net = NetworkPolicy(model, mode=mode, device=device, name=name)
     if set(net.decisions) == {"dispatch", "workforce", "positioning"}:
         return net
     parts = {d: (net if d in net.decisions else default)

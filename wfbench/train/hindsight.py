@@ -61,9 +61,9 @@ learner itself acting after each action, in copies of the environment that meet 
 same future (:meth:`Trainer.learner_values`): the values of the policy that will act on
 them, which is how the shipped ``hindsight-ppo`` improved ``ppo-joint``'s workforce head.
 
-Checkpoints are those of ``wfbench.train.ppo`` (``model``, ``model_config``,
-``variant``, ``scenario``...), so ``ppo:RUN/best.pt`` loads one as a policy and
-``wfbench train --algo ppo --init RUN/best.pt`` fine-tunes it with PPO. ``RUN/best.pt``
+Checkpoints have the keys every trainer's have (:func:`wfbench.train.toolkit.run_checkpoint`,
+``algo: hindsight``), so ``hindsight:RUN/best.pt`` loads one as a policy (``ppo:RUN/best.pt``,
+the alias, too) and ``wfbench train --algo ppo --init RUN/best.pt`` fine-tunes it with PPO. ``RUN/best.pt``
 is the iterate with the highest mean NSW on the **public** seeds (``eval_seeds``; test
 seeds are refused), sampled mode. Resume restores the weights, the optimizer, the random
 states and the counters, not the dataset (it restarts empty, like PPO's episodes).
@@ -75,7 +75,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -85,29 +85,17 @@ from policies.composite import Composite
 from policies.hindsight.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
 from policies.hindsight.planner import Planner
 from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
-from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
-from policies.neural.policy import load_checkpoint
-from wfbench.core.config import ScenarioConfig
+from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, obs_to_torch
 from wfbench.core.lookahead import copy_state, fork, fork_index
-from wfbench.core.seeds import SEED_SETS, resolve_seeds
 from wfbench.core.simulator import Simulator
-from wfbench.train.common import (
-    RunOutputs,
-    deployable,
-    git_commit,
-    policy_checkpoint,
-    save_atomic,
-    score_public,
-    torch_device,
-    write_run_config,
-)
+from wfbench.train import toolkit
 
 VARIANTS = ("joint",)
 # the teachers: the full oracle, or the oracle's workforce and positioning beside nearest-first dispatch
 # (stateless, so its action in the learner's state is exact; the oracle's dispatch uses knowledge of the
 # next repair outcome that no observation carries, and imitating it without that knowledge costs downtime)
 TEACHERS = ("oracle", "nearest+oracle+oracle")
-HEADS = ("dispatch", "workforce", "positioning")
+HEADS = toolkit.DECISIONS
 ROLLOUT_MODES = ("sample", "greedy")
 # what the workforce head learns: the teacher's action, or the hindsight value of each of its actions
 WORKFORCE_TARGETS = ("action", "values", "improve")
@@ -121,17 +109,19 @@ HEAD_MODULES = {"dispatch": ("ptr_q", "ptr_k", "ptr_noop", "dist_scale"), "workf
 
 
 @dataclass
-class HindsightConfig:
-    """Every setting of a run; saved as ``config.json`` in the run directory and in each checkpoint."""
+class HindsightConfig(toolkit.BaseConfig):
+    """Every setting of a run (the shared ones in :class:`wfbench.train.toolkit.BaseConfig`)."""
 
-    scenario: str = "paper-64"
     variant: str = "joint"  # the teacher gives all three decisions
-    teacher: str = "nearest+oracle+oracle"  # TEACHERS (docs/hindsight-learning.md: the better plain policy)
     model: str = "cpu"  # policies.neural.model.PRESETS
     steps: int = 200_000  # environment steps collected in all (B per simulator step)
-    iter_steps: int = 4096  # environment steps collected per DAgger iteration (rounded up to whole chunks)
     num_envs: int = 16  # B
     num_steps: int = 32  # T: steps per stored sequence
+    checkpoint_every: int = 1  # iterations
+    eval_every: int = 2  # iterations; 0: never
+    run_dir: str = "runs/hindsight"
+    teacher: str = "nearest+oracle+oracle"  # TEACHERS (docs/hindsight-learning.md: the better plain policy)
+    iter_steps: int = 4096  # environment steps collected per DAgger iteration (rounded up to whole chunks)
     burn_in: int = 8  # first steps of a sequence that only warm up the LSTM (no loss)
     beta0: float = 1.0  # probability of the oracle's action at iteration 0
     beta_decay: float = 0.3  # beta_i = beta0 * beta_decay ** i
@@ -152,16 +142,6 @@ class HindsightConfig:
     value_every: int = 10  # "learner": steps between two scored states
     value_samples: int = 1  # "learner": roll-forwards per action (common noise across the actions)
     oracle: dict = field(default_factory=dict)  # Planner settings (dispatch_horizon, workforce_every, ...)
-    seed: int = 0
-    device: str = "auto"  # auto | cpu | cuda
-    bf16: bool = True  # CUDA only
-    threads: int = 1  # torch CPU threads
-    checkpoint_every: int = 1  # iterations
-    eval_every: int = 2  # iterations; 0: never
-    eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
-    run_dir: str = "runs/hindsight"
-    init: str = ""  # a checkpoint whose network weights start this run
-    model_overrides: dict = field(default_factory=dict)
 
     @property
     def chunk_steps(self) -> int:
@@ -175,14 +155,10 @@ class HindsightConfig:
     def iterations(self) -> int:
         return math.ceil(self.steps / (self.chunks_per_iter * self.chunk_steps))
 
-    def validate(self) -> None:
+    def check(self) -> None:
         if self.variant not in VARIANTS:
             raise ValueError(f"variant {self.variant!r} is not allowed; allowed: {', '.join(VARIANTS)} "
                              "(the oracle teaches all three decisions)")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
-        if self.device == "cuda" and not torch.cuda.is_available():
-            raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
         if self.teacher not in TEACHERS:
             raise ValueError(f"teacher {self.teacher!r} is not allowed; allowed: {', '.join(TEACHERS)}")
         if self.workforce_target not in WORKFORCE_TARGETS:
@@ -205,23 +181,13 @@ class HindsightConfig:
             raise ValueError(f"train_params {self.train_params!r} is not allowed; allowed: {', '.join(TRAIN_PARAMS)}")
         if self.rollout_mode not in ROLLOUT_MODES:
             raise ValueError(f"rollout_mode {self.rollout_mode!r} is not allowed; allowed: {', '.join(ROLLOUT_MODES)}")
-        for name in ("steps", "iter_steps", "num_envs", "num_steps", "dataset_steps", "grad_steps", "batch_seqs",
-                     "threads", "checkpoint_every", "value_horizon", "value_every", "value_samples"):
-            v = getattr(self, name)
-            if type(v) is not int or v < 1:
-                raise ValueError(f"{name} = {v!r} is not allowed; allowed: an integer >= 1")
-        if type(self.eval_every) is not int or self.eval_every < 0:
-            raise ValueError(f"eval_every = {self.eval_every!r} is not allowed; allowed: an integer >= 0 (0: never)")
+        toolkit.check_ints(self, ("iter_steps", "dataset_steps", "grad_steps", "batch_seqs", "value_horizon",
+                                  "value_every", "value_samples"))
         if type(self.burn_in) is not int or not 0 <= self.burn_in < self.num_steps:
             raise ValueError(f"burn_in = {self.burn_in!r} is not allowed; allowed: an integer in "
                              f"0..num_steps - 1 = {self.num_steps - 1}")
-        for name in ("beta0", "beta_decay"):
-            v = getattr(self, name)
-            if not 0.0 <= v <= 1.0:
-                raise ValueError(f"{name} = {v!r} is not allowed; allowed: a number in [0, 1]")
-        for name in ("lr", "max_grad_norm"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is not allowed; allowed: a number > 0")
+        toolkit.check_numbers(self, ("beta0", "beta_decay"), lambda v: 0.0 <= v <= 1.0, "a number in [0, 1]")
+        toolkit.check_numbers(self, ("lr", "max_grad_norm"), lambda v: v > 0.0, "a number > 0")
         weights = [getattr(self, f"{h}_weight") for h in HEADS]
         if any(not w >= 0.0 for w in weights) or sum(weights) <= 0.0:
             raise ValueError(f"head weights {dict(zip(HEADS, weights, strict=True))} are not allowed; allowed: "
@@ -229,18 +195,7 @@ class HindsightConfig:
         if self.dataset_steps < self.chunk_steps:
             raise ValueError(f"dataset_steps = {self.dataset_steps} is not allowed; allowed: at least one chunk, "
                              f"num_envs x num_steps = {self.chunk_steps}")
-        ScenarioConfig.resolve(self.scenario)
-        seeds = resolve_seeds(self.eval_seeds)
-        if not set(seeds) <= set(SEED_SETS["public"]):
-            raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
-                             "(1000-1049) only, never on test seeds")
         teacher_planner(self.teacher, self.oracle)  # the planner names what it does not allow
-        model_config(self.model, HEADS, **self.model_overrides)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> HindsightConfig:
-        names = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in d.items() if k in names})
 
 
 def teacher_planner(teacher: str, settings: dict) -> Planner:
@@ -311,39 +266,27 @@ class Dataset:
 
 
 class Trainer:
-    """A hindsight-learning run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
+    """A hindsight-learning run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint.
+
+    Collection (:meth:`collect`) and the update (:meth:`learn`) alternate, one DAgger iteration each.
+    """
 
     def __init__(self, config: HindsightConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True):
-        config.validate()
-        self.cfg = c = config
-        self.device = torch_device(c.device)
-        self.cuda = self.device.type == "cuda"
-        torch.set_num_threads(c.threads)
-        torch.manual_seed(c.seed)
-        self.scenario = ScenarioConfig.resolve(c.scenario)
-        self.mcfg = model_config(c.model, HEADS, **c.model_overrides)
-        self.model = WorkforceNet(self.mcfg).to(self.device)
-        self.opt = torch.optim.Adam(self.trainable(), lr=c.lr)
+        c = toolkit.start_run(self, config, progress, log)
+        # the random streams of its own (the network's initial weights come from torch's, seeded by start_run)
         self.gen = torch.Generator(device=self.device).manual_seed(c.seed)  # the learner's sampling noise
         self.batch_gen = torch.Generator().manual_seed(c.seed * 7919 + 1)  # minibatch draws
         self.mix_rng = np.random.default_rng([c.seed, 0x4D1])  # oracle-or-learner draws
         self.value_gen = torch.Generator(device=self.device).manual_seed(c.seed * 7919 + 2)  # roll-forward noise
+        self.model = WorkforceNet(self.mcfg).to(self.device)
+        self.opt = torch.optim.Adam(self.trainable(), lr=c.lr)
         self.data = Dataset(max(c.dataset_steps // c.num_steps, c.num_envs), c.num_steps)
-        self.iteration, self.global_step, self.episode, self.seed_cursor = 0, 0, 0, 0
-        self.best = {"score": -math.inf, "update": None}
-        self.history: list[dict] = []
-        self.progress, self.log = progress, log
-        self.run_dir = Path(c.run_dir)
-        self.commit = git_commit()
+        self.iteration, self.episode, self.seed_cursor = 0, 0, 0
         self.timing = {"oracle": 0.0, "values": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0,
                        "evaluate": 0.0}  # seconds; "values": the learner's roll-forwards (value_rollout learner)
         if c.init and resume is None:
-            start = load_checkpoint(c.init, str(self.device))
-            if start["model_config"] != self.mcfg.to_dict():
-                raise ValueError(f"init {c.init!r}: its network ({start['model_config']}) is not this run's "
-                                 f"model {c.model} with all three heads")
-            self.model.load_state_dict(start["model"])
+            toolkit.init_weights(self)
         if resume is not None:
             self._load(resume)
         self.sim = None
@@ -361,15 +304,10 @@ class Trainer:
         return keep
 
     # -- environments -------------------------------------------------------------------------
-    def _take_seeds(self, k: int) -> list[int]:
-        """The next ``k`` seeds of the ``train`` set for this run (a window per run seed, then onwards)."""
-        train = SEED_SETS["train"]
-        start = (self.cfg.seed * 1_000_003 + self.seed_cursor) % (len(train) - k)
-        self.seed_cursor += k
-        return list(train[start:start + k])
-
     def _new_episode(self) -> None:
-        seeds = self._take_seeds(self.cfg.num_envs)
+        """Synchronized episodes: a new Simulator and teacher on the next B training seeds."""
+        seeds = toolkit.take_seeds(self.cfg.seed, self.seed_cursor, self.cfg.num_envs)
+        self.seed_cursor += self.cfg.num_envs
         self.sim = Simulator(self.scenario, seeds, keep_series=False, threads=1)
         self.obs = self.sim.reset()
         self.planner = teacher_planner(self.cfg.teacher, self.cfg.oracle)
@@ -378,9 +316,6 @@ class Trainer:
         self.state = self.model.initial_state(self.sim.B, self.device)
         self.starts = torch.ones(self.sim.B, device=self.device)
         self.value_fork = None  # the copies the learner's roll-forwards run in (value_rollout "learner")
-
-    def _autocast(self):
-        return torch.autocast(device_type=self.device.type, dtype=torch.bfloat16, enabled=self.cuda and self.cfg.bf16)
 
     def beta(self, iteration: int | None = None) -> float:
         i = self.iteration if iteration is None else iteration
@@ -398,6 +333,7 @@ class Trainer:
         if self.sim is None:
             self._new_episode()
         B, T, M, N = self.sim.B, c.num_steps, self.sim.M, self.sim.N
+        gen = self.gen if c.rollout_mode == "sample" else None  # None: greedy
         h0, c0 = (s[0].clone().cpu() for s in self.state)
         raws, starts, labels = [], [], {k: [] for k in HEADS}
         values, scored, logp_old = [], [], []
@@ -408,14 +344,9 @@ class Trainer:
             if self.sim.done:
                 self._new_episode()
             t0 = time.perf_counter()
-            raw = obs_to_torch(self.obs, dev)
-            x = featurize(raw, self.mcfg.coord_scale)
-            with self._autocast():
-                out, self.state = self.model(x, self.state, self.starts[None])
-            noise = None
-            if c.rollout_mode == "sample":
-                noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
-            mine = {k: v.cpu().numpy() for k, v in sample(out, x, noise).items()}
+            raw, x, out, self.state, acts = toolkit.policy_step(self.model, self.obs, self.state, self.starts,
+                                                                self.mcfg.coord_scale, gen, c.bf16)
+            mine = {k: v.cpu().numpy() for k, v in acts.items()}
             t1 = time.perf_counter()
             values_s = 0.0
             label = self.planner.act(self.obs)
@@ -465,9 +396,7 @@ class Trainer:
             self.global_step += B
             self.starts = torch.zeros(B, device=dev)
             if self.sim.done:
-                means = self.sim.episode_means()
-                episodes.append({k: float(np.mean(means[k])) for k in ("nsw", "workforce_cost", "utilization",
-                                                                         "downtime")} | {"beta": beta})
+                episodes.append(toolkit.episode_kpis(self.sim) | {"beta": beta})
                 self.episode += B
                 # the LSTM state is reset through the starts flags of the next episode's first step
             t4 = time.perf_counter()
@@ -532,7 +461,7 @@ class Trainer:
             if k == c.value_horizon - 1 or self.value_fork.done:
                 break
             x = featurize(obs_to_torch(obs, dev), self.mcfg.coord_scale)
-            with self._autocast():
+            with toolkit.autocast(dev, c.bf16):
                 out, state = self.model(x, state, starts)
             noise = {key: gumbel(shape, self.value_gen, dev)[noise_row]
                      for key, shape in noise_shapes(B * S, M, N).items()}
@@ -547,7 +476,7 @@ class Trainer:
         T, S = batch["starts"].shape
         raw = {k: batch[k].flatten(0, 1) for k in OBS_KEYS}
         x = featurize(raw, self.mcfg.coord_scale)
-        with self._autocast():
+        with toolkit.autocast(self.device, c.bf16):
             out, _ = self.model(x, (batch["h"], batch["c"]), batch["starts"])
         acts = {k: batch[k].flatten(0, 1).long() for k in HEADS}
         # a step counts once the LSTM state is trustworthy: after the burn-in, or from an episode start on
@@ -633,52 +562,32 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return deployable(self.model, "joint", mode, name="hindsight-joint")
+        return toolkit.deployable(self.model, "joint", mode, name="hindsight-joint")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
         t0 = time.perf_counter()
-        res = score_public(self.policy, self.scenario, self.cfg.eval_seeds)
+        res = toolkit.score_public(self.policy, self.scenario, self.cfg.eval_seeds)
         self.timing["evaluate"] += time.perf_counter() - t0
         return res
 
     def checkpoint(self) -> dict:
-        return policy_checkpoint(self.model, self.mcfg, "joint", self.scenario.name, self.cfg, algo="hindsight",
-                                 update=self.iteration, global_step=self.global_step, episode=self.episode,
-                                 seed_cursor=self.seed_cursor, git_commit=self.commit, best=self.best,
-                                 history=self.history)
+        return toolkit.run_checkpoint(self, "hindsight", self.iteration, episode=self.episode,
+                                      seed_cursor=self.seed_cursor)
 
     def save(self, path: Path, full: bool = True) -> Path:
-        ckpt = self.checkpoint()
-        if full:  # what resume needs on top of the policy
-            ckpt["optimizer"] = self.opt.state_dict()
-            ckpt["generator"] = self.gen.get_state()
-            ckpt["batch_generator"] = self.batch_gen.get_state()
-            ckpt["mix_rng"] = self.mix_rng.bit_generator.state
-            ckpt["value_generator"] = self.value_gen.get_state()
-            ckpt["torch_rng"] = torch.get_rng_state()
-        return save_atomic(ckpt, path)
+        return toolkit.save_run(self, path, full, generator=self.gen.get_state(),
+                                batch_generator=self.batch_gen.get_state(), mix_rng=self.mix_rng.bit_generator.state,
+                                value_generator=self.value_gen.get_state())
 
     def _load(self, path) -> None:
-        ckpt = load_checkpoint(path, str(self.device))
-        if ckpt.get("algo") != "hindsight" or "optimizer" not in ckpt:
-            raise ValueError(f"checkpoint {str(path)!r} is not a resumable hindsight-learning checkpoint "
-                             "(latest.pt or checkpoints/iter_*.pt of a hindsight run)")
-        if ckpt["model_config"] != self.mcfg.to_dict():
-            raise ValueError(f"checkpoint {str(path)!r} is a run of another model; resume with the settings of "
-                             "its config.json")
-        self.model.load_state_dict(ckpt["model"])
-        self.opt.load_state_dict(ckpt["optimizer"])
+        ckpt = toolkit.load_run(self, path, "hindsight")
         self.gen.set_state(ckpt["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
         self.batch_gen.set_state(ckpt["batch_generator"].cpu())
         self.mix_rng.bit_generator.state = ckpt["mix_rng"]
         if "value_generator" in ckpt:  # runs saved before value_rollout existed have none
             self.value_gen.set_state(ckpt["value_generator"].cpu())
-        torch.set_rng_state(ckpt["torch_rng"].cpu())
-        self.iteration, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
-        self.seed_cursor = ckpt["seed_cursor"]
-        self.commit = ckpt.get("git_commit", self.commit)
-        self.best, self.history = ckpt["best"], ckpt["history"]
+        self.iteration, self.episode, self.seed_cursor = ckpt["update"], ckpt["episode"], ckpt["seed_cursor"]
 
     # -- the loop -----------------------------------------------------------------------------
     def train(self, iterations: int | None = None) -> dict:
@@ -686,11 +595,11 @@ class Trainer:
         c = self.cfg
         stop = c.iterations if iterations is None else min(c.iterations, self.iteration + iterations)
         per_iter = c.chunks_per_iter * c.chunk_steps
-        write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="hindsight")
-        stats: dict = {}
+        toolkit.write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="hindsight")
         start, start_step = time.perf_counter(), self.global_step
-        with RunOutputs(self, "iteration", f"hindsight {self.scenario.name}", stop * per_iter,
-                        self.iteration * per_iter) as out:
+        stats: dict = {}
+        with toolkit.RunOutputs(self, "iteration", f"hindsight {self.scenario.name}", stop * per_iter,
+                                self.iteration * per_iter) as out:
             while self.iteration < stop:
                 beta = self.beta()
                 t_collect = time.perf_counter()

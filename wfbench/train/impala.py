@@ -7,7 +7,8 @@ those of the PPO trainer (:mod:`wfbench.train.ppo`, ``docs/rl.md``); what differ
 acts with which parameters, and how the learner corrects for it::
 
     actor:   its own copy of the network, refreshed from the learner every K updates
-             T steps of the B environments of a Simulator (staggered episodes, partial reset)
+             T steps of the B environments of a Simulator (staggered episodes, partial reset;
+             the toolkit's Collector, as PPO's rollout)
              -> a rollout: T + 1 observations, the actions, the behaviour log-probabilities mu,
                 the shaped rewards, the episode ends, the LSTM state at the start, the
                 version (the learner update whose parameters acted)
@@ -45,9 +46,10 @@ V-trace (section 4.1 of the paper), per environment, for t = T-1 down to 0, with
 On-policy (pi = mu) with rho_bar, c_bar >= 1 and lambda = 1, v_t is the n-step return
 bootstrapped from V(x_T), i.e. GAE(lambda = 1)'s return (``tests/test_impala.py`` checks it).
 
-Checkpoints are PPO checkpoints (the same keys, plus ``algo: impala``), so
-``ppo:RUN/best.pt`` loads one as a policy. ``best.pt`` is chosen on the **public** seeds
-(``eval_seeds``, a part of 1000-1049), never on the test seeds.
+Checkpoints have the keys every trainer's have (:func:`wfbench.train.toolkit.run_checkpoint`,
+``algo: impala``), so ``impala:RUN/best.pt`` loads one as a policy (``ppo:RUN/best.pt``, the
+alias, too). ``best.pt`` is chosen on the **public** seeds (``eval_seeds``, a part of
+1000-1049), never on the test seeds.
 """
 
 from __future__ import annotations
@@ -58,32 +60,18 @@ import queue
 import re
 import threading
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 import torch
 
-from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, sample
-from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, model_config, obs_to_torch
-from policies.neural.policy import load_checkpoint
+from policies.neural.dist import log_prob_entropy
+from policies.neural.model import WorkforceNet, featurize
 from wfbench.backends import require_ray
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.seeds import SEED_SETS, resolve_seeds
-from wfbench.core.simulator import Simulator
-from wfbench.train.common import (
-    RunningStd,
-    RunOutputs,
-    deployable,
-    git_commit,
-    policy_checkpoint,
-    save_atomic,
-    score_public,
-    torch_device,
-    write_run_config,
-)
-from wfbench.train.ppo import VARIANTS
+from wfbench.train import toolkit
 
 MODES = ("async", "sync")
 OPTIMIZERS = ("adam", "rmsprop")
@@ -93,82 +81,37 @@ RAY_ADDRESS = re.compile(r"local|auto|(ray://)?[^\s/]+:\d+")
 
 
 @dataclass
-class ImpalaConfig:
-    """Every setting of an IMPALA run; saved as ``config.json`` and in each checkpoint."""
+class ImpalaConfig(toolkit.ActorCriticConfig):
+    """Every setting of an IMPALA run (the shared ones in :class:`wfbench.train.toolkit.ActorCriticConfig`)."""
 
-    scenario: str = "paper-64"
     variant: str = "joint"  # joint only (the paper trains joint IMPALA)
     model: str = "cpu"  # policies.neural.model.PRESETS
-    steps: int = 1_000_000  # environment steps in all (B per simulator step)
-    num_envs: int = 32  # B: environments of the actor's simulator
-    num_steps: int = 32  # T: steps per rollout (the unroll length)
+    run_dir: str = "runs/impala"
     mode: str = "async"  # async: actor thread + bounded queue; sync: actor and learner in turn
     queue_size: int = 1  # async: rollouts waiting for the learner, at most
     sync_every: int = 1  # K: the actor's parameters are refreshed from the learner every K updates
     optimizer: str = "adam"  # adam | rmsprop
-    lr: float = 3e-4
     rms_alpha: float = 0.99  # rmsprop's smoothing constant
     eps: float = 1e-5  # the optimizer's epsilon (the losses are means over T x B, so a small one)
-    gamma: float = 0.995
     rho_bar: float = 1.0  # truncation of the importance weight in delta_t and the policy gradient
     c_bar: float = 1.0  # truncation of the trace coefficient c_t
     vtrace_lambda: float = 1.0  # c_t = lambda * min(c_bar, pi / mu)
-    ent_coef: float = 0.003
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    reward_offset: float = 0.7  # reward = (NSW_t - offset) * scale, as ppo.py's joint variant
-    reward_scale: float = 10.0
-    normalize_returns: bool = True
-    stagger: bool = True  # staggered episodes by partial reset
-    seed: int = 0
-    device: str = "auto"  # auto | cpu | cuda
-    bf16: bool = True  # CUDA only: autocast of the forward passes
-    threads: int = 1  # torch CPU threads (per thread of this process; the simulator uses numba's)
-    checkpoint_every: int = 20  # updates
-    eval_every: int = 20  # updates; 0: never
-    eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
-    run_dir: str = "runs/impala"
-    init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
-    model_overrides: dict = field(default_factory=dict)
     address: str = ""  # "": the actor thread of `mode`; else Ray actors: "local", "auto", "ray://HOST:PORT"
     ray_actors: int = 2  # with address: Ray actors, each with num_envs environments (one CPU x threads each)
 
-    def validate(self) -> None:
+    def check(self) -> None:
         if self.variant != "joint":
             raise ValueError(f"variant {self.variant!r} is not allowed for impala; allowed: joint")
         if self.mode not in MODES:
             raise ValueError(f"mode {self.mode!r} is not allowed; allowed: {', '.join(MODES)}")
         if self.optimizer not in OPTIMIZERS:
             raise ValueError(f"optimizer {self.optimizer!r} is not allowed; allowed: {', '.join(OPTIMIZERS)}")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
-        if self.device == "cuda" and not torch.cuda.is_available():
-            raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
-        for name in ("steps", "num_envs", "num_steps", "queue_size", "sync_every", "threads", "checkpoint_every",
-                     "ray_actors"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-                raise ValueError(f"{name} = {v!r} is not allowed; allowed: an integer >= 1")
-        if not isinstance(self.eval_every, int) or self.eval_every < 0:
-            raise ValueError(f"eval_every = {self.eval_every!r} is not allowed; allowed: an integer >= 0")
-        for name in ("gamma", "vtrace_lambda", "rms_alpha"):
-            if not 0.0 < getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: a number in (0, 1]")
-        for name in ("rho_bar", "c_bar", "lr", "eps", "max_grad_norm"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: a number > 0")
+        toolkit.check_ints(self, ("queue_size", "sync_every", "ray_actors"))
+        toolkit.check_numbers(self, ("vtrace_lambda", "rms_alpha"), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
+        toolkit.check_numbers(self, ("rho_bar", "c_bar", "eps"), lambda v: v > 0.0, "a number > 0")
         if self.c_bar > self.rho_bar:
             raise ValueError(f"c_bar = {self.c_bar} > rho_bar = {self.rho_bar} is not allowed; allowed: "
                              "c_bar <= rho_bar (the paper's assumption)")
-        for name in ("ent_coef", "vf_coef", "reward_scale"):
-            if not getattr(self, name) >= 0.0:
-                raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: a number >= 0")
-        ScenarioConfig.resolve(self.scenario)
-        seeds = resolve_seeds(self.eval_seeds)
-        if not set(seeds) <= set(SEED_SETS["public"]):
-            raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
-                             "(1000-1049) only, never on test seeds")
-        model_config(self.model, VARIANTS[self.variant], **self.model_overrides)
         if not isinstance(self.address, str) or (self.address and not RAY_ADDRESS.fullmatch(self.address)):
             raise ValueError(f"address {self.address!r} is not allowed; allowed: '' (no Ray), 'local', 'auto', "
                              "'ray://HOST:PORT' or 'HOST:PORT'")
@@ -177,11 +120,6 @@ class ImpalaConfig:
                 raise ValueError(f"mode {self.mode!r} is not allowed with address (Ray actors run beside the "
                                  "learner); allowed: async")
             require_ray(f"address {self.address!r}")
-
-    @classmethod
-    def from_dict(cls, d: dict) -> ImpalaConfig:
-        names = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in d.items() if k in names})
 
 
 # -- V-trace ------------------------------------------------------------------------------------
@@ -220,22 +158,24 @@ class Actor:
     """Steps the batched simulator with its own (lagging) copy of the network; makes rollouts.
 
     ``index`` of ``count``: the thread path has one actor (0 of 1); the Ray path ``ray_actors``,
-    each on its own share of the training seeds and with its own random generator.
+    each on its own share of the training seeds and with its own random generator
+    (:class:`wfbench.train.toolkit.Collector`, which holds the simulator, the seeds and the
+    return normalizer).
     """
 
     def __init__(self, cfg: ImpalaConfig, scenario: ScenarioConfig, model: WorkforceNet, device: torch.device,
                  index: int = 0, count: int = 1):
-        self.cfg, self.scenario, self.device = cfg, scenario, device
-        self.index, self.count = index, count
+        self.cfg, self.device, self.index = cfg, device, index
         self.model = copy.deepcopy(model).eval()
         for p in self.model.parameters():
             p.requires_grad_(False)
         self.version = -1  # the learner update whose parameters this copy holds
-        self.gen = torch.Generator(device=device).manual_seed(cfg.seed + 1_000_003 * index)
-        self.ret_std = RunningStd()
-        self.seed_cursor, self.episode, self.steps = 0, 0, 0
-        self.timing = {"simulator": 0.0, "forward": 0.0}
-        self.sim = None
+        # with stagger False the B episodes end together and are reset in place (never a fresh batch)
+        self.env = toolkit.Collector(cfg, scenario, device, staggered=cfg.stagger, index=index, count=count)
+
+    @property
+    def seed_cursor(self) -> int:
+        return self.env.seed_cursor
 
     def load(self, version: int, params: dict) -> None:
         self.model.load_state_dict(params)
@@ -243,96 +183,19 @@ class Actor:
 
     def meta(self) -> dict:
         """What a checkpoint needs of the actor to resume (taken as each rollout is finished)."""
-        return {"seed_cursor": self.seed_cursor, "episode": self.episode, "ret_std": dict(vars(self.ret_std)),
-                "generator": self.gen.get_state()}
+        return self.env.meta()
 
     def restore(self, meta: dict) -> None:
-        self.seed_cursor, self.episode = meta["seed_cursor"], meta["episode"]
-        self.ret_std.__dict__.update(meta["ret_std"])
-        self.gen.set_state(meta["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
-
-    def _take_seeds(self, k: int) -> list[int]:
-        """The next ``k`` seeds of the ``train`` set for this run (as ppo.py: a window per run seed).
-
-        Actor ``index`` of ``count`` takes every ``count``-th seed of the window from ``index`` on,
-        so the actors' seeds are disjoint and together are the window one actor would take.
-        """
-        train, n = SEED_SETS["train"], self.count
-        start = (self.cfg.seed * 1_000_003 + self.seed_cursor * n + self.index) % (len(train) - k * n)
-        self.seed_cursor += k
-        return list(train[start:start + k * n:n])
+        self.env.restore(meta)
 
     def start(self) -> None:
         """A fresh Simulator; with ``stagger`` environment b's first episode is cut after (b + 1) / B of the horizon."""
-        self.sim = Simulator(self.scenario, self._take_seeds(self.cfg.num_envs), keep_series=False, threads=1)
-        self.obs = self.sim.reset()
-        H, B = self.scenario.horizon, self.sim.B
-        self.cut = (H * (np.arange(B) + 1)) // B if self.cfg.stagger else np.full(B, H)
-        self.state = self.model.initial_state(B, self.device)
-        self.starts = torch.ones(B, device=self.device)
-        self.ret = np.zeros(B)
+        self.env.start(self.model)
 
-    def _autocast(self):
-        cuda = self.device.type == "cuda"
-        return torch.autocast(device_type=self.device.type, dtype=torch.bfloat16, enabled=cuda and self.cfg.bf16)
-
-    @torch.no_grad()
     def rollout(self) -> dict:
-        c, dev, T = self.cfg, self.device, self.cfg.num_steps
-        if self.sim is None:
-            self.start()
-        B, M, N = self.sim.B, self.sim.M, self.sim.N
-        buf: dict = {k: [] for k in ("raw", "starts", "dispatch", "workforce", "positioning", "logp", "reward",
-                                     "done")}
-        init_state = tuple(s.clone() for s in self.state)
-        episodes = []
-        for _ in range(T):
-            t0 = time.perf_counter()
-            raw = obs_to_torch(self.obs, dev)
-            x = featurize(raw, self.model.config.coord_scale)
-            with self._autocast():
-                out, self.state = self.model(x, self.state, self.starts[None])
-            noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
-            acts = sample(out, x, noise)
-            logp, _, _ = log_prob_entropy(out, x, acts)
-            action = env_action(acts, M)
-            t1 = time.perf_counter()
-            buf["raw"].append(raw)
-            buf["starts"].append(self.starts)
-            for k in ("dispatch", "workforce", "positioning"):
-                buf[k].append(acts[k])
-            buf["logp"].append(logp.float())
-            nsw, self.obs = self.sim.step_observe(action)
-            reward = (nsw - c.reward_offset) * c.reward_scale  # ppo.py's joint reward
-            ended = self.sim.dones | (self.sim.state.t >= self.cut)
-            self.steps += B
-            if c.normalize_returns:
-                self.ret = self.ret * c.gamma + reward
-                self.ret_std.update(self.ret)
-                reward = reward / self.ret_std.std
-                self.ret[ended] = 0.0
-            buf["reward"].append(torch.as_tensor(reward, dtype=torch.float32, device=dev))
-            buf["done"].append(torch.as_tensor(ended, dtype=torch.float32, device=dev))
-            if ended.any():
-                full = self.sim.dones  # whole episodes only in the logs (not the cut first ones)
-                if full.any():
-                    means = self.sim.episode_means()
-                    episodes.append({k: float(np.mean(means[k][full])) for k in ("nsw", "workforce_cost",
-                                                                                 "utilization", "downtime")})
-                self.episode += int(ended.sum())
-                idx = np.flatnonzero(ended)  # partial reset onto fresh training seeds
-                self.obs = self.sim.reset(indices=idx, seeds=self._take_seeds(len(idx)))
-                self.cut[idx] = self.scenario.horizon
-            self.starts = torch.as_tensor(ended, dtype=torch.float32, device=dev)
-            self.timing["forward"] += t1 - t0
-            self.timing["simulator"] += time.perf_counter() - t1
-        # the (T + 1)-th observation: the learner's bootstrap V(x_T) (the next rollout starts from it)
-        buf["raw"].append(obs_to_torch(self.obs, dev))
-        buf["starts"].append(self.starts)
-        roll = {k: torch.stack(v) for k, v in buf.items() if k != "raw"}
-        roll["raw"] = {k: torch.stack([r[k] for r in buf["raw"]]) for k in OBS_KEYS}  # (T + 1, B, ...)
-        roll["init_state"] = init_state
-        roll["episodes"] = episodes
+        """T steps (:meth:`Collector.collect`): T + 1 observations, the bootstrap V(x_T)'s the last."""
+        roll = self.env.collect(self.model, self.cfg.num_steps,
+                                lambda out, x, acts: log_prob_entropy(out, x, acts)[0])
         roll["version"] = self.version
         roll["actor"] = self.index
         roll["meta"] = self.meta()
@@ -349,7 +212,7 @@ class RemoteActor:
 
     def __init__(self, cfg: ImpalaConfig, index: int, meta: dict | None):
         torch.set_num_threads(cfg.threads)
-        model = WorkforceNet(model_config(cfg.model, VARIANTS[cfg.variant], **cfg.model_overrides))
+        model = WorkforceNet(cfg.network_config())
         self.actor = Actor(cfg, ScenarioConfig.resolve(cfg.scenario), model, torch.device("cpu"), index,
                            cfg.ray_actors)
         if meta is not None:  # resume: this actor's return normalizer, generator and seed cursor
@@ -383,33 +246,17 @@ class Trainer:
 
     def __init__(self, config: ImpalaConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True):
-        config.validate()
-        self.cfg = c = config
-        self.device = torch_device(c.device)
-        self.cuda = self.device.type == "cuda"
-        torch.set_num_threads(c.threads)
-        torch.manual_seed(c.seed)
-        self.scenario = ScenarioConfig.resolve(c.scenario)
-        self.mcfg = model_config(c.model, VARIANTS[c.variant], **c.model_overrides)
+        c = toolkit.start_run(self, config, progress, log)
         self.model = WorkforceNet(self.mcfg).to(self.device)
         if c.optimizer == "adam":
             self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=c.eps)
         else:
             self.opt = torch.optim.RMSprop(self.model.parameters(), lr=c.lr, alpha=c.rms_alpha, eps=c.eps)
-        self.update, self.global_step = 0, 0
-        self.best = {"score": -math.inf, "update": None}
-        self.history: list[dict] = []
+        self.update = 0
         self.lags: list[int] = []  # the policy lag of every update, in order
-        self.progress, self.log = progress, log
-        self.run_dir = Path(c.run_dir)
-        self.commit = git_commit()
         self.timing = {"update": 0.0, "wait": 0.0}
         if c.init and resume is None:
-            start = load_checkpoint(c.init, str(self.device))
-            if start["model_config"] != self.mcfg.to_dict():
-                raise ValueError(f"--init {c.init!r}: its network ({start['model_config']}) is not this run's "
-                                 f"--model {c.model}")
-            self.model.load_state_dict(start["model"])
+            toolkit.init_weights(self)
         # the thread path's actor, here; the Ray path's live in Ray workers (started by train())
         self.actor = None if c.address else Actor(c, self.scenario, self.model, self.device)
         self.n_actors = c.ray_actors if c.address else 1
@@ -437,9 +284,6 @@ class Trainer:
         if version != self.actor.version:
             self.actor.load(version, params)
 
-    def _autocast(self):
-        return torch.autocast(device_type=self.device.type, dtype=torch.bfloat16, enabled=self.cuda and self.cfg.bf16)
-
     # -- one learner step -----------------------------------------------------------------------
     def learn(self, roll: dict) -> dict:
         c = self.cfg
@@ -447,7 +291,7 @@ class Trainer:
         T, B = roll["logp"].shape
         raw = {k: v.flatten(0, 1) for k, v in roll["raw"].items()}  # (T + 1) * B rows, time major
         x = featurize(raw, self.mcfg.coord_scale)
-        with self._autocast():
+        with toolkit.autocast(self.device, c.bf16):
             out, _ = self.model(x, roll["init_state"], roll["starts"])
         values = out["value"].float().view(T + 1, B)
         n = T * B  # the last step's rows only give the bootstrap value
@@ -481,45 +325,26 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return deployable(self.model, self.cfg.variant, mode, name=f"impala-{self.cfg.variant}")
+        return toolkit.deployable(self.model, self.cfg.variant, mode, name=f"impala-{self.cfg.variant}")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
-        return score_public(self.policy, self.scenario, self.cfg.eval_seeds)
+        return toolkit.score_public(self.policy, self.scenario, self.cfg.eval_seeds)
 
     def checkpoint(self) -> dict:
-        """The shared checkpoint keys (so ``ppo:PATH`` loads it), plus ``algo``."""
+        """The shared checkpoint keys (``algo: impala``; ``impala:PATH`` loads it), the actors' counts summed."""
         metas = [m for m in self.actor_metas if m is not None]
-        return policy_checkpoint(self.model, self.mcfg, self.cfg.variant, self.scenario.name, self.cfg,
-                                 algo="impala", update=self.update, global_step=self.global_step,
-                                 episode=sum(m["episode"] for m in metas),
-                                 seed_cursor=sum(m["seed_cursor"] for m in metas),  # training seeds taken, all actors
-                                 git_commit=self.commit, best=self.best, history=self.history)
+        # episodes run and training seeds taken, all actors together
+        return toolkit.run_checkpoint(self, "impala", self.update, episode=sum(m["episode"] for m in metas),
+                                      seed_cursor=sum(m["seed_cursor"] for m in metas))
 
     def save(self, path: Path, full: bool = True) -> Path:
-        ckpt = self.checkpoint()
-        if full:  # what --resume needs on top of the policy
-            ckpt["optimizer"] = self.opt.state_dict()
-            ckpt["actors"] = list(self.actor_metas)  # each actor's return normalizer, generator and seed cursor
-            ckpt["torch_rng"] = torch.get_rng_state()
-            ckpt["lags"] = list(self.lags)
-        return save_atomic(ckpt, path)
+        # each actor's return normalizer, generator and seed cursor
+        return toolkit.save_run(self, path, full, actors=list(self.actor_metas), lags=list(self.lags))
 
     def _load(self, path) -> None:
-        ckpt = load_checkpoint(path, str(self.device))
-        if "optimizer" not in ckpt:
-            raise ValueError(f"checkpoint {str(path)!r} has no optimizer state: it cannot be resumed")
-        if ckpt.get("algo") != "impala":
-            raise ValueError(f"checkpoint {str(path)!r} is not an impala run (algo {ckpt.get('algo', 'ppo')!r})")
-        if ckpt["model_config"] != self.mcfg.to_dict():
-            raise ValueError(f"checkpoint {str(path)!r} is a run of another model; resume with the settings of "
-                             "its config.json")
-        self.model.load_state_dict(ckpt["model"])
-        self.opt.load_state_dict(ckpt["optimizer"])
-        torch.set_rng_state(ckpt["torch_rng"].cpu())
-        self.update, self.global_step = ckpt["update"], ckpt["global_step"]
-        self.commit = ckpt.get("git_commit", self.commit)
-        self.best, self.history, self.lags = ckpt["best"], ckpt["history"], list(ckpt.get("lags", []))
+        ckpt = toolkit.load_run(self, path, "impala")
+        self.update, self.lags = ckpt["update"], list(ckpt.get("lags", []))
         metas = ckpt.get("actors") or [{k: ckpt[k] for k in ("seed_cursor", "episode", "ret_std", "generator")}]
         if len(metas) != self.n_actors:  # each actor's seeds are every n-th of the window: n cannot change
             raise ValueError(f"checkpoint {str(path)!r} was made by {len(metas)} actor(s), this run has "
@@ -609,12 +434,12 @@ class Trainer:
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="impala")
+        toolkit.write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="impala")
         how = f"ray x{c.ray_actors}" if c.address else c.mode
         stats: dict = {}
         start, start_step = time.perf_counter(), self.global_step
-        with RunOutputs(self, "update", f"impala {how} {self.scenario.name}", stop * per_update,
-                        self.update * per_update, cleanup=self._stop_actors) as out:
+        with toolkit.RunOutputs(self, "update", f"impala {how} {self.scenario.name}", stop * per_update,
+                                self.update * per_update, cleanup=self._stop_actors) as out:
             if c.mode == "async" and not c.address and stop > self.update:
                 self._start_actor(stop - self.update)
             if c.address and stop > self.update:
@@ -633,11 +458,6 @@ class Trainer:
                 out.scalars("loss", stats)
                 out.scalars("charts", {"env_steps_per_s": sps, "reward_std": roll["meta"]["ret_std"]["var"] ** 0.5,
                                        "learner_wait_s": self.timing["wait"]})
-                if c.eval_every and self.update % c.eval_every == 0:
-                    res = self.evaluate_public()
-                    self.history.append({"update": self.update, "global_step": self.global_step, **res})
-                    out.public(res, self.update)
-                if self.update % c.checkpoint_every == 0:
-                    out.checkpoint(f"update_{self.update:06d}.pt")
+                out.after_update(self.update)
                 out.advance(per_update, {"sps": f"{sps:.0f}", "lag": f"{np.mean(self.lags[-20:]):.1f}"})
         return stats

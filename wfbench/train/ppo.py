@@ -10,7 +10,8 @@ The loop, per update::
              T of their steps, so the LSTM is rerun from the state it had at the rollout's start);
              clipped policy objective, clipped value loss, entropy bonus, global gradient clipping
 
-Episodes (``stagger``, the default for ``joint``) are staggered by partial reset: the
+The rollout is the toolkit's (:class:`wfbench.train.toolkit.Collector`, shared with
+IMPALA's actor). Episodes (``stagger``, the default for ``joint``) are staggered by partial reset: the
 first episode of environment b is cut after (b + 1) / B of the horizon, and from then on
 every environment that reaches the horizon is reset alone onto the next seed of the
 ``train`` set (``wfbench.core.seeds``) with ``Simulator.reset(indices, seeds)``, so a rollout
@@ -24,11 +25,11 @@ episodes are logged (``episode/*``), not the cut first ones.
 Rewards (documented in docs/rl.md):
 
 - ``joint``: ``(NSW_t - offset) * scale`` with offset 0.7 and scale 10 (the per-step NSW
-  of the scenario, workforce cost included), divided by a running standard deviation of
-  the discounted return (the usual return normalization).
+  of the scenario, workforce cost included; reward ``"nsw"`` of :mod:`wfbench.core.reward`),
+  divided by a running standard deviation of the discounted return (the usual return normalization).
 - ``dispatch``: the same with NSW_t without its workforce-cost term, the geometric mean
-  of the utilization and downtime utilities, ``sqrt(u_PUR * u_AFD)`` (the paper's
-  dispatch-only model); the network has only the dispatch head, the heuristic
+  of the utilization and downtime utilities, ``sqrt(u_PUR * u_AFD)`` (reward
+  ``"nsw-no-cost"``, the paper's dispatch-only model); the network has only the dispatch head, the heuristic
   workforce (``threshold``) and positioning (``spatial``) rules make the other decisions.
 
 Agents (``agents``): ``joint`` (the default) is the paper's joint model, one network and
@@ -60,87 +61,39 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
 import policies
-from policies.neural.dist import env_action, gumbel, head_log_prob_entropy, noise_shapes, sample
-from policies.neural.model import (
-    OBS_KEYS,
-    AgentSet,
-    WorkforceNet,
-    agent_set_config,
-    featurize,
-    model_config,
-    obs_to_torch,
-)
-from policies.neural.policy import load_checkpoint
-from wfbench.core.config import ScenarioConfig
-from wfbench.core.seeds import SEED_SETS, resolve_seeds
-from wfbench.core.simulator import Simulator
-from wfbench.core.state import METRICS
-from wfbench.train.common import (
-    RunningStd,
-    RunOutputs,
-    deployable,
-    git_commit,
-    policy_checkpoint,
-    save_atomic,
-    score_public,
-    torch_device,
-    write_run_config,
-)
+from policies.neural.dist import head_log_prob_entropy
+from policies.neural.model import AgentSet, WorkforceNet, agent_set_config, featurize, model_config
+from wfbench.train import toolkit
 
 AGENTS = ("joint", "independent")
 VARIANTS = {
     "joint": ("dispatch", "workforce", "positioning"),
     "dispatch": ("dispatch",),
 }
-_K_NSW, _K_UPUR, _K_UAFD = METRICS.index("nsw"), METRICS.index("u_utilization"), METRICS.index("u_downtime")
+REWARDS = {"joint": "nsw", "dispatch": "nsw-no-cost"}  # the variant's reward (wfbench.core.reward)
 
 
 @dataclass
-class TrainConfig:
-    """Every setting of a run; saved as ``config.json`` in the run directory and in each checkpoint."""
+class TrainConfig(toolkit.ActorCriticConfig):
+    """Every setting of a PPO run (the shared ones in :class:`wfbench.train.toolkit.ActorCriticConfig`)."""
 
-    scenario: str = "paper-64"
-    variant: str = "joint"
     agents: str = "joint"  # AGENTS: one network for all decisions, or one per decision (independent)
-    model: str = "small"  # policies.neural.model.PRESETS
-    steps: int = 1_000_000  # environment steps in all (B per simulator step)
-    num_envs: int = 32  # B
-    num_steps: int = 32  # T: steps per rollout
     epochs: int = 2
     minibatches: int = 2
-    lr: float = 3e-4
-    gamma: float = 0.995
     gae_lambda: float = 0.95
     clip: float = 0.2
     vf_clip: float = 0.2
-    ent_coef: float = 0.003
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    reward_offset: float = 0.7
-    reward_scale: float = 10.0
-    normalize_returns: bool = True
-    stagger: bool = True  # joint: staggered episodes by partial reset (dispatch: always synchronized)
-    seed: int = 0
-    device: str = "auto"  # auto | cpu | cuda
-    bf16: bool = True  # CUDA only
     compile: bool = False  # CUDA only: torch.compile of the network
-    threads: int = 1  # torch CPU threads (the simulator uses numba's)
-    checkpoint_every: int = 20  # updates
-    eval_every: int = 20  # updates; 0: never
-    eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
-    run_dir: str = "runs/ppo"
-    init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
     value_warmup: int = 0  # first updates that fit the value head alone, the policy frozen (fine-tuning --init)
-    model_overrides: dict = field(default_factory=dict)
 
-    def validate(self) -> None:
+    def check(self) -> None:
         if self.variant not in VARIANTS:
             raise ValueError(f"variant {self.variant!r} is not allowed; allowed: {', '.join(VARIANTS)}")
         if self.agents not in AGENTS:
@@ -148,27 +101,11 @@ class TrainConfig:
         if self.agents == "independent" and self.variant != "joint":
             raise ValueError(f"agents 'independent' needs variant 'joint' (variant {self.variant!r} has one "
                              "decision, so one agent)")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise ValueError(f"device {self.device!r} is not allowed; allowed: auto, cpu, cuda")
-        if self.device == "cuda" and not torch.cuda.is_available():
-            raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
-        for name in ("steps", "num_envs", "num_steps", "epochs", "minibatches", "threads", "checkpoint_every"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: an integer >= 1")
-        if self.value_warmup < 0:
-            raise ValueError(f"value_warmup = {self.value_warmup} is not allowed; allowed: an integer >= 0")
-        for name in ("gamma", "gae_lambda"):
-            if not 0.0 < getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} = {getattr(self, name)} is not allowed; allowed: a number in (0, 1]")
+        toolkit.check_ints(self, ("epochs", "minibatches"))
+        toolkit.check_ints(self, ("value_warmup",), least=0)
+        toolkit.check_numbers(self, ("gae_lambda",), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
         if self.num_envs % self.minibatches:
             raise ValueError(f"num_envs = {self.num_envs} must be a multiple of minibatches = {self.minibatches}")
-        ScenarioConfig.resolve(self.scenario)
-        seeds = resolve_seeds(self.eval_seeds)
-        public = set(SEED_SETS["public"])
-        if not set(seeds) <= public:
-            raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
-                             "(1000-1049) only, never on test seeds")
-        self.network_config()
 
     def network_config(self):
         """The network's config: one ModelConfig (joint) or one per decision (independent agents)."""
@@ -176,26 +113,14 @@ class TrainConfig:
             return agent_set_config(self.model, VARIANTS[self.variant], **self.model_overrides)
         return model_config(self.model, VARIANTS[self.variant], **self.model_overrides)
 
-    @classmethod
-    def from_dict(cls, d: dict) -> TrainConfig:
-        names = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in d.items() if k in names})
-
 
 class Trainer:
     """A PPO run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
 
     def __init__(self, config: TrainConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True):
-        config.validate()
-        self.cfg = c = config
-        self.device = torch_device(c.device)
-        self.cuda = self.device.type == "cuda"
-        torch.set_num_threads(c.threads)
-        torch.manual_seed(c.seed)
-        self.scenario = ScenarioConfig.resolve(c.scenario)
+        c = toolkit.start_run(self, config, progress, log)
         self.decisions = VARIANTS[c.variant]
-        self.mcfg = c.network_config()
         independent = c.agents == "independent"
         self.model = (AgentSet(self.mcfg) if independent else WorkforceNet(self.mcfg)).to(self.device)
         # the agents: their heads, and the parameters each one's gradient is clipped over
@@ -210,59 +135,29 @@ class Trainer:
         # only the value head moves, so the policy that --init brought is not disturbed by a random critic
         self.vopt = torch.optim.Adam([p for n, p in self.model.named_parameters() if "value_head." in n],
                                      lr=c.lr, eps=1e-5)
-        self.gen = torch.Generator(device=self.device).manual_seed(c.seed)
-        self.ret_std = RunningStd()
-        self.update, self.global_step, self.episode, self.seed_cursor = 0, 0, 0, 0
         # the heuristic parts of the dispatch variant keep per-environment memory: they reset with the batch
         self.staggered = c.stagger and c.variant == "joint"
-        self.best = {"score": -math.inf, "update": None}
-        self.history: list[dict] = []
-        self.progress, self.log = progress, log
-        self.run_dir = Path(c.run_dir)
-        self.commit = git_commit()  # the code this run started from (a resumed run keeps its first)
-        self.timing = {"simulator": 0.0, "obs_to_tensor": 0.0, "forward": 0.0, "update": 0.0}
+        helper = (lambda: policies.Composite("none", "threshold", "spatial")) if c.variant == "dispatch" else None
+        self.env = toolkit.Collector(c, self.scenario, self.device, reward=REWARDS[c.variant], staggered=self.staggered,
+                                     fresh_batches=True, helper=helper)
+        self.update = 0
+        self.timing = self.env.timing  # simulator, obs_to_tensor, forward (the collector's), update
+        self.timing["update"] = 0.0
         if c.init and resume is None:
-            start = load_checkpoint(c.init, str(self.device))
-            if start["model_config"] != self.mcfg.to_dict():
-                raise ValueError(f"--init {c.init!r}: its network ({start['model_config']}) is not this run's "
-                                 f"--model {c.model} / --variant {c.variant} / --agents {c.agents}")
-            self.model.load_state_dict(start["model"])
+            toolkit.init_weights(self)
         if resume is not None:
-            self._load(resume)
+            ckpt = toolkit.load_run(self, resume, "ppo")
+            if "value_optimizer" in ckpt:
+                self.vopt.load_state_dict(ckpt["value_optimizer"])
+            self.env.restore(ckpt)
+            self.update = ckpt["update"]
         self.net = torch.compile(self.model) if (c.compile and self.cuda) else self.model
-        self._new_episode()
+        self.env.start(self.model)
 
-    # -- environments -------------------------------------------------------------------------
-    def _take_seeds(self, k: int) -> list[int]:
-        """The next ``k`` seeds of the ``train`` set for this run (a window per run seed, then onwards)."""
-        train = SEED_SETS["train"]
-        start = (self.cfg.seed * 1_000_003 + self.seed_cursor) % (len(train) - k)
-        self.seed_cursor += k
-        return list(train[start:start + k])
-
-    def _new_episode(self) -> None:
-        self.sim = Simulator(self.scenario, self._take_seeds(self.cfg.num_envs), keep_series=False, threads=1)
-        self.obs = self.sim.reset()
-        # staggered episodes: environment b's first episode is cut after (b + 1) / B of the horizon, so
-        # that from then on the environments are spread over the whole episode
-        H, B = self.scenario.horizon, self.sim.B
-        self.cut = (H * (np.arange(B) + 1)) // B if self.staggered else np.full(B, H)
-        self.helper = None
-        if self.cfg.variant == "dispatch":  # the heuristic workforce and positioning it is trained with
-            self.helper = policies.Composite("none", "threshold", "spatial")
-            self.helper.reset(self.sim.seeds)
-        self.state = self.model.initial_state(self.sim.B, self.device)
-        self.starts = torch.ones(self.sim.B, device=self.device)
-        self.ret = np.zeros(self.sim.B)
-
-    def _autocast(self):
-        return torch.autocast(device_type=self.device.type, dtype=torch.bfloat16, enabled=self.cuda and self.cfg.bf16)
-
-    def _reward(self, nsw: np.ndarray) -> np.ndarray:
-        if self.cfg.variant == "dispatch":
-            last = self.sim.state.last
-            nsw = np.sqrt(np.clip(last[:, _K_UPUR] * last[:, _K_UAFD], 0.0, None))
-        return (nsw - self.cfg.reward_offset) * self.cfg.reward_scale
+    @property
+    def sim(self):
+        """The collector's batched simulator."""
+        return self.env.sim
 
     # -- agents -------------------------------------------------------------------------------
     def agent_log_probs(self, out: dict, x: dict, acts: dict):
@@ -280,73 +175,17 @@ class Trainer:
 
     # -- rollout ------------------------------------------------------------------------------
     def rollout(self) -> dict:
-        c, dev, B, T = self.cfg, self.device, self.sim.B, self.cfg.num_steps
-        M, N = self.sim.M, self.sim.N
-        buf: dict = {k: [] for k in ("raw", "starts", "dispatch", "workforce", "positioning", "logp", "value",
-                                     "reward", "done")}
-        init_state = tuple(s.clone() for s in self.state)
-        episodes = []
-        for _ in range(T):
-            t0 = time.perf_counter()
-            raw = obs_to_torch(self.obs, dev)
-            x = featurize(raw, self.mcfg.coord_scale)
-            t1 = time.perf_counter()
-            with torch.no_grad(), self._autocast():
-                out, self.state = self.net(x, self.state, self.starts[None])
-            noise = {k: gumbel(s, self.gen, dev) for k, s in noise_shapes(B, M, N).items()}
-            acts = sample(out, x, noise)
-            logp, _, _ = self.agent_log_probs(out, x, acts)
-            action = env_action(acts, M)  # the dispatch variant's network has the dispatch head only
-            t2 = time.perf_counter()
-            if self.helper is not None:
-                h = self.helper.act(self.obs)
-                action["workforce"], action["positioning"] = h["workforce"], h["positioning"]
-            buf["raw"].append(raw)
-            buf["starts"].append(self.starts)
-            for k in ("dispatch", "workforce", "positioning"):
-                buf[k].append(acts.get(k, torch.zeros(B, dtype=torch.long, device=dev)))
-            buf["logp"].append(logp)
-            buf["value"].append(self.values(out))
-            nsw, self.obs = self.sim.step_observe(action)
-            reward = self._reward(nsw)
-            ended = self.sim.dones | (self.sim.state.t >= self.cut)  # (B,) episodes over after this step
-            self.global_step += B
-            if c.normalize_returns:
-                self.ret = self.ret * c.gamma + reward
-                self.ret_std.update(self.ret)
-                reward = reward / self.ret_std.std
-                self.ret[ended] = 0.0
-            buf["reward"].append(torch.as_tensor(reward, dtype=torch.float32, device=dev))
-            buf["done"].append(torch.as_tensor(ended, dtype=torch.float32, device=dev))
-            if ended.any():
-                full = self.sim.dones  # whole episodes only in the logs (not the cut first ones)
-                if full.any():
-                    means = self.sim.episode_means()
-                    episodes.append({k: float(np.mean(means[k][full])) for k in ("nsw", "workforce_cost",
-                                                                                 "utilization", "downtime")})
-                self.episode += int(ended.sum())
-                if ended.all() and not self.staggered:
-                    self._new_episode()
-                else:  # partial reset onto fresh training seeds
-                    idx = np.flatnonzero(ended)
-                    self.obs = self.sim.reset(indices=idx, seeds=self._take_seeds(len(idx)))
-                    self.cut[idx] = self.scenario.horizon
-                    self.state = tuple(s * torch.as_tensor(~ended, dtype=s.dtype, device=dev).view(1, -1, 1)
-                                       for s in self.state)
-            self.starts = torch.as_tensor(ended, dtype=torch.float32, device=dev)
-            t3 = time.perf_counter()
-            self.timing["obs_to_tensor"] += t1 - t0
-            self.timing["forward"] += t2 - t1
-            self.timing["simulator"] += t3 - t2
+        """T steps of the B environments (:meth:`Collector.collect`), then GAE per agent."""
+        c, T = self.cfg, self.cfg.num_steps
+        roll = self.env.collect(self.net, T, lambda out, x, acts: self.agent_log_probs(out, x, acts)[0],
+                                self.values, model=self.model)
+        self.global_step += T * self.sim.B
         t0 = time.perf_counter()
-        with torch.no_grad(), self._autocast():
-            x = featurize(obs_to_torch(self.obs, dev), self.mcfg.coord_scale)
-            out, _ = self.net(x, self.state, self.starts[None])
+        with torch.no_grad(), toolkit.autocast(self.device, c.bf16):
+            x = featurize({k: v[T] for k, v in roll["raw"].items()}, self.mcfg.coord_scale)
+            out, _ = self.net(x, self.env.state, roll["starts"][T][None])
             next_value = self.values(out)
         self.timing["forward"] += time.perf_counter() - t0
-        roll = {k: torch.stack(v) for k, v in buf.items() if k != "raw"}
-        roll["raw"] = {k: torch.stack([r[k] for r in buf["raw"]]) for k in OBS_KEYS}
-        roll["init_state"] = init_state
         # GAE per agent (values (T, B, A); the agents share the reward); done[t] ends the episode after
         # step t (no bootstrap across it)
         adv = torch.zeros_like(roll["value"])
@@ -358,7 +197,6 @@ class Trainer:
             last = delta + c.gamma * c.gae_lambda * nonterminal * last
             adv[t] = last
         roll["adv"], roll["ret"] = adv, adv + roll["value"]
-        roll["episodes"] = episodes
         return roll
 
     # -- update -------------------------------------------------------------------------------
@@ -373,12 +211,12 @@ class Trainer:
             perm = torch.randperm(B, generator=perm_gen).to(self.device)
             for i in range(c.minibatches):
                 idx = perm[i * mb:(i + 1) * mb]
-                raw = {k: v[:, idx].flatten(0, 1) for k, v in roll["raw"].items()}
+                raw = {k: v[:-1, idx].flatten(0, 1) for k, v in roll["raw"].items()}  # the T steps, not the last
                 x = featurize(raw, self.mcfg.coord_scale)
                 acts = {k: roll[k][:, idx].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
                 state = tuple(s[:, idx] for s in roll["init_state"])
-                with self._autocast():
-                    out, _ = self.net(x, state, roll["starts"][:, idx])
+                with toolkit.autocast(self.device, c.bf16):
+                    out, _ = self.net(x, state, roll["starts"][:-1, idx])
                 acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
                 # (rows, A): one column per agent, each with its own ratio, advantage and critic; the
                 # losses are summed over the agents (independent networks: independent gradients)
@@ -417,46 +255,18 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return deployable(self.model, self.cfg.variant, mode, name=f"ppo-{self.cfg.variant}")
+        return toolkit.deployable(self.model, self.cfg.variant, mode, name=f"ppo-{self.cfg.variant}")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
-        return score_public(self.policy, self.scenario, self.cfg.eval_seeds)
+        return toolkit.score_public(self.policy, self.scenario, self.cfg.eval_seeds)
 
     def checkpoint(self) -> dict:
-        return policy_checkpoint(self.model, self.mcfg, self.cfg.variant, self.scenario.name, self.cfg,
-                                 update=self.update, global_step=self.global_step, episode=self.episode,
-                                 seed_cursor=self.seed_cursor, git_commit=self.commit, best=self.best,
-                                 history=self.history)
+        return toolkit.run_checkpoint(self, "ppo", self.update, episode=self.env.episode,
+                                      seed_cursor=self.env.seed_cursor)
 
     def save(self, path: Path, full: bool = True) -> Path:
-        ckpt = self.checkpoint()
-        if full:  # what --resume needs on top of the policy
-            ckpt["optimizer"] = self.opt.state_dict()
-            ckpt["value_optimizer"] = self.vopt.state_dict()
-            ckpt["ret_std"] = vars(self.ret_std)
-            ckpt["generator"] = self.gen.get_state()
-            ckpt["torch_rng"] = torch.get_rng_state()
-        return save_atomic(ckpt, path)
-
-    def _load(self, path) -> None:
-        ckpt = load_checkpoint(path, str(self.device))
-        if "optimizer" not in ckpt:
-            raise ValueError(f"checkpoint {str(path)!r} has no optimizer state: it cannot be resumed")
-        if ckpt["model_config"] != self.mcfg.to_dict() or ckpt["variant"] != self.cfg.variant:
-            raise ValueError(f"checkpoint {str(path)!r} is a {ckpt['variant']} run of another model; "
-                             "resume with the settings of its config.json")
-        self.model.load_state_dict(ckpt["model"])
-        self.opt.load_state_dict(ckpt["optimizer"])
-        if "value_optimizer" in ckpt:
-            self.vopt.load_state_dict(ckpt["value_optimizer"])
-        self.ret_std.__dict__.update(ckpt["ret_std"])
-        self.gen.set_state(ckpt["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
-        torch.set_rng_state(ckpt["torch_rng"].cpu())
-        self.update, self.global_step, self.episode = ckpt["update"], ckpt["global_step"], ckpt["episode"]
-        self.seed_cursor = ckpt.get("seed_cursor", 0)
-        self.commit = ckpt.get("git_commit", self.commit)
-        self.best, self.history = ckpt["best"], ckpt["history"]
+        return toolkit.save_run(self, path, full, value_optimizer=self.vopt.state_dict(), **self.env.meta())
 
     # -- the loop -----------------------------------------------------------------------------
     def train(self, updates: int | None = None) -> dict:
@@ -465,11 +275,11 @@ class Trainer:
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit)
+        toolkit.write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit)
         stats: dict = {}
         start, start_step = time.perf_counter(), self.global_step
-        with RunOutputs(self, "update", f"ppo {c.variant} {self.scenario.name}", stop * per_update,
-                        self.update * per_update) as out:
+        with toolkit.RunOutputs(self, "update", f"ppo {c.variant} {self.scenario.name}", stop * per_update,
+                                self.update * per_update) as out:
             while self.update < stop:
                 roll = self.rollout()
                 stats = self.learn(roll)
@@ -477,12 +287,7 @@ class Trainer:
                 sps = (self.global_step - start_step) / (time.perf_counter() - start)
                 out.episodes(roll["episodes"])
                 out.scalars("loss", stats)
-                out.scalars("charts", {"env_steps_per_s": sps, "reward_std": self.ret_std.std})
-                if c.eval_every and self.update % c.eval_every == 0:
-                    res = self.evaluate_public()
-                    self.history.append({"update": self.update, "global_step": self.global_step, **res})
-                    out.public(res, self.update)
-                if self.update % c.checkpoint_every == 0:
-                    out.checkpoint(f"update_{self.update:06d}.pt")
+                out.scalars("charts", {"env_steps_per_s": sps, "reward_std": self.env.ret_std.std})
+                out.after_update(self.update)
                 out.advance(per_update, {"sps": f"{sps:.0f}"})
         return stats

@@ -1,4 +1,4 @@
-"""The loop scaffolding the three trainers share (wfbench.train.common.RunOutputs), on a stand-in trainer."""
+"""The loop scaffolding the three trainers share (wfbench.train.toolkit.RunOutputs), on a stand-in trainer."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from contextlib import nullcontext as _no_raise
 import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-from wfbench.train.common import RunOutputs
+from wfbench.train.toolkit import RunOutputs
 
 
 class StandIn:

@@ -1,0 +1,620 @@
+"""What the trainers (ppo, impala, hindsight) share: one toolkit of data structures and functions.
+
+In the manner of Stable-Baselines3's ``RolloutBuffer``/``collect_rollouts`` and TorchRL's
+``SyncDataCollector``: plain pieces an algorithm file calls, top to bottom, no hooks.
+
+- Settings: :class:`BaseConfig` (scenario, network, device, seeds, evaluation and
+  checkpoint settings; its checks and ``from_dict``) and :class:`ActorCriticConfig` on
+  it (the reward shaping and loss coefficients PPO and IMPALA share). Each algorithm's
+  config subclasses one of them and adds only its own fields and checks (``check``).
+- Acting: :func:`take_seeds` (the training seeds of a run), :func:`autocast`,
+  :func:`policy_step` (observation -> tensors -> network -> sampled heads) and
+  :class:`Collector`, which steps the batched simulator and fills preallocated tensors:
+  a rollout of T steps with the shaped, normalized rewards, episode ends with partial
+  reset onto fresh training seeds and the LSTM state reset, the finished episodes' KPIs.
+- A run: :func:`start_run` (checks, threads, torch seed, the shared attributes),
+  :func:`init_weights` (``init``), :class:`RunOutputs` (TensorBoard, progress bar,
+  ``best.pt``, checkpoints, Ctrl-C), :func:`run_checkpoint` (the keys every checkpoint
+  has, ``algo`` among them), :func:`save_run` / :func:`load_run` (the shared resume
+  state: optimizer, torch's random state, counters, history), :func:`score_public`.
+
+A checkpoint of any trainer loads as a policy by its algorithm (``impala:PATH``,
+``hindsight:PATH``, ``ppo:PATH``; ``ppo:`` loads any, :mod:`policies.registry`) because
+all three write the keys of :func:`run_checkpoint`; each adds what its own resume needs.
+Checkpoints are selected on the public seeds only (:func:`score_public`).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import subprocess
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+import policies
+from policies.neural.dist import env_action, gumbel, noise_shapes, sample
+from policies.neural.model import count_parameters, featurize, model_config, obs_to_torch
+from policies.neural.policy import NetworkPolicy, load_checkpoint
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.kpis import KPI_NAMES, SCORE
+from wfbench.core.reward import step_reward
+from wfbench.core.seeds import SEED_SETS, resolve_seeds
+from wfbench.core.simulator import Simulator
+from wfbench.evaluation import evaluate
+
+DECISIONS = ("dispatch", "workforce", "positioning")  # the heads of the joint network, in the simulator's order
+DEVICES = ("auto", "cpu", "cuda")
+
+
+# -- settings -------------------------------------------------------------------------------------
+def check_ints(cfg, names: Sequence[str], least: int = 1) -> None:
+    """Each of ``names`` an integer (not a bool) >= ``least``, else a ValueError naming what is allowed."""
+    for name in names:
+        v = getattr(cfg, name)
+        if type(v) is not int or v < least:
+            raise ValueError(f"{name} = {v!r} is not allowed; allowed: an integer >= {least}")
+
+
+def check_numbers(cfg, names: Sequence[str], ok: Callable[[float], bool], allowed: str) -> None:
+    """Each of ``names`` passes ``ok``, else a ValueError: ``NAME = V is not allowed; allowed: ALLOWED``."""
+    for name in names:
+        if not ok(getattr(cfg, name)):
+            raise ValueError(f"{name} = {getattr(cfg, name)!r} is not allowed; allowed: {allowed}")
+
+
+@dataclass
+class BaseConfig:
+    """The settings every trainer has; saved as ``config.json`` in the run directory and in each checkpoint.
+
+    An algorithm's config subclasses it (or :class:`ActorCriticConfig`), adds its own
+    fields (and may give a field another default) and its own checks in :meth:`check`.
+    """
+
+    scenario: str = "paper-64"
+    variant: str = "joint"
+    model: str = "small"  # policies.neural.model.PRESETS
+    steps: int = 1_000_000  # environment steps in all (B per simulator step)
+    num_envs: int = 32  # B
+    num_steps: int = 32  # T: steps per rollout (or stored sequence)
+    seed: int = 0
+    device: str = "auto"  # auto | cpu | cuda
+    bf16: bool = True  # CUDA only: bf16 autocast of the forward passes
+    threads: int = 1  # torch CPU threads (the simulator uses numba's)
+    checkpoint_every: int = 20  # updates (iterations)
+    eval_every: int = 20  # updates (iterations); 0: never
+    eval_seeds: str = "public:10"  # a part of the public set: checkpoint selection only
+    run_dir: str = "runs/ppo"
+    init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
+    model_overrides: dict = field(default_factory=dict)
+
+    def validate(self) -> None:
+        """The shared checks, the algorithm's (:meth:`check`), then the network's config (a bad preset says so)."""
+        if self.device not in DEVICES:
+            raise ValueError(f"device {self.device!r} is not allowed; allowed: {', '.join(DEVICES)}")
+        if self.device == "cuda" and not torch.cuda.is_available():
+            raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
+        check_ints(self, ("steps", "num_envs", "num_steps", "threads", "checkpoint_every"))
+        check_ints(self, ("eval_every",), least=0)
+        self.check()
+        ScenarioConfig.resolve(self.scenario)
+        if not set(resolve_seeds(self.eval_seeds)) <= set(SEED_SETS["public"]):
+            raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
+                             "(1000-1049) only, never on test seeds")
+        self.network_config()
+
+    def check(self) -> None:
+        """The algorithm's own checks (a subclass's); ValueError names what is allowed."""
+
+    def network_config(self):
+        """The network's config: the joint network with all three heads (PPO's variants and agents differ)."""
+        return model_config(self.model, DECISIONS, **self.model_overrides)
+
+    @classmethod
+    def from_dict(cls, d: dict):
+        """The config of a saved ``train_config`` (keys this class does not have are dropped)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
+
+
+@dataclass
+class ActorCriticConfig(BaseConfig):
+    """The settings PPO and IMPALA share: the :class:`Collector`'s reward shaping, and the loss coefficients."""
+
+    lr: float = 3e-4
+    gamma: float = 0.995
+    ent_coef: float = 0.003
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    reward_offset: float = 0.7  # reward = (NSW_t - offset) * scale
+    reward_scale: float = 10.0
+    normalize_returns: bool = True  # rewards divided by a running std of the discounted return
+    stagger: bool = True  # staggered episodes by partial reset
+
+    def validate(self) -> None:
+        check_numbers(self, ("gamma",), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
+        check_numbers(self, ("lr", "max_grad_norm"), lambda v: v > 0.0, "a number > 0")
+        check_numbers(self, ("ent_coef", "vf_coef", "reward_scale"), lambda v: v >= 0.0, "a number >= 0")
+        super().validate()
+
+
+# -- acting ---------------------------------------------------------------------------------------
+def take_seeds(run_seed: int, cursor: int, k: int, index: int = 0, count: int = 1) -> list[int]:
+    """``k`` seeds of the ``train`` set: a window per run seed, ``cursor`` seeds taken before (then onwards).
+
+    Actor ``index`` of ``count`` takes every ``count``-th seed of the window from ``index``
+    on, so ``count`` actors' seeds are disjoint and together are the window one would take.
+    The caller adds ``k`` to its cursor.
+    """
+    train, n = SEED_SETS["train"], count
+    start = (run_seed * 1_000_003 + cursor * n + index) % (len(train) - k * n)
+    return list(train[start:start + k * n:n])
+
+
+def autocast(device: torch.device, bf16: bool):
+    """bf16 autocast of a forward pass on CUDA (``bf16``); a no-op context on CPU."""
+    return torch.autocast(device_type=device.type, dtype=torch.bfloat16, enabled=device.type == "cuda" and bf16)
+
+
+def policy_step(net, obs: dict, state, starts: torch.Tensor, coord_scale: float, gen: torch.Generator | None,
+                bf16: bool) -> tuple[dict, dict, dict, tuple, dict]:
+    """One step of the network on a batch (no grad): observation -> tensors -> forward -> sampled heads.
+
+    ``gen`` draws the Gumbel noise of the sample (None: greedy). Returns the raw tensors,
+    the features, the head outputs, the LSTM state after the step and the actions.
+    """
+    dev = starts.device
+    raw = obs_to_torch(obs, dev)
+    x = featurize(raw, coord_scale)
+    with torch.no_grad(), autocast(dev, bf16):
+        out, state = net(x, state, starts[None])
+    (B, M), N = obs["requesting"].shape, obs["personnel"].shape[1]
+    noise = None if gen is None else {k: gumbel(s, gen, dev) for k, s in noise_shapes(B, M, N).items()}
+    return raw, x, out, state, sample(out, x, noise)
+
+
+def episode_kpis(sim: Simulator, which: np.ndarray | None = None) -> dict[str, float]:
+    """The KPIs of the episodes in ``sim`` so far (``which`` environments; all by default), mean over them."""
+    means = sim.episode_means()
+    return {k: float(np.mean(means[k] if which is None else means[k][which])) for k in KPI_NAMES}
+
+
+class Collector:
+    """The batched simulator on training seeds and what acting in it needs: makes rollouts of T steps.
+
+    ``cfg`` an :class:`ActorCriticConfig`; ``index`` of ``count`` collectors (IMPALA's Ray
+    actors) takes its share of the training seeds (:func:`take_seeds`) and its own
+    generator (seed ``cfg.seed + 1_000_003 * index``). ``reward`` a key of
+    :data:`wfbench.core.reward.REWARDS`, shaped ``(r - reward_offset) * reward_scale`` and
+    divided by the running std of the discounted return (``normalize_returns``).
+
+    Episodes: with ``staggered`` environment b's first episode is cut after (b + 1) / B
+    of the horizon; every environment whose episode ends is reset alone onto fresh
+    training seeds (``Simulator.reset(indices, seeds)``), its LSTM state zeroed and its
+    next step flagged as a start. With ``fresh_batches`` and no stagger the B episodes
+    end together and a new Simulator is made on the next B seeds (with a fresh ``helper``,
+    the heuristic parts of PPO's dispatch variant, which keep per-environment memory).
+    """
+
+    def __init__(self, cfg: ActorCriticConfig, scenario: ScenarioConfig, device: torch.device, *,
+                 reward: str = "nsw", staggered: bool = True, fresh_batches: bool = False,
+                 helper: Callable[[], Any] | None = None, index: int = 0, count: int = 1):
+        self.cfg, self.scenario, self.device, self.reward = cfg, scenario, device, reward
+        self.staggered, self.fresh_batches, self.make_helper = staggered, fresh_batches, helper
+        self.index, self.count = index, count
+        self.gen = torch.Generator(device=device).manual_seed(cfg.seed + 1_000_003 * index)
+        self.ret_std = RunningStd()
+        self.seed_cursor, self.episode, self.steps = 0, 0, 0
+        self.timing = {"obs_to_tensor": 0.0, "forward": 0.0, "simulator": 0.0}
+        self.sim = None
+
+    def take_seeds(self, k: int) -> list[int]:
+        seeds = take_seeds(self.cfg.seed, self.seed_cursor, k, self.index, self.count)
+        self.seed_cursor += k
+        return seeds
+
+    def meta(self) -> dict:
+        """What a checkpoint needs to resume the collector (its seeds, episode count, normalizer, generator)."""
+        return {"seed_cursor": self.seed_cursor, "episode": self.episode, "ret_std": dict(vars(self.ret_std)),
+                "generator": self.gen.get_state()}
+
+    def restore(self, meta: dict) -> None:
+        self.seed_cursor, self.episode = meta.get("seed_cursor", 0), meta["episode"]
+        self.ret_std.__dict__.update(meta["ret_std"])
+        self.gen.set_state(meta["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
+
+    def start(self, model) -> None:
+        """A fresh Simulator on the next B training seeds, a fresh LSTM state of ``model``."""
+        self.sim = Simulator(self.scenario, self.take_seeds(self.cfg.num_envs), keep_series=False, threads=1)
+        self.obs = self.sim.reset()
+        H, B = self.scenario.horizon, self.sim.B
+        self.cut = (H * (np.arange(B) + 1)) // B if self.staggered else np.full(B, H)
+        self.helper = None
+        if self.make_helper is not None:
+            self.helper = self.make_helper()
+            self.helper.reset(self.sim.seeds)
+        self.state = model.initial_state(B, self.device)
+        self.starts = torch.ones(B, device=self.device)
+        self.ret = np.zeros(B)
+
+    def _shaped(self, nsw: np.ndarray, ended: np.ndarray) -> np.ndarray:
+        c = self.cfg
+        reward = (step_reward(self.reward, nsw, self.sim.state.last) - c.reward_offset) * c.reward_scale
+        if c.normalize_returns:
+            self.ret = self.ret * c.gamma + reward
+            self.ret_std.update(self.ret)
+            reward = reward / self.ret_std.std
+            self.ret[ended] = 0.0
+        return reward
+
+    def _episode_ends(self, ended: np.ndarray, model, episodes: list[dict]) -> None:
+        full = self.sim.dones  # whole episodes only in the logs (not the cut first ones)
+        if full.any():
+            episodes.append(episode_kpis(self.sim, full))
+        self.episode += int(ended.sum())
+        if ended.all() and self.fresh_batches and not self.staggered:
+            self.start(model)
+            return
+        idx = np.flatnonzero(ended)  # partial reset onto fresh training seeds
+        self.obs = self.sim.reset(indices=idx, seeds=self.take_seeds(len(idx)))
+        self.cut[idx] = self.scenario.horizon
+        self.state = tuple(s * torch.as_tensor(~ended, dtype=s.dtype, device=self.device).view(1, -1, 1)
+                           for s in self.state)
+
+    @torch.no_grad()
+    def collect(self, net, T: int, log_prob: Callable, values: Callable | None = None,
+                model=None) -> dict[str, Any]:
+        """A rollout of T steps of the B environments with ``net`` (sampled actions), in preallocated tensors.
+
+        ``log_prob(out, x, acts)`` gives the behaviour log-probabilities of a step (B,) or
+        (B, A); ``values(out)``, when given, the critic's values (B, A). ``model`` (default
+        ``net``) makes the LSTM state of a fresh batch. Returns a dict: ``raw`` (T + 1, B, ...)
+        per observation key and ``starts`` (T + 1, B) (the last: the observation after the
+        rollout, for the bootstrap), ``dispatch``/``workforce``/``positioning`` (T, B, ...)
+        int64 (zeros for a head the network lacks), ``logp``, ``value``, ``reward`` and
+        ``done`` (T, B) float32 (done: the episode ended after the step), ``init_state``
+        (the LSTM state before the first step) and ``episodes`` (the KPIs of the whole
+        episodes that ended).
+        """
+        model = net if model is None else model
+        if self.sim is None:
+            self.start(model)
+        dev, B, M = self.device, self.sim.B, self.sim.M
+        acts_shape = {"dispatch": (M,), "workforce": (), "positioning": (2,)}
+        roll: dict[str, Any] = {k: torch.zeros((T, B, *s), dtype=torch.long, device=dev) for k, s in acts_shape.items()}
+        roll["starts"] = torch.empty((T + 1, B), device=dev)
+        roll["reward"] = torch.empty((T, B), device=dev)
+        roll["done"] = torch.empty((T, B), device=dev)
+        roll["init_state"] = tuple(s.clone() for s in self.state)
+        episodes: list[dict] = []
+        for t in range(T):
+            t0 = time.perf_counter()
+            raw, x, out, self.state, acts = policy_step(net, self.obs, self.state, self.starts,
+                                                        model.config.coord_scale, self.gen, self.cfg.bf16)
+            logp = log_prob(out, x, acts).float()
+            if t == 0:  # the buffers of what the first step shows the shapes and types of
+                roll["raw"] = {k: torch.empty((T + 1, *v.shape), dtype=v.dtype, device=dev) for k, v in raw.items()}
+                roll["logp"] = torch.empty((T, *logp.shape), device=dev)
+                if values is not None:
+                    roll["value"] = torch.empty((T, *values(out).shape), device=dev)
+            action = env_action(acts, M)  # the dispatch variant's network has the dispatch head only
+            t1 = time.perf_counter()
+            if self.helper is not None:
+                h = self.helper.act(self.obs)
+                action["workforce"], action["positioning"] = h["workforce"], h["positioning"]
+            for k, v in raw.items():
+                roll["raw"][k][t] = v
+            roll["starts"][t] = self.starts
+            for k, v in acts.items():
+                roll[k][t] = v
+            roll["logp"][t] = logp
+            if values is not None:
+                roll["value"][t] = values(out)
+            nsw, self.obs = self.sim.step_observe(action)
+            ended = self.sim.dones | (self.sim.state.t >= self.cut)  # (B,) episodes over after this step
+            self.steps += B
+            roll["reward"][t] = torch.as_tensor(self._shaped(nsw, ended), dtype=torch.float32, device=dev)
+            roll["done"][t] = torch.as_tensor(ended, dtype=torch.float32, device=dev)
+            if ended.any():
+                self._episode_ends(ended, model, episodes)
+            self.starts = torch.as_tensor(ended, dtype=torch.float32, device=dev)
+            self.timing["forward"] += t1 - t0
+            self.timing["simulator"] += time.perf_counter() - t1
+        t0 = time.perf_counter()
+        for k, v in obs_to_torch(self.obs, dev).items():
+            roll["raw"][k][T] = v
+        roll["starts"][T] = self.starts
+        self.timing["obs_to_tensor"] += time.perf_counter() - t0
+        roll["episodes"] = episodes
+        return roll
+
+
+# -- a run ----------------------------------------------------------------------------------------
+def start_run(trainer, config: BaseConfig, progress: bool, log: bool) -> BaseConfig:
+    """Check ``config``, set torch's threads and seed, set the attributes every trainer has; returns ``config``.
+
+    The attributes: ``cfg``, ``device``, ``cuda``, ``scenario``, ``mcfg`` (the network's
+    config), ``best``, ``history``, ``global_step``, ``progress``, ``log``, ``run_dir``, ``commit``.
+    """
+    config.validate()
+    trainer.cfg = config
+    trainer.device = torch_device(config.device)
+    trainer.cuda = trainer.device.type == "cuda"
+    torch.set_num_threads(config.threads)
+    torch.manual_seed(config.seed)
+    trainer.scenario = ScenarioConfig.resolve(config.scenario)
+    trainer.mcfg = config.network_config()
+    trainer.best = {"score": -math.inf, "update": None}
+    trainer.history = []
+    trainer.global_step = 0
+    trainer.progress, trainer.log = progress, log
+    trainer.run_dir = Path(config.run_dir)
+    trainer.commit = git_commit()  # the code this run started from (a resumed run keeps its first)
+    return config
+
+
+def init_weights(trainer) -> None:
+    """``init``: the network weights of another checkpoint start this run (its network must be this run's)."""
+    c = trainer.cfg
+    start = load_checkpoint(c.init, str(trainer.device))
+    if start["model_config"] != trainer.mcfg.to_dict():
+        agents = f", --agents {c.agents}" if hasattr(c, "agents") else ""
+        raise ValueError(f"--init {c.init!r}: its network ({start['model_config']}) is not this run's "
+                         f"(--model {c.model}, --variant {c.variant}{agents})")
+    trainer.model.load_state_dict(start["model"])
+
+
+def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
+    """The keys every checkpoint has (what ``ALGO:PATH`` and ``ppo:PATH`` load), plus ``fields``.
+
+    ``algo`` names the trainer (:data:`wfbench.train.registry.ALGORITHMS`); ``count`` its
+    updates (iterations), saved as ``update``.
+    """
+    t = trainer
+    return {
+        "model": {k: v.detach().cpu() for k, v in t.model.state_dict().items()},
+        "model_config": t.mcfg.to_dict(),
+        "algo": algo,
+        "variant": t.cfg.variant,
+        "scenario": t.scenario.name,
+        "train_config": asdict(t.cfg),
+        "update": count,
+        "global_step": t.global_step,
+        "git_commit": t.commit,
+        "best": t.best,
+        "history": t.history,
+        **fields,
+    }
+
+
+def save_run(trainer, path: Path, full: bool, **resume) -> Path:
+    """``trainer.checkpoint()`` at ``path``; ``full`` adds what a resume needs.
+
+    That is the optimizer, torch's random state and the trainer's own ``resume`` entries.
+    """
+    ckpt = trainer.checkpoint()
+    if full:
+        ckpt["optimizer"] = trainer.opt.state_dict()
+        ckpt["torch_rng"] = torch.get_rng_state()
+        ckpt.update(resume)
+    return save_atomic(ckpt, path)
+
+
+def load_run(trainer, path, algo: str) -> dict:
+    """Resume the shared state of a full checkpoint of ``algo``: weights, optimizer, torch's random state, history.
+
+    Returns the checkpoint (the trainer takes its counters and its own state from it).
+    """
+    t = trainer
+    ckpt = load_checkpoint(path, str(t.device))
+    if "optimizer" not in ckpt:
+        raise ValueError(f"checkpoint {str(path)!r} has no optimizer state: it cannot be resumed (a best.pt? "
+                         "resume from latest.pt or checkpoints/*)")
+    if ckpt.get("algo", "ppo") != algo:
+        raise ValueError(f"checkpoint {str(path)!r} is not a {algo} run (algo {ckpt.get('algo', 'ppo')!r})")
+    if ckpt["model_config"] != t.mcfg.to_dict() or ckpt["variant"] != t.cfg.variant:
+        raise ValueError(f"checkpoint {str(path)!r} is a {ckpt['variant']} run of another model; resume with the "
+                         "settings of its config.json")
+    t.model.load_state_dict(ckpt["model"])
+    t.opt.load_state_dict(ckpt["optimizer"])
+    torch.set_rng_state(ckpt["torch_rng"].cpu())
+    t.global_step = ckpt["global_step"]
+    t.commit = ckpt.get("git_commit", t.commit)
+    t.best, t.history = ckpt["best"], ckpt["history"]
+    return ckpt
+
+
+def score_public(policy: Callable[[str], Any], scenario, eval_seeds: str) -> dict:
+    """Mean NSW and workforce cost on the public selection seeds, sampled and greedy (the score is the sampled one).
+
+    ``policy(mode)`` gives the deployable policy in ``mode`` (``"sample"`` or ``"greedy"``).
+    """
+    seeds = resolve_seeds(eval_seeds)
+    res: dict = {}
+    for mode in ("sample", "greedy"):
+        df = evaluate(policy(mode), scenario, seeds, backend="serial", act_timeout_s=None)
+        res[mode] = float(df["nsw"].mean())
+        res[f"{mode}_workforce_cost"] = float(df["workforce_cost"].mean())
+    res["seeds"] = seeds
+    return res
+
+
+def log_public(writer, res: dict, step: int) -> None:
+    """The TensorBoard scalars of a :func:`score_public` result (``public/*``)."""
+    writer.add_scalar("public/nsw_sample", res["sample"], step)
+    writer.add_scalar("public/nsw_greedy", res["greedy"], step)
+    writer.add_scalar("public/workforce_cost_sample", res["sample_workforce_cost"], step)
+
+
+class RunOutputs:
+    """What the three trainers' loops write besides learning: the loop's scaffolding in one place.
+
+    ``with RunOutputs(trainer, unit, desc, total, initial) as out:`` opens the TensorBoard
+    writer (``RUN/tb``, when ``trainer.log``) and the progress bar (when ``trainer.progress``;
+    ``initial`` of ``total`` environment steps done). Inside, the loop calls
+    :meth:`scalars`, :meth:`public` (after scoring the public seeds: logs the score and keeps
+    ``best.pt``), :meth:`checkpoint` and :meth:`advance`. Leaving the block saves
+    ``latest.pt``; Ctrl-C saves it too, says how to resume and re-raises. ``unit`` names the
+    trainer's counter attribute (``"update"`` or ``"iteration"``) for that message.
+    ``cleanup`` (IMPALA: stop the actors) runs however the block is left: after the save
+    on Ctrl-C, before it on a normal exit, so neither waits on the other going wrong.
+    """
+
+    def __init__(self, trainer, unit: str, desc: str, total: int, initial: int,
+                 cleanup: Callable[[], None] | None = None):
+        self.trainer, self.unit, self.cleanup = trainer, unit, cleanup
+        self.writer = self.bar = None
+        self.last_nsw: float | None = None  # of the last finished training episode, shown on the bar
+        if trainer.log:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self.writer = SummaryWriter(str(trainer.run_dir / "tb"))
+        if trainer.progress:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=total, initial=initial, unit="step", unit_scale=True, desc=desc)
+
+    def __enter__(self) -> RunOutputs:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        t = self.trainer
+        latest = t.run_dir / "latest.pt"
+        try:
+            if exc_type is KeyboardInterrupt:
+                t.save(latest)
+                if self.bar:
+                    self.bar.close()
+                print(f"interrupted: checkpoint saved to {latest} ({self.unit} {getattr(t, self.unit)}); "
+                      f"continue with --resume {latest}")
+        finally:
+            try:
+                if self.cleanup:
+                    self.cleanup()
+            finally:
+                if self.writer:
+                    self.writer.close()
+        if exc_type is None:
+            if self.bar:
+                self.bar.close()
+            t.save(latest)
+
+    def scalars(self, prefix: str, values: dict, keys=None) -> None:
+        """TensorBoard ``prefix/key`` for each of ``keys`` (default: all) present in ``values``, at the global step."""
+        if self.writer:
+            for k in values if keys is None else [k for k in keys if k in values]:
+                self.writer.add_scalar(f"{prefix}/{k}", values[k], self.trainer.global_step)
+
+    def episodes(self, episodes: list[dict]) -> None:
+        """The finished training episodes' KPIs (``episode/*``)."""
+        for ep in episodes:
+            self.scalars("episode", ep)
+            self.last_nsw = ep[SCORE]
+
+    def public(self, res: dict, count: int) -> None:
+        """Log a :func:`score_public` result; keep ``best.pt`` (the policy only) when its sampled score is the best."""
+        t = self.trainer
+        if self.writer:
+            log_public(self.writer, res, t.global_step)
+        if res["sample"] > t.best["score"]:
+            t.best = {"score": res["sample"], "update": count, "global_step": t.global_step, "mode": "sample",
+                      "seeds": res["seeds"], "greedy": res["greedy"]}
+            t.save(t.run_dir / "best.pt", full=False)
+
+    def after_update(self, count: int) -> None:
+        """PPO's and IMPALA's end of update ``count``: evaluation and checkpoints when they are due.
+
+        Every ``eval_every`` updates score the public seeds (a history row, ``best.pt``),
+        every ``checkpoint_every`` save ``checkpoints/update_<count>.pt`` and ``latest.pt``.
+        """
+        t = self.trainer
+        if t.cfg.eval_every and count % t.cfg.eval_every == 0:
+            res = t.evaluate_public()
+            t.history.append({"update": count, "global_step": t.global_step, **res})
+            self.public(res, count)
+        if count % t.cfg.checkpoint_every == 0:
+            self.checkpoint(f"update_{count:06d}.pt")
+
+    def checkpoint(self, name: str) -> None:
+        """``checkpoints/NAME`` and ``latest.pt``, both resumable."""
+        self.trainer.save(self.trainer.run_dir / "checkpoints" / name)
+        self.trainer.save(self.trainer.run_dir / "latest.pt")
+
+    def advance(self, steps: int, postfix: dict) -> None:
+        """Move the progress bar by ``steps``; ``postfix``, the last training episode's NSW, the best public score."""
+        if self.bar:
+            self.bar.update(steps)
+            postfix = dict(postfix)
+            if self.last_nsw is not None:
+                postfix["ep_nsw"] = f"{self.last_nsw:.3f}"
+            if self.trainer.best["update"] is not None:
+                postfix["public"] = f"{self.trainer.best['score']:.3f}"
+            self.bar.set_postfix(postfix)
+
+
+def save_atomic(ckpt: dict, path: Path) -> Path:
+    """``torch.save`` through a temporary file, so a crash never leaves half a checkpoint at ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    torch.save(ckpt, tmp)
+    tmp.replace(path)
+    return path
+
+
+def write_run_config(run_dir: Path, train_config, model: torch.nn.Module, model_config, device, commit: str,
+                     **extra) -> None:
+    """``RUN/config.json``: every setting, the git commit, the parameter count, the device and the network's sizes."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "config.json").write_text(json.dumps(
+        {**asdict(train_config), **extra, "git_commit": commit, "parameters": count_parameters(model),
+         "device": str(device), "model_config": model_config.to_dict()}, indent=2))
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10,
+                             cwd=Path(__file__).resolve().parent)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, timeout=10, cwd=Path(__file__).resolve().parent).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "") if out.returncode == 0 else "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+class RunningStd:
+    """Running variance of the discounted return, by which rewards are divided (return normalization)."""
+
+    def __init__(self):
+        self.mean, self.var, self.count = 0.0, 1.0, 1e-4
+
+    def update(self, x: np.ndarray) -> None:
+        m, v, n = float(x.mean()), float(x.var()), x.size
+        delta, total = m - self.mean, self.count + n
+        self.mean += delta * n / total
+        self.var = (self.var * self.count + v * n + delta**2 * self.count * n / total) / total
+        self.count = total
+
+    @property
+    def std(self) -> float:
+        return math.sqrt(self.var + 1e-8)
+
+
+def torch_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+def deployable(model: torch.nn.Module, variant: str, mode: str = "sample", name: str = "ppo"):
+    """The policy the network makes: alone (joint) or with the heuristic workforce and positioning (dispatch)."""
+    net = NetworkPolicy(copy.deepcopy(model).float().cpu(), mode=mode, device="cpu", name=name)
+    if variant == "joint":
+        return net
+    return policies.Composite(net, "threshold", "spatial", name=name)
