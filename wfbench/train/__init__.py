@@ -1,5 +1,7 @@
-"""Training: PPO for the paper's joint model (:mod:`wfbench.train.ppo`); imports torch.
+"""Training: one module per algorithm (ppo, impala, hindsight) on one toolkit (:mod:`wfbench.train.toolkit`).
 
-An application-layer package beside ``wfbench.evaluation``: it drives the Simulator and
-the network of :mod:`policies.neural`. ``import wfbench`` never imports it.
+The algorithms are listed by name in :mod:`wfbench.train.registry`, which imports no
+torch (the other modules do). An application-layer package beside ``wfbench.evaluation``:
+it drives the Simulator and the network of :mod:`policies.neural`. ``import wfbench``
+never imports it.
 """
