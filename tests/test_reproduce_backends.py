@@ -99,3 +99,21 @@ def test_reproduce_gap_draws_the_methods_and_the_bound(tmp_path):
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 15_000
     assert (tmp_path / "gap.svg").read_text().lstrip().startswith("<?xml")
     assert "| paper-64 |" in result.text and "oracle - solver (paired, 95% CI)" in result.text
+
+
+def test_reproduce_rows_name_their_decisions_from_the_policy_registry():
+    from policies.decisions import DECISIONS, LABELS
+    from policies.registry import COMPOSITES, LEARNED, TUNED, parts
+    from wfbench.reproduce.table3 import LEARNED_ROWS, ORACLE_ROWS, SOLVER_ROWS, TUNED_ROWS
+
+    assert {d: set(t) for d, t in LABELS.items()} == {d: set(t) for d, t in DECISIONS.items()}, \
+        "every built-in decision has a label for the tables (policies.decisions.LABELS)"
+    for name in [*COMPOSITES, *TUNED, *LEARNED]:
+        assert len(parts(name)) == 3 and all(parts(name)), name
+    assert parts("solver-positioning") == ("Heuristic", "Heuristic", "p-median")
+    assert parts("solver-tuned") == ("Assignment (tuned)", "Staffing (tuned)", "p-median (tuned)")
+    assert parts("oracle-dispatch") == ("Hindsight oracle", "Heuristic", "Heuristic")
+    assert {p for rows in (SOLVER_ROWS, ORACLE_ROWS, TUNED_ROWS, LEARNED_ROWS) for _, p in rows} <= {
+        *COMPOSITES, *TUNED, *LEARNED}
+    with pytest.raises(ValueError, match="not a registered policy"):
+        parts("nosuch")
