@@ -85,7 +85,8 @@ def capture(out: Path, seeds: int, only: set[str] | None) -> None:
                     c = torch.load(run / ckpt, map_location="cpu", weights_only=False)
                     torch.save({"model": c["model"], "history": c.get("history")}, run / f"{ckpt}.model")
             cfg = json.loads((run / "config.json").read_text())
-            cfg.pop("git_commit", None)
+            for key in ("git_commit", "run_dir"):  # the commit and the capture's folder, not the code's doing
+                cfg.pop(key, None)
             (run / "config.clean.json").write_text(json.dumps(cfg, indent=1, sort_keys=True))
             print(f"train {name} {time.perf_counter() - t0:6.1f} s", flush=True)
     pd.Series({"python": sys.version}).to_json(out / "meta.json")
