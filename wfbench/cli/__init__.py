@@ -17,18 +17,16 @@ from __future__ import annotations
 import os
 import sys
 
-from wfbench.cli import (
-    bench,
-    compare,
-    evaluate,
-    leaderboard,
-    policies,
-    reproduce,
-    scenarios,
-    simulate,
-    train,
-    tune,
-)
+import wfbench.cli.bench as bench
+import wfbench.cli.compare as compare
+import wfbench.cli.evaluate as evaluate
+import wfbench.cli.leaderboard as leaderboard
+import wfbench.cli.policies as policies
+import wfbench.cli.reproduce as reproduce
+import wfbench.cli.scenarios as scenarios
+import wfbench.cli.simulate as simulate
+import wfbench.cli.train as train
+import wfbench.cli.tune as tune
 from wfbench.cli.common import EXIT_POLICY_FAILED, EXIT_USAGE, Parser, UsageError
 
 # the commands in the order --help lists them

@@ -12,7 +12,10 @@ docs/reproduction.md says what matches and why.
 
 from __future__ import annotations
 
-from wfbench.reproduce import figure3, gap, table2, table3
+import wfbench.reproduce.figure3 as figure3
+import wfbench.reproduce.gap as gap
+import wfbench.reproduce.table2 as table2
+import wfbench.reproduce.table3 as table3
 from wfbench.reproduce.common import Output
 
 TARGETS = {"table2": table2.table2, "table3": table3.table3, "figure3": figure3.figure3, "gap": gap.gap}
