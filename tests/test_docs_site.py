@@ -17,12 +17,14 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-API_PAGES = ("wfbench", "simulator", "envs", "policies", "oracles", "solvers", "leaderboard")
+API_PAGES = ("wfbench", "simulator", "envs", "policies", "oracles", "solvers", "leaderboard", "reproduce")
 
 # Names without an __all__ that a reader looks up first, by the page that must have them.
 KEY_NAMES = {
     "simulator": ["wfbench.core.simulator.Simulator", "wfbench.core.simulator.Simulator.step",
-                  "wfbench.core.actions.ActionError"],
+                  "wfbench.core.actions.ActionError", "wfbench.core.kpis.KPIS", "wfbench.core.reward.step_reward"],
+    "reproduce": ["wfbench.reproduce.table2.table2", "wfbench.reproduce.table3.table3",
+                  "wfbench.reproduce.figure3.figure3", "wfbench.reproduce.gap.gap"],
     "wfbench": ["wfbench.evaluation.evaluate", "wfbench.compare.compare", "wfbench.core.config.ScenarioConfig"],
     "envs": ["wfbench.envs.gym_env.WorkforceEnv", "wfbench.envs.gym_env.DispatchEnv",
              "wfbench.envs.parallel.WorkforceParallelEnv", "wfbench.envs.vector.WorkforceVectorEnv",

@@ -190,7 +190,7 @@ def test_editing_a_function_inlined_from_another_file_recompiles(tmp_path):
     assert untouched.stdout == cold.stdout and notice not in untouched.stderr, untouched.stderr
 
     # observe.py inlines dispatchable() from dynamics.py: numba's own stamp (observe.py) would not see this
-    dynamics = root / "wfbench" / "dynamics.py"
+    dynamics = root / "wfbench" / "core" / "dynamics.py"
     text = dynamics.read_text()
     body = '    return (status == IDLE or status == RETURNING) and leave < 0\n'
     assert text.count(body) == 1, "dispatchable() changed: update this test's edit"

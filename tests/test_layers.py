@@ -21,6 +21,21 @@ def test_layers__import_contracts_hold():
     assert "0 broken" in run.stdout, run.stdout
 
 
+def test_layers__every_package_has_an_exhaustive_contract():
+    # an exhaustive contract fails on a module that is in none of its layers; a package without such a contract
+    # (a new subpackage) would let its modules import each other in any order, unseen
+    import tomllib
+
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]["contracts"]
+    covered = {c for contract in contracts if contract.get("exhaustive") for c in contract.get("containers", [])}
+    tops = ("wfbench", "policies", "solvers", "leaderboard")
+    inits = [init for top in tops for init in (ROOT / top).rglob("__init__.py")]
+    packages = {".".join(init.parent.relative_to(ROOT).parts) for init in inits}
+    assert packages - covered == set(), (f"packages without an exhaustive import-linter contract in pyproject.toml: "
+                                         f"{sorted(packages - covered)}; give each its layers (docs/design.md, Layers)")
+    assert {"wfbench", "wfbench.core", "wfbench.cli", "wfbench.train", "leaderboard", "policies"} <= covered
+
+
 def test_layers__importing_the_core_pulls_nothing_above_it():
     code = ("import sys, wfbench; import wfbench.core.simulator, wfbench.core.observe, wfbench.core.placement; "
             "above = sorted(m for m in sys.modules if m.split('.')[0] in ('policies', 'leaderboard', 'solvers') "
