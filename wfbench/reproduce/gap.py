@@ -36,6 +36,7 @@ def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None
     import matplotlib.pyplot as plt
 
     from wfbench.core.bound import score_upper_bound
+    from wfbench.plots import save_figure
     from wfbench.stats import bootstrap_ci, paired_difference
 
     seeds = list(range(runs))
@@ -77,9 +78,8 @@ def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None
     ax.legend(ncols=4, loc="upper center", bbox_to_anchor=(0.5, -0.12), frameon=False)
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
-    png, svg = out / "gap.png", out / "gap.svg"
-    fig.savefig(png, dpi=110)
-    fig.savefig(svg)
+    # save_figure: an SVG without a creation date and with fixed ids, so the same numbers give the same file
+    png, svg = save_figure(fig, out / "gap.png"), save_figure(fig, out / "gap.svg")
     plt.close(fig)
     header = ["Scenario", *GAP_METHODS, "Upper bound", "oracle - solver (paired, 95% CI)", "bound - best",
               "oracle / bound (mean per seed)"]
