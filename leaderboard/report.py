@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from leaderboard.store import KPI_COLUMNS, Store
+from leaderboard.store import KPI_COLUMNS, Store, scrub_paths
 from leaderboard.tracks import Track
 from policies import get
 from wfbench.core.kpis import KPI_LABELS
@@ -37,7 +37,10 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
     wfbench's hindsight oracles (``reads_trace``) read the episode's future: they are
     kept in a separate, unranked "not deployable" section as a reference. The paired
     difference to ``baseline`` is taken over the seeds both have; incomplete and failed
-    submissions are listed after the ranked ones, with their status and reason.
+    submissions are listed after the ranked ones, with their status and reason. No
+    absolute path of the submitter's machine reaches the table (policy specs and reasons
+    show a file's name only, :func:`~leaderboard.store.scrub_paths`); an entry stored
+    without a fingerprint (an older wfbench) has ``fingerprint`` ``"legacy"``.
     """
     rows, refused = store.results(track)
     subs = {s.name: s for s in store.submissions(track.name)}
@@ -46,8 +49,9 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
     out = []
     for name, sub in subs.items():
         mine = rows[rows["name"] == name]
-        rec = {"name": name, "policy": sub.policy, "submitter": sub.submitter, "status": sub.status,
-               "reason": sub.reason, "seeds": len(mine), "builtin": sub.builtin}
+        rec = {"name": name, "policy": scrub_paths(sub.policy), "submitter": sub.submitter, "status": sub.status,
+               "reason": scrub_paths(sub.reason), "seeds": len(mine), "builtin": sub.builtin,
+               "fingerprint": sub.fingerprint or "legacy"}
         rec["deployable"] = not reads_future(sub.policy)
         rec["ranked"] = rec["deployable"] and sub.status == "complete" and len(mine) == n_test
         if len(mine):
@@ -107,7 +111,8 @@ def _cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[st
                 diff += f" on {int(t['common_seeds'])} seeds"
         else:
             diff = "-"
-        status = t["status"] + (f": {t['reason']}" if t["reason"] else "")
+        status = t["status"] + (" (legacy: no fingerprint)" if t["fingerprint"] == "legacy" else "") \
+            + (f": {t['reason']}" if t["reason"] else "")
         rank = str(int(t["rank"])) if pd.notna(t["rank"]) else "-"
         rows.append([rank, t["name"], t["policy"], *kpis, ci, diff, f"{t['seeds']}/{n}", status])
     return header, rows
@@ -160,15 +165,9 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
         return []
     names = shown["name"].tolist()
     figs = []
-    fig, ax = plt.subplots(figsize=(max(4, 0.8 * len(names) + 2), 3.2))
-    mean = shown["nsw"].to_numpy()
-    err = np.vstack([mean - shown["nsw_ci_low"].to_numpy(), shown["nsw_ci_high"].to_numpy() - mean])
-    ax.bar(range(len(names)), mean, yerr=err, capsize=4, color="#4c72b0")
-    ax.set_xticks(range(len(names)), names, rotation=30, ha="right")
-    ax.set_ylabel("mean NSW (95% CI)")
-    ax.set_ylim(max(0.0, float(np.nanmin(shown["nsw_ci_low"])) - 0.05), min(1.0, float(np.nanmax(mean)) + 0.05))
-    ax.set_title(f"Nash social welfare on {r.track.name}")
-    figs.append(("Nash social welfare with bootstrap 95% intervals", _png(fig)))
+    fig = nsw_figure(r)
+    figs.append(("Mean Nash social welfare with bootstrap 95% intervals, on its whole range [0, 1] (hatched: reads "
+                 "the future, not deployable)", _png(fig)))
     plt.close(fig)
     low, high = band = utilization_band(r.track.config)
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
@@ -181,6 +180,53 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     plt.close(fig)
     diffs = _paired_difference_figure(r, shown)
     return figs + ([diffs] if diffs else [])
+
+
+DEPLOYABLE_COLOR = "#4c72b0"
+ORACLE_COLOR = "#bbbbbb"
+ORACLE_HATCH = "//"
+ORACLE_LABEL = "reads the future, not deployable"
+
+
+def nsw_figure(r: Ranking):
+    """The bar chart of mean NSW with its 95% interval per entry that has rows, or None when none has.
+
+    The axis is NSW's whole range, 0 to 1 (a welfare in [0, 1]): a cut axis would
+    magnify the gaps. An oracle's bar (it reads the future) is gray and hatched and the
+    legend says it is not deployable.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    shown = r.table[r.table["seeds"] > 0] if not r.table.empty else r.table
+    if shown.empty:
+        return None
+    names = shown["name"].tolist()
+    fig, ax = plt.subplots(figsize=(max(4.5, 0.8 * len(names) + 2), 3.4))
+    mean = shown["nsw"].to_numpy()
+    err = np.vstack([mean - shown["nsw_ci_low"].to_numpy(), shown["nsw_ci_high"].to_numpy() - mean])
+    oracle = ~shown["deployable"].to_numpy(dtype=bool)
+    bars = ax.bar(range(len(names)), mean, yerr=err, capsize=4,
+                  color=[ORACLE_COLOR if o else DEPLOYABLE_COLOR for o in oracle],
+                  edgecolor=["#555555" if o else DEPLOYABLE_COLOR for o in oracle])
+    for bar, o in zip(bars, oracle, strict=True):
+        if o:
+            bar.set_hatch(ORACLE_HATCH)
+    for i, m in enumerate(mean):
+        ax.annotate(f"{m:.3f}", (i, 0.0), xytext=(0, 3), textcoords="offset points", ha="center", fontsize=8,
+                    color="black" if oracle[i] else "white")
+    ax.set_xticks(range(len(names)), names, rotation=30, ha="right")
+    ax.set_ylabel("mean NSW (95% CI)")
+    ax.set_ylim(0.0, 1.0)
+    ax.set_title(f"Nash social welfare on {r.track.name} (axis: its whole range, 0 to 1)", fontsize=10)
+    handles = [Patch(facecolor=DEPLOYABLE_COLOR, label="deployable")]
+    if oracle.any():
+        handles.append(Patch(facecolor=ORACLE_COLOR, edgecolor="#555555", hatch=ORACLE_HATCH, label=ORACLE_LABEL))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+    return fig
 
 
 def _paired_difference_figure(r: Ranking, shown: pd.DataFrame) -> tuple[str, str] | None:

@@ -10,11 +10,19 @@ Safety:
   schema version (``PRAGMA user_version``). Any other SQLite file, a file that is not
   SQLite, or a store from a newer wfbench is refused with a one-line message before
   anything is written.
-- Every result row stores the track hash, the seed, the policy spec, the submitter,
-  the wfbench version and the time, plus a digest over all of them and the KPIs. At
+- Every result row stores the track hash, the seed, the policy spec and its fingerprint
+  (a digest of what the policy runs, ``leaderboard.submit.policy_fingerprint``), the
+  submitter, the wfbench version and the time, plus a digest over all of them and the KPIs. At
   read time a row is refused, with the reason, when its hash is not the track's
   current hash (another version of the track), its seed is not a test seed of the
   track, or its digest does not match (the row was edited).
+- A name on a track belongs to one fingerprint. Rows never vanish: replacing an entry
+  (``--replace``, or the first resubmission of a legacy entry) or withdrawing it moves
+  its submission and rows, in the same transaction, to the audit tables
+  (``audit_submissions``, ``audit_results``) with the action, a note and the time.
+- Schema 1 (before fingerprints) is upgraded in place to schema 2 when opened, in one
+  transaction: the new columns are empty for the old rows, which stay valid (their
+  digest never covered a fingerprint) and are marked legacy.
 """
 
 from __future__ import annotations
@@ -23,6 +31,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import sqlite3
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -36,13 +45,11 @@ from leaderboard.tracks import Track
 from wfbench.core.kpis import KPI_NAMES
 
 APPLICATION_ID = 0x57464231  # "WFB1"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 1: no fingerprints, no audit tables (upgraded in place when opened)
 KPI_COLUMNS = KPI_NAMES  # the KPI table (wfbench.core.kpis); a new KPI there is a new column here
 ROW_COLUMNS = (*KPI_COLUMNS, "episode_length", "invalid_actions")
 
-_SCHEMA = """
-CREATE TABLE submissions (
-    id INTEGER PRIMARY KEY,
+_SUBMISSION_COLUMNS = """
     track TEXT NOT NULL,
     name TEXT NOT NULL,
     policy TEXT NOT NULL,
@@ -50,13 +57,12 @@ CREATE TABLE submissions (
     track_hash TEXT NOT NULL,
     wfbench_version TEXT NOT NULL,
     created_at TEXT NOT NULL,
-    status TEXT NOT NULL CHECK (status IN ('running', 'complete', 'failed')),
+    status TEXT NOT NULL,
     reason TEXT NOT NULL DEFAULT '',
     builtin INTEGER NOT NULL DEFAULT 0,
-    UNIQUE (track, name)
-);
-CREATE TABLE results (
-    submission_id INTEGER NOT NULL REFERENCES submissions(id),
+    fingerprint TEXT NOT NULL DEFAULT '',
+    fingerprint_detail TEXT NOT NULL DEFAULT ''"""
+_RESULT_COLUMNS = """
     seed INTEGER NOT NULL,
     track TEXT NOT NULL,
     track_hash TEXT NOT NULL,
@@ -71,13 +77,53 @@ CREATE TABLE results (
     episode_length INTEGER NOT NULL,
     invalid_actions INTEGER NOT NULL,
     digest TEXT NOT NULL,
-    PRIMARY KEY (submission_id, seed)
+    fingerprint TEXT NOT NULL DEFAULT ''"""
+# the audit tables: what replacing or withdrawing an entry took off the board, never deleted
+_AUDIT_SCHEMA = f"""
+CREATE TABLE audit_submissions (
+    audit_id INTEGER PRIMARY KEY,
+    submission_id INTEGER NOT NULL,{_SUBMISSION_COLUMNS},
+    action TEXT NOT NULL CHECK (action IN ('replaced', 'withdrawn')),
+    note TEXT NOT NULL,
+    moved_at TEXT NOT NULL
+);
+CREATE TABLE audit_results (
+    audit_id INTEGER NOT NULL REFERENCES audit_submissions(audit_id),
+    submission_id INTEGER NOT NULL,{_RESULT_COLUMNS},
+    PRIMARY KEY (audit_id, seed)
 );
 """
+_STATUS_CHECKED = "status TEXT NOT NULL CHECK (status IN ('running', 'complete', 'failed')),"
+_SCHEMA = f"""
+CREATE TABLE submissions (
+    id INTEGER PRIMARY KEY,{_SUBMISSION_COLUMNS.replace("status TEXT NOT NULL,", _STATUS_CHECKED)},
+    UNIQUE (track, name)
+);
+CREATE TABLE results (
+    submission_id INTEGER NOT NULL REFERENCES submissions(id),{_RESULT_COLUMNS},
+    PRIMARY KEY (submission_id, seed)
+);
+{_AUDIT_SCHEMA}"""
+# schema 1 -> 2, in one transaction
+_MIGRATE_1_TO_2 = f"""
+ALTER TABLE submissions ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
+ALTER TABLE submissions ADD COLUMN fingerprint_detail TEXT NOT NULL DEFAULT '';
+ALTER TABLE results ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
+{_AUDIT_SCHEMA}"""
+
 
 
 class StoreError(Exception):
     """A store that cannot be used as asked: printed as one line by the CLI."""
+
+
+class NameTaken(StoreError):
+    """The name is taken on the track by a policy with another fingerprint (or on another track version)."""
+
+    def __init__(self, existing: Submission, why: str):
+        super().__init__(why)
+        self.existing = existing
+        self.why = why  # "fingerprint" or "track"
 
 
 def default_path() -> Path:
@@ -90,14 +136,33 @@ def default_path() -> Path:
     return Path(platformdirs.user_data_dir("wfbench", appauthor=False)) / "results.sqlite"
 
 
+_ABS_PATH = re.compile(r"(?<![\w.~])(?:/|[A-Za-z]:\\)(?:[^\s:'\"()<>,;]*[/\\])?([^\s:'\"()<>,;/\\]+)")
+
+
+def scrub_paths(text: str, cwd: str | Path | None = None) -> str:
+    """``text`` with absolute paths made relative to ``cwd`` when they are under it, else cut to the file name."""
+    base = str(Path(cwd).resolve()) + os.sep if cwd is not None else None
+
+    def sub(m: re.Match) -> str:
+        path = m.group(0)
+        if base and path.startswith(base):
+            return path[len(base):]
+        return m.group(1)
+
+    return _ABS_PATH.sub(sub, text)
+
+
 def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def row_digest(name: str, track: str, track_hash: str, policy: str, submitter: str, version: str, seed: int,
-               values: dict[str, Any]) -> str:
+               values: dict[str, Any], fingerprint: str = "") -> str:
+    """sha256 over a row's provenance and values; a legacy row (no fingerprint) keeps its schema-1 digest."""
     payload = [name, track, track_hash, policy, submitter, version, int(seed)]
     payload += [float(values[c]).hex() if c in KPI_COLUMNS else int(values[c]) for c in ROW_COLUMNS]
+    if fingerprint:
+        payload.append(fingerprint)
     return hashlib.sha256(json.dumps(payload).encode()).hexdigest()
 
 
@@ -112,6 +177,12 @@ class Submission:
     status: str
     reason: str
     builtin: bool
+    fingerprint: str = ""  # "" for a legacy entry, stored before fingerprints (schema 1)
+    fingerprint_detail: str = ""  # JSON: what the fingerprint covers
+
+    @property
+    def legacy(self) -> bool:
+        return not self.fingerprint
 
 
 class Store:
@@ -182,6 +253,31 @@ class Store:
                              f"reads up to {SCHEMA_VERSION}): upgrade wfbench to read it")
         if not {"submissions", "results"} <= tables:
             raise StoreError(f"{self.path} is marked as a wfbench store but its tables are missing")
+        if version < SCHEMA_VERSION:
+            self._migrate()
+
+    def _migrate(self) -> None:
+        """Upgrade a schema-1 store in place, in one transaction (another process may be doing the same)."""
+        self.conn.execute("BEGIN IMMEDIATE")
+        try:
+            version = self.conn.execute("PRAGMA user_version").fetchone()[0]
+            if version == 1:
+                for stmt in _MIGRATE_1_TO_2.split(";"):
+                    if stmt.strip():
+                        self.conn.execute(stmt)
+                self.conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+            elif version != SCHEMA_VERSION:
+                raise StoreError(f"{self.path} has store schema {version}, which this wfbench cannot upgrade")
+            self.conn.execute("COMMIT")
+        except sqlite3.OperationalError as exc:
+            if self.conn.in_transaction:
+                self.conn.execute("ROLLBACK")
+            raise StoreError(f"cannot upgrade store {self.path} to schema {SCHEMA_VERSION}: {exc}; nothing was "
+                             "changed (is the file read-only?)") from None
+        except BaseException:
+            if self.conn.in_transaction:
+                self.conn.execute("ROLLBACK")
+            raise
 
     def _create(self) -> None:
         # one explicit transaction (executescript would commit on its own)
@@ -250,37 +346,99 @@ class Store:
     @staticmethod
     def _sub(r: sqlite3.Row) -> Submission:
         return Submission(r["id"], r["track"], r["name"], r["policy"], r["submitter"], r["track_hash"], r["status"],
-                          r["reason"], bool(r["builtin"]))
+                          r["reason"], bool(r["builtin"]), r["fingerprint"], r["fingerprint_detail"])
 
     def find(self, track: str, name: str) -> Submission | None:
         r = self.conn.execute("SELECT * FROM submissions WHERE track = ? AND name = ?", (track, name)).fetchone()
         return self._sub(r) if r else None
 
     def open_submission(self, track: Track, name: str, policy: str, submitter: str, version: str,
-                        builtin: bool = False) -> Submission:
-        """A new submission, or the existing one of that name to resume (same policy and track version)."""
+                        builtin: bool = False, fingerprint: str = "", fingerprint_detail: str = "",
+                        replace: bool = False) -> tuple[Submission, str]:
+        """The entry ``name`` of ``track`` for a policy with this fingerprint, in one transaction.
+
+        Returns the submission and what happened: ``"new"``, ``"resumed"`` (same
+        fingerprint and track version: only missing seeds are to be evaluated),
+        ``"replaced"`` (``replace``: the old entry went to the audit tables) or
+        ``"legacy"`` (the old entry had no fingerprint: it went to the audit tables, and
+        every seed is evaluated anew).
+
+        Raises:
+            NameTaken: the name is taken by another fingerprint or was made on another
+                version of the track, and ``replace`` is not set.
+        """
         if not name or len(name) > 100 or any(c in name for c in "\n\r\t"):
             raise StoreError(f"submission name {name!r} is not allowed; allowed: 1-100 characters, one line")
-        existing = self.find(track.name, name)
-        if existing is not None:
-            if existing.policy != policy:
-                raise StoreError(f"the name {name!r} is already taken on track {track.name} by policy "
-                                 f"{existing.policy!r}; choose another --name")
-            if existing.track_hash != track.hash:
-                raise StoreError(f"submission {name!r} was made on another version of track {track.name} "
-                                 f"(hash {existing.track_hash}, now {track.hash}); choose another --name")
-            self.set_status(existing.id, "running", "")
-            return self.find(track.name, name)  # type: ignore[return-value]
 
-        def insert(conn: sqlite3.Connection) -> None:
+        def open_(conn: sqlite3.Connection) -> str:
+            r = conn.execute("SELECT * FROM submissions WHERE track = ? AND name = ?", (track.name, name)).fetchone()
+            existing = self._sub(r) if r else None
+            action = "new"
+            if existing is not None:
+                if replace:
+                    self._archive(conn, existing, "replaced", f"replaced by --replace with fingerprint {fingerprint}")
+                    action = "replaced"
+                elif existing.legacy:
+                    self._archive(conn, existing, "replaced", "stored without a fingerprint (store schema 1); "
+                                  f"re-evaluated on resubmission with fingerprint {fingerprint}")
+                    action = "legacy"
+                elif existing.fingerprint != fingerprint:
+                    raise NameTaken(existing, "fingerprint")
+                elif existing.track_hash != track.hash:
+                    raise NameTaken(existing, "track")
+                else:
+                    conn.execute("UPDATE submissions SET status = 'running', reason = '' WHERE id = ?",
+                                 (existing.id,))
+                    return "resumed"
             conn.execute(
                 "INSERT INTO submissions (track, name, policy, submitter, track_hash, wfbench_version, created_at, "
-                "status, builtin) VALUES (?, ?, ?, ?, ?, ?, ?, 'running', ?)",
-                (track.name, name, policy, submitter, track.hash, version, _now(), int(builtin)),
+                "status, builtin, fingerprint, fingerprint_detail) VALUES (?, ?, ?, ?, ?, ?, ?, 'running', ?, ?, ?)",
+                (track.name, name, policy, submitter, track.hash, version, _now(), int(builtin), fingerprint,
+                 fingerprint_detail),
             )
+            return action
 
-        self._write(f"submission {name!r}", insert)
-        return self.find(track.name, name)  # type: ignore[return-value]
+        action = self._write(f"submission {name!r}", open_)
+        return self.find(track.name, name), action  # type: ignore[return-value]
+
+    def _archive(self, conn: sqlite3.Connection, sub: Submission, action: str, note: str) -> int:
+        """Move ``sub`` and its rows to the audit tables and off the board (inside the caller's transaction)."""
+        cols = [r[1] for r in conn.execute("PRAGMA table_info(submissions)") if r[1] != "id"]
+        cur = conn.execute(
+            f"INSERT INTO audit_submissions (submission_id, {', '.join(cols)}, action, note, moved_at) "
+            f"SELECT id, {', '.join(cols)}, ?, ?, ? FROM submissions WHERE id = ?", (action, note, _now(), sub.id))
+        audit_id = cur.lastrowid
+        rcols = [r[1] for r in conn.execute("PRAGMA table_info(results)")]
+        n = conn.execute(f"INSERT INTO audit_results (audit_id, {', '.join(rcols)}) "
+                         f"SELECT ?, {', '.join(rcols)} FROM results WHERE submission_id = ?",
+                         (audit_id, sub.id)).rowcount
+        conn.execute("DELETE FROM results WHERE submission_id = ?", (sub.id,))
+        conn.execute("DELETE FROM submissions WHERE id = ?", (sub.id,))
+        return n
+
+    def withdraw(self, track: str, name: str, note: str = "") -> int:
+        """Take the entry ``name`` off ``track``'s board: its rows go to the audit tables; returns how many.
+
+        Raises:
+            StoreError: no entry of that name on the track (the message names those there are).
+        """
+        def withdraw_(conn: sqlite3.Connection) -> int:
+            r = conn.execute("SELECT * FROM submissions WHERE track = ? AND name = ?", (track, name)).fetchone()
+            if r is None:
+                there = [x[0] for x in conn.execute("SELECT name FROM submissions WHERE track = ? ORDER BY id",
+                                                     (track,))]
+                raise StoreError(f"no entry {name!r} on track {track} in {self.path}; entries there: "
+                                 f"{', '.join(there) if there else 'none'}")
+            return self._archive(conn, self._sub(r), "withdrawn", note or "withdrawn")
+
+        return self._write(f"the withdrawal of {name!r}", withdraw_)
+
+    def audit(self, track: str | None = None) -> pd.DataFrame:
+        """The audit trail: one row per archived result (or per archived entry that had none), oldest first."""
+        q = ("SELECT a.audit_id, a.track, a.name, a.policy, a.fingerprint, a.status, a.action, a.note, a.moved_at, "
+             "r.seed, r.nsw, r.digest FROM audit_submissions a LEFT JOIN audit_results r ON r.audit_id = a.audit_id"
+             + (" WHERE a.track = ?" if track else "") + " ORDER BY a.audit_id, r.seed")
+        return pd.read_sql_query(q, self.conn, params=(track,) if track else ())
 
     def set_status(self, sub_id: int, status: str, reason: str = "") -> None:
         self._write("the submission status", lambda c: c.execute(
@@ -301,14 +459,15 @@ class Store:
             n = 0
             for row in rows:
                 seed = int(row["seed"])
-                digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed, row)
+                digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed, row,
+                                    sub.fingerprint)
                 cur = conn.execute(
                     "INSERT OR IGNORE INTO results (submission_id, seed, track, track_hash, policy, submitter, "
                     "wfbench_version, finished_at, workforce_cost, utilization, downtime, nsw, episode_length, "
-                    "invalid_actions, digest) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    "invalid_actions, digest, fingerprint) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                     (sub.id, seed, sub.track, sub.track_hash, sub.policy, sub.submitter, version, _now(),
                      *(float(row[c]) for c in KPI_COLUMNS), int(row["episode_length"]),
-                     int(row["invalid_actions"]), digest),
+                     int(row["invalid_actions"]), digest, sub.fingerprint),
                 )
                 n += cur.rowcount
             return n
@@ -333,12 +492,12 @@ class Store:
                 refused.append(f"{where}: seed {d['seed']} is not a test seed of track {track.name}; refused")
                 continue
             expected = row_digest(d["name"], d["track"], d["track_hash"], d["policy"], d["submitter"],
-                                  d["wfbench_version"], d["seed"], d)
+                                  d["wfbench_version"], d["seed"], d, d["fingerprint"])
             if expected != d["digest"]:
                 refused.append(f"{where}: its values do not match its digest (the row was edited); refused")
                 continue
             keep.append(d)
         df = pd.DataFrame(keep, columns=["name", "status", "builtin", "submission_id", "seed", "track", "track_hash",
                                          "policy", "submitter", "wfbench_version", "finished_at", *ROW_COLUMNS,
-                                         "digest"])
+                                         "digest", "fingerprint"])
         return df, refused

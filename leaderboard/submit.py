@@ -11,24 +11,40 @@ is stored); one that raises, returns malformed actions, overruns its act timeout
 (``act_timeout_s`` per ``reset``/``act`` call, :mod:`wfbench.guard`), hangs past the
 wall-time limit, exhausts its memory or kills its process marks the submission
 ``failed`` with a one-line reason naming its file and line, and every stored row and
-every other submission stay as they were. Submitting the same name and policy again
-resumes with the seeds still missing.
+every other submission stay as they were.
+
+Every entry carries the fingerprint of its policy (:func:`policy_fingerprint`, the rule
+in docs/leaderboard.md): submitting the same name with the same fingerprint resumes
+with the seeds still missing; another fingerprint under a taken name is refused unless
+``replace`` is set, which moves the old entry to the store's audit tables and evaluates
+every seed anew.
 """
 
 from __future__ import annotations
 
+import functools
 import getpass
+import hashlib
+import json
 import os
 import signal
+import sys
+import sysconfig
 import time
 import traceback
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from joblib.externals.loky.backend.context import get_context
 
-from leaderboard.store import ROW_COLUMNS, Store, Submission
+import policies as _policies_pkg
+import solvers as _solvers_pkg
+from leaderboard.store import ROW_COLUMNS, NameTaken, Store, Submission, scrub_paths
 from leaderboard.tracks import Track, get_track
+from policies import registry as _registry
+from policies import tuned as _tuned
+from policies.neural import CHECKPOINT_ALGORITHMS
 from wfbench import __version__
 from wfbench.backends import check_backend, run_chunks, shutdown_pools
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError, check_act_timeout, load_policy
@@ -55,6 +71,134 @@ class Outcome:
     stored_rows: int
     seconds: float
     trace: str = ""  # the failure's whole traceback, formatted in the child (for --traceback)
+    action: str = "resumed"  # new | resumed | replaced | legacy (Store.open_submission)
+
+
+# -- fingerprints ----------------------------------------------------------------------------------------------
+_WFBENCH_ROOT = Path(__file__).resolve().parents[1]
+# files that are not the user's: the Python installation, installed packages and wfbench's own packages
+_NOT_USER = tuple(
+    {str(Path(sysconfig.get_paths()[k]).resolve()) + os.sep for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+    | {str(_WFBENCH_ROOT / pkg) + os.sep for pkg in ("wfbench", "policies", "solvers", "leaderboard")}
+)
+
+
+def _sha(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@functools.lru_cache(maxsize=1)
+def policy_code_digest() -> str:
+    """sha256 over wfbench's policy code (every ``.py`` of ``policies`` and ``solvers``) and its version."""
+    h = hashlib.sha256(__version__.encode())
+    for pkg in (_policies_pkg, _solvers_pkg):
+        root = Path(pkg.__file__).resolve().parent
+        for f in sorted(root.rglob("*.py")):
+            h.update(f"{pkg.__name__}/{f.relative_to(root).as_posix()}".encode())
+            h.update(hashlib.sha256(f.read_bytes()).digest())
+    return h.hexdigest()
+
+
+def _file_digest(spec: str, path: str | Path) -> str:
+    try:
+        return _sha(path)
+    except OSError as exc:
+        raise SubmitError(f"cannot read {str(path)!r} of policy {spec!r}: {exc.strerror or exc}") from None
+
+
+def _checkpoint(spec: str) -> tuple[str, str, str] | None:
+    """``ALGO:PATH[@MODE]`` -> (algo, path, mode), as the registry reads it; None for other specs."""
+    algo, sep, rest = spec.partition(":")
+    if not sep or algo not in CHECKPOINT_ALGORITHMS:
+        return None
+    path, _, mode = rest.rpartition("@") if "@" in rest else (rest, "", "sample")
+    return algo, path, mode
+
+
+def is_entry_point(spec: str) -> bool:
+    """True for a ``module:attr`` entry point (the user's code), False for names, files and checkpoints."""
+    return ":" in spec and _checkpoint(spec) is None and not _tuned.is_tuned_spec(spec)
+
+
+def policy_fingerprint(spec: str, policy: Any = None) -> tuple[str, dict[str, Any]]:
+    """The fingerprint of what ``spec`` runs (16 hex digits) and what it covers.
+
+    - a registry name (composite, ``D+W+P``, shipped tuned file or network): the name,
+      :func:`policy_code_digest`, and the bytes of the shipped file it loads;
+    - a tuned-policy file (``.json``/``.toml``/``tuned:``): its bytes and the policy code
+      digest (it parameterizes a built-in);
+    - a checkpoint ``ALGO:PATH[@MODE]``: its bytes, the algorithm and the mode (not the path);
+    - a ``module:attr`` entry point: the entry point, every loaded module of its top-level
+      package, every other loaded module whose file is the user's (not in the Python
+      installation, installed packages or wfbench), each by module name and file bytes,
+      and ``policy.params()`` where the loaded ``policy`` declares it. Computed after the
+      policy is loaded, in the process that loaded it.
+
+    Raises:
+        SubmitError: a file the policy names cannot be read.
+    """
+    detail: dict[str, Any]
+    checkpoint = _checkpoint(spec)
+    name = spec.partition("@")[0]
+    if checkpoint is not None:
+        algo, path, mode = checkpoint
+        detail = {"kind": "checkpoint", "algo": algo, "mode": mode, "file": _file_digest(spec, path)}
+    elif _tuned.is_tuned_spec(spec):
+        detail = {"kind": "tuned-file", "file": _file_digest(spec, _tuned.spec_path(spec)),
+                  "code": policy_code_digest()}
+    elif ":" not in spec:
+        detail = {"kind": "builtin", "spec": spec, "code": policy_code_digest()}
+        if spec in _registry.TUNED:
+            detail["file"] = _file_digest(spec, _tuned.TUNED_DIR / _registry.TUNED[spec][0])
+        elif name in _registry.LEARNED:
+            detail["file"] = _file_digest(spec, _registry.CHECKPOINT_DIR / _registry.LEARNED[name][0])
+    else:
+        top = spec.partition(":")[0].split(".")[0]
+        files = {}
+        for mod_name, mod in sorted(sys.modules.items()):
+            f = getattr(mod, "__file__", None)
+            if not isinstance(f, str) or not os.path.isfile(f):
+                continue
+            mine = mod_name == top or mod_name.startswith(top + ".")
+            if mine or not str(Path(f).resolve()).startswith(_NOT_USER):
+                files[mod_name] = _file_digest(spec, f)
+        detail = {"kind": "entry-point", "entry": spec, "files": files}
+        params = getattr(policy, "params", None)
+        if callable(params):
+            values = params()
+            if isinstance(values, dict):
+                detail["params"] = {str(k): repr(v) for k, v in sorted(values.items(), key=lambda kv: str(kv[0]))}
+    text = json.dumps(detail, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:16], detail
+
+
+def fingerprint_change(old: str, new: dict[str, Any]) -> str:
+    """What differs between a stored fingerprint's detail (JSON) and a new one, in a few words."""
+    try:
+        before = json.loads(old) if old else {}
+    except json.JSONDecodeError:
+        before = {}
+    if not before:
+        return "the stored entry has no fingerprint details"
+    if before.get("kind") != new.get("kind"):
+        return f"a {new.get('kind')} instead of a {before.get('kind')}"
+    out = []
+    for key, what in (("spec", "another registry name"), ("entry", "another entry point"),
+                      ("algo", "another algorithm"), ("mode", "another mode"), ("file", "the file's bytes differ"),
+                      ("code", "wfbench's policy code changed")):
+        if before.get(key) != new.get(key):
+            out.append(what)
+    old_files, new_files = before.get("files", {}), new.get("files", {})
+    for label, mods in (("changed", [m for m in new_files if m in old_files and new_files[m] != old_files[m]]),
+                        ("new", [m for m in new_files if m not in old_files]),
+                        ("gone", [m for m in old_files if m not in new_files])):
+        if mods:
+            out.append(f"{label}: {', '.join(mods[:5])}{', ...' if len(mods) > 5 else ''}")
+    if before.get("params") != new.get("params"):
+        out.append("its params() differ")
+    return "; ".join(out) or "the fingerprint differs"
+
+
 
 
 def _where(exc: BaseException) -> str:
@@ -67,13 +211,15 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
-def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chunk_size, memory_mb,
+def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size, memory_mb,
            act_timeout_s) -> None:
     """Runs in the child process: load the policy, then stream finished rows to the parent.
 
-    Messages: ``("note", text)``, ``("load_error", line, trace)``, ``("ready",)``,
-    ``("rows", rows)``, ``("done",)``, ``("error", line, trace)``. The child leads its own
-    process group, so the parent can stop it together with any worker processes it started.
+    Messages to the parent: ``("note", text)``, ``("load_error", line, trace)``,
+    ``("ready", fingerprint, detail)`` (both ``None`` unless the policy is an entry point),
+    ``("rows", rows)``, ``("done",)``, ``("error", line, trace)``; from the parent, after
+    ready: ``("run", seeds)`` or ``("stop",)``. The child leads its own process group, so
+    the parent can stop it together with any worker processes it started.
     """
     try:
         os.setsid()
@@ -104,7 +250,22 @@ def _child(conn, policy_spec: str, config, seeds, backend, workers, address, chu
                    "future, and the leaderboard ranks deployable policies only (its 'not deployable' section "
                    "holds wfbench's own oracles); compare it with 'wfbench compare' instead", ""))
         return
-    conn.send(("ready",))
+    fingerprint = detail = None
+    if is_entry_point(policy_spec):
+        try:
+            fingerprint, detail = policy_fingerprint(policy_spec, loaded.policy)
+        except SubmitError as exc:
+            conn.send(("load_error", str(exc), ""))
+            return
+        except Exception as exc:  # noqa: BLE001 - the policy's params() raised
+            conn.send(("load_error", f"policy {policy_spec!r}: its params() raised {_one_line(exc)}{_where(exc)}",
+                       traceback.format_exc()))
+            return
+    conn.send(("ready", fingerprint, detail))
+    msg = conn.recv()
+    if msg[0] != "run":
+        return
+    seeds = msg[1]
     try:
         for batch in run_chunks(loaded, config, seeds, backend=backend, workers=workers, address=address,
                                 chunk_size=chunk_size, threads=1 if backend == "serial" else None):
@@ -126,7 +287,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
            backend: str = "process", workers: int | None = None, address: str | None = None,
            wall_time_s: float = DEFAULT_WALL_TIME_S, memory_mb: int | None = DEFAULT_MEMORY_MB,
            chunk_size: int | None = None, progress: bool = False, builtin: bool = False,
-           act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S) -> Outcome:
+           act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, replace: bool = False) -> Outcome:
     """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows.
 
     Args:
@@ -145,13 +306,16 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         builtin: mark the entry as one of wfbench's own.
         act_timeout_s: limit of each ``reset``/``act`` call of a user's policy in
             seconds; ``None`` or 0 for none.
+        replace: when the name is taken, move its entry to the audit tables and
+            evaluate every seed anew (whatever the fingerprints).
 
     Returns:
         The outcome: ``complete``, or ``failed`` with a one-line reason and its trace.
 
     Raises:
         SubmitError: the submission cannot start (unknown track or policy, a policy that
-            cannot be loaded, a name taken, bad limits); nothing is stored.
+            cannot be loaded, a name taken by another fingerprint without ``replace``,
+            bad limits); nothing is stored.
     """
     try:
         tr = track if isinstance(track, Track) else get_track(track)
@@ -171,30 +335,31 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         except PolicyLoadError as exc:
             raise SubmitError(str(exc)) from None
     submitter = submitter or getpass.getuser()
+    fingerprint, detail = (None, None) if is_entry_point(policy) else policy_fingerprint(policy)
     store = db if isinstance(db, Store) else Store(db)
     t0 = time.perf_counter()
     existing = store.find(tr.name, name)
-    if existing is not None and existing.policy != policy:
-        raise SubmitError(f"the name {name!r} is already taken on track {tr.name} by policy {existing.policy!r}; "
-                          "choose another --name")
-    done = store.done_seeds(existing.id) if existing else set()
-    missing = [s for s in tr.test_seeds if s not in done]
-    if existing is not None and not missing:
-        if existing.status != "complete":
-            store.set_status(existing.id, "complete", "")
-        sub = store.find(tr.name, name)
-        return Outcome(sub, "complete", "", 0, len(done), time.perf_counter() - t0)  # type: ignore[arg-type]
+    if existing is not None and fingerprint is not None and not replace and not existing.legacy:
+        _check_taken(existing, tr, name, policy, fingerprint, detail)  # no child needed to refuse
+        done = store.done_seeds(existing.id)
+        if all(s in done for s in tr.test_seeds):  # nothing to evaluate, and no user code to load
+            if existing.status != "complete":
+                store.set_status(existing.id, "complete", "")
+            sub = store.find(tr.name, name)
+            return Outcome(sub, "complete", "", 0, len(done), time.perf_counter() - t0)  # type: ignore[arg-type]
     chunk = chunk_size or 5
     # loky's process: a fresh interpreter that does not re-import __main__ (multiprocessing's
     # spawn would run a guard-less calling script again in the child)
     ctx = get_context("loky")
-    parent_conn, child_conn = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child_conn, policy, tr.config, missing, backend, workers, address,
+    parent_conn, child_conn = ctx.Pipe(duplex=True)
+    proc = ctx.Process(target=_child, args=(child_conn, policy, tr.config, backend, workers, address,
                                             chunk, memory_mb, act_timeout_s), daemon=False)
     proc.start()
     child_conn.close()
+    done: set[int] = set()
+    action = "resumed"
     bar = None
-    sub: Submission | None = existing
+    sub: Submission | None = None
     new_rows = 0
     status, reason, trace = "failed", "", ""
     child_ends = False  # the child said done or error and exits by itself
@@ -219,7 +384,22 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                 if kind == "load_error":
                     raise SubmitError(msg[1])
                 if kind == "ready":
-                    sub = store.open_submission(tr, name, policy, submitter, __version__, builtin=builtin)
+                    if fingerprint is None:
+                        fingerprint, detail = msg[1], msg[2]
+                    try:
+                        sub, action = store.open_submission(
+                            tr, name, policy, submitter, __version__, builtin=builtin, fingerprint=fingerprint,
+                            fingerprint_detail=json.dumps(detail, sort_keys=True), replace=replace)
+                    except NameTaken as exc:
+                        _check_taken(exc.existing, tr, name, policy, fingerprint, detail)
+                        raise
+                    done = store.done_seeds(sub.id)
+                    missing = [s for s in tr.test_seeds if s not in done]
+                    if not missing:
+                        parent_conn.send(("stop",))
+                        status, child_ends = "complete", True
+                        break
+                    parent_conn.send(("run", missing))
                     if progress:
                         from tqdm.auto import tqdm
 
@@ -253,9 +433,25 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     stored = len(store.done_seeds(sub.id))
     if status == "complete" and stored < len(tr.test_seeds):
         status, reason = "failed", f"only {stored} of {len(tr.test_seeds)} seeds were stored"
-    store.set_status(sub.id, status, reason)
+    # the board shows the stored reason: no absolute path of the submitter's machine (the caller gets it whole)
+    store.set_status(sub.id, status, scrub_paths(reason, os.getcwd()))
     return Outcome(store.find(tr.name, name), status, reason, new_rows, stored,  # type: ignore[arg-type]
-                   time.perf_counter() - t0, trace)
+                   time.perf_counter() - t0, trace, action)
+
+
+def _check_taken(existing: Submission, tr: Track, name: str, policy: str, fingerprint: str,
+                 detail: dict[str, Any] | None) -> None:
+    """Raise the one-line SubmitError when ``name`` is taken by another fingerprint or track version."""
+    how = ("pass --replace to evaluate this policy under that name (the old entry's rows are kept in the store's "
+           "audit tables) or choose another --name")
+    if existing.fingerprint != fingerprint:
+        change = fingerprint_change(existing.fingerprint_detail, detail or {})
+        raise SubmitError(f"the name {name!r} on track {tr.name} is taken by a different policy ({existing.policy!r}, "
+                          f"fingerprint {existing.fingerprint}; now {policy!r}, fingerprint {fingerprint}: {change}); "
+                          f"{how}")
+    if existing.track_hash != tr.hash:
+        raise SubmitError(f"the entry {name!r} was made on another version of track {tr.name} (hash "
+                          f"{existing.track_hash}, now {tr.hash}); {how}")
 
 
 def _stop(proc) -> None:
@@ -281,6 +477,18 @@ def _death_reason(exitcode: int | None, memory_mb: int | None) -> str:
 
 def seed_builtins(track: str | Track, db: Any = None, names: tuple[str, ...] = BUILTIN_ENTRIES,
                   progress: bool = False, **kwargs: Any) -> list[Outcome]:
-    """Submit (or resume) the built-in policies under their registry names."""
-    return [submit(track, n, n, submitter="wfbench", db=db, builtin=True, progress=progress, **kwargs)
-            for n in names]
+    """Submit (or resume) the built-in policies under their registry names.
+
+    A built-in entry whose fingerprint is not the current code's (wfbench's policy code
+    changed since it was stored) is replaced: its rows go to the audit tables.
+    """
+    tr = track if isinstance(track, Track) else get_track(track)
+    store = db if isinstance(db, Store) else Store(db)
+    out = []
+    for n in names:
+        existing = store.find(tr.name, n)
+        stale = existing is not None and not existing.legacy and (
+            existing.fingerprint != policy_fingerprint(n)[0] or existing.track_hash != tr.hash)
+        out.append(submit(tr, n, n, submitter="wfbench", db=store, builtin=True, progress=progress, replace=stale,
+                          **kwargs))
+    return out

@@ -109,7 +109,10 @@ def test_unloadable_policy_is_a_user_error_and_stores_nothing(db):
 
 def test_name_taken_by_another_policy(db):
     submit(TINY, "heuristic", "mine", db=db, **_fast())
-    with pytest.raises(SubmitError, match="already taken on track tiny-test by policy 'heuristic'"):
+    with pytest.raises(SubmitError, match=r"the name 'mine' on track tiny-test is taken by a different policy "
+                                          r"\('heuristic', fingerprint [0-9a-f]{16}; now 'random', fingerprint "
+                                          r"[0-9a-f]{16}: another registry name\); pass --replace .* or choose "
+                                          r"another --name$"):
         submit(TINY, "random", "mine", db=db, **_fast())
 
 

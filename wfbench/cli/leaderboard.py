@@ -1,4 +1,4 @@
-"""``wfbench leaderboard``: submit policies to tracks, seed the built-in entries, show the rankings."""
+"""``wfbench leaderboard``: submit policies to tracks, seed the built-in entries, withdraw one, show the rankings."""
 
 from __future__ import annotations
 
@@ -29,6 +29,8 @@ def add_parser(sub) -> None:
     ls.add_argument("--wall-time", type=float, default=3600.0, help="seconds before the evaluation is stopped")
     ls.add_argument("--memory", type=positive, default=8192, help="memory limit of the evaluation in MiB")
     ls.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    ls.add_argument("--replace", action="store_true",
+                    help="the name is taken: move its entry to the store's audit tables and evaluate every seed anew")
     add_backend_args(ls)
     add_policy_run_args(ls)
     lw = lsub.add_parser("show", help="the ranking of a track")
@@ -43,6 +45,11 @@ def add_parser(sub) -> None:
     ld.add_argument("--no-progress", action="store_true")
     add_backend_args(ld)
     lsub.add_parser("tracks", help="list the tracks with their hashes and seeds")
+    lx = lsub.add_parser("withdraw", help="take an entry off a track's board (its rows go to the audit tables)")
+    lx.add_argument("--name", required=True, help="the entry's name")
+    lx.add_argument("--track", default="paper-64")
+    lx.add_argument("--reason", default="", help="why, kept in the audit tables")
+    lx.add_argument("--db", default=None, help="store file (default: $WFBENCH_DB or the user data folder)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,19 +76,30 @@ def run(args: argparse.Namespace) -> int:
             check_backend_args(args)
             out = submit(tr, args.policy, args.name, submitter=args.submitter, db=args.db, backend=args.backend,
                          workers=args.workers, address=args.address, wall_time_s=args.wall_time,
-                         memory_mb=args.memory, progress=not args.no_progress, act_timeout_s=args.act_timeout)
+                         memory_mb=args.memory, progress=not args.no_progress, act_timeout_s=args.act_timeout,
+                         replace=args.replace)
             store = Store(args.db)
+            moved = {"replaced": "; the entry it replaced is in the audit tables",
+                     "legacy": "; its rows stored without a fingerprint (an older wfbench) are in the audit tables"}
             if out.status == "complete":
                 print(f"{args.name} on {tr.name}: complete, {out.stored_rows} seeds stored ({out.new_rows} new) "
-                      f"in {store.path}, {out.seconds:.1f} s")
+                      f"in {store.path}, {out.seconds:.1f} s{moved.get(out.action, '')}")
                 return 0
             if args.traceback and out.trace:
                 print(out.trace, end="" if out.trace.endswith("\n") else "\n", file=sys.stderr)
             print(f"wfbench: submission {args.name!r} on {tr.name} failed: {out.reason} "
-                  f"({out.stored_rows} seeds kept in {store.path}; fix the policy and submit again to resume"
+                  f"({out.stored_rows} seeds kept in {store.path}; submit again to resume, or with --replace once "
+                  "the policy is changed"
                   f"{'' if args.traceback or not out.trace else '; --traceback prints the whole trace'})",
                   file=sys.stderr)
             return EXIT_POLICY_FAILED
+        if args.lb_command == "withdraw":
+            tr = track(args.track)
+            store = Store(args.db, create=False)
+            n = store.withdraw(tr.name, args.name, args.reason)
+            print(f"withdrew {args.name!r} from track {tr.name}: its entry and {n} rows moved to the audit tables "
+                  f"of {store.path}")
+            return 0
         if args.lb_command == "seed":
             check_backend_args(args)
             tracks = [track(args.track)] if args.track else list(TRACKS.values())
