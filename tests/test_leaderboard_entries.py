@@ -238,7 +238,8 @@ def test_nsw_axis_starts_at_zero_and_oracles_look_apart(db):
     assert "whole range" in ax.get_title()
 
 
-def test_the_board_shows_no_absolute_path(db):
+def test_the_board_shows_no_absolute_path(db, monkeypatch):
+    monkeypatch.chdir(ROOT)  # the submission's working folder: stored paths are relative to it
     submit(TINY, "tests.lb_policies:Raises", "broken", db=db, **_fast())
     store = Store(db)
     sub = store.find(TINY.name, "broken")
