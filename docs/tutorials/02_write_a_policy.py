@@ -51,11 +51,15 @@ print(workdir)
 # the dispatch rule.
 #
 # The leaderboard and the command line name a policy as `module:attr` and run it in a
-# fresh process that cannot see this notebook, so the cell below is saved to a file
-# (`%%writefile`), and `%run` defines the same class here, as if the cell had run.
+# fresh process that cannot see this notebook, so the policy is a module: the cell below
+# holds its source and writes it to `my_policy.py` in the scratch folder, and the cell
+# after runs the same source here (`exec`), which defines the class in this notebook as if
+# its code had been typed into a cell. Plain Python, so this file runs the same as a
+# notebook and as a script (`python 02_write_a_policy.py`); in Jupyter, `%%writefile`
+# and `%run` would do the same.
 
 # %%
-# %%writefile {workdir}/my_policy.py
+POLICY_SOURCE = '''\
 import numpy as np
 
 import policies
@@ -94,9 +98,16 @@ class LongestDownFirst:
 def make_policy():
     """The whole policy: our dispatch with the paper's workforce and positioning heuristics."""
     return policies.Composite(dispatch=LongestDownFirst(), workforce="threshold", positioning="spatial")
+'''
+policy_file = workdir / "my_policy.py"
+policy_file.write_text(POLICY_SOURCE)
+print("wrote", policy_file)
 
 # %%
-# %run {workdir}/my_policy.py
+# the module's code run here, its classes in __main__ as if typed into a cell (so pickled by value)
+here = {"__name__": "__main__"}
+exec(compile(POLICY_SOURCE, str(policy_file), "exec"), here)
+LongestDownFirst, make_policy = here["LongestDownFirst"], here["make_policy"]
 
 mine = make_policy()
 assert isinstance(mine, policies.Policy)  # the protocol, checked at run time
@@ -122,7 +133,7 @@ assert (runs[mine.name]["invalid_actions"] == 0).all()  # only free people, only
 # gives the same numbers on all three, which the next cells check. What travels to the
 # workers is the policy object, pickled by cloudpickle:
 #
-# - a class defined in the notebook (here, through `%run`) lives in `__main__`, and
+# - a class defined in the notebook (here, through `exec`) lives in `__main__`, and
 #   cloudpickle sends it **by value**: its code goes with the object, and the workers
 #   need nothing installed but wfbench. Both `process` and `ray` run it, also on a
 #   Ray cluster (`address=`);

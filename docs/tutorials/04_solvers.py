@@ -26,6 +26,7 @@
 
 # %%
 import itertools
+import os
 import time
 from pathlib import Path
 
@@ -36,10 +37,19 @@ from solvers import assignment, facility_location, orlib
 
 
 def orlib_folder() -> Path:
-    """The OR-Library instances the repository keeps in tests/data/orlib, found from here or a parent folder."""
-    for folder in (Path.cwd(), *Path.cwd().parents):
-        if (folder / "tests" / "data" / "orlib").is_dir():
-            return folder / "tests" / "data" / "orlib"
+    """The OR-Library instances: the folder in $ORLIB, or the repository's tests/data/orlib.
+
+    The repository's is found from the working folder or a parent, or (run as a script) from the script's folder.
+    """
+    if os.environ.get("ORLIB"):
+        return Path(os.environ["ORLIB"])
+    starts = [Path.cwd()]
+    if "__file__" in globals():  # run as a script, from anywhere: also the checkout the script lives in
+        starts.append(Path(__file__).resolve().parent)
+    for start in starts:
+        for folder in (start, *start.parents):
+            if (folder / "tests" / "data" / "orlib").is_dir():
+                return folder / "tests" / "data" / "orlib"
     raise FileNotFoundError("run this notebook inside a wfbench checkout, or download assign100.txt and "
                             "pmed1.txt from http://people.brunel.ac.uk/~mastjjb/jeb/orlib/files/ into "
                             "assign/ and pmed/ of a folder and set ORLIB to that folder")
