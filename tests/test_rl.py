@@ -224,6 +224,24 @@ def test_rl__train_resume_evaluate_end_to_end(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
 
 
+def test_rl__a_run_without_evaluation_writes_its_last_weights_as_best_pt(tmp_path, capsys):
+    """``--eval-every 0``: best.pt exists (the README evaluates it), holds the last weights, says it was not chosen."""
+    run = tmp_path / "run"
+    assert cli_main(["train", "--scenario", "small", "--model", "tiny", "--num-envs", "4", "--num-steps", "8",
+                     "--steps", "64", "--epochs", "1", "--eval-every", "0", "--run-dir", str(run), "--no-progress",
+                     "--no-tensorboard", "--seed", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "best.pt: the last weights, not selected (no evaluation on the public seeds ran: --eval-every 0)" in out
+    best, latest = (torch.load(run / f, weights_only=False) for f in ("best.pt", "latest.pt"))
+    assert best["best"]["selected"] is False and best["best"]["score"] is None and best["best"]["update"] == 2
+    assert latest["best"]["update"] is None, "the trainer's own best stays unset: a resume with evaluation replaces it"
+    assert best["model"].keys() == latest["model"].keys()
+    assert all(torch.equal(best["model"][k], latest["model"][k]) for k in latest["model"])
+    assert "optimizer" not in best  # a policy, not a resume point
+    df = wfbench.evaluate(f"ppo:{run / 'best.pt'}", "small", seeds=[0], backend="serial")
+    assert df["nsw"].between(0, 1).all()
+
+
 def test_rl__independent_agents_train_as_one_network_per_decision(tmp_path, capsys):
     from policies.neural.model import AgentSet
 

@@ -118,9 +118,14 @@ def run(args: argparse.Namespace) -> int:
     trainer.train()
     best = trainer.best
     print(f"trained {trainer.global_step} environment steps ({algo}) in {config.run_dir}")
+    best_pt = Path(config.run_dir) / "best.pt"
     if best["update"] is not None:
         print(f"best.pt: update {best['update']}, mean NSW {best['score']:.4f} on public seeds "
               f"{best['seeds'][0]}-{best['seeds'][-1]} ({best['mode']}); evaluate with "
-              f"wfbench evaluate --policy {algo}:{Path(config.run_dir) / 'best.pt'}")
+              f"wfbench evaluate --policy {algo}:{best_pt}")
+    else:  # RunOutputs wrote the last weights as best.pt (docs/rl.md)
+        why = "--eval-every 0" if not config.eval_every else f"fewer than --eval-every {config.eval_every} updates"
+        print(f"best.pt: the last weights, not selected (no evaluation on the public seeds ran: {why}); evaluate "
+              f"with wfbench evaluate --policy {algo}:{best_pt}")
     print(f"latest.pt: {Path(config.run_dir) / 'latest.pt'}")
     return 0

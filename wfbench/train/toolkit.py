@@ -461,7 +461,8 @@ class RunOutputs:
     ``initial`` of ``total`` environment steps done). Inside, the loop calls
     :meth:`scalars`, :meth:`public` (after scoring the public seeds: logs the score and keeps
     ``best.pt``), :meth:`checkpoint` and :meth:`advance`. Leaving the block saves
-    ``latest.pt``; Ctrl-C saves it too, says how to resume and re-raises. ``unit`` names the
+    ``latest.pt``, and ``best.pt`` = the last weights when no evaluation selected one
+    (:meth:`unselected_best`); Ctrl-C saves it too, says how to resume and re-raises. ``unit`` names the
     trainer's counter attribute (``"update"`` or ``"iteration"``) for that message.
     ``cleanup`` (IMPALA: stop the actors) runs however the block is left: after the save
     on Ctrl-C, before it on a normal exit, so neither waits on the other going wrong.
@@ -505,6 +506,21 @@ class RunOutputs:
             if self.bar:
                 self.bar.close()
             t.save(latest)
+            if t.best["update"] is None:
+                self.unselected_best()
+
+    def unselected_best(self) -> None:
+        """``best.pt`` = the last weights, when no evaluation chose one (``--eval-every 0``, or a run too short).
+
+        So ``ALGO:RUN/best.pt`` names a policy after every run; its ``best`` entry says it was not
+        selected (``selected: False``, no score). The trainer's own ``best`` stays unset, so a resumed
+        run with evaluation replaces this file at its first score.
+        """
+        t = self.trainer
+        ckpt = t.checkpoint()
+        ckpt["best"] = {"score": None, "update": ckpt["update"], "global_step": t.global_step, "mode": None,
+                        "selected": False, "why": "no evaluation on the public seeds ran: the last weights"}
+        save_atomic(ckpt, t.run_dir / "best.pt")
 
     def scalars(self, prefix: str, values: dict, keys=None) -> None:
         """TensorBoard ``prefix/key`` for each of ``keys`` (default: all) present in ``values``, at the global step."""
