@@ -6,6 +6,7 @@ And ``module:attr`` entry points.
 from __future__ import annotations
 
 import importlib
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +111,31 @@ def load_tuned(path: Any) -> Any:
     """The policy a tuned-policy file describes (:mod:`policies.tuned`); ValueError names what is wrong."""
     spec = _tuned.read(path)
     return _tuned.build(spec, get(spec.base), path)
+
+
+class ScenarioMismatchWarning(UserWarning):
+    """A trained network evaluated on another scenario than the one its checkpoint was trained on."""
+
+
+def warn_if_trained_elsewhere(policy: Any, scenario: str, stacklevel: int = 3) -> bool:
+    """Warn (:class:`ScenarioMismatchWarning`) when ``policy`` was trained on another scenario than ``scenario``.
+
+    A checkpoint's policy carries ``trained_on`` (the scenario its checkpoint records); any
+    other policy has none and never warns. The evaluator calls this once per evaluation, in
+    the process that started it, so the warning is neither lost in a worker nor repeated per
+    chunk of seeds. ``stacklevel`` 3 points the warning at the caller of the evaluator.
+
+    Returns:
+        Whether it warned.
+    """
+    trained_on = getattr(policy, "trained_on", None)
+    if not trained_on or trained_on == scenario:
+        return False
+    name = getattr(policy, "name", None) or type(policy).__qualname__
+    warnings.warn(f"policy {name!r} was trained on scenario {trained_on!r} and is evaluated on {scenario!r}: "
+                  "it runs, but what it learned is of another scenario", ScenarioMismatchWarning,
+                  stacklevel=stacklevel)
+    return True
 
 
 def get(spec: Any) -> Any:

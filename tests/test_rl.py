@@ -10,6 +10,7 @@
 
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -240,6 +241,26 @@ def test_rl__a_run_without_evaluation_writes_its_last_weights_as_best_pt(tmp_pat
     assert "optimizer" not in best  # a policy, not a resume point
     df = wfbench.evaluate(f"ppo:{run / 'best.pt'}", "small", seeds=[0], backend="serial")
     assert df["nsw"].between(0, 1).all()
+
+
+def test_rl__a_network_on_another_scenario_is_named_once_with_both_scenarios():
+    """A shipped paper-64 network knows its scenario; on ``small`` the check warns naming both, on paper-64 not."""
+    from policies.registry import ScenarioMismatchWarning, warn_if_trained_elsewhere
+
+    for name in ("ppo-joint", "ppo-dispatch"):  # a network alone, and one inside a composite with the heuristics
+        policy = policies.get(name)
+        assert policy.trained_on == "paper-64"
+        with pytest.warns(ScenarioMismatchWarning) as caught:
+            assert warn_if_trained_elsewhere(policy, "small")
+        assert len(caught) == 1
+        assert str(caught[0].message).startswith(f"policy '{name}' was trained on scenario 'paper-64' and is "
+                                                 "evaluated on 'small'")
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert not warn_if_trained_elsewhere(policy, "paper-64")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not warn_if_trained_elsewhere(policies.get("heuristic"), "small")  # not trained: no scenario
 
 
 def test_rl__independent_agents_train_as_one_network_per_decision(tmp_path, capsys):

@@ -20,6 +20,10 @@ seed, ``act(obs)`` runs the network on the whole batch at once. Three modes:
   dispatch makes holds and swaps its argmax does not), while the rare workforce actions
   stay sampled (their argmax is the no-op).
 
+``trained_on`` is the scenario the checkpoint records (``scenario``); :func:`wfbench.evaluate`
+warns once when it runs the policy on another (a network runs on any size, but what it
+learned is of its own scenario).
+
 A checkpoint trained with ``--variant dispatch`` holds only the dispatch head; loaded,
 it is deployed inside ``policies.Composite`` with the heuristic workforce (``threshold``)
 and positioning (``spatial``) rules it was trained with. A checkpoint of independent
@@ -74,7 +78,7 @@ class NetworkPolicy:
     """The network of a checkpoint (of any training algorithm) deciding every decision its heads cover."""
 
     def __init__(self, model: WorkforceNet | AgentSet, mode: str = "sample", device: str = "cpu", seed: int = 0,
-                 name: str = "network", threads: int | None = 1):
+                 name: str = "network", threads: int | None = 1, trained_on: str | None = None):
         if mode not in MODES:
             raise ValueError(f"mode {mode!r} is not allowed; allowed: {', '.join(MODES)}")
         self.model = model.to(device).eval()
@@ -83,6 +87,9 @@ class NetworkPolicy:
         # two paper-64 episodes take 120 s instead of 15 s when the cores were busy; None keeps torch's setting
         self.threads = threads
         self.decisions = tuple(model.config.decisions)
+        # the scenario of its checkpoint: evaluated on another one, the evaluator warns once
+        # (policies.registry.warn_if_trained_elsewhere)
+        self.trained_on = trained_on
         self._state = None
 
     def reset(self, seeds: int | Sequence[int]) -> None:
@@ -151,9 +158,11 @@ def from_checkpoint(path: str | Path, mode: str = "sample", device: str = "cpu",
                          f"{' or '.join(allowed)}")
     model = build_model(ckpt, device)
     name = name or f"{trained_by}:{path}"
-    net = NetworkPolicy(model, mode=mode, device=device, name=name)
+    net = NetworkPolicy(model, mode=mode, device=device, name=name, trained_on=ckpt.get("scenario"))
     if set(net.decisions) == {"dispatch", "workforce", "positioning"}:
         return net
     parts = {d: (net if d in net.decisions else default)
              for d, default in (("dispatch", "nearest"), ("workforce", "threshold"), ("positioning", "spatial"))}
-    return Composite(**parts, name=name)
+    composite = Composite(**parts, name=name)
+    composite.trained_on = net.trained_on
+    return composite
