@@ -90,3 +90,27 @@ def test_browser__ci_requires_the_browser_before_running_the_tests():
     export = ci.find(f"export {REQUIRE_BROWSER}=1")
     assert export != -1, f".ci/run must export {REQUIRE_BROWSER}=1 so that CI never skips the browser test"
     assert export < ci.find(".venv/bin/pytest"), "the variable must be set before the tests run"
+
+
+def _bash_blocks(text: str) -> list[str]:
+    return re.findall(r"```bash\n(.*?)```", text, re.DOTALL)
+
+
+def test_readme__starts_with_the_two_set_up_commands_that_ci_runs():
+    readme = (ROOT / "README.md").read_text()
+    first = _bash_blocks(readme)[0].strip().splitlines()
+    assert len(first) == 2 and "pip install" in first[0] and first[1].startswith(".venv/bin/pytest"), first
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    for command in first:
+        assert command in ci, f".ci/run does not run the README's set-up command {command!r}"
+
+
+def test_readme__commands_run_after_the_set_up_without_activating_the_venv():
+    """Right after the set-up ``wfbench`` is not on the PATH: every command names ``.venv/bin/wfbench``."""
+    readme = (ROOT / "README.md").read_text()
+    bare = [line for block in _bash_blocks(readme) for line in block.splitlines()
+            if re.search(r"(^|[;&|]\s*)wfbench\b", line.split("#")[0].strip())]
+    assert not bare, f"README.md calls a bare wfbench (not on the PATH after the set-up): {bare}"
+    elided = [line for block in _bash_blocks(readme) for line in block.splitlines()
+              if "..." in line.split("#")[0].split()]
+    assert not elided, f"README.md shows commands with elided arguments, which do not run as written: {elided}"
