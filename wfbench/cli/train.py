@@ -116,6 +116,9 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, TypeError) as exc:
         raise UsageError(str(exc)) from None
     trainer.train()
+    from wfbench.train.toolkit import save_unselected_best
+
+    save_unselected_best(trainer)  # best.pt after every run: the last weights when no evaluation chose one
     best = trainer.best
     print(f"trained {trainer.global_step} environment steps ({algo}) in {config.run_dir}")
     best_pt = Path(config.run_dir) / "best.pt"
@@ -123,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"best.pt: update {best['update']}, mean NSW {best['score']:.4f} on public seeds "
               f"{best['seeds'][0]}-{best['seeds'][-1]} ({best['mode']}); evaluate with "
               f"wfbench evaluate --policy {algo}:{best_pt}")
-    else:  # RunOutputs wrote the last weights as best.pt (docs/rl.md)
+    else:  # save_unselected_best wrote the last weights as best.pt (docs/rl.md)
         why = "--eval-every 0" if not config.eval_every else f"fewer than --eval-every {config.eval_every} updates"
         print(f"best.pt: the last weights, not selected (no evaluation on the public seeds ran: {why}); evaluate "
               f"with wfbench evaluate --policy {algo}:{best_pt}")

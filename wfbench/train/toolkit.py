@@ -461,8 +461,7 @@ class RunOutputs:
     ``initial`` of ``total`` environment steps done). Inside, the loop calls
     :meth:`scalars`, :meth:`public` (after scoring the public seeds: logs the score and keeps
     ``best.pt``), :meth:`checkpoint` and :meth:`advance`. Leaving the block saves
-    ``latest.pt``, and ``best.pt`` = the last weights when no evaluation selected one
-    (:meth:`unselected_best`); Ctrl-C saves it too, says how to resume and re-raises. ``unit`` names the
+    ``latest.pt``; Ctrl-C saves it too, says how to resume and re-raises. ``unit`` names the
     trainer's counter attribute (``"update"`` or ``"iteration"``) for that message.
     ``cleanup`` (IMPALA: stop the actors) runs however the block is left: after the save
     on Ctrl-C, before it on a normal exit, so neither waits on the other going wrong.
@@ -506,21 +505,6 @@ class RunOutputs:
             if self.bar:
                 self.bar.close()
             t.save(latest)
-            if t.best["update"] is None:
-                self.unselected_best()
-
-    def unselected_best(self) -> None:
-        """``best.pt`` = the last weights, when no evaluation chose one (``--eval-every 0``, or a run too short).
-
-        So ``ALGO:RUN/best.pt`` names a policy after every run; its ``best`` entry says it was not
-        selected (``selected: False``, no score). The trainer's own ``best`` stays unset, so a resumed
-        run with evaluation replaces this file at its first score.
-        """
-        t = self.trainer
-        ckpt = t.checkpoint()
-        ckpt["best"] = {"score": None, "update": ckpt["update"], "global_step": t.global_step, "mode": None,
-                        "selected": False, "why": "no evaluation on the public seeds ran: the last weights"}
-        save_atomic(ckpt, t.run_dir / "best.pt")
 
     def scalars(self, prefix: str, values: dict, keys=None) -> None:
         """TensorBoard ``prefix/key`` for each of ``keys`` (default: all) present in ``values``, at the global step."""
@@ -573,6 +557,24 @@ class RunOutputs:
             if self.trainer.best["update"] is not None:
                 postfix["public"] = f"{self.trainer.best['score']:.3f}"
             self.bar.set_postfix(postfix)
+
+
+def save_unselected_best(trainer) -> Path | None:
+    """``RUN/best.pt`` = the last weights when no evaluation selected one (``--eval-every 0``, or a run too short).
+
+    ``wfbench train`` calls it after training, so ``ALGO:RUN/best.pt`` names a policy after
+    every run; the file's ``best`` entry says it was not selected (``selected: False``, no
+    score). The trainer's own ``best`` stays unset (nothing of training changes), so a
+    resumed run with evaluation replaces the file at its first score. Returns the path
+    written, or None when an evaluation had chosen ``best.pt``.
+    """
+    t = trainer
+    if t.best["update"] is not None:
+        return None
+    ckpt = t.checkpoint()
+    ckpt["best"] = {"score": None, "update": ckpt["update"], "global_step": t.global_step, "mode": None,
+                    "selected": False, "why": "no evaluation on the public seeds ran: the last weights"}
+    return save_atomic(ckpt, t.run_dir / "best.pt")
 
 
 def save_atomic(ckpt: dict, path: Path) -> Path:
