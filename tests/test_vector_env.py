@@ -18,35 +18,70 @@ def same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(a[k].dtype == b[k].dtype and a[k].tobytes() == b[k].tobytes() for k in a)
 
 
-@pytest.mark.parametrize("kind, reward", [("workforce", "nsw"), ("dispatch", "nsw"), ("dispatch", "nsw-no-cost")])
-def test_vector_env_replays_sync_vector_env_of_the_single_env(kind, reward):
+def same_obs(a, b) -> bool:
+    """Dict observations key by key, Box observations (``observation="box"``) as arrays, bit for bit."""
+    if isinstance(a, dict):
+        return same(a, b)
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("kind, reward, mode, observation", [
+    ("workforce", "nsw", AutoresetMode.SAME_STEP, "dict"), ("dispatch", "nsw", AutoresetMode.SAME_STEP, "dict"),
+    ("dispatch", "nsw-no-cost", AutoresetMode.SAME_STEP, "dict"), ("workforce", "nsw", AutoresetMode.NEXT_STEP, "box"),
+    ("dispatch", "nsw", AutoresetMode.NEXT_STEP, "dict"), ("workforce", "nsw", AutoresetMode.SAME_STEP, "box"),
+])
+def test_vector_env_replays_sync_vector_env_of_the_single_env(kind, reward, mode, observation):
     B = 3
-    ours = WorkforceVectorEnv(CONFIG, B, kind=kind, reward=reward)
-    ref = SyncVectorEnv([lambda: SINGLE[kind](CONFIG, reward=reward)] * B, autoreset_mode=AutoresetMode.SAME_STEP)
+    ours = WorkforceVectorEnv(CONFIG, B, kind=kind, reward=reward, autoreset_mode=mode, observation=observation)
+    ref = SyncVectorEnv([lambda: SINGLE[kind](CONFIG, reward=reward, observation=observation)] * B,
+                        autoreset_mode=mode)
     assert ours.single_observation_space == ref.single_observation_space
     assert ours.single_action_space == ref.single_action_space
-    assert ours.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    assert ours.metadata["autoreset_mode"] == mode == ours.autoreset_mode
     o1, i1 = ours.reset(seed=40)
     o2, _ = ref.reset(seed=40)
-    assert same(o1, o2) and i1["seed"].tolist() == [40, 41, 42]
+    assert same_obs(o1, o2) and i1["seed"].tolist() == [40, 41, 42]
     ours.action_space.seed(1)
-    resets = 0
+    resets, seeds = 0, i1["seed"]
     for _ in range(2 * CONFIG.horizon + 3):
         masks = ours.action_masks()
         assert masks.shape == (B, int(ours.single_action_space.nvec.sum())) and masks.dtype == bool
         for i, env in enumerate(ref.envs):
-            assert np.array_equal(masks[i], env.unwrapped.action_masks())
+            if not ours._pending[i]:  # next-step mode ignores the action of a row whose episode just ended
+                assert np.array_equal(masks[i], env.unwrapped.action_masks())
         a = ours.action_space.sample()
         s1, s2 = ours.step(a), ref.step(a)
-        assert same(s1[0], s2[0])
+        assert same_obs(s1[0], s2[0])
         for x, y in zip(s1[1:4], s2[1:4], strict=True):
             assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
         if s1[3].any():
             resets += 1
-            for i in np.flatnonzero(s1[3]):
-                assert same(s1[4]["final_obs"][i], s2[4]["final_obs"][i])
-            assert (s1[4]["seed"] != i1["seed"]).all(), "the new episodes replayed the old seeds"
+            if mode == AutoresetMode.SAME_STEP:
+                for i in np.flatnonzero(s1[3]):
+                    assert same_obs(s1[4]["final_obs"][i], s2[4]["final_obs"][i])
+                assert (s1[4]["seed"] != i1["seed"]).all(), "the new episodes replayed the old seeds"
+            else:
+                assert (s1[4]["seed"] == seeds).all(), "next-step mode returns the last observation first"
+        seeds = s1[4]["seed"]
     assert resets == 2
+
+
+def test_next_step_autoreset_of_part_of_the_batch_replays_sync_vector_env():
+    """Rows out of step (one reset by mask): each starts its new episode on the step after its last."""
+    ours = WorkforceVectorEnv(CONFIG, 2, autoreset_mode="next_step")
+    ref = SyncVectorEnv([lambda: WorkforceEnv(CONFIG)] * 2, autoreset_mode=AutoresetMode.NEXT_STEP)
+    ours.reset(seed=5)
+    ref.reset(seed=5)
+    ours.action_space.seed(3)
+    mask = {"reset_mask": np.array([False, True])}
+    for t in range(3 * CONFIG.horizon):
+        if t == 4:
+            assert same(ours.reset(seed=[11], options=mask)[0], ref.reset(seed=[None, 11], options=mask)[0])
+        a = ours.action_space.sample()
+        s1, s2 = ours.step(a), ref.step(a)
+        assert same(s1[0], s2[0]), t
+        for x, y in zip(s1[1:4], s2[1:4], strict=True):
+            assert x.tobytes() == y.tobytes(), t
 
 
 def test_masked_reset_restarts_only_the_masked_environments():
@@ -77,6 +112,8 @@ def test_dispatch_kind_refuses_a_reset_of_part_of_its_batch():
     ({"kind": "joint"}, r"kind 'joint' is not allowed; allowed: workforce, dispatch"),
     ({"reward": "x"}, r"reward 'x' is not allowed"),
     ({"fixed": {"workforce": "threshold"}}, r"kind='workforce' learns every decision"),
+    ({"autoreset_mode": "later"}, r"autoreset_mode='later' is not allowed; allowed: 'same_step', 'next_step'"),
+    ({"observation": "flat"}, r"observation='flat' is not allowed; allowed: 'dict', 'box'"),
 ])
 def test_bad_vector_env_arguments_are_named(kwargs, message):
     with pytest.raises(ValueError, match=message):
@@ -190,3 +227,30 @@ def test_plain_ppo_on_the_joint_kind_plays_all_three_decisions_in_evaluate():
     assert df.equals(again), "a deterministic policy gave two results"
     assert df["hires"].sum() + df["releases"].sum() + df["invalid_hire_no_slot"].sum() \
         + df["invalid_release_none"].sum() > 0, "the workforce decision never acted"
+
+
+def test_make_vec_builds_the_batched_env_and_gymnasium_vector_wrappers_take_it():
+    """The ids' vector entry point; NormalizeObservation (next-step only) and TorchRL read the declared mode."""
+    import gymnasium
+    from gymnasium.wrappers.vector import FlattenObservation, NormalizeObservation
+
+    env = gymnasium.make_vec("wfbench/Workforce-v0", num_envs=2, scenario="small")
+    assert isinstance(env.unwrapped, WorkforceVectorEnv) and env.unwrapped.kind == "workforce"
+    assert env.unwrapped.autoreset_mode == AutoresetMode.SAME_STEP
+    with pytest.raises(ValueError, match="NEXT_STEP"):  # Gymnasium's observation wrappers refuse same-step
+        FlattenObservation(env)
+    next_step = gymnasium.make_vec("wfbench/Workforce-v0", 2, scenario="small", autoreset_mode="next_step")
+    flat = FlattenObservation(next_step)
+    obs, _ = flat.reset(seed=0)
+    assert obs.shape == (2, flat.single_observation_space.shape[0])
+    dispatch = gymnasium.make_vec("wfbench/Dispatch-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                                  scenario=CONFIG, observation="box", autoreset_mode="next_step")
+    assert dispatch.unwrapped.kind == "dispatch"
+    norm = NormalizeObservation(dispatch)
+    obs, _ = norm.reset(seed=0)
+    for _ in range(CONFIG.horizon + 1):
+        obs, reward, _, truncated, _ = norm.step(norm.action_space.sample())
+    assert obs.shape == (2, dispatch.single_observation_space.shape[0]) and np.isfinite(obs).all()
+    assert not truncated.any() and (reward == 0).all(), "the step after the horizon starts the new episodes"
+    sync = gymnasium.make_vec("wfbench/Workforce-v0", num_envs=2, vectorization_mode="sync", scenario="small")
+    assert isinstance(sync, SyncVectorEnv)

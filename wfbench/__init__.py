@@ -19,14 +19,20 @@ from wfbench.core.schedule import RateSchedule
 from wfbench.core.simulator import Simulator
 from wfbench.core.trace import trace
 
-# Gymnasium imports an entry point's module only when an environment is made.
+# Gymnasium imports an entry point's module only when an environment is made. The vector
+# entry points make ``gymnasium.make_vec(id, num_envs=B)`` one batched WorkforceVectorEnv.
 ENV_IDS = {
     "wfbench/Workforce-v0": "wfbench.envs.gym_env:WorkforceEnv",
     "wfbench/Dispatch-v0": "wfbench.envs.gym_env:DispatchEnv",
 }
+VECTOR_ENTRY_POINTS = {
+    "wfbench/Workforce-v0": "wfbench.envs.vector:workforce_vector_env",
+    "wfbench/Dispatch-v0": "wfbench.envs.vector:dispatch_vector_env",
+}
 for _env_id, _entry in ENV_IDS.items():
     if _env_id not in _gymnasium.registry:
-        _gymnasium.register(id=_env_id, entry_point=_entry, disable_env_checker=False)
+        _gymnasium.register(id=_env_id, entry_point=_entry, vector_entry_point=VECTOR_ENTRY_POINTS[_env_id],
+                            disable_env_checker=False)
 
 _LAZY = {"evaluate": "wfbench.evaluation", "env": "wfbench.envs", "parallel_env": "wfbench.envs"}
 

@@ -11,6 +11,13 @@ and act through a 1-D ``MultiDiscrete``, the shape SB3's PPO and MaskablePPO tak
   by built-in policies (``fixed``, default the paper's heuristics). ``reward="nsw"``
   (default) is the leaderboard's NSW; ``reward="nsw-no-cost"`` is the paper's
   dispatch-only reward, the geometric mean of the utilization and downtime utilities.
+
+Options (both environments, ``docs/envs.md``): ``observation="box"`` flattens the Dict
+into one float32 ``Box`` (Gymnasium's ``flatten``, masks included), for libraries that take
+only a Box; ``info="flat"`` (default) gives numbers only (``t``, ``seed``,
+``metric_<kpi>``, ``count_<counter>``, ``step_count_<counter>``), ``info="nested"`` the
+tallies as dicts ``metrics``, ``counts``, ``step_counts``; ``render_mode`` is
+``"rgb_array"`` or ``"human"`` (a matplotlib window).
 """
 
 from __future__ import annotations
@@ -25,32 +32,57 @@ from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.reward import check_reward, step_reward
 from wfbench.envs.parallel import WorkforceCore
-from wfbench.envs.spaces import POSITIONING_LEVELS, SHARED_KEYS, shared_spaces, single
+from wfbench.envs.render import RENDER_MODES, HumanWindow, check_render_mode, render_rgb
+from wfbench.envs.spaces import (
+    INFOS,
+    OBSERVATIONS,
+    POSITIONING_LEVELS,
+    SHARED_KEYS,
+    check_option,
+    joint_nvec,
+    observation_space,
+    shared_spaces,
+    single,
+    split_joint,
+)
 
 
 class _Base(gym.Env):
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 8}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 8}
 
     def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None, render_mode: str | None,
-                 reward: str):
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None, 'rgb_array'")
+                 reward: str, observation: str, info: str):
+        check_render_mode(render_mode)
         check_reward(reward)
+        self.observation_kind = check_option("observation", observation, OBSERVATIONS)
+        self.info_kind = check_option("info", info, INFOS)
+        self._window: HumanWindow | None = None
         self.core = WorkforceCore(scenario, fixed)
         self.config = self.core.config
         self.render_mode = render_mode
         self.reward_kind = reward
         self.M, self.N = self.config.max_facilities, self.config.max_personnel
 
-    def _obs(self) -> dict[str, np.ndarray]:
+    def _dict_obs(self) -> dict[str, np.ndarray]:
         raise NotImplementedError
+
+    def _set_spaces(self, dict_space: spaces.Dict) -> None:
+        self.dict_observation_space = dict_space
+        self.observation_space = observation_space(dict_space, self.observation_kind)
+
+    def _obs(self):
+        obs = self._dict_obs()
+        if self.observation_kind == "box":
+            return spaces.flatten(self.dict_observation_space, obs)
+        return obs
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         if seed is None:
             seed = int(self.np_random.integers(0, 2**31 - 1))
         self.core.reset(seed)
-        return self._obs(), self.core.info()
+        self._show()
+        return self._obs(), self.core.info(self.info_kind)
 
     def _reward(self, nsw: float) -> float:
         if self.reward_kind == "nsw":
@@ -62,7 +94,8 @@ class _Base(gym.Env):
             raise RuntimeError("call reset() before step()")
         nsw, _ = self.core.step(given)
         truncated = self.core.sim.done
-        return self._obs(), self._reward(nsw), False, truncated, self.core.info()
+        self._show()
+        return self._obs(), self._reward(nsw), False, truncated, self.core.info(self.info_kind)
 
     def _check_vector(self, action: Any, n: int) -> np.ndarray:
         a = np.asarray(action)
@@ -70,30 +103,39 @@ class _Base(gym.Env):
             raise ActionError(f"action has shape {a.shape}, expected ({n},)")
         return a
 
+    def _show(self) -> None:
+        """In ``render_mode="human"``, draw the current state in the window (every reset and step)."""
+        if self.render_mode == "human":
+            self._window = self._window or HumanWindow(self.metadata["render_fps"])
+            self._window.show(render_rgb(self.core.sim))
+
     def render(self):
+        """The current frame (``"rgb_array"``); None in ``"human"`` mode, which draws at every step."""
         if self.render_mode != "rgb_array" or self.core.sim is None:
             return None
-        from wfbench.envs.render import render_rgb
-
         return render_rgb(self.core.sim)
+
+    def close(self) -> None:
+        if self._window is not None:
+            self._window.close()
+            self._window = None
 
 
 class WorkforceEnv(_Base):
     """Joint decision: dispatch, workforce and positioning in one MultiDiscrete action."""
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", render_mode: str | None = None,
-                 reward: str = "nsw"):
-        super().__init__(scenario, None, render_mode, reward)
+                 reward: str = "nsw", observation: str = "dict", info: str = "flat"):
+        super().__init__(scenario, None, render_mode, reward, observation, info)
         M, N = self.M, self.N
-        self.observation_space = spaces.Dict({
+        self._set_spaces(spaces.Dict({
             **shared_spaces(self.config),
             "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
             "workforce_mask": spaces.Box(0, 1, shape=(7,), dtype=np.int8),
-        })
-        nvec = np.concatenate([np.full(M, N + 1), [7], np.full(2 * M, POSITIONING_LEVELS)]).astype(np.int64)
-        self.action_space = spaces.MultiDiscrete(nvec)
+        }))
+        self.action_space = spaces.MultiDiscrete(joint_nvec(self.config))
 
-    def _obs(self) -> dict[str, np.ndarray]:
+    def _dict_obs(self) -> dict[str, np.ndarray]:
         return single(self.core.obs, (*SHARED_KEYS, "dispatch_mask", "workforce_mask"))
 
     def action_masks(self) -> np.ndarray:
@@ -104,40 +146,28 @@ class WorkforceEnv(_Base):
                                obs["workforce_mask"][0].astype(bool), pos])
 
     def step(self, action):
-        M = self.M
-        a = self._check_vector(action, 1 + 3 * M)
-        pos_levels = a[M + 1 :]
-        if np.any((pos_levels < 0) | (pos_levels >= POSITIONING_LEVELS)):
-            i = int(np.argmax((pos_levels < 0) | (pos_levels >= POSITIONING_LEVELS)))
-            raise ActionError(f"positioning action: {pos_levels[i]} at index {i} is out of range; "
-                              f"allowed: integers 0..{POSITIONING_LEVELS - 1}")
-        given = {
-            "dispatch": a[:M],
-            "workforce": a[M],
-            "positioning": (pos_levels.astype(np.float64) / (POSITIONING_LEVELS - 1)).reshape(2, M),
-        }
-        return self._step(given)
+        return self._step(split_joint(self._check_vector(action, 1 + 3 * self.M), self.M))
 
 
 class DispatchEnv(_Base):
     """Dispatch only; the workforce and positioning decisions are made by built-in policies."""
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
-                 render_mode: str | None = None, reward: str = "nsw"):
+                 render_mode: str | None = None, reward: str = "nsw", observation: str = "dict", info: str = "flat"):
         fixed = dict(fixed or {"workforce": "threshold", "positioning": "spatial"})
         if "dispatch" in fixed:
             raise ValueError("Dispatch-v0 learns the dispatch decision; fix only workforce and positioning")
         if set(fixed) != {"workforce", "positioning"}:
             raise ValueError(f"Dispatch-v0 needs fixed policies for workforce and positioning, got {sorted(fixed)}")
-        super().__init__(scenario, fixed, render_mode, reward)
+        super().__init__(scenario, fixed, render_mode, reward, observation, info)
         M, N = self.M, self.N
-        self.observation_space = spaces.Dict({
+        self._set_spaces(spaces.Dict({
             **shared_spaces(self.config),
             "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
-        })
+        }))
         self.action_space = spaces.MultiDiscrete(np.full(M, N + 1, dtype=np.int64))
 
-    def _obs(self) -> dict[str, np.ndarray]:
+    def _dict_obs(self) -> dict[str, np.ndarray]:
         return single(self.core.obs, (*SHARED_KEYS, "dispatch_mask"))
 
     def action_masks(self) -> np.ndarray:

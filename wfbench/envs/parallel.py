@@ -11,6 +11,22 @@ All agents receive the same reward, the NSW of the step (a cooperative game).
 name from ``policies.DECISIONS``, a composite name such as ``"heuristic"`` or a policy
 object); fixed agents leave ``agents`` so the others can be trained alone. The episode
 is truncated at the scenario's horizon.
+
+Options for RL libraries that want one shape for everything (``docs/envs.md``):
+
+- ``observation="box"``: the observation is Gymnasium's flattening of the Dict (one
+  float32 ``Box``, masks included) instead of the Dict.
+- ``actions="shared"``: every agent has the same action space, the joint
+  ``MultiDiscrete`` of ``wfbench/Workforce-v0`` (M dispatch entries, the workforce
+  action, 2M positioning levels); each agent's own part is read and the rest ignored.
+  ``actions="own"`` (default): dispatch ``MultiDiscrete``, workforce ``Discrete``,
+  positioning ``Box (2, M)``.
+- ``info="flat"`` (default): numbers only (``t``, ``seed``, ``metric_<kpi>``,
+  ``count_<counter>``, ``step_count_<counter>``); ``info="nested"``: the tallies as
+  dicts ``metrics``, ``counts``, ``step_counts``.
+- ``state()`` and ``state_space``: the shared observation without the masks, flattened.
+- ``render_mode``: ``"rgb_array"`` returns frames, ``"human"`` shows them in a
+  matplotlib window.
 """
 
 from __future__ import annotations
@@ -32,17 +48,28 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_NAMES
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
+from wfbench.envs.render import RENDER_MODES, HumanWindow, check_render_mode, render_rgb
 from wfbench.envs.spaces import (
+    INFOS,
     OBS_KEYS,
+    OBSERVATIONS,
     SHARED_KEYS,
+    check_option,
     dispatch_action_space,
+    joint_nvec,
+    observation_space,
     positioning_action_space,
     shared_spaces,
     single,
+    split_joint,
     workforce_action_space,
 )
 
 _INFO_METRICS = tuple((k, METRICS.index(k)) for k in KPI_NAMES)
+_FLAT_METRICS = tuple(f"metric_{k}" for k in KPI_NAMES)
+_FLAT_COUNTS = tuple(f"count_{k}" for k in COUNTERS)
+_FLAT_STEP_COUNTS = tuple(f"step_count_{k}" for k in COUNTERS)
+ACTIONS = ("own", "shared")  # the PettingZoo environment's ``actions=`` option
 
 
 def resolve_fixed(fixed: dict[str, Any] | None) -> dict[str, Any]:
@@ -151,10 +178,17 @@ class WorkforceCore:
         self.last_counters = dict(zip(COUNTERS, map(operator.sub, self._counts, before), strict=True))
         return float(rewards[0]), self.last_counters
 
-    def info(self) -> dict[str, Any]:
+    def info(self, kind: str = "nested") -> dict[str, Any]:
+        """The step's info: ``kind="nested"`` tallies in dicts, ``"flat"`` numbers under one level of keys."""
         assert self.sim is not None
         state = self.sim.state
         last = state.last[0].tolist()
+        if kind == "flat":
+            out: dict[str, Any] = {"t": int(state.t[0]), "seed": self.seed}
+            out.update(zip(_FLAT_METRICS, [last[i] for _, i in _INFO_METRICS], strict=True))
+            out.update(zip(_FLAT_COUNTS, self._counts, strict=True))
+            out.update(zip(_FLAT_STEP_COUNTS, self.last_counters.values(), strict=True))
+            return out
         return {
             "t": int(state.t[0]), "seed": self.seed, "step_counts": dict(self.last_counters),
             "counts": dict(zip(COUNTERS, self._counts, strict=True)),
@@ -165,13 +199,16 @@ class WorkforceCore:
 class WorkforceParallelEnv(ParallelEnv):
     """The three-agent workforce environment (PettingZoo Parallel API)."""
 
-    metadata = {"name": "wfbench_workforce_v0", "render_modes": ["rgb_array"], "is_parallelizable": True,
+    metadata = {"name": "wfbench_workforce_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True,
                 "render_fps": 8}
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
-                 render_mode: str | None = None):
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None, 'rgb_array'")
+                 render_mode: str | None = None, observation: str = "dict", actions: str = "own",
+                 info: str = "flat"):
+        check_render_mode(render_mode)
+        self.observation_kind = check_option("observation", observation, OBSERVATIONS)
+        self.actions_kind = check_option("actions", actions, ACTIONS)
+        self.info_kind = check_option("info", info, INFOS)
         self.core = WorkforceCore(scenario, fixed)
         self.config = self.core.config
         self.render_mode = render_mode
@@ -180,16 +217,25 @@ class WorkforceParallelEnv(ParallelEnv):
             raise ValueError("every agent is fixed; leave at least one of dispatch, workforce, positioning free")
         self.agents: list[str] = []
         M, N = self.config.max_facilities, self.config.max_personnel
-        self._obs_space = spaces.Dict({
-            **shared_spaces(self.config),
+        shared = shared_spaces(self.config)
+        self._dict_space = spaces.Dict({
+            **shared,
             "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
             "workforce_mask": spaces.Box(0, 1, shape=(7,), dtype=np.int8),
         })
-        self._act_spaces = {
-            "dispatch": dispatch_action_space(self.config),
-            "workforce": workforce_action_space(),
-            "positioning": positioning_action_space(self.config),
-        }
+        self._obs_space = observation_space(self._dict_space, observation)
+        self._state_dict_space = spaces.Dict({k: shared[k] for k in SHARED_KEYS})
+        self.state_space = spaces.flatten_space(self._state_dict_space)
+        if actions == "shared":
+            joint = spaces.MultiDiscrete(joint_nvec(self.config))
+            self._act_spaces = dict.fromkeys(AGENTS, joint)
+        else:
+            self._act_spaces = {
+                "dispatch": dispatch_action_space(self.config),
+                "workforce": workforce_action_space(),
+                "positioning": positioning_action_space(self.config),
+            }
+        self._window: HumanWindow | None = None
 
     @functools.cache  # noqa: B019 - one space object per agent, as PettingZoo asks
     def observation_space(self, agent: str) -> spaces.Dict:
@@ -204,13 +250,18 @@ class WorkforceParallelEnv(ParallelEnv):
         # agents see the same observation, so their dicts share one set of copies (a
         # third of the copying); an agent's arrays are never written by the environment.
         shared = single(self.core.obs, OBS_KEYS)
+        if self.observation_kind == "box":
+            flat = spaces.flatten(self._dict_space, shared)
+            return dict.fromkeys(self.agents, flat)
         return {a: dict(shared) for a in self.agents}
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         self.core.reset(seed)
         self.agents = list(self.possible_agents)
-        info = self.core.info()
-        return self._observations(), {a: dict(info) for a in self.agents}
+        info = self.core.info(self.info_kind)
+        obs = self._observations()
+        self._show()
+        return obs, {a: dict(info) for a in self.agents}
 
     def step(self, actions: dict[str, Any]):
         if not self.agents:
@@ -218,41 +269,62 @@ class WorkforceParallelEnv(ParallelEnv):
         missing = [a for a in self.agents if a not in actions]
         if missing:
             raise ActionError(f"missing action for agent(s) {missing}; agents: {self.agents}")
-        reward, _ = self.core.step({a: actions[a] for a in self.agents})
-        info = self.core.info()
+        if self.actions_kind == "shared":
+            given = {}
+            for a in self.agents:
+                joint = np.asarray(actions[a])
+                if joint.shape != self._act_spaces[a].shape:
+                    raise ActionError(f"action of agent {a!r} has shape {joint.shape}; "
+                                      f"allowed: {self._act_spaces[a].shape}, the shared MultiDiscrete")
+                given[a] = split_joint(joint, self.config.max_facilities)[a]
+        else:
+            given = {a: actions[a] for a in self.agents}
+        reward, _ = self.core.step(given)
+        info = self.core.info(self.info_kind)
         truncated = self.core.sim.done  # type: ignore[union-attr]
         agents = list(self.agents)
         obs = self._observations()
         if truncated:
             self.agents = []
+        self._show()
         return (obs, {a: reward for a in agents}, {a: False for a in agents}, {a: truncated for a in agents},
                 {a: dict(info) for a in agents})
 
+    def _show(self) -> None:
+        """In ``render_mode="human"``, draw the current state in the window (every reset and step)."""
+        if self.render_mode == "human":
+            self._window = self._window or HumanWindow(self.metadata["render_fps"])
+            self._window.show(render_rgb(self.core.sim))
+
     def render(self):
+        """The current frame (``"rgb_array"``); None in ``"human"`` mode, which draws at every step."""
         if self.render_mode != "rgb_array" or self.core.sim is None:
             return None
-        from wfbench.envs.render import render_rgb
-
         return render_rgb(self.core.sim)
 
     def close(self) -> None:
-        pass
+        if self._window is not None:
+            self._window.close()
+            self._window = None
 
     def state(self) -> np.ndarray:
-        """A flat global state (the shared observation) for centralized critics."""
+        """A flat global state (the shared observation without masks) for centralized critics, in ``state_space``."""
         obs = self.core.obs
         assert obs is not None
-        return np.concatenate([np.asarray(obs[k][0], dtype=np.float32).ravel() for k in SHARED_KEYS])
+        return spaces.flatten(self._state_dict_space, {k: obs[k][0] for k in SHARED_KEYS})
 
 
 def parallel_env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
-                 render_mode: str | None = None) -> WorkforceParallelEnv:
-    """The PettingZoo Parallel environment."""
-    return WorkforceParallelEnv(scenario=scenario, fixed=fixed, render_mode=render_mode)
+                 render_mode: str | None = None, observation: str = "dict", actions: str = "own",
+                 info: str = "flat") -> WorkforceParallelEnv:
+    """The PettingZoo Parallel environment (options: the module docstring)."""
+    return WorkforceParallelEnv(scenario=scenario, fixed=fixed, render_mode=render_mode, observation=observation,
+                                actions=actions, info=info)
 
 
 def env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
-        render_mode: str | None = None):
+        render_mode: str | None = None, observation: str = "dict", actions: str = "own", info: str = "flat"):
     """The PettingZoo AEC environment (agents act in turn; the step is applied after the last)."""
-    aec = parallel_to_aec(parallel_env(scenario=scenario, fixed=fixed, render_mode=render_mode))
+    aec = parallel_to_aec(parallel_env(scenario=scenario, fixed=fixed, render_mode=render_mode,
+                                       observation=observation, actions=actions, info=info))
     return wrappers.OrderEnforcingWrapper(aec)

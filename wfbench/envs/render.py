@@ -6,7 +6,8 @@ frames to a GIF.
 :class:`Renderer` builds the figure, its legend and the background once and redraws only
 what changes (the markers, the lines, the KPI line) for each frame, by blitting onto the
 saved background; ``render_rgb`` keeps one renderer per simulator, so environments that
-render every step get the same speed.
+render every step get the same speed. :class:`HumanWindow` shows frames in a matplotlib
+window (the environments' ``render_mode="human"``).
 """
 
 from __future__ import annotations
@@ -27,6 +28,57 @@ KPI_HELP = ("WC  workforce cost (salaries)", "PUR personnel utilization", "AFD f
             "NSW welfare, higher is better")
 DPI = 100
 LEGEND_SHARE = 0.42  # width of the legend panel, as a share of the map's side
+RENDER_MODES = ("rgb_array", "human")
+
+
+def check_render_mode(render_mode: str | None) -> None:
+    """A one-line ValueError unless ``render_mode`` is None or one of :data:`RENDER_MODES`."""
+    if render_mode is not None and render_mode not in RENDER_MODES:
+        raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None, "
+                         f"{', '.join(map(repr, RENDER_MODES))}")
+
+
+class HumanWindow:
+    """A matplotlib window that shows each frame for ``1 / fps`` seconds (``render_mode="human"``).
+
+    On a non-interactive backend (a machine without a display, matplotlib's Agg) nothing can
+    be shown and frames are dropped, without a word, so that checkers (Gymnasium's
+    ``check_env``, PettingZoo's ``render_test``) run headless; ``shown`` counts the frames shown.
+    """
+
+    def __init__(self, fps: int):
+        self.fps = fps
+        self._image = None
+        self._headless: bool | None = None
+        self.shown = 0
+
+    def show(self, frame: np.ndarray) -> None:
+        import matplotlib.pyplot as plt
+        from matplotlib.backends import BackendFilter, backend_registry
+
+        if self._headless is None:
+            backend = plt.get_backend()
+            interactive = {b.lower() for b in backend_registry.list_builtin(BackendFilter.INTERACTIVE)}
+            self._headless = backend.lower() not in interactive
+        if self._headless:
+            return
+        if self._image is None:
+            fig = plt.figure("wfbench")
+            ax = fig.add_axes((0, 0, 1, 1))
+            ax.set_axis_off()
+            self._image = ax.imshow(frame)
+            plt.show(block=False)
+        else:
+            self._image.set_data(frame)
+        plt.pause(1 / self.fps)
+        self.shown += 1
+
+    def close(self) -> None:
+        if self._image is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._image.figure)
+            self._image = None
 
 
 class Renderer:
@@ -38,9 +90,7 @@ class Renderer:
     """
 
     def __init__(self, config, size_px: int = 480):
-        import matplotlib
-
-        matplotlib.use("Agg", force=False)
+        # The frame has its own Agg canvas: pyplot's backend, which a "human" window uses, is left alone.
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.collections import LineCollection
         from matplotlib.colors import to_rgba

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from gymnasium import spaces
 
+from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
 from wfbench.core.state import N_WORKFORCE_ACTIONS
@@ -67,3 +70,46 @@ def single(obs: dict[str, np.ndarray], keys, b: int = 0) -> dict[str, np.ndarray
     if len(obs["facilities"]) == 1 and b == 0:
         return {k: obs[k].copy()[0] for k in keys}
     return {k: obs[k][b].copy() for k in keys}
+
+
+OBSERVATIONS = ("dict", "box")  # the ``observation=`` option: a Dict of Boxes, or those flattened into one Box
+INFOS = ("flat", "nested")  # the ``info=`` option: numbers only, or the tallies in nested dicts
+
+
+def check_option(name: str, value: Any, allowed: tuple[str, ...]) -> str:
+    """``value`` if it is one of ``allowed``, else a one-line ValueError naming them."""
+    if value not in allowed:
+        raise ValueError(f"{name}={value!r} is not allowed; allowed: {', '.join(map(repr, allowed))}")
+    return value
+
+
+def observation_space(dict_space: spaces.Dict, observation: str) -> spaces.Space:
+    """The space of the ``observation=`` option: the Dict itself, or Gymnasium's flattening of it (float32)."""
+    return dict_space if observation == "dict" else spaces.flatten_space(dict_space)
+
+
+def flatten_batch(dict_space: spaces.Dict, obs: dict[str, np.ndarray]) -> np.ndarray:
+    """(B, n) float32: each row is ``gymnasium.spaces.flatten(dict_space, row)``, for a whole batch at once."""
+    B = len(next(iter(obs.values())))
+    return np.concatenate([obs[k].reshape(B, -1) for k in dict_space.spaces], axis=1, dtype=np.float32)
+
+
+def joint_nvec(c: ScenarioConfig) -> np.ndarray:
+    """The joint MultiDiscrete of Workforce-v0: M dispatch entries (0..N), the workforce action, 2M levels."""
+    M, N = c.max_facilities, c.max_personnel
+    return np.concatenate([np.full(M, N + 1), [N_WORKFORCE_ACTIONS], np.full(2 * M, POSITIONING_LEVELS)]).astype(
+        np.int64)
+
+
+def split_joint(a: np.ndarray, M: int) -> dict[str, np.ndarray]:
+    """The three decisions of joint actions (..., 1 + 3M): positioning levels become weights level / 10."""
+    lead = a.shape[:-1]
+    pos = a[..., M + 1 :]
+    bad = (pos < 0) | (pos >= POSITIONING_LEVELS)
+    if bad.any():
+        i = tuple(int(x) for x in np.argwhere(bad)[0])
+        raise ActionError(f"positioning action: {pos[i]} at index {i} is out of range; "
+                          f"allowed: integers 0..{POSITIONING_LEVELS - 1}")
+    return {"dispatch": a[..., :M], "workforce": a[..., M],
+            "positioning": (pos.astype(np.float64) / (POSITIONING_LEVELS - 1)).reshape(*lead, 2, M)}
+

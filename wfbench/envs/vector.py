@@ -9,11 +9,19 @@ reward are those of the single environments (``docs/sb3.md``):
 - ``step`` takes a (B, n) integer action, one row of the single environment's
   ``MultiDiscrete`` per environment, and returns batched copies (fresh arrays that no
   later call writes to).
-- Autoreset is ``AutoresetMode.SAME_STEP``: an environment that reaches the horizon is
-  truncated and reset in the same ``step`` through ``Simulator.reset(indices, seeds)``
-  (only those rows, on new seeds); the returned observation row is the new episode's
-  first, and ``infos["final_obs"]`` / ``infos["final_info"]`` (with their ``_final_obs``
-  masks) hold the last one, Gymnasium's convention.
+- Autoreset is ``AutoresetMode.SAME_STEP`` (default): an environment that reaches the
+  horizon is truncated and reset in the same ``step`` through
+  ``Simulator.reset(indices, seeds)`` (only those rows, on new seeds); the returned
+  observation row is the new episode's first, and ``infos["final_obs"]`` /
+  ``infos["final_info"]`` (with their ``_final_obs`` masks) hold the last one,
+  Gymnasium's convention. ``autoreset_mode="next_step"`` (``AutoresetMode.NEXT_STEP``,
+  what Gymnasium's stateful vector wrappers such as ``NormalizeObservation`` ask for):
+  the truncating step returns the last observation, and the next ``step`` ignores those
+  rows' actions and returns the new episode's first observation, reward 0, not done.
+  The mode is in ``metadata["autoreset_mode"]`` and the ``autoreset_mode`` attribute.
+- ``gymnasium.make_vec("wfbench/Workforce-v0", num_envs=B, scenario=...)`` builds this
+  environment (the ids' ``vector_entry_point``); ``observation="box"`` flattens each
+  row as the single environment's option does.
 - Seeds: ``reset(seed=s)`` plays seeds ``s, s + 1, ...``; each environment's later
   episodes take their seeds from a generator seeded with its first seed, as the single
   environment does, so the vector environment replays ``SyncVectorEnv`` of the single
@@ -42,9 +50,14 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.core.reward import check_reward, step_reward
 from wfbench.core.simulator import Simulator
 from wfbench.envs.gym_env import DispatchEnv, WorkforceEnv
-from wfbench.envs.spaces import POSITIONING_LEVELS
+from wfbench.envs.spaces import POSITIONING_LEVELS, flatten_batch, split_joint
 
 KINDS = {"workforce": WorkforceEnv, "dispatch": DispatchEnv}
+AUTORESET_MODES = {  # the autoreset_mode option: a name, the AutoresetMode or its value
+    **{m: m for m in (AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP)},
+    "same_step": AutoresetMode.SAME_STEP, "next_step": AutoresetMode.NEXT_STEP,
+    AutoresetMode.SAME_STEP.value: AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP.value: AutoresetMode.NEXT_STEP,
+}
 _SEED_HIGH = 2**31 - 1  # the single environments draw their next seeds below this
 
 
@@ -54,7 +67,16 @@ class WorkforceVectorEnv(VectorEnv):
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", num_envs: int = 8, kind: str = "workforce",
-                 fixed: dict[str, Any] | None = None, reward: str = "nsw", threads: int | None = None):
+                 fixed: dict[str, Any] | None = None, reward: str = "nsw", threads: int | None = None,
+                 observation: str = "dict", autoreset_mode: str | AutoresetMode = AutoresetMode.SAME_STEP,
+                 render_mode: None = None):
+        if render_mode is not None:
+            raise ValueError(f"render_mode {render_mode!r} is not supported by the vector environment; allowed: None")
+        if autoreset_mode not in AUTORESET_MODES:
+            raise ValueError(f"autoreset_mode={autoreset_mode!r} is not allowed; allowed: 'same_step', 'next_step' "
+                             "or the AutoresetMode (or its value)")
+        self.autoreset_mode = AUTORESET_MODES[autoreset_mode]
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         if not (type(num_envs) is int and num_envs >= 1):
             raise ValueError(f"num_envs = {num_envs!r} is not allowed; allowed: an integer >= 1")
         if kind not in KINDS:
@@ -62,7 +84,9 @@ class WorkforceVectorEnv(VectorEnv):
         check_reward(reward)
         if kind == "workforce" and fixed:
             raise ValueError("kind='workforce' learns every decision; fix decisions with kind='dispatch'")
-        single = DispatchEnv(scenario, fixed=fixed) if kind == "dispatch" else WorkforceEnv(scenario)
+        single = (DispatchEnv(scenario, fixed=fixed, observation=observation) if kind == "dispatch"
+                  else WorkforceEnv(scenario, observation=observation))
+        self.observation_kind = observation
         self.config = single.config
         self.kind, self.reward_kind = kind, reward
         self.fixed = single.core.fixed  # the built-in policies the single environment resolved (none for workforce)
@@ -72,7 +96,9 @@ class WorkforceVectorEnv(VectorEnv):
         self.single_action_space = single.action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
-        self._keys = tuple(single.observation_space.spaces)
+        self._dict_space = single.dict_observation_space
+        self._keys = tuple(self._dict_space.spaces)
+        self._pending = np.zeros(num_envs, dtype=bool)  # next-step mode: rows whose reset the next step returns
         self._threads = threads
         self.sim: Simulator | None = None
         self._obs: dict[str, np.ndarray] | None = None
@@ -127,6 +153,7 @@ class WorkforceVectorEnv(VectorEnv):
             for i, s in zip(idx, seeds, strict=True):
                 self._seed_rngs[i] = np.random.default_rng(s)
             self._obs = self.sim.reset(indices=idx, seeds=seeds)
+        self._pending[idx] = False
         self._reset_fixed()
         return self._copy_obs(), self._infos()
 
@@ -135,9 +162,11 @@ class WorkforceVectorEnv(VectorEnv):
         for p in {id(p): p for p in self.fixed.values()}.values():
             p.reset(self.sim.seeds.copy())
 
-    def _copy_obs(self, obs: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    def _copy_obs(self, obs: dict[str, np.ndarray] | None = None):
         obs = self._obs if obs is None else obs
         assert obs is not None
+        if self.observation_kind == "box":
+            return flatten_batch(self._dict_space, obs)
         return {k: obs[k].copy() for k in self._keys}
 
     def _infos(self) -> dict[str, Any]:
@@ -157,14 +186,9 @@ class WorkforceVectorEnv(VectorEnv):
             raise ActionError(f"action has dtype {a.dtype}; allowed: integers")
         given: dict[str, Any] = {"dispatch": np.ascontiguousarray(a[:, :M], dtype=np.int64)}
         if self.kind == "workforce":
-            pos = a[:, M + 1 :]
-            bad = (pos < 0) | (pos >= POSITIONING_LEVELS)
-            if bad.any():
-                i = tuple(int(x) for x in np.argwhere(bad)[0])
-                raise ActionError(f"positioning action: {pos[i]} at index {i} is out of range; "
-                                  f"allowed: integers 0..{POSITIONING_LEVELS - 1}")
-            given["workforce"] = np.ascontiguousarray(a[:, M], dtype=np.int64)
-            given["positioning"] = (pos.astype(np.float64) / (POSITIONING_LEVELS - 1)).reshape(B, 2, M)
+            joint = split_joint(a, M)
+            given["workforce"] = np.ascontiguousarray(joint["workforce"], dtype=np.int64)
+            given["positioning"] = joint["positioning"]
         else:
             assert self._obs is not None
             cache: dict[int, dict[str, np.ndarray]] = {}
@@ -178,20 +202,43 @@ class WorkforceVectorEnv(VectorEnv):
         if self.sim is None:
             raise RuntimeError("call reset() before step()")
         d, w, p = self._actions(actions)
+        pending = self._pending.copy()
+        if pending.all():  # next-step mode: every row starts its new episode, already reset
+            self._pending[:] = False
+            zeros = np.zeros(self.num_envs, dtype=bool)
+            return self._copy_obs(), np.zeros(self.num_envs), zeros, zeros.copy(), self._infos()
+        if pending.any():  # those rows play no-ops, then are reset again on the same seeds
+            d, w = d.copy(), w.copy()  # they may be the caller's arrays
+            d[pending], w[pending] = self.N, 0
         self.sim.check_ready()
         nsw, obs = self.sim.step_observe_checked(d, w, p)
         rewards = step_reward(self.reward_kind, nsw, self.sim.state.last)
         self._obs = obs
+        if pending.any():
+            idx = np.flatnonzero(pending)
+            self._obs = self.sim.reset(indices=idx, seeds=self.sim.seeds[idx].tolist())
+            rewards[pending] = 0.0
+            self._pending[:] = False
         truncated = self.sim.dones
         terminated = np.zeros(self.num_envs, dtype=bool)
         infos = self._infos()
+        if truncated.any() and self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            # the last observation goes out now; the rows are reset (so the simulator can step the others)
+            # and the next step returns their first observation
+            idx = np.flatnonzero(truncated)
+            final = self._copy_obs()
+            seeds = [int(self._seed_rngs[i].integers(0, _SEED_HIGH)) for i in idx]
+            self._obs = self.sim.reset(indices=idx, seeds=seeds)
+            self._reset_fixed()
+            self._pending[idx] = True
+            return final, rewards.astype(np.float64, copy=False), terminated, truncated, infos
         if truncated.any():
             idx = np.flatnonzero(truncated)
             final = self._copy_obs()
             final_obs = np.full(self.num_envs, None, dtype=object)
             final_info = np.full(self.num_envs, None, dtype=object)
             for i in idx:
-                final_obs[i] = {k: v[i] for k, v in final.items()}
+                final_obs[i] = final[i] if self.observation_kind == "box" else {k: v[i] for k, v in final.items()}
                 final_info[i] = {"t": int(infos["t"][i]), "seed": int(infos["seed"][i])}
             seeds = [int(self._seed_rngs[i].integers(0, _SEED_HIGH)) for i in idx]
             self._obs = self.sim.reset(indices=idx, seeds=seeds)
@@ -214,3 +261,13 @@ class WorkforceVectorEnv(VectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         self.sim = None
 
+
+
+def workforce_vector_env(num_envs: int = 8, **kwargs: Any) -> WorkforceVectorEnv:
+    """The vector entry point of ``wfbench/Workforce-v0`` (``gymnasium.make_vec``)."""
+    return WorkforceVectorEnv(num_envs=num_envs, kind="workforce", **kwargs)
+
+
+def dispatch_vector_env(num_envs: int = 8, **kwargs: Any) -> WorkforceVectorEnv:
+    """The vector entry point of ``wfbench/Dispatch-v0`` (``gymnasium.make_vec``)."""
+    return WorkforceVectorEnv(num_envs=num_envs, kind="dispatch", **kwargs)
