@@ -126,9 +126,28 @@ def _run_process(loaded: LoadedPolicy, config: ScenarioConfig, chunks: list[list
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
                 yield fut.result()
-    finally:  # a failed chunk (or a caller that stops early) leaves the rest unstarted
-        for fut in pending:
-            fut.cancel()
+    finally:
+        if pending:  # a chunk failed, or the caller stopped early: the other chunks' results are not wanted
+            _abandon(pool)
+
+
+def _abandon(pool) -> None:
+    """Stop ``pool`` now: drop its queued chunks and kill the workers that are mid-episode.
+
+    Neither cancelling the futures nor a plain shutdown would do. A shutdown that waits
+    (at the latest the one at interpreter exit) waits for every running chunk to finish,
+    minutes on a large scenario after the failure was known. And loky 3.6's shutdown
+    with ``kill_workers=True`` sets an exception on each queued future without catching
+    the ``InvalidStateError`` of one already cancelled: its manager thread died printing
+    ``Exception in thread ExecutorManagerThread`` before killing the workers, and the
+    process then hung at exit on the workers it never stopped. So the futures are left
+    as they are and the pool kills its workers itself; the next evaluation starts a new
+    pool.
+    """
+    global _pool
+    pool.shutdown(wait=True, kill_workers=True)
+    if _pool is pool:
+        _pool = None
 
 
 def _run_ray(loaded: LoadedPolicy, config: ScenarioConfig, chunks: list[list[int]], keep_series: bool,
