@@ -28,6 +28,7 @@ import os
 from collections.abc import Iterator, Sequence
 
 from joblib.externals.loky import FIRST_COMPLETED, get_reusable_executor, wait
+from joblib.externals.loky.backend.utils import kill_process_tree
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.guard import LoadedPolicy
@@ -132,20 +133,27 @@ def _run_process(loaded: LoadedPolicy, config: ScenarioConfig, chunks: list[list
 
 
 def _abandon(pool) -> None:
-    """Stop ``pool`` now: drop its queued chunks and kill the workers that are mid-episode.
+    """Stop ``pool`` now: kill its workers, mid-episode or not, and forget its queued chunks.
 
-    Neither cancelling the futures nor a plain shutdown would do. A shutdown that waits
-    (at the latest the one at interpreter exit) waits for every running chunk to finish,
-    minutes on a large scenario after the failure was known. And loky 3.6's shutdown
-    with ``kill_workers=True`` sets an exception on each queued future without catching
-    the ``InvalidStateError`` of one already cancelled: its manager thread died printing
-    ``Exception in thread ExecutorManagerThread`` before killing the workers, and the
-    process then hung at exit on the workers it never stopped. So the futures are left
-    as they are and the pool kills its workers itself; the next evaluation starts a new
-    pool.
+    Neither cancelling the futures nor loky's own shutdown would do. A shutdown that
+    waits (at the latest the one at interpreter exit) waits for every running chunk to
+    finish, minutes on a large scenario after the failure was known. loky 3.6's
+    ``shutdown(kill_workers=True)`` fails in its manager thread, which prints
+    ``Exception in thread ExecutorManagerThread`` and dies before killing the workers
+    (the process then hung at exit on them): with ``InvalidStateError`` when a queued
+    future was cancelled, and with ``KeyError`` when more chunks were queued than its
+    call queue holds. Killed workers instead take loky's path for a worker that died
+    (the pool is marked broken, every future fails, nothing is printed), and the next
+    evaluation starts a new pool. The worker processes are ``pool._processes``, not a
+    public API; ``tests/test_failures_one_line.py`` checks that they are killed.
     """
     global _pool
-    pool.shutdown(wait=True, kill_workers=True)
+    for process in list(pool._processes.values()):
+        try:
+            kill_process_tree(process)  # loky's own: SIGKILL (also to a worker's children), then join
+        except (OSError, ValueError):  # already gone
+            pass
+    pool.shutdown(wait=True)  # joins the manager thread, which has seen the workers die
     if _pool is pool:
         _pool = None
 

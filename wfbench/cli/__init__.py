@@ -4,7 +4,9 @@ User mistakes (unknown policy or scenario, bad numbers, unwritable output) print
 line saying what is wrong and what is allowed, and exit with status 2. A policy that
 fails (raises, overruns its act timeout, returns a malformed action) prints one line
 naming the policy, its file and line, and exits with status 1; ``--traceback`` prints
-the whole trace first. ``module:attr`` policies are looked up in the current folder
+the whole trace first. A reader that closes stdout early (``wfbench policies | head``)
+ends the command quietly with status 141, as a command stopped by SIGPIPE would.
+``module:attr`` policies are looked up in the current folder
 first, as ``python -m`` does.
 
 A command module has ``add_parser(subparsers)`` and ``run(args) -> int``; it imports
@@ -66,7 +68,9 @@ def main(argv: list[str] | None = None) -> int:
         _search_current_folder()
         args = build_parser().parse_args(argv)
         args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded by commands that write provenance
-        return COMMANDS[args.command].run(args)
+        status = COMMANDS[args.command].run(args)
+        sys.stdout.flush()  # here, where a closed pipe is handled, not at interpreter exit
+        return status
     except UsageError as exc:
         print(f"wfbench: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -81,4 +85,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("wfbench: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (``wfbench policies | head``): stop quietly, as the signal
+        # module's "Note on SIGPIPE" recommends; stdout goes to devnull so that flushing it at exit
+        # does not raise a second BrokenPipeError
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, what a shell reports for a command stopped by a closed pipe
 
