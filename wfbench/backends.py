@@ -32,7 +32,7 @@ from joblib.externals.loky.backend.utils import kill_process_tree
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.guard import LoadedPolicy
-from wfbench.runner import BatchResult, run_batch
+from wfbench.runner import BatchResult, prime, run_batch
 
 BACKENDS = ("serial", "process", "ray")
 IDLE_WORKER_TIMEOUT_S = 300  # start-up costs seconds per worker; consecutive evaluations reuse them
@@ -111,6 +111,8 @@ def run_chunks(loaded: LoadedPolicy, config: ScenarioConfig, seeds: Sequence[int
         # numpy, numba and wfbench); the numbers do not depend on where a chunk runs
         yield run_batch(loaded, config, chunks[0], keep_series, threads)
         return
+    if backend == "process" or not address:  # workers on this machine share its numba cache
+        prime(loaded, config)  # compile once here on a cold cache; the workers then load it
     if backend == "process":
         yield from _run_process(loaded, config, chunks, keep_series, workers)
         return
