@@ -249,6 +249,7 @@ def _chromium() -> str:
     raise AssertionError("headless Chromium is needed for this test: apt-get install chromium (.ci/run does)")
 
 
+@pytest.mark.needs_browser
 def test_html_report_renders_in_headless_chromium(db, tmp_path):
     for name in ("heuristic", "random", "solver"):
         submit(TINY, name, name, db=db, **_fast())

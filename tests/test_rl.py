@@ -429,3 +429,20 @@ def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
     assert sent > 0, "no dispatch decision was compared"
     with pytest.raises(ValueError, match="allowed: sample, greedy, greedy-dispatch"):
         policies.get("ppo-joint@argmax")
+
+
+
+
+def test_rl__evaluating_a_network_on_another_scenario_warns_once():
+    """Through the evaluator on the process backend (two workers, two chunks) and the command line: one warning."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        wfbench.evaluate("ppo-joint", "small", seeds=[0, 1], backend="process", workers=2)
+    mismatch = [str(w.message) for w in caught if "was trained on scenario" in str(w.message)]
+    assert mismatch == ["policy 'ppo-joint' was trained on scenario 'paper-64' and is evaluated on 'small': it runs, "
+                        "but what it learned is of another scenario"], mismatch
+    out = subprocess.run([sys.executable, "-c", "import sys; from wfbench.cli import main; sys.exit(main())",
+                          "evaluate", "--policy", "ppo-joint", "--scenario", "small", "--seeds", "1", "--backend",
+                          "serial"], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.count("was trained on scenario 'paper-64' and is evaluated on 'small'") == 1, out.stderr

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from policies.registry import warn_if_trained_elsewhere
 from wfbench.backends import BACKENDS, check_backend, run_chunks
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
@@ -74,6 +75,7 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
     seed_list = resolve_seeds(seeds)
     check_backend(backend, address)
     loaded = load_policy(policy, act_timeout_s)
+    warn_if_trained_elsewhere(loaded.policy, config.name)  # once, here: a worker's warning would repeat or be lost
     bar = None
     if progress:
         bar = tqdm(total=len(seed_list), desc=f"{loaded.name} on {config.name}", unit="episode", leave=False)
