@@ -47,16 +47,20 @@ def test_evaluate_failure_is_one_line_on_the_process_pool(kind):
 @pytest.mark.parametrize("kind", KINDS)
 def test_submit_failure_is_one_line_and_prompt(kind, workers, tmp_path):
     # the submission's child runs chunks of 5 seeds through the pool, whatever the workers
-    t0 = time.perf_counter()
     run = _wfbench("leaderboard", "submit", "--track", "paper-64", "--policy", f"tests.lb_policies:{kind}",
                    "--name", "failing", "--db", str(tmp_path / "lb.db"), "--act-timeout", "1", "--no-progress",
                    *workers)
-    took = time.perf_counter() - t0
     line = _one_line(run, KINDS[kind])
     assert "submission 'failing' on paper-64 failed" in line
-    # the child used to hang at exit on workers it never stopped until the parent killed it after
-    # its 30 s grace: a loose bound that a busy machine still meets
-    assert took < 25, took
+    # (the child used to hang at exit on workers it never stopped, until the parent killed it after its 30 s
+    # grace: test_a_failed_chunk_kills_the_workers_mid_episode checks the mechanism, not a time)
+
+
+def test_ray_failure_is_one_line():
+    pytest.importorskip("ray", reason="the ray extra is not installed (pip install 'wfbench[ray]')")
+    run = _wfbench("evaluate", "--policy", "tests.lb_policies:Raises", "--scenario", "small", "--seeds", "4",
+                   "--backend", "ray", "--workers", "2", "--no-progress")
+    _one_line(run, KINDS["Raises"])  # Ray's own start-up notices included: none may reach stderr
 
 
 def test_serial_failure_is_one_line():

@@ -23,6 +23,7 @@ test runs all three backends and compares).
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 from collections.abc import Iterator, Sequence
@@ -168,6 +169,9 @@ def _run_ray(loaded: LoadedPolicy, config: ScenarioConfig, chunks: list[list[int
         if address:
             ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
         else:
+            # the local cluster we start here: Ray's notice that it turned token authentication on for it is noise
+            # on a one-line failure (issue #26); a cluster the user joins (address) keeps all of Ray's messages
+            logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
             ray.init(num_cpus=os.cpu_count() or 1, include_dashboard=False, ignore_reinit_error=True,
                      log_to_driver=False, configure_logging=False)
     task = ray.remote(num_cpus=1)(run_batch)
