@@ -12,6 +12,7 @@ finished batches into one row per seed.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -99,7 +100,9 @@ def prime(loaded: LoadedPolicy, config: ScenarioConfig) -> None:
     """
     short = config.replace(horizon=2)
     if loaded.guard is None:
-        run_batch(loaded, short, [0], threads=1)
+        # on a copy: playing leaves state on a policy (an oracle's planner holds compiled closures), and the
+        # workers are sent the untouched one, which must still pickle
+        run_batch(copy.deepcopy(loaded), short, [0], threads=1)
         return
     sim = Simulator(short, [0])
     sim.reset()
