@@ -5,6 +5,11 @@ field, the value and what is allowed. Presets (``PRESETS``, built from the
 data in :mod:`wfbench.core.presets`) are looked up by name with
 :meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON.
 See ``docs/model.md`` for what each field means in the model.
+
+Fields added after the leaderboard began hashing ``to_dict()`` (``OMITTED_AT_DEFAULT``:
+the facility ``layout``) are written by :meth:`ScenarioConfig.to_dict` only when they
+differ from their default, so the dict, the files and the hash of every scenario that
+does not use them stay what they were (``docs/scenarios.md``).
 """
 
 from __future__ import annotations
@@ -18,10 +23,13 @@ from typing import Any
 
 import tomli_w
 
+from wfbench.core.layout import FacilityLayout
 from wfbench.core.presets import PRESET_FIELDS
 from wfbench.core.schedule import RateSchedule
 
 PLACEMENTS = ("argmax", "sample")
+# fields written to dicts and files only when not at their default (see the module docstring)
+OMITTED_AT_DEFAULT = ("layout",)
 
 
 @dataclass(frozen=True)
@@ -54,6 +62,7 @@ class ScenarioConfig:
     placement: str = "argmax"
     request_schedule: RateSchedule = field(default_factory=RateSchedule)
     churn_schedule: RateSchedule = field(default_factory=RateSchedule)
+    layout: FacilityLayout = field(default_factory=FacilityLayout)
 
     def __post_init__(self) -> None:
         for name in ("level_multipliers", "level_probs", "level_salaries"):
@@ -69,6 +78,11 @@ class ScenarioConfig:
                 object.__setattr__(self, name, RateSchedule.from_dict(value))
             elif not isinstance(value, RateSchedule):
                 raise ValueError(f"ScenarioConfig.{name} = {value!r}: allowed: a RateSchedule or a dict")
+        if isinstance(self.layout, dict):
+            object.__setattr__(self, "layout", FacilityLayout.from_dict(self.layout))
+        elif not isinstance(self.layout, FacilityLayout):
+            raise ValueError(f"ScenarioConfig.layout = {self.layout!r} is not allowed; allowed: a FacilityLayout "
+                             "or a dict")
         self._validate()
 
     # -- validation -------------------------------------------------------------------------
@@ -125,6 +139,7 @@ class ScenarioConfig:
         if max(self.level_multipliers) * self.base_fix_rate > 1.0 + 1e-12:
             self._fail("level_multipliers",
                        f"multipliers with base_fix_rate * multiplier <= 1 (base_fix_rate={self.base_fix_rate})")
+        self.layout.check_grid(self.grid_width, self.grid_height)
 
     # -- derived -------------------------------------------------------------------------------
     @property
@@ -166,11 +181,17 @@ class ScenarioConfig:
 
     # -- serialization ---------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
+        """The fields as plain data; those of ``OMITTED_AT_DEFAULT`` only when not at their default."""
         d = asdict(self)
         for name in ("level_multipliers", "level_probs", "level_salaries"):
             d[name] = list(d[name])
         d["request_schedule"] = self.request_schedule.to_dict()
         d["churn_schedule"] = self.churn_schedule.to_dict()
+        defaults = {f.name: f.default_factory() for f in fields(self) if f.name in OMITTED_AT_DEFAULT}
+        for name in OMITTED_AT_DEFAULT:
+            d.pop(name)
+            if getattr(self, name) != defaults[name]:
+                d[name] = getattr(self, name).to_dict()
         return d
 
     @classmethod

@@ -12,12 +12,24 @@ so neither module imports the other's dependants (``docs/design.md``, layers).
 - ``small``: a tiny world for tests and quick experiments.
 - ``nonstationary``: ``paper-64`` with failure and churn rates drifting upward.
 - ``large``: 256x256, 200 facility and 200 personnel slots.
+- ``surge-64``: ``paper-64`` with a demand surge: the failure rate triples from step
+  300 to step 500 (a piecewise request schedule), then returns to normal.
+- ``clustered-64``: ``paper-64`` with facilities in 4 towns per seed (the ``clustered``
+  layout, spread 4 cells) instead of spread over the whole grid.
+- ``slow-64``: ``paper-64`` with people moving at half speed (0.5 cells per step).
+- ``churn-64``: ``paper-64`` with heavy facility churn (``churn_interval`` 25 instead
+  of 100: four times as many arrivals, lifetimes a quarter as long).
+- ``novice-64``: ``paper-64`` with a junior workforce and hiring pool (level mix
+  0.6 / 0.3 / 0.1 novice / mid / expert).
+- ``city``: five times ``large``: 576x576, 1000 facility and 1000 personnel slots, 500
+  of each at start, speed 9 (the grid's side grows 2.25x, and so does the speed).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+from wfbench.core.layout import FacilityLayout
 from wfbench.core.schedule import RateSchedule
 
 TABLE2_GRIDS = (32, 64, 128, 256)
@@ -49,6 +61,16 @@ def _build() -> dict[str, dict[str, Any]]:
                 grid_width=grid, grid_height=grid, initial_facilities=f,
                 initial_personnel=s, max_facilities=max(50, 2 * f), max_personnel=max(50, 2 * s),
             )
+    presets["surge-64"] = dict(request_schedule=RateSchedule(kind="piecewise", times=(0, 300, 500),
+                                                             values=(1.0, 3.0, 1.0)))
+    presets["clustered-64"] = dict(layout=FacilityLayout(kind="clustered", towns=4, spread=4.0))
+    presets["slow-64"] = dict(speed=0.5)
+    presets["churn-64"] = dict(churn_interval=25.0)
+    presets["novice-64"] = dict(level_probs=(0.6, 0.3, 0.1))
+    presets["city"] = dict(
+        grid_width=576, grid_height=576, max_facilities=1000, max_personnel=1000,
+        initial_facilities=500, initial_personnel=500, speed=9.0,
+    )
     return presets
 
 

@@ -7,6 +7,10 @@ Contents (``docs/design.md``, "The trace and common random numbers"; ``docs/mode
   ``churn_schedule(t) / churn_interval`` per step, each arrival with its cell and its
   exit time (an exponential lifetime of mean ``initial_facilities * churn_interval``,
   so that the active count is an M/M/infinity system that stays near its start);
+- the facility cells follow the scenario's layout (:mod:`wfbench.core.layout`): drawn
+  uniformly here, or, for another layout, redrawn from the layout's own stream after the
+  uniform draws, so the lifetimes, arrival times and workforce of a seed are the same
+  under every layout and only the cells differ;
 - ``key``: the 64-bit key of the counter-based draws (:mod:`wfbench.core.rng`) for the
   per-slot failure clocks, the per-(slot, request, visit) repair outcomes and the
   per-hire placement draws, which are computed on demand from their index.
@@ -65,7 +69,8 @@ def trace(config: ScenarioConfig, seed: int) -> Trace:
     seed = int(seed)
     c = config
     M, N = c.max_facilities, c.max_personnel
-    fac_ss, per_ss, arr_ss = np.random.SeedSequence(seed).spawn(3)
+    # spawn(4)'s first three children are spawn(3)'s: the uniform streams are what they always were
+    fac_ss, per_ss, arr_ss, layout_ss = np.random.SeedSequence(seed).spawn(4)
     fac_rng, per_rng, arr_rng = (np.random.Generator(np.random.PCG64(s)) for s in (fac_ss, per_ss, arr_ss))
     life_mean = max(c.initial_facilities, 1) * c.churn_interval
 
@@ -97,6 +102,8 @@ def trace(config: ScenarioConfig, seed: int) -> Trace:
     arr_x = arr_rng.integers(0, c.grid_width, size=A)
     arr_y = arr_rng.integers(0, c.grid_height, size=A)
     arr_leave = arr_t + _lifetimes(arr_rng, A, life_mean)
+    if c.layout.kind != "uniform":
+        fac0_x, fac0_y, arr_x, arr_y = c.layout.draw(c.grid_width, c.grid_height, layout_ss, M, A)
 
     def one(a: np.ndarray, dtype=np.int64) -> np.ndarray:
         return np.asarray(a, dtype=dtype)[None]

@@ -1,0 +1,147 @@
+"""Facility layouts: where on the grid facilities are, at the start and when they arrive.
+
+A layout is part of the scenario (``ScenarioConfig.layout``) and acts only through the
+trace (:mod:`wfbench.core.trace`): the compiled core reads the facility cells from the
+trace's arrays, so a layout is a pure function of ``(config, seed)`` like every other
+exogenous draw. Three kinds (``docs/scenarios.md``, "Facility layouts"):
+
+- ``uniform`` (the default): every cell of the grid equally likely, the paper's setting.
+- ``clustered``: ``towns`` town centres are drawn uniformly (away from the edges by up
+  to ``spread``) for each seed, and each facility, initial or arriving, picks a town at
+  random and lies a normal offset of standard deviation ``spread`` cells from its centre.
+  The towns change with the seed: a seed is a world, and a fixed geography is what the
+  ``sites`` layout is for.
+- ``sites``: a fixed list of ``(x, y, weight)`` sites on the grid; each facility picks a
+  site in proportion to its weight and lies a normal offset of standard deviation
+  ``jitter`` cells from it (exactly on it with ``jitter = 0``).
+
+Cells off the grid are clipped to its edge; offsets are rounded to the nearest cell.
+Personnel homes are not part of the layout (they stay uniform; see the docs).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+LAYOUT_KINDS = ("uniform", "clustered", "sites")
+# the fields each kind reads besides ``kind``; any other field must keep its default
+_KIND_FIELDS = {"uniform": (), "clustered": ("towns", "spread"), "sites": ("sites", "jitter")}
+
+
+@dataclass(frozen=True)
+class FacilityLayout:
+    """Where facilities are drawn on the grid; see the module docstring.
+
+    Attributes:
+        kind: ``uniform``, ``clustered`` or ``sites``.
+        towns: ``clustered``: the number of town centres (>= 1).
+        spread: ``clustered``: standard deviation, in cells, of a facility's offset from
+            its town centre (> 0).
+        sites: ``sites``: ``(x, y, weight)`` triples, x and y in grid cells (real numbers
+            are rounded when a facility is placed), weight >= 0 with a positive total.
+        jitter: ``sites``: standard deviation, in cells, of a facility's offset from its
+            site (>= 0; 0 puts it exactly on the site).
+    """
+
+    kind: str = "uniform"
+    towns: int = 4
+    spread: float = 4.0
+    sites: tuple[tuple[float, float, float], ...] = ()
+    jitter: float = 0.0
+
+    def __post_init__(self) -> None:
+        try:
+            sites = tuple(tuple(float(v) for v in s) for s in self.sites)
+        except (TypeError, ValueError):
+            raise ValueError(f"ScenarioConfig.layout.sites = {self.sites!r} is not allowed; allowed: "
+                             "(x, y, weight) triples of numbers") from None
+        object.__setattr__(self, "sites", sites)
+        if isinstance(self.spread, int) and not isinstance(self.spread, bool):
+            object.__setattr__(self, "spread", float(self.spread))
+        if isinstance(self.jitter, int) and not isinstance(self.jitter, bool):
+            object.__setattr__(self, "jitter", float(self.jitter))
+        self._validate()
+
+    def _fail(self, name: str, allowed: str) -> None:
+        raise ValueError(f"ScenarioConfig.layout.{name} = {getattr(self, name)!r} is not allowed; allowed: {allowed}")
+
+    def _validate(self) -> None:
+        if self.kind not in LAYOUT_KINDS:
+            self._fail("kind", ", ".join(map(repr, LAYOUT_KINDS)))
+        if isinstance(self.towns, bool) or not isinstance(self.towns, int) or not 1 <= self.towns <= 4096:
+            self._fail("towns", "an integer in [1, 4096]")
+        if not (isinstance(self.spread, float) and math.isfinite(self.spread) and self.spread > 0):
+            self._fail("spread", "a finite number > 0 (cells)")
+        if not (isinstance(self.jitter, float) and math.isfinite(self.jitter) and self.jitter >= 0):
+            self._fail("jitter", "a finite number >= 0 (cells)")
+        for i, s in enumerate(self.sites):
+            if len(s) != 3 or not all(math.isfinite(v) for v in s) or s[2] < 0:
+                raise ValueError(f"ScenarioConfig.layout.sites[{i}] = {s!r} is not allowed; allowed: "
+                                 "(x, y, weight) with finite numbers and weight >= 0")
+        if self.kind == "sites" and (not self.sites or sum(s[2] for s in self.sites) <= 0):
+            self._fail("sites", "at least one (x, y, weight) site, with weights summing to more than 0")
+        for f in fields(self):
+            if f.name != "kind" and f.name not in _KIND_FIELDS[self.kind] and getattr(self, f.name) != f.default:
+                self._fail(f.name, f"its default {f.default!r}: it applies to the "
+                                   f"{' or '.join(k for k, v in _KIND_FIELDS.items() if f.name in v)} layout only, "
+                                   f"and this layout is {self.kind!r}")
+
+    def check_grid(self, width: int, height: int) -> None:
+        """``ValueError`` naming the first site off a ``width`` x ``height`` grid."""
+        for i, (x, y, _) in enumerate(self.sites):
+            if not (-0.5 <= x < width - 0.5 and -0.5 <= y < height - 0.5):
+                raise ValueError(f"ScenarioConfig.layout.sites[{i}] = {(x, y)!r} is not allowed; allowed: x in "
+                                 f"[0, {width - 1}] and y in [0, {height - 1}] (cells of the grid)")
+
+    # -- serialization ---------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """``kind`` and the fields its kind reads (the others are at their defaults)."""
+        d: dict[str, Any] = {"kind": self.kind}
+        for name in _KIND_FIELDS[self.kind]:
+            v = getattr(self, name)
+            d[name] = [list(s) for s in v] if name == "sites" else v
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> FacilityLayout:
+        allowed = {f.name for f in fields(cls)}
+        unknown = set(d) - allowed
+        if unknown:
+            raise ValueError(f"unknown layout field(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
+        return cls(**d)
+
+    # -- drawing -----------------------------------------------------------------------------
+    def draw(self, width: int, height: int, seed_seq: np.random.SeedSequence, n_initial: int,
+             n_arrivals: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Cells ``(x0, y0, xa, ya)`` of ``n_initial`` initial and ``n_arrivals`` arriving facilities.
+
+        ``seed_seq`` is the layout's own stream of the seed; it is split into the towns', the
+        initial facilities' and the arrivals' streams, so the number of arrivals does not
+        move the initial cells. Not for ``uniform`` (the trace draws those itself).
+        """
+        town_ss, init_ss, arr_ss = seed_seq.spawn(3)
+        if self.kind == "clustered":
+            rng = np.random.Generator(np.random.PCG64(town_ss))
+            mx, my = min(self.spread, (width - 1) / 2), min(self.spread, (height - 1) / 2)
+            cx = rng.uniform(mx, width - 1 - mx, size=self.towns)
+            cy = rng.uniform(my, height - 1 - my, size=self.towns)
+            weights, sd = np.full(self.towns, 1.0 / self.towns), self.spread
+        elif self.kind == "sites":
+            s = np.asarray(self.sites, dtype=np.float64)
+            cx, cy, weights, sd = s[:, 0], s[:, 1], s[:, 2] / s[:, 2].sum(), self.jitter
+        else:
+            raise ValueError(f"ScenarioConfig.layout.kind = {self.kind!r}: the trace draws uniform cells itself")
+
+        def cells(ss: np.random.SeedSequence, n: int) -> tuple[np.ndarray, np.ndarray]:
+            rng = np.random.Generator(np.random.PCG64(ss))
+            k = rng.choice(len(weights), size=n, p=weights)
+            off = rng.normal(0.0, 1.0, size=(2, n)) * sd
+            x = np.clip(np.rint(cx[k] + off[0]), 0, width - 1).astype(np.int64)
+            y = np.clip(np.rint(cy[k] + off[1]), 0, height - 1).astype(np.int64)
+            return x, y
+
+        return (*cells(init_ss, n_initial), *cells(arr_ss, n_arrivals))
