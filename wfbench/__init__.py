@@ -34,7 +34,8 @@ for _env_id, _entry in ENV_IDS.items():
         _gymnasium.register(id=_env_id, entry_point=_entry, vector_entry_point=VECTOR_ENTRY_POINTS[_env_id],
                             disable_env_checker=False)
 
-_LAZY = {"evaluate": "wfbench.evaluation", "env": "wfbench.envs", "parallel_env": "wfbench.envs"}
+_LAZY = {"evaluate": "wfbench.evaluation", "evaluate_suite": "wfbench.suites", "env": "wfbench.envs",
+         "parallel_env": "wfbench.envs"}
 
 
 def __getattr__(name: str):
@@ -52,6 +53,7 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
-    "ActionError", "ENV_IDS", "RateSchedule", "ScenarioConfig", "Simulator", "env", "evaluate", "parallel_env",
+    "ActionError", "ENV_IDS", "RateSchedule", "ScenarioConfig", "Simulator", "env", "evaluate", "evaluate_suite",
+    "parallel_env",
     "trace", "__version__",
 ]

