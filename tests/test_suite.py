@@ -1,0 +1,127 @@
+"""The suite registry: suite-v1's scenarios and split, its hash, the normalized score and its constants."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+import wfbench
+from wfbench.core.config import ScenarioConfig
+from wfbench.suites import (
+    DATA,
+    SUITES,
+    Suite,
+    SuiteScenario,
+    compute_reference,
+    evaluate_suite,
+    get_suite,
+    normalize,
+    reference,
+    references,
+)
+
+TRAIN = ["small", "paper-64", "nonstationary", "table2-g32-f25-s10", "table2-g256-f25-s5", "surge-64",
+         "clustered-64", "real-benelux"]
+HELDOUT = ["large", "city", "table2-g128-f50-s25", "table2-g32-f100-s25", "slow-64", "churn-64", "novice-64",
+           "real-nyc"]
+
+
+def _mini(**changes) -> Suite:
+    """A two-scenario suite of cheap presets, named suite-v1 so that it reads suite-v1's constants."""
+    small = ScenarioConfig.preset("small")
+    scenarios = (SuiteScenario("small-v1", "small", 1, "train", "tiny", small),
+                 SuiteScenario("large-v1", "large", 1, "heldout", "large", ScenarioConfig.preset("large")))
+    return dataclasses.replace(Suite("suite-v1", 1, scenarios, "two cheap scenarios"), **changes)
+
+
+def test_suite_v1__has_the_sixteen_scenarios_and_split_the_lead_fixed():
+    s = get_suite("suite-v1")
+    assert s.ids("train") == [f"{p}-v1" for p in TRAIN]
+    assert s.ids("heldout") == [f"{p}-v1" for p in HELDOUT]
+    assert s.ids() == s.ids("train") + s.ids("heldout")
+    assert all(sc.why and sc.version == 1 and sc.config.name == sc.preset for sc in s.scenarios)
+    assert list(SUITES) == ["suite-v1"] and SUITES["suite-v1"] is s
+    assert s.public_seeds == tuple(range(1000, 1050)) and s.test_seeds == tuple(range(50))
+
+
+def test_suite_v1__every_scenario_has_reference_constants_for_its_current_definition():
+    s = get_suite("suite-v1")
+    data = references("suite-v1")
+    assert data["seeds"] == list(range(50)) and data["wfbench_version"] == wfbench.__version__
+    assert data["suite_hash"] == s.hash
+    for sc in s.scenarios:
+        entry = data["scenarios"][sc.id]
+        assert entry["hash"] == sc.hash, f"{sc.id}: recompute with benchmarks/suite_references.py"
+        assert entry["random_ref"] < entry["bound_ref"] <= 1
+
+
+def test_hash__changes_with_a_config_a_split_or_the_seeds():
+    base = _mini()
+    assert base.hash == _mini().hash and len(base.hash) == 16
+    other_config = dataclasses.replace(base.scenarios[0], config=base.scenarios[0].config.replace(horizon=100))
+    assert _mini(scenarios=(other_config, base.scenarios[1])).hash != base.hash
+    other_split = dataclasses.replace(base.scenarios[1], split="train")
+    assert other_split.hash != base.scenarios[1].hash
+    assert _mini(scenarios=(base.scenarios[0], other_split)).hash != base.hash
+    assert _mini(test_seeds=tuple(range(49))).hash != base.hash
+
+
+def test_scenario__takes_an_id_or_an_unambiguous_preset_name():
+    s = get_suite("suite-v1")
+    assert s.scenario("paper-64").id == "paper-64-v1" == s.scenario("paper-64-v1").id
+    twice = dataclasses.replace(s.scenarios[0], id="small-v2", version=2)
+    with pytest.raises(ValueError, match="'small' is ambiguous in suite-v1: give one of small-v1, small-v2"):
+        _mini(scenarios=(*_mini().scenarios, twice)).scenario("small")
+    with pytest.raises(ValueError, match="unknown scenario 'nope' in suite-v1; allowed: small-v1, large-v1"):
+        _mini().scenario("nope")
+
+
+def test_bad_names__say_what_is_allowed():
+    with pytest.raises(ValueError, match="unknown suite 'suite-v9'; allowed: suite-v1"):
+        get_suite("suite-v9")
+    with pytest.raises(ValueError, match="unknown split 'test'; allowed: train, heldout"):
+        _mini().ids("test")
+    with pytest.raises(ValueError, match="split 'dev' is not allowed; allowed: train, heldout"):
+        SuiteScenario("x-v1", "small", 1, "dev", "", ScenarioConfig.preset("small"))
+    with pytest.raises(ValueError, match="unknown scenario 'nope' in suite-v1; allowed: small-v1, paper-64-v1, "):
+        normalize(0.5, "nope")
+
+
+def test_normalize__random_reference_is_0_and_bound_reference_is_1():
+    lo, hi = reference("small-v1")
+    assert normalize(lo, "small-v1") == 0.0 and normalize(hi, "small") == 1.0
+    x = normalize(np.array([lo, (lo + hi) / 2, hi]), "small-v1")
+    np.testing.assert_allclose(x, [0.0, 0.5, 1.0])
+    assert isinstance(normalize(0.5, "small-v1"), float)
+
+
+def test_reference_constants__recomputed_for_small_match_the_committed_file():
+    committed = json.loads((DATA / "suite-v1.json").read_text())["scenarios"]["small-v1"]
+    assert compute_reference(get_suite("suite-v1").scenario("small-v1")) == committed
+
+
+def test_normalize__refuses_constants_of_another_definition():
+    changed = dataclasses.replace(_mini().scenarios[0], config=ScenarioConfig.preset("small").replace(horizon=100))
+    with pytest.raises(ValueError, match="small-v1 were computed for another definition .* recompute them"):
+        normalize(0.5, "small-v1", _mini(scenarios=(changed,)))
+
+
+def test_evaluate_suite__one_row_per_scenario_and_seed_with_the_normalized_score():
+    df = evaluate_suite("heuristic", _mini(), seeds=[0, 1], backend="serial")
+    assert list(df.columns[:3]) == ["scenario", "split", "normalized"]
+    assert list(df["scenario"]) == ["small-v1", "small-v1", "large-v1", "large-v1"]
+    assert list(df["split"]) == ["train", "train", "heldout", "heldout"]
+    assert list(df["seed"]) == [0, 1, 0, 1]
+    alone = wfbench.evaluate("heuristic", "large", [0, 1], backend="serial")
+    np.testing.assert_array_equal(df["nsw"].to_numpy()[2:], alone["nsw"].to_numpy())
+    np.testing.assert_array_equal(df["normalized"].to_numpy()[2:], normalize(alone["nsw"].to_numpy(), "large-v1"))
+    assert df.attrs["suite"] == "suite-v1" and df.attrs["policy"] == "heuristic"
+    held = evaluate_suite("heuristic", _mini(), seeds=[0], split="heldout", backend="serial")
+    assert list(held["scenario"]) == ["large-v1"]
+
+
+def test_evaluate_suite__is_the_package_name():
+    assert wfbench.evaluate_suite is evaluate_suite
