@@ -125,3 +125,74 @@ def test_evaluate_suite__one_row_per_scenario_and_seed_with_the_normalized_score
 
 def test_evaluate_suite__is_the_package_name():
     assert wfbench.evaluate_suite is evaluate_suite
+
+
+# the command line
+
+
+def _cli(capsys, *argv):
+    from wfbench.cli import main
+
+    status = main(list(argv))
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def test_cli_suite_list_and_show__name_the_scenarios_split_hash_and_constants(capsys):
+    status, out, _ = _cli(capsys, "suite", "list")
+    s = get_suite("suite-v1")
+    assert status == 0 and "suite-v1" in out and s.hash in out
+    status, out, _ = _cli(capsys, "suite", "show", "suite-v1")
+    assert status == 0 and f"hash {s.hash}" in out
+    lo, hi = reference("real-nyc-v1")
+    line = next(x for x in out.splitlines() if x.startswith("real-nyc-v1"))
+    assert "heldout" in line and f"{lo:.4f}" in line and f"{hi:.4f}" in line and s.scenario("real-nyc").why in line
+    status, out, _ = _cli(capsys, "suite", "show", "suite-v1", "--format", "json")
+    data = json.loads(out)
+    assert data["hash"] == s.hash and [x["id"] for x in data["scenarios"]] == s.ids()
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["suite", "show", "suite-v9"], "unknown suite 'suite-v9'; allowed: suite-v1"),
+    (["evaluate", "--policy", "random", "--suite", "suite-v9"], "--suite: unknown suite 'suite-v9'; allowed: suite-v1"),
+    (["evaluate", "--policy", "random", "--suite", "suite-v1", "--split", "test"],
+     "--split: unknown split 'test'; allowed: train, heldout"),
+    (["evaluate", "--policy", "random", "--suite", "suite-v1", "--scenario", "small"],
+     "--scenario and --suite do not go together"),
+    (["evaluate", "--policy", "random", "--split", "train"], "--split train applies to --suite only"),
+    (["compare", "--policies", "random", "--suite", "suite-v1", "--split", "dev"],
+     "--split: unknown split 'dev'; allowed: train, heldout"),
+    (["compare", "--policies", "random", "--suite", "nope"], "--suite: unknown suite 'nope'; allowed: suite-v1"),
+    (["compare", "--policies", "random", "--suite", "suite-v1", "--scenario", "paper-64"],
+     "--scenario and --suite do not go together"),
+])
+def test_cli_bad_suite_input__one_line_naming_what_is_allowed(capsys, argv, message):
+    status, out, err = _cli(capsys, *argv)
+    assert status == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith("wfbench: error: ") and message in err, err
+    assert "Traceback" not in err
+
+
+def test_cli_evaluate_suite__a_row_per_scenario_then_the_aggregate_per_split(capsys):
+    status, out, _ = _cli(capsys, "evaluate", "--policy", "heuristic", "--suite", "suite-v1", "--split", "train",
+                          "--seeds", "2", "--backend", "serial", "--no-progress")
+    assert status == 0
+    ids = get_suite("suite-v1").ids("train")
+    lines = out.splitlines()
+    assert [x.split()[0] for x in lines[1:1 + len(ids)]] == ids
+    df = evaluate_suite("heuristic", "suite-v1", [0, 1], scenarios=["small"], backend="serial")
+    small = next(x for x in lines if x.startswith("small-v1"))
+    assert f"{df['normalized'].mean():.3f}" in small.split()
+    agg = next(x for x in lines if x.startswith("train ") and "heuristic" in x)
+    assert "8 x 2" in agg and not any(x.startswith("heldout") for x in lines)
+
+
+def test_cli_compare_suite__paired_per_scenario_with_the_probability_of_improvement(capsys):
+    status, out, err = _cli(capsys, "compare", "--policies", "heuristic", "--baseline", "random", "--suite",
+                            "suite-v1", "--split", "train", "--seeds", "2", "--backend", "serial", "--no-progress",
+                            "--format", "md", "--poi-reps", "20")
+    assert status == 0 and "the baseline 'random' is not in --policies" in err
+    rows = [x for x in out.splitlines() if x.startswith("| small-v1")]
+    assert len(rows) == 2 and "(baseline)" in rows[0] and "| 2 |" in rows[1].replace(" ", " ")
+    agg = next(x for x in out.splitlines() if x.startswith("| train") and "heuristic" in x)
+    assert "1.00 [1.00, 1.00]" in agg

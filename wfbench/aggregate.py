@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["METRICS", "Aggregate", "aggregate", "aggregate_suite", "score_matrix"]
+__all__ = ["AGGREGATE_NOTE", "METRICS", "Aggregate", "aggregate", "aggregate_cells", "aggregate_suite", "score_matrix"]
 
 METRICS = ("iqm", "mean", "optimality_gap")
 """The aggregate metrics, in the order of the columns: IQM and mean higher is better, optimality gap lower."""
@@ -202,3 +202,29 @@ def aggregate_suite(frames: Mapping[str, pd.DataFrame], baseline: str | None = N
         out[split] = aggregate(mats, baseline=baseline, seed=seed, reps=reps, poi_reps=poi_reps,
                                profile_reps=profile_reps, scenarios=ids)
     return out
+
+
+AGGREGATE_NOTE = ("Aggregate over the split's scenarios and runs (rliable): IQM and mean of the normalized score, "
+                  "higher is better; optimality gap = mean shortfall below 1 (the bound), lower is better; 95% "
+                  "stratified bootstrap intervals over runs within each scenario.")
+
+
+def aggregate_cells(aggs: Mapping[str, Aggregate]) -> tuple[list[str], list[list[str]]]:
+    """Header and text cells of aggregates per split: IQM, mean and optimality gap with their 95% intervals.
+
+    A column of the probability of improvement over the baseline is added when the aggregates have one.
+    """
+    improvement = any(a.baseline is not None for a in aggs.values())
+    header = ["Split", "Policy", "Scenarios x runs", "IQM [95% CI]", "Mean [95% CI]", "Optimality gap [95% CI]"]
+    if improvement:
+        header.append("P(improvement over baseline) [95% CI]")
+    rows = []
+    for split, agg in aggs.items():
+        for _, r in agg.table.iterrows():
+            cells = [split, str(r["policy"]), f"{r['scenarios']} x {r['runs']}",
+                     *[f"{r[k]:.3f} [{r[k + '_low']:.3f}, {r[k + '_high']:.3f}]" for k in METRICS]]
+            if improvement:
+                cells.append("(baseline)" if r["policy"] == agg.baseline else
+                             f"{r['p_improve']:.2f} [{r['p_improve_low']:.2f}, {r['p_improve_high']:.2f}]")
+            rows.append(cells)
+    return header, rows

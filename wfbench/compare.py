@@ -1,8 +1,13 @@
-"""Several policies on the same seeds: KPIs, NSW intervals and paired differences to a baseline."""
+"""Several policies on the same seeds: KPIs, NSW intervals and paired differences to a baseline.
+
+:func:`compare` does it on one scenario; :func:`compare_suite` over a suite's scenarios,
+paired per scenario and aggregated per split (:mod:`wfbench.aggregate`).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -127,3 +132,82 @@ def format_comparison(df: pd.DataFrame, fmt: str = "table") -> str:
     if fmt == "md":
         return markdown_table(header, rows)
     return text_table(header, rows)
+
+
+@dataclass(frozen=True)
+class SuiteComparison:
+    """Several policies over a suite's scenarios on the same seeds.
+
+    Attributes:
+        table: one row per (scenario, policy): ``scenario``, ``split``, ``policy``, mean ``nsw`` and
+            ``normalized``, the paired normalized difference to the baseline with its bootstrap 95%
+            interval (``diff``, ``diff_low``, ``diff_high``) and ``wins`` (seeds where the policy
+            scores above the baseline).
+        aggregates: split -> :class:`wfbench.aggregate.Aggregate`, with the probability of
+            improvement over the baseline.
+        runs: policy -> :func:`wfbench.evaluate_suite` frame (per scenario and seed).
+        baseline: the baseline's name.
+        baseline_added: whether the baseline was not among the policies and was added first.
+    """
+
+    table: pd.DataFrame
+    aggregates: dict[str, Any]
+    runs: dict[str, pd.DataFrame]
+    baseline: str
+    baseline_added: bool
+
+
+def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int | str | Iterable[int] = "test",
+                  baseline: str = "heuristic", split: str | None = None, backend: str = "serial",
+                  workers: int | None = None, address: str | None = None, progress: bool = False,
+                  act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, seed: int = 0,
+                  poi_reps: int = 1000) -> SuiteComparison:
+    """Policies over a suite, paired per scenario and seed with a baseline, and aggregated per split.
+
+    Every policy runs on every scenario of the suite (or of ``split``) on the same seeds
+    (:func:`wfbench.evaluate_suite`), so each scenario's difference to the baseline is
+    paired by seed; the aggregate over scenarios and the probability of improvement are
+    :func:`wfbench.aggregate.aggregate_suite`'s, deterministic given ``seed``.
+
+    Args:
+        policies: registry names, ``module:attr`` entry points or policy objects.
+        suite: a suite name (``"suite-v1"``) or :class:`wfbench.suites.Suite`.
+        seeds: the seeds of every scenario (default the test set).
+        baseline: the policy the differences and the improvement are taken over.
+        split: ``"train"``, ``"heldout"`` or ``None`` for both.
+        backend: ``serial``, ``process`` or ``ray``.
+        workers: processes or Ray tasks.
+        address: Ray cluster address.
+        progress: show a progress bar per policy and scenario.
+        act_timeout_s: limit of each ``reset``/``act`` call of a user's policy (``None``: none).
+        seed: the aggregate's bootstrap seed.
+        poi_reps: bootstrap replications of the probability of improvement's interval.
+
+    Returns:
+        The :class:`SuiteComparison`.
+    """
+    from wfbench.aggregate import aggregate_suite
+    from wfbench.suites import evaluate_suite, get_suite
+
+    s = get_suite(suite)
+    s.ids(split)  # an unknown split fails before anything runs
+    seed_list = resolve_seeds(seeds)
+    added = baseline not in policies
+    loaded = [load_policy(p, act_timeout_s) for p in ([baseline, *policies] if added else policies)]
+    by_name = {lp.name: lp for lp in loaded}
+    runs = {name: evaluate_suite(lp, s, seed_list, split=split, backend=backend, workers=workers, address=address,
+                                 progress=progress) for name, lp in by_name.items()}
+    base = runs[baseline]
+    rows = []
+    for sc in dict.fromkeys(base["scenario"]):
+        b = base.loc[base["scenario"] == sc, "normalized"].to_numpy()
+        for name, df in runs.items():
+            g = df[df["scenario"] == sc]
+            x = g["normalized"].to_numpy()
+            d = paired_difference(x, b)
+            rows.append({"scenario": sc, "split": g["split"].iloc[0], "policy": name, "nsw": float(g["nsw"].mean()),
+                         "normalized": float(x.mean()), "diff": d.estimate, "diff_low": d.low, "diff_high": d.high,
+                         "wins": int((x > b).sum())})
+    aggs = aggregate_suite(runs, baseline=baseline, seed=seed, poi_reps=poi_reps)
+    return SuiteComparison(table=pd.DataFrame(rows), aggregates=aggs, runs=runs, baseline=baseline,
+                           baseline_added=added)

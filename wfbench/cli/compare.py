@@ -1,4 +1,7 @@
-"""``wfbench compare``: several policies on the same seeds, paired differences to a baseline."""
+"""``wfbench compare``: several policies on the same seeds, paired differences to a baseline.
+
+On one scenario (``--scenario``), or over a suite (``--suite``): paired per scenario, then aggregated per split.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +13,7 @@ from wfbench.cli.common import (
     add_run_args,
     check_backend_args,
     check_writable,
+    positive,
     resolve_scenario,
     seed_list,
 )
@@ -20,6 +24,13 @@ def add_parser(sub) -> None:
     c.add_argument("--policies", required=True, help="comma-separated registry names or module:attr entry points")
     c.add_argument("--baseline", default="heuristic", help="policy the paired differences are taken to")
     add_run_args(c)
+    c.set_defaults(scenario=None)  # None: not given (paper-64), so that --scenario beside --suite is caught
+    c.add_argument("--suite", default=None, help="compare over every scenario of a suite (see 'wfbench suite "
+                   "list'): paired per scenario, then the aggregate per split with the probability of improvement")
+    c.add_argument("--split", default=None, help="with --suite: only the train or the heldout scenarios")
+    c.add_argument("--poi-reps", type=positive, default=1000, metavar="N", help="with --suite: bootstrap "
+                   "replications of the probability of improvement's interval (default 1000; each costs a "
+                   "Mann-Whitney U test per scenario)")
     c.add_argument("--format", default="table", choices=["table", "md", "csv"], help="output format")
     c.add_argument("--plot", default=None, metavar="PATH", help="also draw the KPIs per policy and the paired "
                    "NSW differences with their intervals into this .png, .svg or .pdf file")
@@ -34,10 +45,12 @@ def run(args: argparse.Namespace) -> int:
     from wfbench.guard import PolicyLoadError
     from wfbench.plots import figure_format
 
-    config = resolve_scenario(args.scenario)
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
     if not names:
         raise UsageError("--policies: give at least one policy name")
+    if args.suite is not None or args.split is not None:
+        return run_suite(args, names)
+    config = resolve_scenario(args.scenario or "paper-64")
     check_backend_args(args)
     plot = None
     if args.plot:  # checked before the runs, which may take long
@@ -68,4 +81,56 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise UsageError(f"--plot: cannot write {str(plot)!r}: {exc.strerror or exc}") from None
         print(f"wrote {plot}", file=sys.stderr)  # on stderr: a CSV on stdout stays clean
+    return 0
+
+
+def run_suite(args: argparse.Namespace, names: list[str]) -> int:
+    from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells
+    from wfbench.compare import compare_suite
+    from wfbench.core.seeds import describe
+    from wfbench.guard import PolicyLoadError
+    from wfbench.suites import SPLITS, get_suite
+    from wfbench.tables import markdown_table, text_table
+
+    if args.suite is None:
+        raise UsageError(f"--split {args.split} applies to --suite only")
+    if args.scenario is not None:
+        raise UsageError("--scenario and --suite do not go together: a suite names its scenarios (give one of them)")
+    if args.plot:
+        raise UsageError("--plot applies to one scenario, not to --suite ('wfbench reproduce suite' draws the "
+                         "suite's figures)")
+    try:
+        suite = get_suite(args.suite)
+    except ValueError as exc:
+        raise UsageError(f"--suite: {exc}") from None
+    if args.split is not None and args.split not in SPLITS:
+        raise UsageError(f"--split: unknown split {args.split!r}; allowed: {', '.join(SPLITS)}")
+    check_backend_args(args)
+    seeds = seed_list(args)
+    try:
+        result = compare_suite(names, suite, seeds, baseline=args.baseline, split=args.split, backend=args.backend,
+                               workers=args.workers, address=args.address, progress=not args.no_progress,
+                               act_timeout_s=args.act_timeout, poi_reps=args.poi_reps)
+    except PolicyLoadError as exc:
+        raise UsageError(str(exc)) from None
+    if result.baseline_added:
+        print(f"wfbench: note: the baseline {args.baseline!r} is not in --policies; added it as the first row "
+              "(choose another with --baseline)", file=sys.stderr)
+    t = result.table
+    if args.format == "csv":
+        t.to_csv(sys.stdout, index=False)
+        return 0
+    table = markdown_table if args.format == "md" else text_table
+    header = ["Scenario", "Split", "Policy", "NSW", "Normalized", f"- {args.baseline} (paired, 95% CI)",
+              f"wins / {len(seeds)}"]
+    rows = [[r["scenario"], r["split"], r["policy"], f"{r['nsw']:.4f}", f"{r['normalized']:.3f}",
+             "(baseline)" if r["policy"] == result.baseline else
+             f"{r['diff']:+.3f} [{r['diff_low']:+.3f}, {r['diff_high']:+.3f}]",
+             "-" if r["policy"] == result.baseline else str(r["wins"])] for _, r in t.iterrows()]
+    print(table(header, rows))
+    print(f"{suite.name} (hash {suite.hash}), seeds {describe(seeds)}: means over seeds; normalized = "
+          "(NSW - random) / (bound - random); differences of the normalized score, paired by seed.\n")
+    print(table(*aggregate_cells(result.aggregates)))
+    print(AGGREGATE_NOTE + " P(improvement): the probability that the policy beats the baseline on a random "
+          "scenario of the split and a random pair of runs (rliable).")
     return 0

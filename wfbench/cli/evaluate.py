@@ -1,4 +1,4 @@
-"""``wfbench evaluate``: score a policy over seeds, one Table 3 style row."""
+"""``wfbench evaluate``: score a policy over seeds, one Table 3 style row; or over a suite, a row per scenario."""
 
 from __future__ import annotations
 
@@ -20,8 +20,14 @@ def add_parser(sub) -> None:
     e = sub.add_parser("evaluate", help="score a policy over seeds (Table 3 style row)")
     e.add_argument("--policy", required=True, help="registry name (see 'wfbench policies') or module:attr")
     add_run_args(e)
+    e.set_defaults(scenario=None)  # None: not given (paper-64), so that --scenario beside --suite is caught
+    e.add_argument("--suite", default=None, help="score every scenario of a suite instead of one scenario "
+                   "(see 'wfbench suite list'): a row per scenario with its normalized score, then the aggregate "
+                   "per split")
+    e.add_argument("--split", default=None, help="with --suite: only the train or the heldout scenarios")
     e.add_argument("--format", default="table", choices=["table", "md", "csv", "json"], help="output format")
-    e.add_argument("--out", default=None, help="also write the per-seed rows to this CSV file")
+    e.add_argument("--out", default=None, help="also write the per-seed rows (per scenario and seed with "
+                   "--suite) to this CSV file")
     e.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -32,7 +38,9 @@ def run(args: argparse.Namespace) -> int:
     from wfbench.guard import PolicyLoadError
     from wfbench.tables import markdown_table, text_table
 
-    config = resolve_scenario(args.scenario)
+    if args.suite is not None or args.split is not None:
+        return run_suite(args)
+    config = resolve_scenario(args.scenario or "paper-64")
     check_backend_args(args)
     out = check_writable(args.out, "--out") if args.out else None
     seeds = seed_list(args)
@@ -56,4 +64,77 @@ def run(args: argparse.Namespace) -> int:
         print((markdown_table if args.format == "md" else text_table)(header, rows))
         print(f"{config.name}, seeds {describe(seeds)}: mean (25%-75%) over seeds of the "
               "episode means; NSW higher is better.")
+    return 0
+
+
+BUDGET_COLUMNS = ("decision_ms_p50", "decision_ms_p99", "cpu_s")  # the evaluator's cost columns, shown where present
+
+
+def check_suite_args(args: argparse.Namespace):
+    """The suite of ``--suite`` with ``--split`` checked; one-line usage errors for what does not go together."""
+    from wfbench.suites import SPLITS, get_suite
+
+    if args.suite is None:
+        raise UsageError(f"--split {args.split} applies to --suite only")
+    if args.scenario is not None:
+        raise UsageError("--scenario and --suite do not go together: a suite names its scenarios (give one of them)")
+    try:
+        suite = get_suite(args.suite)
+    except ValueError as exc:
+        raise UsageError(f"--suite: {exc}") from None
+    if args.split is not None and args.split not in SPLITS:
+        raise UsageError(f"--split: unknown split {args.split!r}; allowed: {', '.join(SPLITS)}")
+    return suite
+
+
+def suite_rows(df, seeds_text: str) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of a suite evaluation: a row per scenario, means over seeds (budget columns if present)."""
+    from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
+
+    budget = [c for c in BUDGET_COLUMNS if c in df.columns]
+    header = ["Scenario", "Split", *[KPI_LABELS[k] for k in KPI_NAMES], "Normalized", *budget]
+    rows = []
+    for sc, g in df.groupby("scenario", sort=False):
+        rows.append([sc, g["split"].iloc[0], *[f"{g[k].mean():.4g}" for k in KPI_NAMES],
+                     f"{g['normalized'].mean():.3f}", *[f"{g[c].mean():.3g}" for c in budget]])
+    return header, rows
+
+
+def run_suite(args: argparse.Namespace) -> int:
+    from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite
+    from wfbench.core.seeds import describe
+    from wfbench.guard import PolicyLoadError
+    from wfbench.suites import evaluate_suite
+    from wfbench.tables import markdown_table, text_table
+
+    suite = check_suite_args(args)
+    check_backend_args(args)
+    out = check_writable(args.out, "--out") if args.out else None
+    seeds = seed_list(args)
+    try:
+        df = evaluate_suite(args.policy, suite, seeds, split=args.split, backend=args.backend, workers=args.workers,
+                            address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout or 0)
+    except PolicyLoadError as exc:
+        raise UsageError(str(exc)) from None
+    if out:
+        df.to_csv(out, index=False)
+    if args.format == "csv":
+        df.to_csv(sys.stdout, index=False)
+        return 0
+    aggs = aggregate_suite({args.policy: df})
+    if args.format == "json":
+        print(json.dumps({"policy": args.policy, "suite": suite.name, "suite_hash": suite.hash, "split": args.split,
+                          "seeds": seeds,
+                          "scenarios": {sc: {"split": g["split"].iloc[0], "normalized": float(g["normalized"].mean()),
+                                             **{k: float(g[k].mean()) for k in ("nsw",)}}
+                                        for sc, g in df.groupby("scenario", sort=False)},
+                          "aggregate": {split: a.table.drop(columns="policy").iloc[0].to_dict()
+                                        for split, a in aggs.items()}}, indent=2, default=float))
+        return 0
+    table = markdown_table if args.format == "md" else text_table
+    print(table(*suite_rows(df, describe(seeds))))
+    print(f"{suite.name} (hash {suite.hash}), seeds {describe(seeds)}: means over seeds; normalized = "
+          "(NSW - random) / (bound - random), 0 the random policy, 1 the proven bound.\n")
+    print(table(*aggregate_cells(aggs)))
+    print(AGGREGATE_NOTE)
     return 0
