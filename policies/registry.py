@@ -6,12 +6,14 @@ And ``module:attr`` entry points.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import warnings
 from pathlib import Path
 from typing import Any
 
 from policies import tuned as _tuned
 from policies.composite import Composite
+from policies.hindsight.best import BestInHindsight
 from policies.neural import CHECKPOINT_ALGORITHMS
 
 # name -> (dispatch, workforce, positioning, description)
@@ -36,13 +38,19 @@ COMPOSITES: dict[str, tuple[str, str, str, str]] = {
     "solver-positioning": (
         "nearest", "threshold", "facility-location", "p-median positioning, heuristic dispatch and workforce",
     ),
-    "oracle": (
-        "oracle", "oracle", "oracle", "hindsight oracle for all three decisions: reads the trace, not deployable "
-        "(docs/hindsight.md)",
+    "oracle-planner": (
+        "oracle", "oracle", "oracle", "the hindsight planner for all three decisions: reads the trace, not "
+        "deployable (docs/hindsight.md)",
     ),
     "oracle-dispatch": (
         "oracle", "threshold", "spatial", "hindsight dispatch, heuristic workforce and positioning: not deployable",
     ),
+}
+
+# name -> description: oracles that are not composites (docs/hindsight.md, "The oracle")
+ORACLES: dict[str, str] = {
+    "oracle": "per seed, the best in hindsight of oracle-planner and every deployable built-in (the composites, the "
+              "tuned files and the shipped networks): reads the trace, not deployable (docs/hindsight.md)",
 }
 
 # name -> (file under policies/tuned/, description): tuned-policy files shipped with wfbench (docs/policies.md, Tuning)
@@ -78,7 +86,38 @@ def learned_names() -> list[str]:
 
 
 def names() -> list[str]:
-    return [*COMPOSITES, *TUNED, *learned_names()]
+    return [*COMPOSITES, *ORACLES, *TUNED, *learned_names()]
+
+
+def deployable_names() -> list[str]:
+    """The registered policies that do not read the trace: composites without an oracle part, tuned files, networks.
+
+    In the registry's order, which is the order in which the ``oracle`` breaks ties.
+    """
+    return [*_deployable_composites(), *TUNED, *learned_names()]
+
+
+def _deployable_composites() -> list[str]:
+    return [n for n, (d, w, p, _) in COMPOSITES.items() if "oracle" not in (d, w, p)]
+
+
+def oracle_candidates() -> list[str]:
+    """The candidates of the ``oracle``, in tie-breaking order: the compiled built-ins, the planner, the networks."""
+    return [*_deployable_composites(), *TUNED, "oracle-planner", *learned_names()]
+
+
+def best_in_hindsight(name: str = "oracle") -> Any:
+    """The ``oracle``: per seed, the best of :func:`oracle_candidates` (:mod:`policies.hindsight.best`).
+
+    Raises:
+        ValueError: networks are shipped but torch is missing. The oracle refuses rather
+            than drop them, which would change its numbers under the same name.
+    """
+    nets = learned_names()
+    if nets and importlib.util.find_spec("torch") is None:
+        raise ValueError(f"policy {name!r} plays the shipped networks ({', '.join(nets)}) as candidates and needs "
+                         "torch; install the rl extra: pip install 'wfbench[rl]' (oracle-planner needs no torch)")
+    return BestInHindsight(oracle_candidates(), get, name=name)
 
 
 def load_learned(path: Any, mode: str = "sample", name: str | None = None, algo: str | None = None) -> Any:
@@ -158,6 +197,8 @@ def get(spec: Any) -> Any:
     if spec in COMPOSITES:
         d, w, p, _ = COMPOSITES[spec]
         return Composite(d, w, p, name=spec)
+    if spec in ORACLES:
+        return best_in_hindsight(spec)
     if spec in TUNED:
         return load_tuned(_tuned.TUNED_DIR / TUNED[spec][0])
     name, _, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
@@ -216,9 +257,12 @@ def parts(name: str) -> tuple[str, str, str]:
 
     if name in COMPOSITES:
         return tuple(label(decision, n) for decision, n in zip(DECISIONS, COMPOSITES[name][:3], strict=True))
+    if name in ORACLES:
+        return ("Hindsight oracle",) * 3
     if name in TUNED:
         base = _tuned.read(_tuned.TUNED_DIR / TUNED[name][0]).base
         return tuple(f"{p} (tuned)" for p in parts(base))
     if name in LEARNED_PARTS:
         return LEARNED_PARTS[name]
-    raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join([*COMPOSITES, *TUNED, *LEARNED])}")
+    registered = [*COMPOSITES, *ORACLES, *TUNED, *LEARNED]
+    raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join(registered)}")

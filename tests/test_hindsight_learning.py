@@ -46,7 +46,7 @@ def test_labels_are_the_oracles_action_in_the_learners_state(tmp_path):
     seeds = [int(s) for s in trail[0]["seeds"]]
     assert all(s >= 1_000_000 for s in seeds)  # training seeds only
 
-    oracle = policies.get("oracle")  # the registry's composite, built independently of the trainer
+    oracle = policies.get("oracle-planner")  # the registry's planner composite, built independently of the trainer
     oracle.attach("small")
     oracle.reset(seeds)
     planner = oracle.parts["dispatch"].planner

@@ -11,10 +11,12 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from policies import DECISIONS
-    from policies.registry import COMPOSITES, LEARNED, TUNED, learned_names
+    from policies.registry import COMPOSITES, LEARNED, ORACLES, TUNED, learned_names
 
     for name, (d, w, p, text) in COMPOSITES.items():
         print(f"{name:<22s} dispatch={d}, workforce={w}, positioning={p}: {text}")
+    for name, text in ORACLES.items():
+        print(f"{name:<22s} {text}")
     for name, (file, text) in TUNED.items():
         print(f"{name:<22s} policies/tuned/{file}: {text}")
     for name in learned_names():
