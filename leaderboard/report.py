@@ -1,10 +1,19 @@
-"""Rankings of a track: text, markdown, CSV and a self-contained HTML page."""
+"""Rankings of a track: text, markdown, CSV and a self-contained HTML page.
+
+Each entry shows what it cost beside what it scored: the milliseconds per decision
+(p50, p99), the CPU seconds per episode, the machine it ran on, and what its policy
+states about its own cost (training env-steps, wall time and hardware, tuning trials,
+solver time limits). A ranking can be restricted to a budget (``max_decision_ms``,
+``max_cpu_s``): entries over it, or with no measurement to compare, are listed unranked
+with the reason.
+"""
 
 from __future__ import annotations
 
 import base64
 import html
 import io
+import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -13,6 +22,7 @@ import pandas as pd
 from leaderboard.store import KPI_COLUMNS, Store, scrub_paths
 from leaderboard.tracks import Track
 from policies import get
+from wfbench.budget import budget_line
 from wfbench.core.kpis import KPI_LABELS
 from wfbench.evaluation import format_kpi, summarize
 from wfbench.stats import bootstrap_ci, paired_difference
@@ -28,10 +38,57 @@ class Ranking:
     table: pd.DataFrame  # one row per submission; ranked ones first
     per_seed: pd.DataFrame  # the valid stored rows
     refused: list[str] = field(default_factory=list)
+    budget: dict[str, float] = field(default_factory=dict)  # the limits asked for: max_decision_ms, max_cpu_s
+    left_out: list[str] = field(default_factory=list)  # one line per complete entry the budget left unranked
 
 
-def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
+def entry_budget(mine: pd.DataFrame) -> dict[str, float | str]:
+    """An entry's measured cost from its rows (stored before budgets: NaN and ``""``).
+
+    ``decision_ms_p50`` is the median of its chunks' medians, ``decision_ms_p99`` the
+    largest of its chunks' 99th percentiles (the budget filter reads it), ``cpu_s`` the
+    mean CPU seconds per episode, ``machine`` the machine its rows ran on (the most
+    frequent one, and how many others there were).
+    """
+    if "machine" not in mine or mine["machine"].isna().all():
+        return {"decision_ms_p50": np.nan, "decision_ms_p99": np.nan, "cpu_s": np.nan, "machine": ""}
+    machines = mine["machine"].dropna().value_counts()
+    where = str(machines.index[0]) + (f" (+{len(machines) - 1} other)" if len(machines) > 1 else "")
+
+    def stat(column: str, how: str) -> float:
+        values = mine[column].dropna()
+        return float(getattr(values, how)()) if len(values) else np.nan
+
+    return {"decision_ms_p50": stat("decision_ms_p50", "median"), "decision_ms_p99": stat("decision_ms_p99", "max"),
+            "cpu_s": stat("cpu_s", "mean"), "machine": where}
+
+
+def over_budget(rec: dict, max_decision_ms: float | None, max_cpu_s: float | None) -> str:
+    """Why an entry is outside the budget (``""`` when it is within it, or no budget is asked)."""
+    why = []
+    if max_decision_ms is not None:
+        p99 = rec.get("decision_ms_p99", np.nan)
+        if not np.isfinite(p99):
+            why.append("no decision time recorded")
+        elif p99 > max_decision_ms:
+            why.append(f"p99 {p99:.3g} ms per decision > {max_decision_ms:g} ms")
+    if max_cpu_s is not None:
+        cpu = rec.get("cpu_s", np.nan)
+        if not np.isfinite(cpu):
+            why.append("no CPU time recorded")
+        elif cpu > max_cpu_s:
+            why.append(f"{cpu:.3g} CPU s per episode > {max_cpu_s:g} s")
+    return "; ".join(dict.fromkeys(why))
+
+
+def ranking(store: Store, track: Track, baseline: str = "heuristic", max_decision_ms: float | None = None,
+            max_cpu_s: float | None = None) -> Ranking:
     """Rank the complete submissions of ``track`` by mean NSW over its test seeds.
+
+    With ``max_decision_ms`` (read against the entry's p99 milliseconds per decision)
+    or ``max_cpu_s`` (CPU seconds per episode), only the entries within that budget are
+    ranked; the others, and entries with no measurement (stored before budgets), stay
+    listed, unranked, with the reason, and :attr:`Ranking.left_out` names them.
 
     A submission is ranked when every test seed has a valid row and it is deployable.
     wfbench's hindsight oracles (``reads_trace``) read the episode's future: they are
@@ -47,6 +104,7 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
     n_test = len(track.test_seeds)
     base = rows[rows["name"] == baseline].set_index("seed")["nsw"] if baseline in subs else pd.Series(dtype=float)
     out = []
+    left_out: list[str] = []
     for name, sub in subs.items():
         mine = rows[rows["name"] == name]
         rec = {"name": name, "policy": scrub_paths(sub.policy), "submitter": sub.submitter, "status": sub.status,
@@ -54,6 +112,12 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
                "fingerprint": sub.fingerprint or "legacy"}
         rec["deployable"] = not reads_future(sub.policy)
         rec["ranked"] = rec["deployable"] and sub.status == "complete" and len(mine) == n_test
+        rec.update(entry_budget(mine))
+        rec["cost"] = scrub_paths(budget_line(json.loads(sub.budget))) if sub.budget else "not recorded"
+        rec["over_budget"] = over_budget(rec, max_decision_ms, max_cpu_s)
+        if rec["ranked"] and rec["over_budget"]:
+            rec["ranked"] = False
+            left_out.append(f"{name}: {rec['over_budget']}")
         if len(mine):
             for k, (mean, q25, q75) in summarize(mine, KPI_COLUMNS).items():
                 rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = mean, q25, q75
@@ -71,7 +135,8 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic") -> Ranking:
         table = table.sort_values(["ranked", "_nsw"], ascending=[False, False]).drop(columns="_nsw")
         table["rank"] = [i + 1 if r else None for i, r in enumerate(table["ranked"])]
         table = table.reset_index(drop=True)
-    return Ranking(track, baseline, table, rows, refused)
+    limits = {k: v for k, v in (("max_decision_ms", max_decision_ms), ("max_cpu_s", max_cpu_s)) if v is not None}
+    return Ranking(track, baseline, table, rows, refused, limits, left_out)
 
 
 REFERENCE_TITLE = ("Not deployable (reads the future): hindsight oracles, a reference for what the deployable "
@@ -95,7 +160,7 @@ def reads_future(policy: str) -> bool:
 def _cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[str]]]:
     n = len(r.track.test_seeds)
     header = ["#", "Name", "Policy", *[KPI_LABELS[k] for k in KPI_COLUMNS], "NSW 95% CI",
-              f"NSW - {r.baseline} (paired, 95% CI)", "Seeds", "Status"]
+              f"NSW - {r.baseline} (paired, 95% CI)", "Seeds", "Status", *BUDGET_HEADER]
     rows = []
     for _, t in r.table.iterrows():
         if bool(t["deployable"]) != deployable:
@@ -113,16 +178,43 @@ def _cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[st
             diff = "-"
         status = t["status"] + (" (legacy: no fingerprint)" if t["fingerprint"] == "legacy" else "") \
             + (f": {t['reason']}" if t["reason"] else "")
+        if t["over_budget"]:
+            status += f"; outside the budget: {t['over_budget']}"
         rank = str(int(t["rank"])) if pd.notna(t["rank"]) else "-"
-        rows.append([rank, t["name"], t["policy"], *kpis, ci, diff, f"{t['seeds']}/{n}", status])
+        rows.append([rank, t["name"], t["policy"], *kpis, ci, diff, f"{t['seeds']}/{n}", status, *budget_cells(t)])
     return header, rows
+
+
+BUDGET_HEADER = ("ms per decision p50 | p99", "CPU s per episode", "Machine", "Training, tuning, solver limits")
+
+
+def budget_cells(t: pd.Series) -> list[str]:
+    """An entry's budget cells (:data:`BUDGET_HEADER`); ``-`` where nothing was measured."""
+    p50, p99, cpu = t.get("decision_ms_p50", np.nan), t.get("decision_ms_p99", np.nan), t.get("cpu_s", np.nan)
+    ms = f"{p50:.3g} | {p99:.3g}" if pd.notna(p50) and pd.notna(p99) else "-"
+    return [ms, f"{cpu:.3g}" if pd.notna(cpu) else "-", t.get("machine") or "-", t.get("cost") or "-"]
 
 
 def caption(r: Ranking) -> str:
     t = r.track
     return (f"Track {t.name} (hash {t.hash}): {t.description}; test seeds {t.test_seeds[0]}..{t.test_seeds[-1]} "
             f"({len(t.test_seeds)}). Ranked by mean NSW (higher is better); KPIs are mean (25%-75%) over seeds; "
-            "intervals are bootstrap 95%; differences are paired by seed.")
+            "intervals are bootstrap 95%; differences are paired by seed. Costs: wall ms per decision of one "
+            "environment (median | worst 99th percentile over chunks; a compiled composite's CPU time per "
+            "environment-step), CPU s per episode, on the machine named" + budget_note(r) + ".")
+
+
+def budget_note(r: Ranking) -> str:
+    """``; ranked within ...`` for a ranking restricted to a budget, else ``""``."""
+    parts = []
+    if "max_decision_ms" in r.budget:
+        parts.append(f"at most {r.budget['max_decision_ms']:g} ms per decision (p99)")
+    if "max_cpu_s" in r.budget:
+        parts.append(f"at most {r.budget['max_cpu_s']:g} CPU s per episode")
+    if not parts:
+        return ""
+    left = f"; left out: {'; '.join(r.left_out)}" if r.left_out else "; none left out"
+    return f"; ranked only within the budget of {' and '.join(parts)}{left}"
 
 
 def render(r: Ranking, fmt: str = "table") -> str:

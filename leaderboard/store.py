@@ -20,9 +20,16 @@ Safety:
   (``--replace``, or the first resubmission of a legacy entry) or withdrawing it moves
   its submission and rows, in the same transaction, to the audit tables
   (``audit_submissions``, ``audit_results``) with the action, a note and the time.
-- Schema 1 (before fingerprints) is upgraded in place to schema 2 when opened, in one
-  transaction: the new columns are empty for the old rows, which stay valid (their
-  digest never covered a fingerprint) and are marked legacy.
+- Every result row also stores what it cost (schema 3): the milliseconds per decision
+  (p50, p99), the CPU seconds of the episode and a line naming the machine it ran on
+  (:mod:`wfbench.budget`), covered by its digest; every submission stores what its
+  policy states about its own cost (training env-steps, wall time and hardware, tuning
+  trials, solver time limits) as JSON.
+- An older store is upgraded in place when opened, in one transaction: schema 1 (before
+  fingerprints) gets the fingerprint columns and the audit tables, schema 2 (before
+  budgets) the budget columns. The new columns are empty for the old rows, which stay
+  valid (their digest never covered a fingerprint or a budget); schema-1 entries are
+  marked legacy, and rows without a budget show none.
 """
 
 from __future__ import annotations
@@ -42,14 +49,19 @@ from typing import Any
 import pandas as pd
 
 from leaderboard.tracks import Track
+from wfbench.budget import BUDGET_COLUMNS
 from wfbench.core.kpis import KPI_NAMES
 
 APPLICATION_ID = 0x57464231  # "WFB1"
-SCHEMA_VERSION = 2  # 1: no fingerprints, no audit tables (upgraded in place when opened)
+# 1: no fingerprints, no audit tables; 2: no budgets (both upgraded in place when opened)
+SCHEMA_VERSION = 3
 KPI_COLUMNS = KPI_NAMES  # the KPI table (wfbench.core.kpis); a new KPI there is a new column here
 ROW_COLUMNS = (*KPI_COLUMNS, "episode_length", "invalid_actions")
+# what a row cost (wfbench.budget.BUDGET_COLUMNS, and the machine's line); NULL in rows stored before schema 3
+BUDGET_ROW_COLUMNS = (*BUDGET_COLUMNS, "machine")
 
-_SUBMISSION_COLUMNS = """
+# each table's columns as schema 2 had them, then with what schema 3 added
+_SUBMISSION_COLUMNS_2 = """
     track TEXT NOT NULL,
     name TEXT NOT NULL,
     policy TEXT NOT NULL,
@@ -62,7 +74,9 @@ _SUBMISSION_COLUMNS = """
     builtin INTEGER NOT NULL DEFAULT 0,
     fingerprint TEXT NOT NULL DEFAULT '',
     fingerprint_detail TEXT NOT NULL DEFAULT ''"""
-_RESULT_COLUMNS = """
+_SUBMISSION_COLUMNS = _SUBMISSION_COLUMNS_2 + """,
+    budget TEXT NOT NULL DEFAULT ''"""
+_RESULT_COLUMNS_2 = """
     seed INTEGER NOT NULL,
     track TEXT NOT NULL,
     track_hash TEXT NOT NULL,
@@ -78,21 +92,30 @@ _RESULT_COLUMNS = """
     invalid_actions INTEGER NOT NULL,
     digest TEXT NOT NULL,
     fingerprint TEXT NOT NULL DEFAULT ''"""
-# the audit tables: what replacing or withdrawing an entry took off the board, never deleted
-_AUDIT_SCHEMA = f"""
+_RESULT_COLUMNS = _RESULT_COLUMNS_2 + """,
+    decision_ms_p50 REAL,
+    decision_ms_p99 REAL,
+    cpu_s REAL,
+    machine TEXT"""
+
+
+def _audit_schema(submission_columns: str, result_columns: str) -> str:
+    """The audit tables: what replacing or withdrawing an entry took off the board, never deleted."""
+    return f"""
 CREATE TABLE audit_submissions (
     audit_id INTEGER PRIMARY KEY,
-    submission_id INTEGER NOT NULL,{_SUBMISSION_COLUMNS},
+    submission_id INTEGER NOT NULL,{submission_columns},
     action TEXT NOT NULL CHECK (action IN ('replaced', 'withdrawn')),
     note TEXT NOT NULL,
     moved_at TEXT NOT NULL
 );
 CREATE TABLE audit_results (
     audit_id INTEGER NOT NULL REFERENCES audit_submissions(audit_id),
-    submission_id INTEGER NOT NULL,{_RESULT_COLUMNS},
+    submission_id INTEGER NOT NULL,{result_columns},
     PRIMARY KEY (audit_id, seed)
 );
 """
+
 _STATUS_CHECKED = "status TEXT NOT NULL CHECK (status IN ('running', 'complete', 'failed')),"
 _SCHEMA = f"""
 CREATE TABLE submissions (
@@ -103,14 +126,18 @@ CREATE TABLE results (
     submission_id INTEGER NOT NULL REFERENCES submissions(id),{_RESULT_COLUMNS},
     PRIMARY KEY (submission_id, seed)
 );
-{_AUDIT_SCHEMA}"""
-# schema 1 -> 2, in one transaction
+{_audit_schema(_SUBMISSION_COLUMNS, _RESULT_COLUMNS)}"""
+# schema 1 -> 2 (the audit tables as schema 2 had them), then 2 -> 3, in one transaction
 _MIGRATE_1_TO_2 = f"""
 ALTER TABLE submissions ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
 ALTER TABLE submissions ADD COLUMN fingerprint_detail TEXT NOT NULL DEFAULT '';
 ALTER TABLE results ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
-{_AUDIT_SCHEMA}"""
-
+{_audit_schema(_SUBMISSION_COLUMNS_2, _RESULT_COLUMNS_2)}"""
+_MIGRATE_2_TO_3 = "".join(
+    [f"ALTER TABLE {table} ADD COLUMN budget TEXT NOT NULL DEFAULT '';" for table in ("submissions",
+                                                                                     "audit_submissions")]
+    + [f"ALTER TABLE {table} ADD COLUMN {column};" for table in ("results", "audit_results")
+       for column in ("decision_ms_p50 REAL", "decision_ms_p99 REAL", "cpu_s REAL", "machine TEXT")])
 
 
 class StoreError(Exception):
@@ -158,12 +185,25 @@ def _now() -> str:
 
 def row_digest(name: str, track: str, track_hash: str, policy: str, submitter: str, version: str, seed: int,
                values: dict[str, Any], fingerprint: str = "") -> str:
-    """sha256 over a row's provenance and values; a legacy row (no fingerprint) keeps its schema-1 digest."""
+    """sha256 over a row's provenance, values and budget.
+
+    A legacy row (no fingerprint) keeps its schema-1 digest and a row without a budget
+    (no ``machine``: stored before schema 3) its schema-2 digest.
+    """
     payload = [name, track, track_hash, policy, submitter, version, int(seed)]
     payload += [float(values[c]).hex() if c in KPI_COLUMNS else int(values[c]) for c in ROW_COLUMNS]
     if fingerprint:
         payload.append(fingerprint)
+    if values.get("machine"):
+        payload += [_budget_value(values.get(c)) for c in BUDGET_COLUMNS] + [values["machine"]]
     return hashlib.sha256(json.dumps(payload).encode()).hexdigest()
+
+
+def _budget_value(v: Any) -> str | None:
+    """A budget measurement as stored: its exact float, or None for a missing one (SQLite keeps no NaN)."""
+    if v is None or not math.isfinite(float(v)):
+        return None
+    return float(v).hex()
 
 
 @dataclass(frozen=True)
@@ -179,6 +219,7 @@ class Submission:
     builtin: bool
     fingerprint: str = ""  # "" for a legacy entry, stored before fingerprints (schema 1)
     fingerprint_detail: str = ""  # JSON: what the fingerprint covers
+    budget: str = ""  # JSON: what the policy states about its cost (wfbench.budget.policy_budget); "" before schema 3
 
     @property
     def legacy(self) -> bool:
@@ -257,12 +298,13 @@ class Store:
             self._migrate()
 
     def _migrate(self) -> None:
-        """Upgrade a schema-1 store in place, in one transaction (another process may be doing the same)."""
+        """Upgrade a schema-1 or -2 store in place, in one transaction (another process may be doing the same)."""
         self.conn.execute("BEGIN IMMEDIATE")
         try:
             version = self.conn.execute("PRAGMA user_version").fetchone()[0]
-            if version == 1:
-                for stmt in _MIGRATE_1_TO_2.split(";"):
+            if version in (1, 2):
+                steps = [_MIGRATE_1_TO_2, _MIGRATE_2_TO_3] if version == 1 else [_MIGRATE_2_TO_3]
+                for stmt in ";".join(steps).split(";"):
                     if stmt.strip():
                         self.conn.execute(stmt)
                 self.conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
@@ -346,7 +388,7 @@ class Store:
     @staticmethod
     def _sub(r: sqlite3.Row) -> Submission:
         return Submission(r["id"], r["track"], r["name"], r["policy"], r["submitter"], r["track_hash"], r["status"],
-                          r["reason"], bool(r["builtin"]), r["fingerprint"], r["fingerprint_detail"])
+                          r["reason"], bool(r["builtin"]), r["fingerprint"], r["fingerprint_detail"], r["budget"])
 
     def find(self, track: str, name: str) -> Submission | None:
         r = self.conn.execute("SELECT * FROM submissions WHERE track = ? AND name = ?", (track, name)).fetchone()
@@ -354,14 +396,15 @@ class Store:
 
     def open_submission(self, track: Track, name: str, policy: str, submitter: str, version: str,
                         builtin: bool = False, fingerprint: str = "", fingerprint_detail: str = "",
-                        replace: bool = False) -> tuple[Submission, str]:
+                        replace: bool = False, budget: str = "") -> tuple[Submission, str]:
         """The entry ``name`` of ``track`` for a policy with this fingerprint, in one transaction.
 
         Returns the submission and what happened: ``"new"``, ``"resumed"`` (same
         fingerprint and track version: only missing seeds are to be evaluated),
         ``"replaced"`` (``replace``: the old entry went to the audit tables) or
         ``"legacy"`` (the old entry had no fingerprint: it went to the audit tables, and
-        every seed is evaluated anew).
+        every seed is evaluated anew). ``budget`` (JSON) is what the policy states about
+        its cost; a resumed entry takes it too (an entry stored before schema 3 had none).
 
         Raises:
             NameTaken: the name is taken by another fingerprint or was made on another
@@ -387,14 +430,15 @@ class Store:
                 elif existing.track_hash != track.hash:
                     raise NameTaken(existing, "track")
                 else:
-                    conn.execute("UPDATE submissions SET status = 'running', reason = '' WHERE id = ?",
-                                 (existing.id,))
+                    conn.execute("UPDATE submissions SET status = 'running', reason = '', budget = ? WHERE id = ?",
+                                 (budget, existing.id))
                     return "resumed"
             conn.execute(
                 "INSERT INTO submissions (track, name, policy, submitter, track_hash, wfbench_version, created_at, "
-                "status, builtin, fingerprint, fingerprint_detail) VALUES (?, ?, ?, ?, ?, ?, ?, 'running', ?, ?, ?)",
+                "status, builtin, fingerprint, fingerprint_detail, budget) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, 'running', ?, ?, ?, ?)",
                 (track.name, name, policy, submitter, track.hash, version, _now(), int(builtin), fingerprint,
-                 fingerprint_detail),
+                 fingerprint_detail, budget),
             )
             return action
 
@@ -448,7 +492,12 @@ class Store:
         return {r[0] for r in self.conn.execute("SELECT seed FROM results WHERE submission_id = ?", (sub_id,))}
 
     def add_results(self, sub: Submission, version: str, rows: Iterable[dict[str, Any]]) -> int:
-        """Store finished seeds in one transaction; returns how many were new."""
+        """Store finished seeds in one transaction; returns how many were new.
+
+        A row holds the KPIs, ``episode_length`` and ``invalid_actions``, and its budget
+        (:data:`BUDGET_ROW_COLUMNS`) when measured: a missing or non-finite measurement is
+        stored as NULL.
+        """
         rows = list(rows)
         for row in rows:
             bad = [c for c in KPI_COLUMNS if not math.isfinite(float(row[c]))]
@@ -459,15 +508,19 @@ class Store:
             n = 0
             for row in rows:
                 seed = int(row["seed"])
-                digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed, row,
-                                    sub.fingerprint)
+                budget = {c: None if _budget_value(row.get(c)) is None else float(row[c]) for c in BUDGET_COLUMNS}
+                budget["machine"] = row.get("machine") or None
+                values = {**row, **budget}
+                digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed,
+                                    values, sub.fingerprint)
                 cur = conn.execute(
                     "INSERT OR IGNORE INTO results (submission_id, seed, track, track_hash, policy, submitter, "
                     "wfbench_version, finished_at, workforce_cost, utilization, downtime, nsw, episode_length, "
-                    "invalid_actions, digest, fingerprint) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    "invalid_actions, digest, fingerprint, decision_ms_p50, decision_ms_p99, cpu_s, machine) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                     (sub.id, seed, sub.track, sub.track_hash, sub.policy, sub.submitter, version, _now(),
                      *(float(row[c]) for c in KPI_COLUMNS), int(row["episode_length"]),
-                     int(row["invalid_actions"]), digest, sub.fingerprint),
+                     int(row["invalid_actions"]), digest, sub.fingerprint, *budget.values()),
                 )
                 n += cur.rowcount
             return n
@@ -499,5 +552,5 @@ class Store:
             keep.append(d)
         df = pd.DataFrame(keep, columns=["name", "status", "builtin", "submission_id", "seed", "track", "track_hash",
                                          "policy", "submitter", "wfbench_version", "finished_at", *ROW_COLUMNS,
-                                         "digest", "fingerprint"])
+                                         "digest", "fingerprint", *BUDGET_ROW_COLUMNS])
         return df, refused

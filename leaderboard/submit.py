@@ -18,6 +18,12 @@ in docs/leaderboard.md): submitting the same name with the same fingerprint resu
 with the seeds still missing; another fingerprint under a taken name is refused unless
 ``replace`` is set, which moves the old entry to the store's audit tables and evaluates
 every seed anew.
+
+Every row carries what it cost (:mod:`wfbench.budget`): the milliseconds per decision
+(p50, p99) and CPU seconds per episode measured where its chunk ran, and a line naming
+that machine, the backend and its workers; every entry carries what its policy states
+about its own cost (a network's training env-steps, wall time and hardware, a tuned
+file's trials, a solver-backed decision's time limit per solve).
 """
 
 from __future__ import annotations
@@ -47,6 +53,7 @@ from policies import tuned as _tuned
 from policies.neural import CHECKPOINT_ALGORITHMS
 from wfbench import __version__
 from wfbench.backends import check_backend, run_chunks, shutdown_pools
+from wfbench.budget import BUDGET_COLUMNS, machine_line, policy_budget
 from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError, check_act_timeout, load_policy
 from wfbench.runner import results_frame
 
@@ -216,7 +223,8 @@ def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size
     """Runs in the child process: load the policy, then stream finished rows to the parent.
 
     Messages to the parent: ``("note", text)``, ``("load_error", line, trace)``,
-    ``("ready", fingerprint, detail)`` (both ``None`` unless the policy is an entry point),
+    ``("ready", fingerprint, detail, budget)`` (the first two ``None`` unless the policy is an
+    entry point; ``budget``, :func:`wfbench.budget.policy_budget`),
     ``("rows", rows)``, ``("done",)``, ``("error", line, trace)``; from the parent, after
     ready: ``("run", seeds)`` or ``("stop",)``. The child leads its own process group, so
     the parent can stop it together with any worker processes it started.
@@ -261,7 +269,11 @@ def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size
             conn.send(("load_error", f"policy {policy_spec!r}: its params() raised {_one_line(exc)}{_where(exc)}",
                        traceback.format_exc()))
             return
-    conn.send(("ready", fingerprint, detail))
+    try:
+        budget = policy_budget(policy_spec, loaded.policy)
+    except (OSError, ValueError) as exc:  # a checkpoint or tuned file that went away since it loaded
+        budget = {"kind": "other", "error": _one_line(exc)}
+    conn.send(("ready", fingerprint, detail, budget))
     msg = conn.recv()
     if msg[0] != "run":
         return
@@ -269,8 +281,10 @@ def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size
     try:
         for batch in run_chunks(loaded, config, seeds, backend=backend, workers=workers, address=address,
                                 chunk_size=chunk_size, threads=1 if backend == "serial" else None):
-            rows = results_frame([batch], config, policy_spec)[["seed", *ROW_COLUMNS]].to_dict("records")
-            conn.send(("rows", rows))
+            frame = results_frame([batch], config, policy_spec)[["seed", *ROW_COLUMNS, *BUDGET_COLUMNS]]
+            where = machine_line({**batch.machine, "backend": backend,
+                                  "workers": 1 if backend == "serial" else workers or os.cpu_count() or 1})
+            conn.send(("rows", [{**row, "machine": where} for row in frame.to_dict("records")]))
         shutdown_pools()  # before saying done: the parent may stop this process right after
         conn.send(("done",))
     except PolicyError as exc:
@@ -389,7 +403,8 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                     try:
                         sub, action = store.open_submission(
                             tr, name, policy, submitter, __version__, builtin=builtin, fingerprint=fingerprint,
-                            fingerprint_detail=json.dumps(detail, sort_keys=True), replace=replace)
+                            fingerprint_detail=json.dumps(detail, sort_keys=True), replace=replace,
+                            budget=json.dumps(msg[3], sort_keys=True))
                     except NameTaken as exc:
                         _check_taken(exc.existing, tr, name, policy, fingerprint, detail)
                         raise

@@ -6,6 +6,13 @@ with the same costs, through :func:`solvers.assignment.solve`, so the exact, MIL
 LP methods can be compared inside the simulator (``assignment-scipy``,
 ``assignment-milp``, ``assignment-lp``, ``assignment-lp-osqp`` in the registry). A
 test checks that every method picks an assignment of the same total cost.
+
+Every solve has a stated time limit, ``time_limit_s`` (default
+:data:`DEFAULT_TIME_LIMIT_S`), passed to HiGHS (``milp``) and to cvxpy's solver
+(``lp``); scipy's exact method is polynomial and takes no limit. A solve stopped by
+the limit without an assignment fails the step with a message naming the limit; one
+stopped with an incumbent uses it. The leaderboard records the limit with the entry
+(:func:`wfbench.budget.policy_budget`); docs/solvers.md, "Time limits".
 """
 
 from __future__ import annotations
@@ -18,28 +25,37 @@ from policies import kernels as K
 from policies.protocol import as_obs, hp_vector, seeds_array
 from solvers import assignment
 
+DEFAULT_TIME_LIMIT_S = 1.0  # per solve: the dispatch problems here take milliseconds (docs/solvers.md, "Time limits")
+
 
 class AssignmentDispatch:
     """Optimal-assignment dispatch through :func:`solvers.assignment.solve`.
 
     ``method``: ``"exact"`` (scipy), ``"milp"`` (HiGHS) or ``"lp"`` (cvxpy with
-    ``lp_solver`` HIGHS or OSQP). Hyper-parameters as for the compiled ``assignment``
-    dispatch (``speed``, ``fix_*``, ``revisit_cost``, ``unassigned_cost``).
+    ``lp_solver`` HIGHS or OSQP), each solve limited to ``time_limit_s`` seconds.
+    Hyper-parameters as for the compiled ``assignment`` dispatch (``speed``, ``fix_*``,
+    ``revisit_cost``, ``unassigned_cost``).
     """
 
     decisions = ("dispatch",)
 
-    def __init__(self, method: str = "exact", lp_solver: str = "HIGHS", name: str | None = None, **hp: float):
+    def __init__(self, method: str = "exact", lp_solver: str = "HIGHS", name: str | None = None,
+                 time_limit_s: float = DEFAULT_TIME_LIMIT_S, **hp: float):
         if method not in assignment.METHODS:
             raise ValueError(f"method={method!r} is not allowed; allowed: {', '.join(assignment.METHODS)}")
+        if isinstance(time_limit_s, bool) or not isinstance(time_limit_s, int | float) or not time_limit_s > 0:
+            raise ValueError(f"time_limit_s={time_limit_s!r} is not allowed; allowed: seconds > 0")
         self.name = name or f"assignment-{method}"
         self.hp = hp_vector(hp, self.name)
         self.method = method
         self.lp_solver = lp_solver
+        # exact (scipy) is polynomial and has no limit to state
+        self.time_limit_s = None if method == "exact" else float(time_limit_s)
         self.solve_time_s = 0.0  # total time inside the solver, for the benchmarks
 
     def __repr__(self) -> str:
-        return f"AssignmentDispatch(method={self.method!r}, lp_solver={self.lp_solver!r})"
+        return (f"AssignmentDispatch(method={self.method!r}, lp_solver={self.lp_solver!r}, "
+                f"time_limit_s={self.time_limit_s!r})")
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         seeds_array(seeds)
@@ -57,9 +73,10 @@ class AssignmentDispatch:
                 continue
             C = K.assignment_costs(b, o, self.hp, reqs, people)
             res = assignment.solve(C, unassigned_cost=None if np.isinf(u) else u, method=self.method,
-                                   lp_solver=self.lp_solver)
+                                   lp_solver=self.lp_solver, time_limit=self.time_limit_s)
             if not res.has_solution:
-                raise RuntimeError(f"{self!r}: the solver found no assignment ({res.status}: {res.message})")
+                limit = " within its time limit (time_limit_s)" if res.status == "time_limit" else ""
+                raise RuntimeError(f"{self!r}: the solver found no assignment{limit} ({res.status}: {res.message})")
             self.solve_time_s += res.solve_time_s
             rows = np.flatnonzero(res.solution >= 0)
             out[b, reqs[rows]] = people[res.solution[rows]]

@@ -19,6 +19,7 @@ SCRIPT = textwrap.dedent("""
     import json
     import wfbench
     from policies import get
+    from wfbench.budget import results_only
     from wfbench.guard import PolicyError
 
     class Mine:
@@ -42,7 +43,8 @@ SCRIPT = textwrap.dedent("""
     for backend in ("serial", "process", "ray"):
         for label, policy in (("builtin", "heuristic-stochastic"), ("main-class", Mine())):
             df = wfbench.evaluate(policy, "small", seeds=seeds, backend=backend, workers=2)
-            out[f"{label} {backend}"] = df.to_dict("list")  # JSON keeps every float exactly
+            # JSON keeps every float exactly; the budget columns are measurements, not results
+            out[f"{label} {backend}"] = results_only(df).to_dict("list")
     for backend in ("process", "ray"):
         try:
             wfbench.evaluate(Breaks(), "small", seeds=seeds, backend=backend, workers=2)

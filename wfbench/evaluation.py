@@ -7,10 +7,19 @@ how seeds are split into batches, or on the number of threads: each environment 
 independent and all randomness is indexed by the seed. A user's policy runs through
 its guard (:mod:`wfbench.guard`): its failures name its file and line, and each call
 has a time limit.
+
+Each row also says what it cost (the budget columns ``decision_ms_p50``,
+``decision_ms_p99`` and ``cpu_s``, measured where the chunk ran; :mod:`wfbench.budget`
+defines them), and ``df.attrs["budget"]`` says where and how: the machine, the backend
+and workers, how decisions were timed, and what the policy states about its own cost.
+The budget columns are measurements, not results: compare results with
+:func:`wfbench.budget.results_only`.
 """
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -20,13 +29,15 @@ from tqdm.auto import tqdm
 
 from policies.registry import warn_if_trained_elsewhere
 from wfbench.backends import BACKENDS, check_backend, run_chunks
+from wfbench.budget import BUDGET_COLUMNS, policy_budget, results_only
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.core.seeds import resolve_seeds
-from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
+from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, LoadedPolicy, load_policy
 from wfbench.runner import BatchResult, results_frame
 
-__all__ = ["BACKENDS", "KPIS", "KPI_LABELS", "evaluate", "format_kpi", "resolve_seeds", "summarize"]
+__all__ = ["BACKENDS", "BUDGET_COLUMNS", "KPIS", "KPI_LABELS", "evaluate", "format_kpi", "resolve_seeds",
+           "results_only", "summarize"]
 
 KPIS = KPI_NAMES  # the KPI table's names (wfbench.core.kpis), the columns every summary shows
 
@@ -60,9 +71,10 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
             policy that is not a built-in registry name; ``None`` or 0 for no limit.
 
     Returns:
-        The DataFrame (columns ``seed``, the KPIs, utilities, ``episode_length`` and the
-        action counters), and with ``return_series`` the series array whose last axis
-        follows ``wfbench.core.state.METRICS``.
+        The DataFrame (columns ``seed``, the KPIs, utilities, ``episode_length``, the
+        action counters and the budget columns; ``attrs["budget"]``, :func:`budget_record`),
+        and with ``return_series`` the series array whose last axis follows
+        ``wfbench.core.state.METRICS``.
 
     Raises:
         ValueError: a bad scenario, seed list, backend or limit;
@@ -93,11 +105,48 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
     order = {s: i for i, s in enumerate(seed_list)}
     rank = np.argsort(df["seed"].map(order).to_numpy(), kind="stable")
     df = df.iloc[rank].reset_index(drop=True)
-    df.attrs.update(scenario=config.name, policy=loaded.name)
+    df.attrs.update(scenario=config.name, policy=loaded.name,
+                    budget=budget_record(results, loaded, policy, backend, workers, threads))
     if return_series:
         series = np.concatenate([r.series for r in results if r.series is not None], axis=0)
         return df, series[rank]
     return df
+
+
+def budget_record(results: Sequence[BatchResult], loaded: LoadedPolicy, spec: Any, backend: str,
+                  workers: int | None, threads: int | None) -> dict[str, Any]:
+    """What ``df.attrs["budget"]`` holds: where the chunks ran and what the policy states about its cost.
+
+    Keys: ``machine`` (:func:`wfbench.budget.machine` of the process that ran the chunks;
+    ``machines`` instead when they ran on several, as on a Ray cluster), ``backend``,
+    ``workers`` (processes or tasks; ``threads`` for serial), ``timing`` (``"act"``: each
+    act call timed; ``"rollout"``: a compiled rollout's CPU time per environment-step),
+    ``chunks`` and ``policy`` (:func:`wfbench.budget.policy_budget`).
+    """
+    machines = list({json.dumps(r.machine, sort_keys=True): r.machine for r in results}.values())
+    parallel = backend != "serial" and len(results) > 1
+    out: dict[str, Any] = {
+        "backend": backend,
+        "workers": (workers or os.cpu_count() or 1) if parallel else 1,
+        "threads": 1 if parallel else threads,
+        "timing": results[0].timing if results else "",
+        "chunks": len(results),
+        "policy": policy_budget(_spec(loaded, spec), loaded.policy),
+    }
+    if len(machines) == 1:
+        out["machine"] = machines[0]
+    else:
+        out["machines"] = machines
+    return out
+
+
+def _spec(loaded: LoadedPolicy, spec: Any) -> str | None:
+    """The registry name, file or entry point the policy was given by, or None for an object."""
+    if isinstance(spec, str):
+        return spec
+    if isinstance(spec, LoadedPolicy) and spec.guard is None:  # loaded from a registry name
+        return spec.name
+    return None
 
 
 def summarize(df: pd.DataFrame, columns: Sequence[str] = KPIS) -> dict[str, tuple[float, float, float]]:

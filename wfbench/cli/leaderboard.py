@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from wfbench.cli.common import (
@@ -15,6 +16,17 @@ from wfbench.cli.common import (
     check_writable,
     positive,
 )
+
+
+def budget_limit(text: str) -> float:
+    """An argparse type: a finite number > 0 (a budget in milliseconds or seconds)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"{text} is not allowed; allowed: a number > 0")
+    return v
 
 
 def add_parser(sub) -> None:
@@ -39,6 +51,10 @@ def add_parser(sub) -> None:
     lw.add_argument("--out", default=None, help="write to this file instead of printing")
     lw.add_argument("--baseline", default="heuristic", help="entry the paired differences are taken to")
     lw.add_argument("--db", default=None, help="store file (default: $WFBENCH_DB or the user data folder)")
+    lw.add_argument("--max-decision-ms", type=budget_limit, default=None,
+                    help="rank only entries whose p99 wall time per decision is at most this many milliseconds")
+    lw.add_argument("--max-cpu-s", type=budget_limit, default=None,
+                    help="rank only entries that used at most this many CPU seconds per episode")
     ld = lsub.add_parser("seed", help="fill in the built-in entries (random, heuristic, solver, ...)")
     ld.add_argument("--track", default=None, help="one track (default: all)")
     ld.add_argument("--db", default=None)
@@ -116,9 +132,12 @@ def run(args: argparse.Namespace) -> int:
         if args.format not in FORMATS:
             raise UsageError(f"--format {args.format!r} is not allowed; allowed: {', '.join(FORMATS)}")
         out_path = check_writable(args.out, "--out") if args.out else None
-        r = ranking(Store(args.db, create=False), tr, baseline=args.baseline)  # showing never creates a store
+        r = ranking(Store(args.db, create=False), tr, baseline=args.baseline,  # showing never creates a store
+                    max_decision_ms=args.max_decision_ms, max_cpu_s=args.max_cpu_s)
         for msg in r.refused:
             print(f"wfbench: warning: {msg}", file=sys.stderr)
+        for msg in r.left_out:
+            print(f"wfbench: left out by the budget: {msg}", file=sys.stderr)
         text = render(r, args.format)
         if out_path:
             try:

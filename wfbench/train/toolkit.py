@@ -43,6 +43,7 @@ import policies
 from policies.neural.dist import env_action, gumbel, noise_shapes, sample
 from policies.neural.model import count_parameters, featurize, model_config, obs_to_torch
 from policies.neural.policy import NetworkPolicy, load_checkpoint
+from wfbench.budget import training_hardware
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_NAMES, SCORE
 from wfbench.core.reward import step_reward
@@ -341,7 +342,9 @@ def start_run(trainer, config: BaseConfig, progress: bool, log: bool) -> BaseCon
     """Check ``config``, set torch's threads and seed, set the attributes every trainer has; returns ``config``.
 
     The attributes: ``cfg``, ``device``, ``cuda``, ``scenario``, ``mcfg`` (the network's
-    config), ``best``, ``history``, ``global_step``, ``progress``, ``log``, ``run_dir``, ``commit``.
+    config), ``best``, ``history``, ``global_step``, ``progress``, ``log``, ``run_dir``, ``commit``,
+    and the run's cost so far: ``wall_before`` (seconds of earlier segments of a resumed run),
+    ``wall_start`` and ``hardware``.
     """
     config.validate()
     trainer.cfg = config
@@ -357,6 +360,8 @@ def start_run(trainer, config: BaseConfig, progress: bool, log: bool) -> BaseCon
     trainer.progress, trainer.log = progress, log
     trainer.run_dir = Path(config.run_dir)
     trainer.commit = git_commit()  # the code this run started from (a resumed run keeps its first)
+    trainer.wall_before, trainer.wall_start = 0.0, time.monotonic()
+    trainer.hardware = training_hardware(trainer.device)
     return config
 
 
@@ -375,9 +380,17 @@ def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
     """The keys every checkpoint has (what ``ALGO:PATH`` and ``ppo:PATH`` load), plus ``fields``.
 
     ``algo`` names the trainer (:data:`wfbench.train.registry.ALGORITHMS`); ``count`` its
-    updates (iterations), saved as ``update``.
+    updates (iterations), saved as ``update``. ``train_wall_s`` (wall seconds of training
+    so far, over every segment of a resumed run) and ``train_hardware`` (the CPU, cores
+    and GPU of each segment) are the run's cost, which the leaderboard shows beside
+    ``global_step``, the env-steps (:func:`wfbench.budget.policy_budget`).
     """
     t = trainer
+    cost: dict[str, Any] = {}
+    if hasattr(t, "wall_start"):  # a trainer set up by start_run
+        cost["train_hardware"] = t.hardware
+        if t.wall_before is not None:  # None: resumed from a checkpoint that did not record its wall time
+            cost["train_wall_s"] = t.wall_before + time.monotonic() - t.wall_start
     return {
         "model": {k: v.detach().cpu() for k, v in t.model.state_dict().items()},
         "model_config": t.mcfg.to_dict(),
@@ -390,6 +403,7 @@ def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
         "git_commit": t.commit,
         "best": t.best,
         "history": t.history,
+        **cost,
         **fields,
     }
 
@@ -428,6 +442,12 @@ def load_run(trainer, path, algo: str) -> dict:
     t.global_step = ckpt["global_step"]
     t.commit = ckpt.get("git_commit", t.commit)
     t.best, t.history = ckpt["best"], ckpt["history"]
+    # the cost of the segments before this one (a checkpoint from before wfbench saved it: not recorded)
+    t.wall_before = float(ckpt["train_wall_s"]) if "train_wall_s" in ckpt else None
+    t.wall_start = time.monotonic()
+    before = ckpt.get("train_hardware", "not recorded")
+    if before != t.hardware:
+        t.hardware = f"{before}; then {t.hardware}"
     return ckpt
 
 
