@@ -1,4 +1,7 @@
-"""``wfbench reproduce``: regenerate the paper's Table 2, Table 3 or Figure 3, or the oracle gap (wfbench.reproduce)."""
+"""``wfbench reproduce``: regenerate the paper's Table 2, Table 3 or Figure 3, the oracle gap, or the suite.
+
+The targets are in :mod:`wfbench.reproduce`.
+"""
 
 from __future__ import annotations
 
@@ -6,18 +9,34 @@ import argparse
 import time
 from pathlib import Path
 
-from wfbench.cli.common import UsageError, add_backend_args, check_backend_args, positive, resolve_policy
+from wfbench.cli.common import (
+    UsageError,
+    add_backend_args,
+    check_backend_args,
+    positive,
+    resolve_policy,
+    seeds_spec,
+)
 
 
 def add_parser(sub) -> None:
-    rp = sub.add_parser("reproduce", help="regenerate the paper's table2, table3 or figure3, or the oracle gap")
-    rp.add_argument("target", help="table2, table3, figure3 or gap (heuristic, solver, oracle and the bound "
-                    "per scenario)")
+    rp = sub.add_parser("reproduce", help="regenerate the paper's table2, table3 or figure3, the oracle gap, or "
+                        "the suite")
+    rp.add_argument("target", help="table2, table3, figure3, gap (heuristic, solver, oracle and the bound "
+                    "per scenario) or suite (every built-in policy on every scenario of suite-v1, normalized and "
+                    "aggregated; docs/suite.md)")
     rp.add_argument("--out", default="results", help="output folder (default: ./results)")
     rp.add_argument("--runs", type=positive, default=50, help="episodes per cell or row (default 50)")
     rp.add_argument("--methods", default=None, help="figure3 only: comma-separated policies to draw (default: "
                     "the paper's, solver, tuned, learned and oracle ones; the learned where their checkpoint and "
                     "torch are)")
+    rp.add_argument("--seeds", type=seeds_spec, default=None, help="suite only: the seeds (default: test, 0-49; "
+                    "instead of --runs)")
+    rp.add_argument("--policies", default=None, help="suite only: comma-separated policies (default: every built-in "
+                    "policy, the shipped networks and the oracle)")
+    rp.add_argument("--scenarios", default=None, help="suite only: comma-separated scenario ids or presets of the "
+                    "suite (default: all)")
+    rp.add_argument("--no-networks", action="store_true", help="suite only: leave the shipped networks out")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)
 
@@ -39,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("--methods: give at least one policy name")
         for m in kwargs["methods"]:
             resolve_policy(m)  # an unknown name fails now, not after the others ran
+    kwargs.update(_suite_kwargs(args))
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {args.out!r} exists and is not a folder")
@@ -66,3 +86,38 @@ def run(args: argparse.Namespace) -> int:
     print(result.text)
     print(f"\nwrote {', '.join(str(f) for f in result.files)} in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def _names(text: str, option: str) -> tuple[str, ...]:
+    names = tuple(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))
+    if not names:
+        raise UsageError(f"{option}: give at least one name")
+    return names
+
+
+def _suite_kwargs(args: argparse.Namespace) -> dict:
+    """The suite target's options, checked now (an unknown policy or scenario fails before anything runs)."""
+    given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios),
+                            ("--no-networks", args.no_networks or None)) if v is not None]
+    if args.target != "suite":
+        if given:
+            raise UsageError(f"{given[0]} applies to suite only, not to {args.target}")
+        return {}
+    from wfbench.suites import get_suite
+
+    kwargs: dict = {"networks": not args.no_networks}
+    if args.seeds is not None:
+        kwargs["seeds"] = args.seeds
+    if args.policies is not None:
+        kwargs["policies"] = _names(args.policies, "--policies")
+        for p in kwargs["policies"]:
+            resolve_policy(p)
+    if args.scenarios is not None:
+        kwargs["scenarios"] = _names(args.scenarios, "--scenarios")
+        suite = get_suite("suite-v1")
+        for x in kwargs["scenarios"]:
+            try:
+                suite.scenario(x)
+            except ValueError as exc:
+                raise UsageError(f"--scenarios: {exc}") from None
+    return kwargs

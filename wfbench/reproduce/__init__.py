@@ -1,4 +1,4 @@
-"""Regenerate the paper's Table 2, Table 3 and Figure 3 with wfbench's model, and the oracle gap.
+"""Regenerate the paper's Table 2, Table 3 and Figure 3 with wfbench's model, the oracle gap, and the suite.
 
 One module per target (:mod:`~wfbench.reproduce.table2`, :mod:`~wfbench.reproduce.table3`,
 :mod:`~wfbench.reproduce.figure3`, :mod:`~wfbench.reproduce.gap`); the paper's numbers are
@@ -14,14 +14,16 @@ from __future__ import annotations
 
 import wfbench.reproduce.figure3 as figure3
 import wfbench.reproduce.gap as gap
+import wfbench.reproduce.suite as suite
 import wfbench.reproduce.table2 as table2
 import wfbench.reproduce.table3 as table3
 from wfbench.reproduce.common import Output
 
-TARGETS = {"table2": table2.table2, "table3": table3.table3, "figure3": figure3.figure3, "gap": gap.gap}
+TARGETS = {"table2": table2.table2, "table3": table3.table3, "figure3": figure3.figure3, "gap": gap.gap,
+           "suite": suite.suite}
 """``wfbench reproduce TARGET``: each called as ``target(out, runs=, backend=, workers=, address=, progress=)``."""
 
-SIZES = {"table2": table2.size, "table3": table3.size, "figure3": figure3.size, "gap": gap.size}
+SIZES = {"table2": table2.size, "table3": table3.size, "figure3": figure3.size, "gap": gap.size, "suite": suite.size}
 
 
 def target_size(name: str, **kwargs) -> int:

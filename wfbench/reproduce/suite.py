@@ -1,0 +1,345 @@
+"""The suite: every built-in policy on every scenario of suite-v1, normalized, aggregated per split, with checks.
+
+Not one of the paper's targets: wfbench's own verdict across many worlds (issue #27,
+docs/suite.md). Every policy (random, the heuristics, the solver composites, the tuned
+ones, every shipped network zero-shot, the hindsight oracle) runs on every scenario
+through :func:`wfbench.evaluate` (so every backend works unchanged), beside the proven
+bound. Writes into the output folder:
+
+- ``suite-scores.md``/``.csv``: the mean normalized score and raw NSW per scenario and policy;
+- ``suite-aggregate.md``/``.csv``: IQM, mean and optimality gap with 95% stratified bootstrap
+  intervals and the probability of improvement over the heuristic, per split
+  (:mod:`wfbench.aggregate`);
+- ``suite-profile-<split>.png``/``.svg`` with ``.csv``: the performance profiles per split;
+- ``suite-scaling.png``/``.svg`` with ``.csv``: env-steps per second and decision latency
+  against the number of facilities and people, per policy family (the evaluator's budget
+  columns where it writes them, else episode wall time over steps);
+- ``suite-checks.md``/``.csv``: that no policy scores above the bound on any seed, and
+  whether the oracle is at least every deployable policy per scenario.
+
+Each (policy, scenario) result is cached under ``cache/`` in the output folder with the
+scenario's hash and the seeds, so a stopped run resumes where it stopped and a changed
+scenario is run again.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite
+from wfbench.core.kpis import SCORE
+from wfbench.core.seeds import describe, resolve_seeds
+from wfbench.evaluation import evaluate
+from wfbench.reproduce.common import Output, Progress, write
+from wfbench.suites import Suite, SuiteScenario, get_suite, normalize
+from wfbench.tables import markdown_table
+
+BUILTIN = ("random", "heuristic", "heuristic-stochastic", "solver", "heuristic-tuned", "solver-tuned")
+ORACLE = "oracle"
+BASELINE = "heuristic"  # the probability of improvement is taken over it
+BUDGET = ("decision_ms_p50", "decision_ms_p99", "cpu_s")  # the evaluator's cost columns, used where present
+BOUND_SLACK = 1e-9  # a policy's NSW may exceed the bound by floating-point rounding only
+
+
+def default_policies(networks: bool = True) -> list[str]:
+    """The built-in policies, the shipped networks (zero-shot) unless ``networks`` is false, and the oracle."""
+    from policies.registry import learned_names
+
+    return [*BUILTIN, *(learned_names() if networks else []), ORACLE]
+
+
+def family(policy: str) -> str:
+    """The family a policy is drawn with in the scaling figure: random, heuristic, solver, network or oracle."""
+    from policies.registry import LEARNED
+
+    if policy in LEARNED or ":" in policy and policy.split(":")[0] in ("ppo", "impala", "hindsight"):
+        return "network"
+    for name in ("oracle", "solver", "heuristic", "random"):
+        if policy.startswith(name):
+            return name
+    return "other"
+
+
+def _chosen(suite: Suite, scenarios: Sequence[str] | None) -> list[SuiteScenario]:
+    return [suite.scenario(x) for x in scenarios] if scenarios else list(suite.scenarios)
+
+
+def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, networks: bool = True,
+         suite_name: str = "suite-v1", **_: object) -> int:
+    """The evaluations :func:`suite` runs (for a progress bar): each policy and the bound on each scenario."""
+    n_policies = len(policies) if policies else len(default_policies(networks))
+    return (n_policies + 1) * len(_chosen(get_suite(suite_name), scenarios))
+
+
+def _cache_path(out: Path, policy: str, scenario: SuiteScenario) -> Path:
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
+    return out / "cache" / safe / f"{scenario.id}.csv"
+
+
+def _cached(path: Path, scenario: SuiteScenario, seeds: list[int]) -> pd.DataFrame | None:
+    meta = path.with_suffix(".json")
+    if not (path.exists() and meta.exists()):
+        return None
+    m = json.loads(meta.read_text())
+    if m.get("hash") != scenario.hash or m.get("seeds") != seeds:
+        return None
+    df = pd.read_csv(path, float_precision="round_trip")  # the same bits as the run that wrote it
+    df.attrs["wall_s"] = m.get("wall_s")
+    return df
+
+
+def _store(path: Path, df: pd.DataFrame, scenario: SuiteScenario, seeds: list[int], wall_s: float) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(path, index=False)
+    path.with_suffix(".json").write_text(json.dumps({"hash": scenario.hash, "seeds": seeds, "wall_s": wall_s}))
+
+
+def _run(policy: str, scenario: SuiteScenario, seeds: list[int], backend: str, workers: int | None,
+         address: str | None) -> tuple[pd.DataFrame, float]:
+    from policies.registry import ScenarioMismatchWarning
+
+    t0 = time.perf_counter()
+    if policy == "bound":
+        from wfbench.core.bound import score_upper_bound
+
+        df = pd.DataFrame({"seed": seeds, SCORE: score_upper_bound(scenario.config, seeds)})
+    else:
+        with warnings.catch_warnings():  # the networks run zero-shot on purpose: the mismatch is the point
+            warnings.simplefilter("ignore", ScenarioMismatchWarning)
+            df = evaluate(policy, scenario.config, seeds, backend=backend, workers=workers, address=address)
+    return df, time.perf_counter() - t0
+
+
+def _figure_profiles(agg, split: str, path_stem: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from wfbench.plots import save_figure
+
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for name, g in agg.profiles.groupby("policy", sort=False):
+        line, = ax.plot(g["tau"], g["fraction"], label=name, linestyle="--" if family(str(name)) == "oracle" else "-")
+        ax.fill_between(g["tau"], g["low"], g["high"], alpha=0.15, color=line.get_color(), linewidth=0)
+    ax.set_xlabel("normalized score tau (0 random, 1 the proven bound)")
+    ax.set_ylabel("fraction of runs x scenarios above tau")
+    ax.set_title(f"Performance profiles, {split} split ({len(agg.scenarios)} scenarios), 95% bands")
+    ax.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    files = [save_figure(fig, path_stem.with_suffix(".png")), save_figure(fig, path_stem.with_suffix(".svg"))]
+    plt.close(fig)
+    return files
+
+
+def _figure_scaling(scaling: pd.DataFrame, path_stem: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from wfbench.plots import save_figure
+
+    by = scaling.groupby(["family", "entities"], sort=True)[["env_steps_per_s", "decision_ms"]].median().reset_index()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for fam, g in by.groupby("family", sort=True):
+        axes[0].plot(g["entities"], g["env_steps_per_s"], marker="o", label=fam)
+        axes[1].plot(g["entities"], g["decision_ms"], marker="o", label=fam)
+    for ax, label in zip(axes, ("env-steps per second (one core's worth)", "decision latency, ms per environment"),
+                         strict=True):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("facilities + people at start")
+        ax.set_ylabel(label)
+        ax.grid(True, which="major", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("Scaling per policy family: median over the family's policies at each scenario size")
+    fig.tight_layout()
+    files = [save_figure(fig, path_stem.with_suffix(".png")), save_figure(fig, path_stem.with_suffix(".svg"))]
+    plt.close(fig)
+    return files
+
+
+def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
+          address: str | None = None, progress: Progress = None, seeds: str | Sequence[int] | None = None,
+          policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, networks: bool = True,
+          suite_name: str = "suite-v1", reps: int = 5000, poi_reps: int = 1000) -> Output:
+    """Every policy on every scenario of the suite, normalized and aggregated, with the bound and oracle checks.
+
+    Args:
+        out: the output folder (its ``cache/`` keeps each finished (policy, scenario) result).
+        runs: seeds 0..runs-1 when ``seeds`` is not given.
+        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluate`).
+        workers: processes or Ray tasks.
+        address: Ray cluster address.
+        progress: called with the name of each evaluation as it starts.
+        seeds: the seeds (a set name such as ``"test"`` or a list); default ``range(runs)``.
+        policies: the policies (default :func:`default_policies`); the bound is always added.
+        scenarios: a subset of the suite's ids or presets (default all).
+        networks: include the shipped networks in the default policies.
+        suite_name: the suite.
+        reps: bootstrap replications of the aggregate's intervals.
+        poi_reps: bootstrap replications of the probability of improvement's interval.
+
+    Returns:
+        The text (scores, aggregate, checks) and the files written.
+    """
+    s = get_suite(suite_name)
+    chosen = _chosen(s, scenarios)
+    seed_list = resolve_seeds(seeds) if seeds is not None else list(range(runs))
+    names = list(dict.fromkeys(policies)) if policies else default_policies(networks)
+    frames: dict[str, list[pd.DataFrame]] = {n: [] for n in names}
+    bound: dict[str, np.ndarray] = {}
+    failures: list[tuple[str, str, str]] = []
+    scaling = []
+    for sc in chosen:
+        for name in [*names, "bound"]:
+            if progress:
+                progress(f"{sc.id}: {name}")
+            path = _cache_path(out, name, sc)
+            df = _cached(path, sc, seed_list)
+            if df is None:
+                try:
+                    df, wall_s = _run(name, sc, seed_list, backend, workers, address)
+                except Exception as exc:  # noqa: BLE001 - a long run reports a failing pair and goes on
+                    failures.append((sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]))
+                    continue
+                _store(path, df, sc, seed_list, wall_s)
+                df.attrs["wall_s"] = wall_s
+            if name == "bound":
+                bound[sc.id] = df[SCORE].to_numpy()
+                continue
+            df = df.copy()
+            df.insert(0, "normalized", normalize(df[SCORE].to_numpy(), sc.id, s))
+            df.insert(0, "split", sc.split)
+            df.insert(0, "scenario", sc.id)
+            frames[name].append(df)
+            scaling.append(_scaling_row(name, sc, df))
+    runs_by = {n: pd.concat(f, ignore_index=True) for n, f in frames.items() if len(f) == len(chosen)}
+    files: list[Path] = []
+    out.mkdir(parents=True, exist_ok=True)
+
+    # the scores per scenario and policy
+    records = []
+    for name, df in runs_by.items():
+        for sc_id, g in df.groupby("scenario", sort=False):
+            records.append({"scenario": sc_id, "split": g["split"].iloc[0], "policy": name,
+                            "nsw": float(g[SCORE].mean()), "normalized": float(g["normalized"].mean()),
+                            "seeds": len(g)})
+    for sc in chosen:
+        if sc.id in bound:
+            records.append({"scenario": sc.id, "split": sc.split, "policy": "bound", "nsw": float(bound[sc.id].mean()),
+                            "normalized": float(np.mean(normalize(bound[sc.id], sc.id, s))),
+                            "seeds": len(bound[sc.id])})
+    scores = pd.DataFrame(records)
+    columns = [*runs_by, "bound"]
+    header = ["Scenario", "Split", *columns]
+    rows = []
+    for sc in chosen:
+        cells = [sc.id, sc.split]
+        for name in columns:
+            r = scores[(scores["scenario"] == sc.id) & (scores["policy"] == name)] if len(scores) else scores
+            cells.append(f"{r['normalized'].iloc[0]:.3f} ({r['nsw'].iloc[0]:.3f})" if len(r) else "-")
+        rows.append(cells)
+    seeds_text = describe(seed_list)
+    scores_md = "\n".join([
+        f"{s.name} (hash {s.hash}), seeds {seeds_text}: mean normalized score (raw mean NSW) per scenario and "
+        "policy; normalized = (NSW - random_ref) / (bound_ref - random_ref), 0 the random policy and 1 the mean "
+        "proven bound (docs/suite.md). The networks run zero-shot (trained on paper-64); the oracle reads the "
+        "future (not deployable); 'bound' is the proven upper bound, not a policy.",
+        "", markdown_table(header, rows)])
+    files += write(out, "suite-scores", scores_md, scores)
+
+    # the aggregate per split
+    baseline = BASELINE if BASELINE in runs_by else None
+    aggs = aggregate_suite(runs_by, baseline=baseline, reps=reps, poi_reps=poi_reps) if runs_by else {}
+    agg_table = pd.concat([a.table.assign(split=split) for split, a in aggs.items()], ignore_index=True) \
+        if aggs else pd.DataFrame()
+    agg_md = "\n".join([f"Aggregate of {s.name} per split, seeds {seeds_text}"
+                        + (f"; probability of improvement over {baseline}" if baseline else "") + ".", "",
+                        markdown_table(*aggregate_cells(aggs)) if aggs else "(no policy ran on every scenario)",
+                        "", AGGREGATE_NOTE])
+    files += write(out, "suite-aggregate", agg_md, agg_table)
+    for split, agg in aggs.items():
+        agg.profiles.to_csv(out / f"suite-profile-{split}.csv", index=False)
+        files += [out / f"suite-profile-{split}.csv", *_figure_profiles(agg, split, out / f"suite-profile-{split}")]
+
+    # the scaling
+    scale = pd.DataFrame(scaling)
+    if len(scale):
+        scale.to_csv(out / "suite-scaling.csv", index=False)
+        files += [out / "suite-scaling.csv", *_figure_scaling(scale, out / "suite-scaling")]
+
+    # the checks
+    checks, check_rows = _checks(chosen, runs_by, bound)
+    holds = all(c["bound_holds"] for c in checks)
+    oracle_ok = [c["oracle_at_least_deployable"] for c in checks if c["oracle_at_least_deployable"] is not None]
+    summary = (f"The bound holds: {'yes' if holds else 'NO'} (no policy above it on any seed"
+               f"{'' if holds else ': see the rows marked NO'}). "
+               + (f"The oracle is at least every deployable policy on {sum(oracle_ok)} of {len(oracle_ok)} scenarios."
+                  if oracle_ok else "The oracle was not run."))
+    checks_md = "\n".join([summary, "", markdown_table(["Scenario", "Seeds above the bound (policy: count)",
+                                                        "Oracle mean NSW", "Best deployable (mean NSW)",
+                                                        "Oracle >= every deployable"], check_rows)])
+    if failures:
+        checks_md += "\n\nFailed (not cached; a rerun tries them again):\n\n" + markdown_table(
+            ["Scenario", "Policy", "Error"], [list(f) for f in failures])
+    files += write(out, "suite-checks", checks_md, pd.DataFrame(checks))
+    text = "\n\n".join([scores_md, agg_md, checks_md])
+    return Output(text, files)
+
+
+def _scaling_row(policy: str, scenario: SuiteScenario, df: pd.DataFrame) -> dict:
+    c = scenario.config
+    steps = float(df["episode_length"].mean()) if "episode_length" in df.columns else float(c.horizon)
+    if all(k in df.columns for k in BUDGET):
+        decision_ms = float(df["decision_ms_p50"].mean())
+        env_steps_per_s = steps / float(df["cpu_s"].mean()) if float(df["cpu_s"].mean()) > 0 else np.nan
+        source = "budget columns (cpu_s, decision_ms_p50)"
+    else:
+        wall = df.attrs.get("wall_s")
+        per_step_s = wall / (len(df) * steps) if wall else np.nan
+        decision_ms, env_steps_per_s = per_step_s * 1e3, 1.0 / per_step_s if per_step_s else np.nan
+        source = "episode wall time / steps"
+    return {"policy": policy, "family": family(policy), "scenario": scenario.id,
+            "facilities": c.initial_facilities, "people": c.initial_personnel,
+            "entities": c.initial_facilities + c.initial_personnel, "max_facilities": c.max_facilities,
+            "max_personnel": c.max_personnel, "env_steps_per_s": env_steps_per_s, "decision_ms": decision_ms,
+            "source": source}
+
+
+def _checks(chosen: list[SuiteScenario], runs_by: dict[str, pd.DataFrame],
+            bound: dict[str, np.ndarray]) -> tuple[list[dict], list[list[str]]]:
+    """Per scenario: the seeds where a policy is above the bound, and whether the oracle beats every deployable."""
+    checks, rows = [], []
+    for sc in chosen:
+        above: dict[str, int] = {}
+        means = {}
+        for name, df in runs_by.items():
+            g = df[df["scenario"] == sc.id]
+            means[name] = float(g[SCORE].mean())
+            if sc.id in bound:
+                above[name] = int((g[SCORE].to_numpy() > bound[sc.id] + BOUND_SLACK).sum())
+        deployable = {n: m for n, m in means.items() if family(n) != "oracle"}
+        oracle = means.get(ORACLE)
+        best = max(deployable, key=deployable.get) if deployable else None
+        ok = None if oracle is None or best is None else bool(oracle >= deployable[best])
+        bad = {n: k for n, k in above.items() if k}
+        checks.append({"scenario": sc.id, "split": sc.split, "bound_checked": sc.id in bound,
+                       "bound_holds": not bad, "above_bound": json.dumps(bad), "oracle_nsw": oracle,
+                       "best_deployable": best, "best_deployable_nsw": deployable.get(best) if best else None,
+                       "oracle_at_least_deployable": ok})
+        rows.append([sc.id, ("none" if sc.id in bound else "(bound not computed)") if not bad else
+                     "NO: " + ", ".join(f"{n}: {k}" for n, k in bad.items()),
+                     "-" if oracle is None else f"{oracle:.4f}",
+                     "-" if best is None else f"{best} ({deployable[best]:.4f})",
+                     "-" if ok is None else ("yes" if ok else "NO")])
+    return checks, rows
