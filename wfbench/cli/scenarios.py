@@ -12,8 +12,12 @@ from __future__ import annotations
 import argparse
 import os
 import tempfile
+from typing import TYPE_CHECKING
 
 from wfbench.cli.common import UsageError, check_writable, resolve_scenario
+
+if TYPE_CHECKING:
+    from wfbench.core.layout import FacilityLayout
 
 IMPORT_OPTIONS = ("sites", "requests", "import_name", "out", "base", "jitter")
 
@@ -76,8 +80,17 @@ def run(args: argparse.Namespace) -> int:
     if args.name:
         print(resolve_scenario(args.name).to_toml(), end="")
         return 0
-    print(f"{'name':<24s} {'grid':>9s} {'facilities':>12s} {'personnel':>11s} {'horizon':>8s}")
+    print(f"{'name':<24s} {'grid':>9s} {'facilities':>12s} {'personnel':>11s} {'horizon':>8s}  layout")
     for name, c in PRESETS.items():
         print(f"{name:<24s} {c.grid_width:>4d}x{c.grid_height:<4d} {c.initial_facilities:>5d}/{c.max_facilities:<6d}"
-              f" {c.initial_personnel:>4d}/{c.max_personnel:<6d} {c.horizon:>8d}")
+              f" {c.initial_personnel:>4d}/{c.max_personnel:<6d} {c.horizon:>8d}  {_layout_cell(c.layout)}")
     return 0
+
+
+def _layout_cell(layout: FacilityLayout) -> str:
+    """The listing's layout column: the kind and the fields it reads, e.g. ``clustered (4 towns, spread 4)``."""
+    if layout.kind == "clustered":
+        return f"clustered ({layout.towns} towns, spread {layout.spread:g})"
+    if layout.kind == "sites":
+        return f"sites ({len(layout.sites)} sites, jitter {layout.jitter:g})"
+    return layout.kind
