@@ -98,9 +98,10 @@ def test_normalize__random_reference_is_0_and_bound_reference_is_1():
     assert isinstance(normalize(0.5, "small-v1"), float)
 
 
-def test_reference_constants__recomputed_for_small_match_the_committed_file():
-    committed = json.loads((DATA / "suite-v1.json").read_text())["scenarios"]["small-v1"]
-    assert compute_reference(get_suite("suite-v1").scenario("small-v1")) == committed
+@pytest.mark.parametrize("scenario", ["small-v1", "paper-64-v1", "table2-g32-f25-s10-v1"])
+def test_reference_constants__recomputed_for_cheap_scenarios_match_the_committed_file(scenario):
+    committed = json.loads((DATA / "suite-v1.json").read_text())["scenarios"][scenario]
+    assert compute_reference(get_suite("suite-v1").scenario(scenario)) == committed
 
 
 def test_normalize__refuses_constants_of_another_definition():
@@ -185,6 +186,12 @@ def test_cli_evaluate_suite__a_row_per_scenario_then_the_aggregate_per_split(cap
     assert f"{df['normalized'].mean():.3f}" in small.split()
     agg = next(x for x in lines if x.startswith("train ") and "heuristic" in x)
     assert "8 x 2" in agg and not any(x.startswith("heldout") for x in lines)
+    status, out, _ = _cli(capsys, "evaluate", "--policy", "heuristic", "--suite", "suite-v1", "--split", "train",
+                          "--seeds", "2", "--backend", "serial", "--no-progress", "--format", "json")
+    data = json.loads(out)
+    assert data["suite_hash"] == get_suite("suite-v1").hash and list(data["aggregate"]) == ["train"]
+    assert data["scenarios"]["small-v1"]["normalized"] == pytest.approx(df["normalized"].mean())
+    assert data["scenarios"]["small-v1"]["nsw"] == pytest.approx(df["nsw"].mean())
 
 
 def test_cli_compare_suite__paired_per_scenario_with_the_probability_of_improvement(capsys):

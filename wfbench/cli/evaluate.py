@@ -102,6 +102,7 @@ def suite_rows(df, seeds_text: str) -> tuple[list[str], list[list[str]]]:
 
 def run_suite(args: argparse.Namespace) -> int:
     from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite
+    from wfbench.core.kpis import KPI_NAMES
     from wfbench.core.seeds import describe
     from wfbench.guard import PolicyLoadError
     from wfbench.suites import evaluate_suite
@@ -126,7 +127,7 @@ def run_suite(args: argparse.Namespace) -> int:
         print(json.dumps({"policy": args.policy, "suite": suite.name, "suite_hash": suite.hash, "split": args.split,
                           "seeds": seeds,
                           "scenarios": {sc: {"split": g["split"].iloc[0], "normalized": float(g["normalized"].mean()),
-                                             **{k: float(g[k].mean()) for k in ("nsw",)}}
+                                             **{k: float(g[k].mean()) for k in KPI_NAMES}}
                                         for sc, g in df.groupby("scenario", sort=False)},
                           "aggregate": {split: a.table.drop(columns="policy").iloc[0].to_dict()
                                         for split, a in aggs.items()}}, indent=2, default=float))
