@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -176,16 +177,20 @@ def lookup(suite: str | Suite, scenario_id: str) -> tuple[str, SuiteScenario]:
     raise ValueError(f"unknown scenario {scenario_id!r} in {suite}; allowed: {', '.join(ids)}")
 
 
-class _Suites(dict):
-    """``SUITES``: name -> :class:`Suite`, built on first access (the configs are resolved then)."""
+class _Suites(Mapping[str, Suite]):
+    """``SUITES``: name -> :class:`Suite`, each built on first access (its presets are resolved then)."""
 
-    def __missing__(self, name: str) -> Suite:
+    def __init__(self) -> None:
+        self._built: dict[str, Suite] = {}
+
+    def __getitem__(self, name: str) -> Suite:
         if name not in _DEFINITIONS:
             raise KeyError(name)
-        self[name] = suite = _build(name)
-        return suite
+        if name not in self._built:
+            self._built[name] = _build(name)
+        return self._built[name]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(_DEFINITIONS)
 
     def __len__(self) -> int:
@@ -194,17 +199,8 @@ class _Suites(dict):
     def __contains__(self, name: object) -> bool:
         return name in _DEFINITIONS
 
-    def keys(self):  # noqa: D102
-        return list(_DEFINITIONS)
 
-    def items(self):  # noqa: D102
-        return [(n, self[n]) for n in _DEFINITIONS]
-
-    def values(self):  # noqa: D102
-        return [self[n] for n in _DEFINITIONS]
-
-
-SUITES: dict[str, Suite] = _Suites()
+SUITES: Mapping[str, Suite] = _Suites()
 
 
 def suite_scenarios(name: str, available_only: bool = False) -> list[SuiteScenario]:
