@@ -342,19 +342,37 @@ def _paired_difference_figure(r: Ranking, shown: pd.DataFrame) -> tuple[str, str
 def render_html(r: Ranking) -> str:
     header, rows = _cells(r)
     _, ref = _cells(r, deployable=False)
+    return page(r, caption(r), header, rows, ref, _figures(r))
+
+
+def page(r: Ranking, text: str, header: list[str], rows: list[list[str]], ref: list[list[str]],
+         figures: list[tuple[str, str]], extra: list[tuple[str, str, list[str], list[list[str]]]] = ()) -> str:
+    """A self-contained HTML page of a ranking.
+
+    Args:
+        r: the ranking (its track's name and refused rows).
+        text: the caption.
+        header: the ranking table's header.
+        rows: the deployable entries' cells.
+        ref: the oracles' cells (their own section when there are any).
+        figures: (caption, base64 PNG) pairs, embedded as data URIs.
+        extra: more tables after the figures, as (title, HTML id, header, rows).
+    """
     esc = html.escape
 
-    def html_table(table_id: str, body: list[list[str]]) -> list[str]:
+    def html_table(table_id: str, head: list[str], body: list[list[str]]) -> list[str]:
         out = [f"<table id='{table_id}'>",
-               "<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr></thead>", "<tbody>"]
+               "<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr></thead>", "<tbody>"]
         out += ["<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>" for row in body]
         return [*out, "</tbody></table>"]
 
-    table = html_table("ranking", rows)
+    table = html_table("ranking", header, rows)
     if ref:
-        table += [f"<h2>{esc(REFERENCE_TITLE)}</h2>", *html_table("reference", ref)]
-    figures = "".join(f"<figure><img alt='{esc(cap)}' src='data:image/png;base64,{data}'>"
-                      f"<figcaption>{esc(cap)}</figcaption></figure>" for cap, data in _figures(r))
+        table += [f"<h2>{esc(REFERENCE_TITLE)}</h2>", *html_table("reference", header, ref)]
+    shown = "".join(f"<figure><img alt='{esc(cap)}' src='data:image/png;base64,{data}'>"
+                    f"<figcaption>{esc(cap)}</figcaption></figure>" for cap, data in figures)
+    for title, table_id, head, body in extra:
+        shown += f"<h2>{esc(title)}</h2>" + "".join(html_table(table_id, head, body))
     refused = ""
     if r.refused:
         refused = "<h2>Refused rows</h2><ul>" + "".join(f"<li>{esc(m)}</li>" for m in r.refused) + "</ul>"
@@ -369,9 +387,9 @@ figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; }}
 </style></head>
 <body>
 <h1>wfbench leaderboard: {esc(r.track.name)}</h1>
-<p>{esc(caption(r))}</p>
+<p>{esc(text)}</p>
 {"".join(table)}
-{figures}
+{shown}
 {refused}
 <script>
 // lets a test (or a reader's console) confirm the embedded plots decoded

@@ -1,4 +1,7 @@
-"""The result store: one SQLite file, one row per (submission, seed), every row with its provenance.
+"""The result store: one SQLite file, one row per (submission, scenario, seed), every row with its provenance.
+
+The scenario is ``""`` on a one-scenario track; a suite track (``suite-v1``) stores a row
+per scenario id and seed.
 
 Safety:
 
@@ -27,9 +30,11 @@ Safety:
   trials, solver time limits) as JSON.
 - An older store is upgraded in place when opened, in one transaction: schema 1 (before
   fingerprints) gets the fingerprint columns and the audit tables, schema 2 (before
-  budgets) the budget columns. The new columns are empty for the old rows, which stay
-  valid (their digest never covered a fingerprint or a budget); schema-1 entries are
-  marked legacy, and rows without a budget show none.
+  budgets) the budget columns, schema 3 (one row per seed) the ``scenario`` column in
+  the results tables' primary key (SQLite changes a key only by rebuilding the table:
+  the rows are copied to new tables). The new columns are empty for the old rows, which
+  stay valid (their digest never covered a fingerprint, a budget or a scenario);
+  schema-1 entries are marked legacy, and rows without a budget show none.
 """
 
 from __future__ import annotations
@@ -48,13 +53,13 @@ from typing import Any
 
 import pandas as pd
 
-from leaderboard.tracks import Track
+from leaderboard.tracks import SuiteTrack, Track
 from wfbench.budget import BUDGET_COLUMNS
 from wfbench.core.kpis import KPI_NAMES
 
 APPLICATION_ID = 0x57464231  # "WFB1"
-# 1: no fingerprints, no audit tables; 2: no budgets (both upgraded in place when opened)
-SCHEMA_VERSION = 3
+# 1: no fingerprints, no audit tables; 2: no budgets; 3: one row per seed only (all upgraded in place when opened)
+SCHEMA_VERSION = 4
 KPI_COLUMNS = KPI_NAMES  # the KPI table (wfbench.core.kpis); a new KPI there is a new column here
 ROW_COLUMNS = (*KPI_COLUMNS, "episode_length", "invalid_actions")
 # what a row cost (wfbench.budget.BUDGET_COLUMNS, and the machine's line); NULL in rows stored before schema 3
@@ -92,14 +97,21 @@ _RESULT_COLUMNS_2 = """
     invalid_actions INTEGER NOT NULL,
     digest TEXT NOT NULL,
     fingerprint TEXT NOT NULL DEFAULT ''"""
-_RESULT_COLUMNS = _RESULT_COLUMNS_2 + """,
+_RESULT_COLUMNS_3 = _RESULT_COLUMNS_2 + """,
     decision_ms_p50 REAL,
     decision_ms_p99 REAL,
     cpu_s REAL,
     machine TEXT"""
+_RESULT_COLUMNS = _RESULT_COLUMNS_3 + """,
+    scenario TEXT NOT NULL DEFAULT ''"""  # a suite track's scenario id; "" on a one-scenario track
 
 
-def _audit_schema(submission_columns: str, result_columns: str) -> str:
+def _names(columns: str) -> list[str]:
+    """The column names of a column definition block."""
+    return [line.split()[0] for line in columns.strip().strip(",").split(",\n")]
+
+
+def _audit_schema(submission_columns: str, result_columns: str, key: str = "scenario, seed") -> str:
     """The audit tables: what replacing or withdrawing an entry took off the board, never deleted."""
     return f"""
 CREATE TABLE audit_submissions (
@@ -112,7 +124,7 @@ CREATE TABLE audit_submissions (
 CREATE TABLE audit_results (
     audit_id INTEGER NOT NULL REFERENCES audit_submissions(audit_id),
     submission_id INTEGER NOT NULL,{result_columns},
-    PRIMARY KEY (audit_id, seed)
+    PRIMARY KEY (audit_id, {key})
 );
 """
 
@@ -124,7 +136,7 @@ CREATE TABLE submissions (
 );
 CREATE TABLE results (
     submission_id INTEGER NOT NULL REFERENCES submissions(id),{_RESULT_COLUMNS},
-    PRIMARY KEY (submission_id, seed)
+    PRIMARY KEY (submission_id, scenario, seed)
 );
 {_audit_schema(_SUBMISSION_COLUMNS, _RESULT_COLUMNS)}"""
 # schema 1 -> 2 (the audit tables as schema 2 had them), then 2 -> 3, in one transaction
@@ -132,12 +144,23 @@ _MIGRATE_1_TO_2 = f"""
 ALTER TABLE submissions ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
 ALTER TABLE submissions ADD COLUMN fingerprint_detail TEXT NOT NULL DEFAULT '';
 ALTER TABLE results ADD COLUMN fingerprint TEXT NOT NULL DEFAULT '';
-{_audit_schema(_SUBMISSION_COLUMNS_2, _RESULT_COLUMNS_2)}"""
+{_audit_schema(_SUBMISSION_COLUMNS_2, _RESULT_COLUMNS_2, "seed")}"""
 _MIGRATE_2_TO_3 = "".join(
     [f"ALTER TABLE {table} ADD COLUMN budget TEXT NOT NULL DEFAULT '';" for table in ("submissions",
                                                                                      "audit_submissions")]
     + [f"ALTER TABLE {table} ADD COLUMN {column};" for table in ("results", "audit_results")
        for column in ("decision_ms_p50 REAL", "decision_ms_p99 REAL", "cpu_s REAL", "machine TEXT")])
+# 3 -> 4: the results tables get a scenario column in their primary key, which SQLite can only do by rebuilding them
+_MIGRATE_3_TO_4 = "".join(
+    f"""CREATE TABLE {table}_4 ({parent}{_RESULT_COLUMNS}, PRIMARY KEY ({owner}, scenario, seed));
+INSERT INTO {table}_4 ({', '.join([owner, *extra, *_names(_RESULT_COLUMNS_3)])})
+    SELECT {', '.join([owner, *extra, *_names(_RESULT_COLUMNS_3)])} FROM {table};
+DROP TABLE {table};
+ALTER TABLE {table}_4 RENAME TO {table};
+""" for table, parent, owner, extra in (
+        ("results", "submission_id INTEGER NOT NULL REFERENCES submissions(id),", "submission_id", []),
+        ("audit_results", "audit_id INTEGER NOT NULL REFERENCES audit_submissions(audit_id),\n"
+                          "    submission_id INTEGER NOT NULL,", "audit_id", ["submission_id"])))
 
 
 class StoreError(Exception):
@@ -187,8 +210,9 @@ def row_digest(name: str, track: str, track_hash: str, policy: str, submitter: s
                values: dict[str, Any], fingerprint: str = "") -> str:
     """sha256 over a row's provenance, values and budget.
 
-    A legacy row (no fingerprint) keeps its schema-1 digest and a row without a budget
-    (no ``machine``: stored before schema 3) its schema-2 digest.
+    A legacy row (no fingerprint) keeps its schema-1 digest, a row without a budget
+    (no ``machine``: stored before schema 3) its schema-2 digest, and a row of a
+    one-scenario track (``scenario`` empty) the digest it had before schema 4.
     """
     payload = [name, track, track_hash, policy, submitter, version, int(seed)]
     payload += [float(values[c]).hex() if c in KPI_COLUMNS else int(values[c]) for c in ROW_COLUMNS]
@@ -196,6 +220,8 @@ def row_digest(name: str, track: str, track_hash: str, policy: str, submitter: s
         payload.append(fingerprint)
     if values.get("machine"):
         payload += [_budget_value(values.get(c)) for c in BUDGET_COLUMNS] + [values["machine"]]
+    if values.get("scenario"):
+        payload += ["scenario", values["scenario"]]
     return hashlib.sha256(json.dumps(payload).encode()).hexdigest()
 
 
@@ -302,8 +328,8 @@ class Store:
         self.conn.execute("BEGIN IMMEDIATE")
         try:
             version = self.conn.execute("PRAGMA user_version").fetchone()[0]
-            if version in (1, 2):
-                steps = [_MIGRATE_1_TO_2, _MIGRATE_2_TO_3] if version == 1 else [_MIGRATE_2_TO_3]
+            if version in (1, 2, 3):
+                steps = [_MIGRATE_1_TO_2, _MIGRATE_2_TO_3, _MIGRATE_3_TO_4][version - 1:]
                 for stmt in ";".join(steps).split(";"):
                     if stmt.strip():
                         self.conn.execute(stmt)
@@ -394,7 +420,7 @@ class Store:
         r = self.conn.execute("SELECT * FROM submissions WHERE track = ? AND name = ?", (track, name)).fetchone()
         return self._sub(r) if r else None
 
-    def open_submission(self, track: Track, name: str, policy: str, submitter: str, version: str,
+    def open_submission(self, track: Track | SuiteTrack, name: str, policy: str, submitter: str, version: str,
                         builtin: bool = False, fingerprint: str = "", fingerprint_detail: str = "",
                         replace: bool = False, budget: str = "") -> tuple[Submission, str]:
         """The entry ``name`` of ``track`` for a policy with this fingerprint, in one transaction.
@@ -480,8 +506,9 @@ class Store:
     def audit(self, track: str | None = None) -> pd.DataFrame:
         """The audit trail: one row per archived result (or per archived entry that had none), oldest first."""
         q = ("SELECT a.audit_id, a.track, a.name, a.policy, a.fingerprint, a.status, a.action, a.note, a.moved_at, "
-             "r.seed, r.nsw, r.digest FROM audit_submissions a LEFT JOIN audit_results r ON r.audit_id = a.audit_id"
-             + (" WHERE a.track = ?" if track else "") + " ORDER BY a.audit_id, r.seed")
+             "r.scenario, r.seed, r.nsw, r.digest FROM audit_submissions a "
+             "LEFT JOIN audit_results r ON r.audit_id = a.audit_id"
+             + (" WHERE a.track = ?" if track else "") + " ORDER BY a.audit_id, r.scenario, r.seed")
         return pd.read_sql_query(q, self.conn, params=(track,) if track else ())
 
     def set_status(self, sub_id: int, status: str, reason: str = "") -> None:
@@ -491,12 +518,17 @@ class Store:
     def done_seeds(self, sub_id: int) -> set[int]:
         return {r[0] for r in self.conn.execute("SELECT seed FROM results WHERE submission_id = ?", (sub_id,))}
 
+    def done_units(self, sub_id: int) -> set[tuple[str, int]]:
+        """The (scenario, seed) pairs stored for a submission (scenario ``""`` on a one-scenario track)."""
+        return {(r[0], r[1]) for r in self.conn.execute("SELECT scenario, seed FROM results WHERE submission_id = ?",
+                                                         (sub_id,))}
+
     def add_results(self, sub: Submission, version: str, rows: Iterable[dict[str, Any]]) -> int:
         """Store finished seeds in one transaction; returns how many were new.
 
         A row holds the KPIs, ``episode_length`` and ``invalid_actions``, and its budget
         (:data:`BUDGET_ROW_COLUMNS`) when measured: a missing or non-finite measurement is
-        stored as NULL.
+        stored as NULL. On a suite track each row names its ``scenario``.
         """
         rows = list(rows)
         for row in rows:
@@ -510,17 +542,18 @@ class Store:
                 seed = int(row["seed"])
                 budget = {c: None if _budget_value(row.get(c)) is None else float(row[c]) for c in BUDGET_COLUMNS}
                 budget["machine"] = row.get("machine") or None
-                values = {**row, **budget}
+                scenario = str(row.get("scenario") or "")
+                values = {**row, **budget, "scenario": scenario}
                 digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed,
                                     values, sub.fingerprint)
                 cur = conn.execute(
                     "INSERT OR IGNORE INTO results (submission_id, seed, track, track_hash, policy, submitter, "
                     "wfbench_version, finished_at, workforce_cost, utilization, downtime, nsw, episode_length, "
-                    "invalid_actions, digest, fingerprint, decision_ms_p50, decision_ms_p99, cpu_s, machine) "
-                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    "invalid_actions, digest, fingerprint, decision_ms_p50, decision_ms_p99, cpu_s, machine, scenario) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                     (sub.id, seed, sub.track, sub.track_hash, sub.policy, sub.submitter, version, _now(),
                      *(float(row[c]) for c in KPI_COLUMNS), int(row["episode_length"]),
-                     int(row["invalid_actions"]), digest, sub.fingerprint, *budget.values()),
+                     int(row["invalid_actions"]), digest, sub.fingerprint, *budget.values(), scenario),
                 )
                 n += cur.rowcount
             return n
@@ -528,21 +561,27 @@ class Store:
         return self._write(f"{len(rows)} result(s) of {sub.name!r}", insert)
 
     # -- reading -----------------------------------------------------------------------------------
-    def results(self, track: Track) -> tuple[pd.DataFrame, list[str]]:
+    def results(self, track: Track | SuiteTrack) -> tuple[pd.DataFrame, list[str]]:
         """Valid rows of the track (with the submission name) and one message per refused row."""
         q = ("SELECT s.name, s.status, s.builtin, r.* FROM results r JOIN submissions s ON s.id = r.submission_id "
-             "WHERE r.track = ? ORDER BY s.id, r.seed")
+             "WHERE r.track = ? ORDER BY s.id, r.scenario, r.seed")
         keep, refused = [], []
         test = set(track.test_seeds)
+        units = set(track.units())
         for r in self.conn.execute(q, (track.name,)):
             d = dict(r)
-            where = f"result of {d['name']!r}, seed {d['seed']}"
+            where = f"result of {d['name']!r}, {'scenario ' + d['scenario'] + ', ' if d['scenario'] else ''}" \
+                    f"seed {d['seed']}"
             if d["track_hash"] != track.hash:
                 refused.append(f"{where}: made on another version of track {track.name} (hash {d['track_hash']}, "
                                f"current {track.hash}); refused")
                 continue
             if d["seed"] not in test:
                 refused.append(f"{where}: seed {d['seed']} is not a test seed of track {track.name}; refused")
+                continue
+            if (d["scenario"], d["seed"]) not in units:
+                refused.append(f"{where}: scenario {d['scenario'] or '(none)'!r} is not one of track {track.name}'s; "
+                               "refused")
                 continue
             expected = row_digest(d["name"], d["track"], d["track_hash"], d["policy"], d["submitter"],
                                   d["wfbench_version"], d["seed"], d, d["fingerprint"])
@@ -552,5 +591,5 @@ class Store:
             keep.append(d)
         df = pd.DataFrame(keep, columns=["name", "status", "builtin", "submission_id", "seed", "track", "track_hash",
                                          "policy", "submitter", "wfbench_version", "finished_at", *ROW_COLUMNS,
-                                         "digest", "fingerprint", *BUDGET_ROW_COLUMNS])
+                                         "digest", "fingerprint", *BUDGET_ROW_COLUMNS, "scenario"])
         return df, refused

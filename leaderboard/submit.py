@@ -47,7 +47,7 @@ from joblib.externals.loky.backend.context import get_context
 import policies as _policies_pkg
 import solvers as _solvers_pkg
 from leaderboard.store import ROW_COLUMNS, NameTaken, Store, Submission, scrub_paths
-from leaderboard.tracks import Track, get_track
+from leaderboard.tracks import SuiteTrack, Track, get_track
 from policies import registry as _registry
 from policies import tuned as _tuned
 from policies.neural import CHECKPOINT_ALGORITHMS
@@ -218,7 +218,7 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
-def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size, memory_mb,
+def _child(conn, policy_spec: str, configs, backend, workers, address, chunk_size, memory_mb,
            act_timeout_s) -> None:
     """Runs in the child process: load the policy, then stream finished rows to the parent.
 
@@ -226,8 +226,9 @@ def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size
     ``("ready", fingerprint, detail, budget)`` (the first two ``None`` unless the policy is an
     entry point; ``budget``, :func:`wfbench.budget.policy_budget`),
     ``("rows", rows)``, ``("done",)``, ``("error", line, trace)``; from the parent, after
-    ready: ``("run", seeds)`` or ``("stop",)``. The child leads its own process group, so
-    the parent can stop it together with any worker processes it started.
+    ready: ``("run", units)`` (the (scenario, seed) pairs to evaluate, scenario a key of
+    ``configs``: ``""`` on a one-scenario track) or ``("stop",)``. The child leads its own
+    process group, so the parent can stop it together with any worker processes it started.
     """
     try:
         os.setsid()
@@ -277,14 +278,19 @@ def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size
     msg = conn.recv()
     if msg[0] != "run":
         return
-    seeds = msg[1]
+    by_scenario: dict[str, list[int]] = {}
+    for scenario, seed in msg[1]:
+        by_scenario.setdefault(scenario, []).append(seed)
     try:
-        for batch in run_chunks(loaded, config, seeds, backend=backend, workers=workers, address=address,
-                                chunk_size=chunk_size, threads=1 if backend == "serial" else None):
-            frame = results_frame([batch], config, policy_spec)[["seed", *ROW_COLUMNS, *BUDGET_COLUMNS]]
-            where = machine_line({**batch.machine, "backend": backend,
-                                  "workers": 1 if backend == "serial" else workers or os.cpu_count() or 1})
-            conn.send(("rows", [{**row, "machine": where} for row in frame.to_dict("records")]))
+        for scenario, seeds in by_scenario.items():
+            config = configs[scenario]
+            for batch in run_chunks(loaded, config, seeds, backend=backend, workers=workers, address=address,
+                                    chunk_size=chunk_size, threads=1 if backend == "serial" else None):
+                frame = results_frame([batch], config, policy_spec)[["seed", *ROW_COLUMNS, *BUDGET_COLUMNS]]
+                where = machine_line({**batch.machine, "backend": backend,
+                                      "workers": 1 if backend == "serial" else workers or os.cpu_count() or 1})
+                conn.send(("rows", [{**row, "machine": where, "scenario": scenario}
+                                    for row in frame.to_dict("records")]))
         shutdown_pools()  # before saying done: the parent may stop this process right after
         conn.send(("done",))
     except PolicyError as exc:
@@ -297,15 +303,18 @@ def _child(conn, policy_spec: str, config, backend, workers, address, chunk_size
         conn.send(("error", f"{_one_line(exc)}{_where(exc)}", traceback.format_exc()))
 
 
-def submit(track: str | Track, policy: str, name: str, submitter: str | None = None, db: Any = None,
+def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: str | None = None, db: Any = None,
            backend: str = "process", workers: int | None = None, address: str | None = None,
            wall_time_s: float = DEFAULT_WALL_TIME_S, memory_mb: int | None = DEFAULT_MEMORY_MB,
            chunk_size: int | None = None, progress: bool = False, builtin: bool = False,
            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, replace: bool = False) -> Outcome:
     """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows.
 
+    On a suite track (:class:`~leaderboard.tracks.SuiteTrack`) the policy runs on every
+    scenario of the suite, one row per (scenario, seed).
+
     Args:
-        track: a track name or :class:`~leaderboard.tracks.Track`.
+        track: a track name, :class:`~leaderboard.tracks.Track` or :class:`~leaderboard.tracks.SuiteTrack`.
         policy: a registry name or a ``module:attr`` entry point.
         name: the entry's name on the track; submitting it again resumes.
         submitter: who submits (default: the user name).
@@ -332,7 +341,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
             bad limits); nothing is stored.
     """
     try:
-        tr = track if isinstance(track, Track) else get_track(track)
+        tr = track if isinstance(track, Track | SuiteTrack) else get_track(track)
         check_backend(backend, address)
         act_timeout_s = check_act_timeout(act_timeout_s)
     except ValueError as exc:
@@ -355,8 +364,8 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     existing = store.find(tr.name, name)
     if existing is not None and fingerprint is not None and not replace and not existing.legacy:
         _check_taken(existing, tr, name, policy, fingerprint, detail)  # no child needed to refuse
-        done = store.done_seeds(existing.id)
-        if all(s in done for s in tr.test_seeds):  # nothing to evaluate, and no user code to load
+        done = store.done_units(existing.id)
+        if all(u in done for u in tr.units()):  # nothing to evaluate, and no user code to load
             if existing.status != "complete":
                 store.set_status(existing.id, "complete", "")
             sub = store.find(tr.name, name)
@@ -366,11 +375,12 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     # spawn would run a guard-less calling script again in the child)
     ctx = get_context("loky")
     parent_conn, child_conn = ctx.Pipe(duplex=True)
-    proc = ctx.Process(target=_child, args=(child_conn, policy, tr.config, backend, workers, address,
+    proc = ctx.Process(target=_child, args=(child_conn, policy, tr.configs(), backend, workers, address,
                                             chunk, memory_mb, act_timeout_s), daemon=False)
     proc.start()
     child_conn.close()
-    done: set[int] = set()
+    done: set[tuple[str, int]] = set()
+    units = tr.units()
     action = "resumed"
     bar = None
     sub: Submission | None = None
@@ -383,7 +393,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 reason = (f"exceeded the wall-time limit of {wall_time_s:g} s after "
-                          f"{len(done) + new_rows} of {len(tr.test_seeds)} seeds")
+                          f"{len(done) + new_rows} of {len(units)} {_what(tr)}")
                 break
             if parent_conn.poll(min(remaining, 0.25)):
                 try:
@@ -408,8 +418,8 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                     except NameTaken as exc:
                         _check_taken(exc.existing, tr, name, policy, fingerprint, detail)
                         raise
-                    done = store.done_seeds(sub.id)
-                    missing = [s for s in tr.test_seeds if s not in done]
+                    done = store.done_units(sub.id)
+                    missing = [u for u in units if u not in done]
                     if not missing:
                         parent_conn.send(("stop",))
                         status, child_ends = "complete", True
@@ -418,7 +428,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                     if progress:
                         from tqdm.auto import tqdm
 
-                        bar = tqdm(total=len(tr.test_seeds), initial=len(done), desc=f"{name} on {tr.name}",
+                        bar = tqdm(total=len(units), initial=len(done), desc=f"{name} on {tr.name}",
                                    unit="episode", leave=False)
                 elif kind == "rows":
                     assert sub is not None
@@ -445,16 +455,21 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         parent_conn.close()
     if sub is None:  # the child died before loading the policy
         raise SubmitError(f"the evaluation of {policy!r} could not start: {reason}")
-    stored = len(store.done_seeds(sub.id))
-    if status == "complete" and stored < len(tr.test_seeds):
-        status, reason = "failed", f"only {stored} of {len(tr.test_seeds)} seeds were stored"
+    stored = len(store.done_units(sub.id))
+    if status == "complete" and stored < len(units):
+        status, reason = "failed", f"only {stored} of {len(units)} {_what(tr)} were stored"
     # the board shows the stored reason: no absolute path of the submitter's machine (the caller gets it whole)
     store.set_status(sub.id, status, scrub_paths(reason, os.getcwd()))
     return Outcome(store.find(tr.name, name), status, reason, new_rows, stored,  # type: ignore[arg-type]
                    time.perf_counter() - t0, trace, action)
 
 
-def _check_taken(existing: Submission, tr: Track, name: str, policy: str, fingerprint: str,
+def _what(tr: Track | SuiteTrack) -> str:
+    """What a track's units are called in a message: seeds, or (scenario, seed) episodes of a suite."""
+    return "(scenario, seed) episodes" if isinstance(tr, SuiteTrack) else "seeds"
+
+
+def _check_taken(existing: Submission, tr: Track | SuiteTrack, name: str, policy: str, fingerprint: str,
                  detail: dict[str, Any] | None) -> None:
     """Raise the one-line SubmitError when ``name`` is taken by another fingerprint or track version."""
     how = ("pass --replace to evaluate this policy under that name (the old entry's rows are kept in the store's "
@@ -490,14 +505,14 @@ def _death_reason(exitcode: int | None, memory_mb: int | None) -> str:
     return f"the evaluation process exited unexpectedly (exit code {exitcode})"
 
 
-def seed_builtins(track: str | Track, db: Any = None, names: tuple[str, ...] = BUILTIN_ENTRIES,
+def seed_builtins(track: str | Track | SuiteTrack, db: Any = None, names: tuple[str, ...] = BUILTIN_ENTRIES,
                   progress: bool = False, **kwargs: Any) -> list[Outcome]:
     """Submit (or resume) the built-in policies under their registry names.
 
     A built-in entry whose fingerprint is not the current code's (wfbench's policy code
     changed since it was stored) is replaced: its rows go to the audit tables.
     """
-    tr = track if isinstance(track, Track) else get_track(track)
+    tr = track if isinstance(track, Track | SuiteTrack) else get_track(track)
     store = db if isinstance(db, Store) else Store(db)
     out = []
     for n in names:

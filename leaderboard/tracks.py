@@ -1,4 +1,4 @@
-"""Tracks: a named scenario with a public (development) seed list and a fixed test seed list.
+"""Tracks: a named scenario, or a suite of them, with a public (development) seed list and a fixed test seed list.
 
 The ranking uses only the test seeds. Tune on the public seeds; the test seeds are
 published too (this is a benchmark, not a competition with a hidden set), but a
@@ -6,6 +6,13 @@ result that was tuned on them says so by being worthless. A track's definition (
 whole scenario config, both seed lists and the schema version of the definition) is
 hashed; every stored result carries the hash, and results whose hash differs from the
 current definition are refused when read.
+
+A :class:`SuiteTrack` (``suite-v1``) evaluates a policy on every scenario of a suite
+(:mod:`wfbench.suites`) on its test seeds, one stored row per (scenario, seed); its
+hash is the suite's, and it is ranked by the aggregate of the normalized score over the
+held-out scenarios (:mod:`wfbench.aggregate`). Both kinds name what a submission runs
+as :meth:`Track.units`, (scenario, seed) pairs, with scenario ``""`` for a one-scenario
+track.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from typing import Any
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.seeds import PUBLIC, TEST
+from wfbench.suites import Suite, get_suite
 
 TRACK_SCHEMA = 1
 
@@ -28,6 +36,14 @@ class Track:
     public_seeds: tuple[int, ...]
     test_seeds: tuple[int, ...]
     description: str
+
+    def configs(self) -> dict[str, ScenarioConfig]:
+        """The scenarios a submission runs, by the ``scenario`` its rows store: ``""`` for this one."""
+        return {"": self.config}
+
+    def units(self) -> list[tuple[str, int]]:
+        """What a complete entry has a row for: (scenario, seed) pairs, in order."""
+        return [("", s) for s in self.test_seeds]
 
     def definition(self) -> dict[str, Any]:
         return {
@@ -45,6 +61,47 @@ class Track:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+@dataclass(frozen=True)
+class SuiteTrack:
+    """A track over every scenario of a suite: one row per (scenario id, test seed), hashed with the suite's hash.
+
+    Ranked by the IQM of the normalized score over the held-out scenarios (shown for the
+    training scenarios too), with its 95% stratified bootstrap interval
+    (:func:`wfbench.aggregate.aggregate_suite`).
+    """
+
+    name: str
+    suite: Suite
+    description: str
+
+    @property
+    def public_seeds(self) -> tuple[int, ...]:
+        return self.suite.public_seeds
+
+    @property
+    def test_seeds(self) -> tuple[int, ...]:
+        return self.suite.test_seeds
+
+    @property
+    def hash(self) -> str:
+        """The suite's hash (:attr:`wfbench.suites.Suite.hash`): its scenarios, splits, versions and seeds."""
+        return self.suite.hash
+
+    def configs(self) -> dict[str, ScenarioConfig]:
+        return {sc.id: sc.config for sc in self.suite.scenarios}
+
+    def units(self) -> list[tuple[str, int]]:
+        return [(sc.id, s) for sc in self.suite.scenarios for s in self.test_seeds]
+
+
+def suite_track(suite: str | Suite, description: str | None = None) -> SuiteTrack:
+    """The track of a suite (a name such as ``"suite-v1"`` or a :class:`~wfbench.suites.Suite`), named after it."""
+    s = get_suite(suite)
+    return SuiteTrack(name=s.name, suite=s, description=description or (
+        f"every scenario of suite {s.name} ({len(s.ids('train'))} training, {len(s.ids('heldout'))} held out); "
+        "ranked by the IQM of the normalized score over the held-out scenarios"))
+
+
 def _track(name: str, description: str, preset: str | None = None) -> Track:
     return Track(
         name=name,
@@ -55,18 +112,19 @@ def _track(name: str, description: str, preset: str | None = None) -> Track:
     )
 
 
-TRACKS: dict[str, Track] = {
+TRACKS: dict[str, Track | SuiteTrack] = {
     t.name: t
     for t in (
         _track("paper-64", "the paper's quantitative comparison: 64x64, <= 50 facilities and 50 people, "
                            "about 25 of each at start, 800 steps"),
         _track("nonstationary", "paper-64 with request and churn rates drifting over the episode"),
         _track("large", "256x256, 200 facility and 200 personnel slots, 100 of each at start"),
+        suite_track("suite-v1"),
     )
 }
 
 
-def get_track(name: str) -> Track:
+def get_track(name: str) -> Track | SuiteTrack:
     if name not in TRACKS:
         raise ValueError(f"unknown track {name!r}; available: {', '.join(TRACKS)}")
     return TRACKS[name]

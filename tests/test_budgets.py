@@ -162,7 +162,7 @@ def test_a_schema_2_store_is_upgraded_in_place_and_its_rows_stay_valid_without_a
     path = tmp_path / "old.sqlite"
     schema_2 = (f"CREATE TABLE submissions (id INTEGER PRIMARY KEY,{_SUBMISSION_COLUMNS_2}, UNIQUE (track, name));"
                 f"CREATE TABLE results (submission_id INTEGER NOT NULL,{_RESULT_COLUMNS_2}, "
-                f"PRIMARY KEY (submission_id, seed));{_audit_schema(_SUBMISSION_COLUMNS_2, _RESULT_COLUMNS_2)}"
+                f"PRIMARY KEY (submission_id, seed));{_audit_schema(_SUBMISSION_COLUMNS_2, _RESULT_COLUMNS_2, 'seed')}"
                 f"PRAGMA application_id = {APPLICATION_ID}; PRAGMA user_version = 2;")
     old = _rows(0.5, p99=1.0, cpu=1.0)[0]
     for c in (*BUDGET_COLUMNS, "machine"):
@@ -177,7 +177,7 @@ def test_a_schema_2_store_is_upgraded_in_place_and_its_rows_stay_valid_without_a
                                                               old, "f")))
     store = Store(path)
     columns = {r[1] for r in store.conn.execute("PRAGMA table_info(results)")}
-    assert store.conn.execute("PRAGMA user_version").fetchone()[0] == 3 and set(BUDGET_COLUMNS) < columns
+    assert store.conn.execute("PRAGMA user_version").fetchone()[0] == 4 and set(BUDGET_COLUMNS) < columns
     assert "budget" in {r[1] for r in store.conn.execute("PRAGMA table_info(audit_submissions)")}
     rows, refused = store.results(TINY)
     assert refused == [] and rows["nsw"].tolist() == [0.5] and rows[list(BUDGET_COLUMNS)].isna().all().all()

@@ -50,10 +50,10 @@ def test_tracks_are_defined_and_hashed():
     assert large.config.grid_width == 256 and large.config.max_facilities >= 200 and large.config.max_personnel >= 200
     ns = get_track("nonstationary").config
     assert ns.request_schedule.kind == "drift" and ns.churn_schedule.kind == "drift"
-    assert len({t.hash for t in TRACKS.values()}) == 3
+    assert len({t.hash for t in TRACKS.values()}) == 4  # and suite-v1: tests/test_leaderboard_suite.py
     edited = Track(p.name, p.config.replace(horizon=801), p.public_seeds, p.test_seeds, p.description)
     assert edited.hash != p.hash
-    with pytest.raises(ValueError, match="unknown track 'nope'; available: paper-64, nonstationary, large"):
+    with pytest.raises(ValueError, match="unknown track 'nope'; available: paper-64, nonstationary, large, suite-v1"):
         get_track("nope")
 
 

@@ -201,7 +201,7 @@ def _schema_1_store(path, name="old", policy="heuristic", nsw=0.99):
 def test_a_schema_1_store_is_upgraded_in_place_and_its_legacy_entry_re_evaluated(db):
     _schema_1_store(db)
     store = Store(db)  # opening upgrades it
-    assert store.conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
+    assert store.conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
     rows, refused = store.results(TINY)
     assert refused == [] and len(rows) == 4 and set(rows["nsw"]) == {0.99}, "legacy rows stay valid"
     old = store.find(TINY.name, "old")

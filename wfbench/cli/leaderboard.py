@@ -56,7 +56,8 @@ def add_parser(sub) -> None:
     lw.add_argument("--max-cpu-s", type=budget_limit, default=None,
                     help="rank only entries that used at most this many CPU seconds per episode")
     ld = lsub.add_parser("seed", help="fill in the built-in entries (random, heuristic, solver, ...)")
-    ld.add_argument("--track", default=None, help="one track (default: all)")
+    ld.add_argument("--track", default=None, help="one track (default: every one-scenario track; a suite track "
+                                                  "only when named)")
     ld.add_argument("--db", default=None)
     ld.add_argument("--no-progress", action="store_true")
     add_backend_args(ld)
@@ -70,10 +71,11 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # the report is imported here: it loads scipy.stats, which slows every start of the command line
-    from leaderboard.report import FORMATS, ranking, render
+    from leaderboard import report, suite_report
+    from leaderboard.report import FORMATS
     from leaderboard.store import Store, StoreError
     from leaderboard.submit import SubmitError, seed_builtins, submit
-    from leaderboard.tracks import TRACKS, get_track
+    from leaderboard.tracks import TRACKS, SuiteTrack, get_track
 
     def track(name: str):
         try:
@@ -97,14 +99,15 @@ def run(args: argparse.Namespace) -> int:
             store = Store(args.db)
             moved = {"replaced": "; the entry it replaced is in the audit tables",
                      "legacy": "; its rows stored without a fingerprint (an older wfbench) are in the audit tables"}
+            what = "(scenario, seed) episodes" if isinstance(tr, SuiteTrack) else "seeds"
             if out.status == "complete":
-                print(f"{args.name} on {tr.name}: complete, {out.stored_rows} seeds stored ({out.new_rows} new) "
+                print(f"{args.name} on {tr.name}: complete, {out.stored_rows} {what} stored ({out.new_rows} new) "
                       f"in {store.path}, {out.seconds:.1f} s{moved.get(out.action, '')}")
                 return 0
             if args.traceback and out.trace:
                 print(out.trace, end="" if out.trace.endswith("\n") else "\n", file=sys.stderr)
             print(f"wfbench: submission {args.name!r} on {tr.name} failed: {out.reason} "
-                  f"({out.stored_rows} seeds kept in {store.path}; submit again to resume, or with --replace once "
+                  f"({out.stored_rows} {what} kept in {store.path}; submit again to resume, or with --replace once "
                   "the policy is changed"
                   f"{'' if args.traceback or not out.trace else '; --traceback prints the whole trace'})",
                   file=sys.stderr)
@@ -118,7 +121,9 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if args.lb_command == "seed":
             check_backend_args(args)
-            tracks = [track(args.track)] if args.track else list(TRACKS.values())
+            # a suite track runs every scenario of the suite: seeded only when named
+            tracks = [track(args.track)] if args.track else [t for t in TRACKS.values()
+                                                             if not isinstance(t, SuiteTrack)]
             failed = 0
             for tr in tracks:
                 for out in seed_builtins(tr, db=args.db, backend=args.backend, workers=args.workers,
@@ -132,13 +137,14 @@ def run(args: argparse.Namespace) -> int:
         if args.format not in FORMATS:
             raise UsageError(f"--format {args.format!r} is not allowed; allowed: {', '.join(FORMATS)}")
         out_path = check_writable(args.out, "--out") if args.out else None
-        r = ranking(Store(args.db, create=False), tr, baseline=args.baseline,  # showing never creates a store
-                    max_decision_ms=args.max_decision_ms, max_cpu_s=args.max_cpu_s)
+        board = suite_report if isinstance(tr, SuiteTrack) else report
+        r = board.ranking(Store(args.db, create=False), tr, baseline=args.baseline,  # showing never creates a store
+                          max_decision_ms=args.max_decision_ms, max_cpu_s=args.max_cpu_s)
         for msg in r.refused:
             print(f"wfbench: warning: {msg}", file=sys.stderr)
         for msg in r.left_out:
             print(f"wfbench: left out by the budget: {msg}", file=sys.stderr)
-        text = render(r, args.format)
+        text = board.render(r, args.format)
         if out_path:
             try:
                 out_path.write_text(text)
