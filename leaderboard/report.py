@@ -185,13 +185,13 @@ def _cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[st
     return header, rows
 
 
-BUDGET_HEADER = ("ms per decision p50 | p99", "CPU s per episode", "Machine", "Training, tuning, solver limits")
+BUDGET_HEADER = ("ms per decision p50 / p99", "CPU s per episode", "Machine", "Training, tuning, solver limits")
 
 
 def budget_cells(t: pd.Series) -> list[str]:
     """An entry's budget cells (:data:`BUDGET_HEADER`); ``-`` where nothing was measured."""
     p50, p99, cpu = t.get("decision_ms_p50", np.nan), t.get("decision_ms_p99", np.nan), t.get("cpu_s", np.nan)
-    ms = f"{p50:.3g} | {p99:.3g}" if pd.notna(p50) and pd.notna(p99) else "-"
+    ms = f"{p50:.3g} / {p99:.3g}" if pd.notna(p50) and pd.notna(p99) else "-"
     return [ms, f"{cpu:.3g}" if pd.notna(cpu) else "-", t.get("machine") or "-", t.get("cost") or "-"]
 
 
@@ -200,7 +200,7 @@ def caption(r: Ranking) -> str:
     return (f"Track {t.name} (hash {t.hash}): {t.description}; test seeds {t.test_seeds[0]}..{t.test_seeds[-1]} "
             f"({len(t.test_seeds)}). Ranked by mean NSW (higher is better); KPIs are mean (25%-75%) over seeds; "
             "intervals are bootstrap 95%; differences are paired by seed. Costs: wall ms per decision of one "
-            "environment (median | worst 99th percentile over chunks; a compiled composite's CPU time per "
+            "environment (median / worst 99th percentile over chunks; a compiled composite's CPU time per "
             "environment-step), CPU s per episode, on the machine named" + budget_note(r) + ".")
 
 

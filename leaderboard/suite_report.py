@@ -167,7 +167,7 @@ def caption(r: Ranking) -> str:
             f"({len(seeds)}) on each of {len(t.suite.scenarios)} scenarios. Ranked by the IQM of the normalized "
             "score over the held-out scenarios (0 = the random policy, 1 = the proven upper bound, per scenario; "
             "higher is better), with 95% stratified bootstrap intervals over seeds within scenarios (rliable); the "
-            "training scenarios' IQM is shown beside it. Costs: wall ms per decision of one environment (median | "
+            "training scenarios' IQM is shown beside it. Costs: wall ms per decision of one environment (median / "
             "worst 99th percentile over chunks), CPU s per episode, on the machine named" + budget_note(r) + ".")
 
 

@@ -199,12 +199,12 @@ def test_submit_stores_the_cost_and_show_prints_and_filters_it(tmp_path, capsys,
     assert json.loads(Store(db).find(TINY.name, "random").budget) == {"kind": "builtin"}
     assert main(["leaderboard", "show", "--track", TINY.name, "--db", str(db), "--baseline", "random"]) == 0
     shown = capsys.readouterr().out
-    assert "ms per decision p50 | p99" in shown and "CPU s per episode" in shown and machine()["cpu"] in shown
+    assert "ms per decision p50 / p99" in shown and "CPU s per episode" in shown and machine()["cpu"] in shown
     assert main(["leaderboard", "show", "--track", TINY.name, "--db", str(db), "--max-decision-ms", "1"]) == 0
     out, err = capsys.readouterr()
     assert "wfbench: left out by the budget: sleepy: p99 " in err and "ms per decision > 1 ms" in err
     assert "left out: sleepy" in out
     assert main(["leaderboard", "show", "--track", TINY.name, "--db", str(db), "--format", "html"]) == 0
-    assert "<th>ms per decision p50 | p99</th>" in capsys.readouterr().out
+    assert "<th>ms per decision p50 / p99</th>" in capsys.readouterr().out
     assert main(["leaderboard", "show", "--track", TINY.name, "--db", str(db), "--max-decision-ms", "-1"]) == 2
     assert "argument --max-decision-ms: -1 is not allowed; allowed: a number > 0" in capsys.readouterr().err
