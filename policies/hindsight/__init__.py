@@ -4,13 +4,15 @@ Not deployable: they show how much a deployable policy leaves on the table, and 
 teach one later. Modules: ``rollout`` (compiled roll-forward of a batch from its
 current state), ``dispatch``, ``workforce`` and ``positioning`` (each decision's
 candidates and maps), ``planner`` (the shadow simulator, forks and scoring),
-``oracles`` (the per-decision policies). ``docs/hindsight.md`` explains them; the
-look-ahead itself is :mod:`wfbench.core.lookahead`.
+``oracles`` (the per-decision policies), ``best`` (the registry's ``oracle``: per seed,
+the best in hindsight of the planner and every deployable built-in). ``docs/hindsight.md``
+explains them; the look-ahead itself is :mod:`wfbench.core.lookahead`.
 """
 
+from policies.hindsight.best import BestInHindsight
 from policies.hindsight.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
 from policies.hindsight.planner import Planner, ShadowDivergedError
 from policies.hindsight.rollout import RollBuffers, roll_forward
 
-__all__ = ["OracleDispatch", "OraclePositioning", "OracleWorkforce", "Planner", "RollBuffers",
+__all__ = ["BestInHindsight", "OracleDispatch", "OraclePositioning", "OracleWorkforce", "Planner", "RollBuffers",
            "ShadowDivergedError", "roll_forward"]
