@@ -248,3 +248,12 @@ def test_the_oracle_refuses_without_torch_rather_than_drop_the_networks(monkeypa
     with pytest.raises(ValueError, match=r"needs torch; install the rl extra: pip install 'wfbench\[rl\]'"):
         policies.get("oracle")
     assert policies.get("oracle-planner").reads_trace  # the planner alone needs no torch
+
+
+def test_the_oracle_plays_a_seed_the_same_alone_or_in_a_batch():
+    import wfbench
+
+    both = wfbench.evaluate("oracle", SHORT, seeds=[1, 2], backend="serial")
+    alone = wfbench.evaluate("oracle", SHORT, seeds=[2], backend="serial")
+    assert both["nsw"].iloc[1] == alone["nsw"].iloc[0]
+    assert both["hires"].iloc[1] == alone["hires"].iloc[0]
