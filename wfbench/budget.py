@@ -11,7 +11,8 @@ Every evaluation row carries three measurements (:data:`BUDGET_COLUMNS`, taken b
   its number is the rollout's CPU time over its environment-steps (observe, decide and
   simulate together, so an upper bound on the decision alone; CPU time, so the threads
   it ran on do not divide it), the same for both quantiles. ``reset`` and ``attach``
-  are not counted.
+  are not counted: a policy that plans at ``reset`` (the ``oracle``) shows that work in
+  ``cpu_s`` only.
 - ``cpu_s``: CPU seconds of the process (all its threads) to evaluate the chunk, per
   episode: building the simulator and traces, the policy and the simulation.
 
