@@ -236,7 +236,8 @@ def render(r: Ranking, fmt: str = "table") -> str:
     return out
 
 
-def _png(fig) -> str:
+def png_data(fig) -> str:
+    """A matplotlib figure as base64 PNG, for a data URI."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
     return base64.b64encode(buf.getvalue()).decode()
@@ -259,7 +260,7 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     figs = []
     fig = nsw_figure(r)
     figs.append(("Mean Nash social welfare with bootstrap 95% intervals, on its whole range [0, 1] (hatched: reads "
-                 "the future, not deployable)", _png(fig)))
+                 "the future, not deployable)", png_data(fig)))
     plt.close(fig)
     low, high = band = utilization_band(r.track.config)
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
@@ -268,7 +269,7 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
         draw_kpi_distribution(ax, data, names, k, band=band)
     fig.tight_layout()
     figs.append((f"Per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%, points: seeds; gray: the utilization band "
-                 f"{low:.2f}-{high:.2f})", _png(fig)))
+                 f"{low:.2f}-{high:.2f})", png_data(fig)))
     plt.close(fig)
     diffs = _paired_difference_figure(r, shown)
     return figs + ([diffs] if diffs else [])
@@ -336,7 +337,7 @@ def _paired_difference_figure(r: Ranking, shown: pd.DataFrame) -> tuple[str, str
     draw_paired_differences(fig.subplots(), rows["name"].tolist(), rows["diff"], rows["diff_low"],
                             rows["diff_high"], r.baseline, notes)
     return (f"NSW minus {r.baseline}, paired by seed, with bootstrap 95% intervals (green: above zero, red: "
-            "below, gray: contains zero)", _png(fig))
+            "below, gray: contains zero)", png_data(fig))
 
 
 def render_html(r: Ranking) -> str:

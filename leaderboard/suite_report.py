@@ -23,12 +23,12 @@ from leaderboard.report import (
     FORMATS,
     REFERENCE_TITLE,
     Ranking,
-    _png,
     budget_cells,
     budget_note,
     entry_budget,
     over_budget,
     page,
+    png_data,
     reads_future,
 )
 from leaderboard.store import Store, scrub_paths
@@ -231,7 +231,7 @@ def render_html(r: Ranking, header: list[str], rows: list[list[str]], ref: list[
     figures = []
     if fig is not None:
         cap = "IQM of the normalized score per split with its 95% stratified bootstrap interval"
-        figures.append((cap, _png(fig)))
+        figures.append((cap, png_data(fig)))
         plt.close(fig)
     sh, sr = scenario_cells(r)
     extra = [("Mean normalized score per scenario", "scenarios", sh, sr)]
