@@ -98,8 +98,7 @@ def suite_track(suite: str | Suite, description: str | None = None) -> SuiteTrac
     """The track of a suite (a name such as ``"suite-v1"`` or a :class:`~wfbench.suites.Suite`), named after it."""
     s = get_suite(suite)
     return SuiteTrack(name=s.name, suite=s, description=description or (
-        f"every scenario of suite {s.name} ({len(s.ids('train'))} training, {len(s.ids('heldout'))} held out); "
-        "ranked by the IQM of the normalized score over the held-out scenarios"))
+        f"every scenario of suite {s.name} ({len(s.ids('train'))} training, {len(s.ids('heldout'))} held out)"))
 
 
 def _track(name: str, description: str, preset: str | None = None) -> Track:
