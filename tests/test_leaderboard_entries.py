@@ -141,6 +141,23 @@ def test_fingerprint_rule_for_files_checkpoints_and_builtins(tmp_path):
     assert "file" in policy_fingerprint("heuristic-tuned")[1], "a shipped tuned file's bytes"
 
 
+
+def test_the_oracle_fingerprint_covers_the_files_of_its_candidates(tmp_path, monkeypatch):
+    """The oracle plays the shipped networks and tuned files: a changed one changes its numbers, so its fingerprint."""
+    from policies import registry
+
+    before, detail = policy_fingerprint("oracle")
+    assert set(detail["candidates"]) == set(registry.oracle_candidates())
+    tuned_dir = tmp_path / "tuned"
+    tuned_dir.mkdir()
+    for name, (file, _) in registry.TUNED.items():
+        (tuned_dir / file).write_bytes((registry._tuned.TUNED_DIR / file).read_bytes())
+    monkeypatch.setattr(registry._tuned, "TUNED_DIR", tuned_dir)
+    assert policy_fingerprint("oracle")[0] == before, "the same bytes elsewhere: the same fingerprint"
+    first = next(iter(registry.TUNED.values()))[0]
+    (tuned_dir / first).write_bytes((tuned_dir / first).read_bytes() + b"\n")
+    assert policy_fingerprint("oracle")[0] != before, "an edited candidate file must change the oracle's fingerprint"
+
 def test_withdraw_moves_the_entry_to_the_audit_table(db, capsys, monkeypatch):
     monkeypatch.setitem(TRACKS, TINY.name, TINY)
     for name in ("heuristic", "random"):
