@@ -27,7 +27,7 @@ from wfbench.core.config import ScenarioConfig
 
 SCENARIOS = ["small", "paper-64", "nonstationary", "table2-g32-f25-s10"]
 POLICIES = ["random", "heuristic", "heuristic-stochastic", "solver", "random-dispatch", "fixed-workforce"]
-ORACLES = ["oracle", "oracle-dispatch"]
+ORACLES = ["oracle-planner", "oracle-dispatch"]  # the planners; the oracle (best in hindsight) is >= them
 
 
 def play(name: str, config: ScenarioConfig, seeds: list[int]) -> np.ndarray:

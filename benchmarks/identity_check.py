@@ -29,11 +29,11 @@ import time
 from pathlib import Path
 
 POLICIES = ["random", "heuristic", "heuristic-stochastic", "random-dispatch", "random-positioning",
-            "fixed-workforce", "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle",
+            "fixed-workforce", "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle-planner",
             "oracle-dispatch", "heuristic-tuned", "solver-tuned", "ppo-joint", "ppo-dispatch", "impala-joint",
             "hindsight-joint", "ppo-independent", "hindsight-ppo"]
 SCENARIOS = ["paper-64", "small", "nonstationary"]
-SLOW = {"oracle", "oracle-dispatch"}  # fewer seeds: the oracles plan over the whole future
+SLOW = {"oracle-planner", "oracle-dispatch"}  # fewer seeds: the planners look over the whole future
 
 TRAIN = {  # short runs of every trainer: a few updates, two public evaluations
     "ppo-joint": ["--algo", "ppo", "--variant", "joint", "--steps", "1536", "--num-envs", "8", "--num-steps", "64",

@@ -16,7 +16,7 @@ for a built-in policy.
 Usage::
 
     python benchmarks/oracle_speed.py --scenario paper-64 --seeds 50 --workers 2 \\
-        --policies oracle,oracle-dispatch,solver,heuristic --against solver,heuristic
+        --policies oracle-planner,oracle-dispatch,solver,heuristic --against solver,heuristic
 """
 
 from __future__ import annotations
