@@ -127,8 +127,10 @@ def _figure_profiles(agg, split: str, path_stem: Path) -> list[Path]:
     from wfbench.plots import save_figure
 
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    for name, g in agg.profiles.groupby("policy", sort=False):
-        line, = ax.plot(g["tau"], g["fraction"], label=name, linestyle="--" if family(str(name)) == "oracle" else "-")
+    colors = plt.get_cmap("tab20").colors  # more policies than tab10 has colours: no two lines share one
+    for i, (name, g) in enumerate(agg.profiles.groupby("policy", sort=False)):
+        line, = ax.plot(g["tau"], g["fraction"], label=name, color=colors[(2 * i) % 20 + (2 * i) // 20 % 2],
+                        linestyle="--" if family(str(name)) == "oracle" else "-")
         ax.fill_between(g["tau"], g["low"], g["high"], alpha=0.15, color=line.get_color(), linewidth=0)
     ax.set_xlabel("normalized score tau (0 random, 1 the proven bound)")
     ax.set_ylabel("fraction of runs x scenarios above tau")
