@@ -12,12 +12,9 @@ from __future__ import annotations
 import argparse
 import os
 import tempfile
-from typing import TYPE_CHECKING
 
 from wfbench.cli.common import UsageError, check_writable, resolve_scenario
-
-if TYPE_CHECKING:
-    from wfbench.core.layout import FacilityLayout
+from wfbench.core.layout import FacilityLayout
 
 IMPORT_OPTIONS = ("sites", "requests", "import_name", "out", "base", "jitter")
 
