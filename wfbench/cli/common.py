@@ -137,3 +137,20 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed-start", type=nonneg, default=0, help="first seed of a count (default 0)")
     add_backend_args(p)
     add_policy_run_args(p)
+
+
+def check_suite_args(args: argparse.Namespace):
+    """The suite of ``--suite`` with ``--split`` checked; one-line usage errors for what does not go together."""
+    from wfbench.suites import SPLITS, get_suite
+
+    if args.suite is None:
+        raise UsageError(f"--split {args.split} applies to --suite only")
+    if args.scenario is not None:
+        raise UsageError("--scenario and --suite do not go together: a suite names its scenarios (give one of them)")
+    try:
+        suite = get_suite(args.suite)
+    except ValueError as exc:
+        raise UsageError(f"--suite: {exc}") from None
+    if args.split is not None and args.split not in SPLITS:
+        raise UsageError(f"--split: unknown split {args.split!r}; allowed: {', '.join(SPLITS)}")
+    return suite

@@ -12,6 +12,7 @@ from wfbench.cli.common import (
     UsageError,
     add_run_args,
     check_backend_args,
+    check_suite_args,
     check_writable,
     positive,
     resolve_scenario,
@@ -89,22 +90,12 @@ def run_suite(args: argparse.Namespace, names: list[str]) -> int:
     from wfbench.compare import compare_suite
     from wfbench.core.seeds import describe
     from wfbench.guard import PolicyLoadError
-    from wfbench.suites import SPLITS, get_suite
     from wfbench.tables import markdown_table, text_table
 
-    if args.suite is None:
-        raise UsageError(f"--split {args.split} applies to --suite only")
-    if args.scenario is not None:
-        raise UsageError("--scenario and --suite do not go together: a suite names its scenarios (give one of them)")
-    if args.plot:
+    if args.suite is not None and args.plot:
         raise UsageError("--plot applies to one scenario, not to --suite ('wfbench reproduce suite' draws the "
                          "suite's figures)")
-    try:
-        suite = get_suite(args.suite)
-    except ValueError as exc:
-        raise UsageError(f"--suite: {exc}") from None
-    if args.split is not None and args.split not in SPLITS:
-        raise UsageError(f"--split: unknown split {args.split!r}; allowed: {', '.join(SPLITS)}")
+    suite = check_suite_args(args)
     check_backend_args(args)
     seeds = seed_list(args)
     try:

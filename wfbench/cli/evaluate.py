@@ -6,10 +6,12 @@ import argparse
 import json
 import sys
 
+from wfbench.budget import BUDGET_COLUMNS  # the evaluator's cost columns, shown where present
 from wfbench.cli.common import (
     UsageError,
     add_run_args,
     check_backend_args,
+    check_suite_args,
     check_writable,
     resolve_scenario,
     seed_list,
@@ -67,24 +69,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-BUDGET_COLUMNS = ("decision_ms_p50", "decision_ms_p99", "cpu_s")  # the evaluator's cost columns, shown where present
-
-
-def check_suite_args(args: argparse.Namespace):
-    """The suite of ``--suite`` with ``--split`` checked; one-line usage errors for what does not go together."""
-    from wfbench.suites import SPLITS, get_suite
-
-    if args.suite is None:
-        raise UsageError(f"--split {args.split} applies to --suite only")
-    if args.scenario is not None:
-        raise UsageError("--scenario and --suite do not go together: a suite names its scenarios (give one of them)")
-    try:
-        suite = get_suite(args.suite)
-    except ValueError as exc:
-        raise UsageError(f"--suite: {exc}") from None
-    if args.split is not None and args.split not in SPLITS:
-        raise UsageError(f"--split: unknown split {args.split!r}; allowed: {', '.join(SPLITS)}")
-    return suite
 
 
 def suite_rows(df, seeds_text: str) -> tuple[list[str], list[list[str]]]:
