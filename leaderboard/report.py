@@ -81,6 +81,24 @@ def over_budget(rec: dict, max_decision_ms: float | None, max_cpu_s: float | Non
     return "; ".join(dict.fromkeys(why))
 
 
+def entry_record(name: str, sub, mine: pd.DataFrame) -> dict:
+    """What every board shows of a submission: who, what (paths scrubbed), its status and whether it may rank."""
+    return {"name": name, "policy": scrub_paths(sub.policy), "submitter": sub.submitter, "status": sub.status,
+            "reason": scrub_paths(sub.reason), "seeds": len(mine), "builtin": sub.builtin,
+            "fingerprint": sub.fingerprint or "legacy", "deployable": not reads_future(sub.policy)}
+
+
+def add_budget(rec: dict, sub, mine: pd.DataFrame, max_decision_ms: float | None, max_cpu_s: float | None,
+               left_out: list[str]) -> None:
+    """Put the entry's costs on ``rec`` and unrank it (saying why in ``left_out``) when it is over the budget."""
+    rec.update(entry_budget(mine))
+    rec["cost"] = scrub_paths(budget_line(json.loads(sub.budget))) if sub.budget else "not recorded"
+    rec["over_budget"] = over_budget(rec, max_decision_ms, max_cpu_s)
+    if rec["ranked"] and rec["over_budget"]:
+        rec["ranked"] = False
+        left_out.append(f"{rec['name']}: {rec['over_budget']}")
+
+
 def ranking(store: Store, track: Track, baseline: str = "heuristic", max_decision_ms: float | None = None,
             max_cpu_s: float | None = None) -> Ranking:
     """Rank the complete submissions of ``track`` by mean NSW over its test seeds.
@@ -107,17 +125,9 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic", max_decisio
     left_out: list[str] = []
     for name, sub in subs.items():
         mine = rows[rows["name"] == name]
-        rec = {"name": name, "policy": scrub_paths(sub.policy), "submitter": sub.submitter, "status": sub.status,
-               "reason": scrub_paths(sub.reason), "seeds": len(mine), "builtin": sub.builtin,
-               "fingerprint": sub.fingerprint or "legacy"}
-        rec["deployable"] = not reads_future(sub.policy)
+        rec = entry_record(name, sub, mine)
         rec["ranked"] = rec["deployable"] and sub.status == "complete" and len(mine) == n_test
-        rec.update(entry_budget(mine))
-        rec["cost"] = scrub_paths(budget_line(json.loads(sub.budget))) if sub.budget else "not recorded"
-        rec["over_budget"] = over_budget(rec, max_decision_ms, max_cpu_s)
-        if rec["ranked"] and rec["over_budget"]:
-            rec["ranked"] = False
-            left_out.append(f"{name}: {rec['over_budget']}")
+        add_budget(rec, sub, mine, max_decision_ms, max_cpu_s, left_out)
         if len(mine):
             for k, (mean, q25, q75) in summarize(mine, KPI_COLUMNS).items():
                 rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = mean, q25, q75

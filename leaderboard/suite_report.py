@@ -13,8 +13,6 @@ change when other entries are added. Costs and the budget filter are those of
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pandas as pd
 
@@ -23,18 +21,16 @@ from leaderboard.report import (
     FORMATS,
     REFERENCE_TITLE,
     Ranking,
+    add_budget,
     budget_cells,
     budget_note,
-    entry_budget,
-    over_budget,
+    entry_record,
     page,
     png_data,
-    reads_future,
 )
-from leaderboard.store import Store, scrub_paths
+from leaderboard.store import Store
 from leaderboard.tracks import SuiteTrack
 from wfbench.aggregate import METRICS, aggregate_suite
-from wfbench.budget import budget_line
 from wfbench.suites import normalize
 from wfbench.tables import markdown_table, text_table
 
@@ -81,17 +77,10 @@ def ranking(store: Store, track: SuiteTrack, baseline: str = "heuristic", max_de
     for name, sub in subs.items():
         mine = rows[rows["name"] == name]
         complete = sub.status == "complete" and len(mine) == n_units and mine["normalized"].notna().all()
-        rec = {"name": name, "policy": scrub_paths(sub.policy), "submitter": sub.submitter, "status": sub.status,
-               "reason": scrub_paths(sub.reason), "seeds": len(mine), "builtin": sub.builtin,
-               "fingerprint": sub.fingerprint or "legacy", "deployable": not reads_future(sub.policy),
-               "nsw": float(mine["nsw"].mean()) if len(mine) else np.nan}
+        rec = entry_record(name, sub, mine)
+        rec["nsw"] = float(mine["nsw"].mean()) if len(mine) else np.nan
         rec["ranked"] = rec["deployable"] and complete
-        rec.update(entry_budget(mine))
-        rec["cost"] = scrub_paths(budget_line(json.loads(sub.budget))) if sub.budget else "not recorded"
-        rec["over_budget"] = over_budget(rec, max_decision_ms, max_cpu_s)
-        if rec["ranked"] and rec["over_budget"]:
-            rec["ranked"] = False
-            left_out.append(f"{name}: {rec['over_budget']}")
+        add_budget(rec, sub, mine, max_decision_ms, max_cpu_s, left_out)
         if complete:
             frames[name] = mine[["scenario", "split", "seed", "normalized"]]
         out.append(rec)
