@@ -168,18 +168,24 @@ def test_bound__holds_at_the_edges_of_the_rules():
             assert series[s, p.first_failure:, K_AFD].sum() >= p.downtime_sum * (1 - 1e-5), (policy, s)
 
 
+ORACLE_CHECKED = ("surge-64", "real-nyc")
+"""Where the test plays the oracle itself (about 11 s a seed); `wfbench reproduce suite` checks it on every scenario."""
+
+
 @pytest.mark.parametrize("scenario", NEW_SCENARIOS)
 def test_bound__holds_against_the_best_policies_on_the_new_scenarios(scenario):
-    """The best in hindsight (every deployable built-in, the shipped networks and the planner) stays under the bound
-    on seed 0, and so do the heuristic and the adversaries on more seeds; each step of the argument holds on their
-    series. The oracle is at least every deployable built-in on every seed (tests/test_oracles.py), so its seed
-    covers them all."""
+    """The heuristic and the adversaries stay under the bound on three seeds and each step of the argument holds on
+    their series; on a shift and a real-data scenario the best in hindsight (every deployable built-in, the shipped
+    networks and the planner) stays under it on seed 0 too. The oracle is at least every deployable built-in on every
+    seed (tests/test_oracles.py), so its seed covers them all; the suite's reproduction checks every policy against
+    the bound on every scenario and seed it runs (docs/suite.md)."""
     seeds = list(range(3))
     bound = score_upper_bound(scenario, seeds)
     assert np.all((bound > 0.5) & (bound < 0.98)), (scenario, bound)
-    oracle = _scores("oracle", scenario, [0])
-    assert oracle[0] <= bound[0], (scenario, oracle, bound[0])
-    assert oracle[0] >= _scores("heuristic", scenario, [0])[0]  # it is the best one: the check has teeth
+    if scenario in ORACLE_CHECKED:
+        oracle = _scores("oracle", scenario, [0])
+        assert oracle[0] <= bound[0], (scenario, oracle, bound[0])
+        assert oracle[0] >= _scores("heuristic", scenario, [0])[0]  # it is the best one: the check has teeth
     config = ScenarioConfig.preset(scenario)
     parts = [bound_parts(config, s) for s in seeds]
     for policy in ["heuristic", *_adversaries()]:
