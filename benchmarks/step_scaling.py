@@ -19,11 +19,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import time
 
 import numpy as np
 
+from wfbench.budget import machine, machine_line
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.runner import run_batch
@@ -63,8 +63,8 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="also write the rows to this file")
     args = ap.parse_args()
     seeds = list(range(args.seeds))
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"load {os.getloadavg()[0]:.2f}; one thread; B = {len(seeds)}", flush=True)
+    print(f"machine: {machine_line(machine())}; load {os.getloadavg()[0]:.2f}; one thread; B = {len(seeds)}",
+          flush=True)
     rows = []
     for name in args.scenarios.split(","):
         config = ScenarioConfig.preset(name)
@@ -84,7 +84,7 @@ def main() -> None:
     print(f"load at the end {os.getloadavg()[0]:.2f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"machine": platform.platform(), "cores": os.cpu_count(), "rows": rows}, f, indent=1)
+            json.dump({"machine": machine(), "rows": rows}, f, indent=1)
 
 
 if __name__ == "__main__":

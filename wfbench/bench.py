@@ -28,28 +28,14 @@ reference times do.
 from __future__ import annotations
 
 import json
-import os
-import platform
 import time
 from pathlib import Path
 
 import numba
 import numpy as np
 
+from wfbench.budget import machine  # the machine record every result row carries
 from wfbench.core.config import ScenarioConfig
-
-
-def machine() -> dict[str, str | int]:
-    cpu = platform.processor() or "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"cpu": cpu, "cores": os.cpu_count() or 1, "python": platform.python_version(),
-            "numpy": np.__version__, "numba": numba.__version__, "platform": platform.platform()}
 
 
 @numba.njit(cache=True)
