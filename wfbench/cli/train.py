@@ -14,8 +14,8 @@ from wfbench.cli.common import UsageError, nonneg, positive, seeds_spec
 from wfbench.train.registry import ALGORITHMS, DEFAULT_ALGORITHM, get_algorithm
 
 # the flags that set a field of the same name in the algorithm's config (when given)
-TRAIN_FLAGS = ("variant", "scenario", "steps", "model", "num_envs", "num_steps", "epochs", "minibatches", "lr",
-               "ent_coef", "seed", "device", "threads", "checkpoint_every", "eval_every", "eval_seeds", "run_dir",
+TRAIN_FLAGS = ("variant", "scenario", "scenarios", "steps", "model", "num_envs", "num_steps", "epochs", "minibatches",
+               "lr", "ent_coef", "seed", "device", "threads", "checkpoint_every", "eval_every", "eval_seeds", "run_dir",
                "init", "gae_lambda", "gamma", "agents", "address")
 # what --resume may change of a run: how long it goes on, and where and on what it runs
 RESUME_MAY_CHANGE = ("steps", "run_dir", "device", "threads", "address")
@@ -32,6 +32,11 @@ def add_parser(sub) -> None:
                     help="joint: all three decisions; dispatch: the dispatch head only, heuristic workforce and "
                          "positioning (default joint)")
     tr.add_argument("--scenario", default=None, help="scenario to train on (default paper-64)")
+    tr.add_argument("--scenarios", default=None, metavar="SPEC",
+                    help="train across worlds instead: a suite's training split and/or scenarios, comma-separated, "
+                         "e.g. suite-v1:train (held-out scenarios are refused); every batch holds every world, "
+                         "rewards normalized per world, best.pt chosen on the mean normalized score of the worlds' "
+                         "public seeds (docs/rl.md, Generalists)")
     tr.add_argument("--steps", type=positive, default=None, help="environment steps in all (default 1000000)")
     tr.add_argument("--model", default=None,
                     help="network size: cpu (no attention, fastest on CPU), tiny, small or paper (~0.5M parameters)")
@@ -108,8 +113,8 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"--resume keeps the run's settings; these differ from it: {', '.join(changed)}")
             config = config_cls.from_dict({**saved["train_config"], **given})
         else:
-            given.setdefault("run_dir", str(Path("runs") / f"{algo}-{given.get('variant', 'joint')}-"
-                                                            f"{given.get('scenario', 'paper-64')}"))
+            where = given.get("scenarios", given.get("scenario", "paper-64")).replace(":", "-").replace(",", "+")
+            given.setdefault("run_dir", str(Path("runs") / f"{algo}-{given.get('variant', 'joint')}-{where}"))
             config = config_cls(**given)
         trainer = algorithm.trainer_class()(config, resume=args.resume, progress=not args.no_progress,
                                             log=not args.no_tensorboard)
@@ -123,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"trained {trainer.global_step} environment steps ({algo}) in {config.run_dir}")
     best_pt = Path(config.run_dir) / "best.pt"
     if best["update"] is not None:
-        print(f"best.pt: update {best['update']}, mean NSW {best['score']:.4f} on public seeds "
+        what = "mean normalized score over the worlds" if config.scenarios else "mean NSW"
+        print(f"best.pt: update {best['update']}, {what} {best['score']:.4f} on public seeds "
               f"{best['seeds'][0]}-{best['seeds'][-1]} ({best['mode']}); evaluate with "
               f"wfbench evaluate --policy {algo}:{best_pt}")
     else:  # save_unselected_best wrote the last weights as best.pt (docs/rl.md)

@@ -50,6 +50,8 @@ from wfbench.core.reward import step_reward
 from wfbench.core.seeds import SEED_SETS, resolve_seeds
 from wfbench.core.simulator import Simulator
 from wfbench.evaluation import evaluate
+from wfbench.suites.score import normalize
+from wfbench.train.worlds import Worlds, WorldSet, deal, resolve_worlds, world_set
 
 DECISIONS = ("dispatch", "workforce", "positioning")  # the heads of the joint network, in the simulator's order
 DEVICES = ("auto", "cpu", "cuda")
@@ -80,6 +82,7 @@ class BaseConfig:
     """
 
     scenario: str = "paper-64"
+    scenarios: str = ""  # several worlds (wfbench.train.worlds): e.g. "suite-v1:train"; when set, scenario is unused
     variant: str = "joint"
     model: str = "small"  # policies.neural.model.PRESETS
     steps: int = 1_000_000  # environment steps in all (B per simulator step)
@@ -105,7 +108,13 @@ class BaseConfig:
         check_ints(self, ("steps", "num_envs", "num_steps", "threads", "checkpoint_every"))
         check_ints(self, ("eval_every",), least=0)
         self.check()
-        ScenarioConfig.resolve(self.scenario)
+        if self.scenarios:
+            resolve_worlds(self.scenarios)
+            if self.variant != "joint":
+                raise ValueError(f"scenarios {self.scenarios!r} with variant {self.variant!r}: training across worlds "
+                                 "is for the joint network; allowed: variant joint")
+        else:
+            ScenarioConfig.resolve(self.scenario)
         if not set(resolve_seeds(self.eval_seeds)) <= set(SEED_SETS["public"]):
             raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
                              "(1000-1049) only, never on test seeds")
@@ -212,6 +221,12 @@ class Collector:
         self.index, self.count = index, count
         self.gen = torch.Generator(device=device).manual_seed(cfg.seed + 1_000_003 * index)
         self.ret_std = RunningStd()
+        # several worlds (wfbench.train.worlds): a reward normalizer per world, and per world the running
+        # mean of its step reward, which centres it (docs/rl.md, "Generalists")
+        self.worlds = list(scenario.worlds) if isinstance(scenario, WorldSet) else None
+        if self.worlds:
+            self.world_std = [RunningStd() for _ in self.worlds]
+            self.world_mean = [RunningStd() for _ in self.worlds]
         self.seed_cursor, self.episode, self.steps = 0, 0, 0
         self.timing = {"obs_to_tensor": 0.0, "forward": 0.0, "simulator": 0.0}
         self.sim = None
@@ -223,20 +238,37 @@ class Collector:
 
     def meta(self) -> dict:
         """What a checkpoint needs to resume the collector (its seeds, episode count, normalizer, generator)."""
-        return {"seed_cursor": self.seed_cursor, "episode": self.episode, "ret_std": dict(vars(self.ret_std)),
+        meta = {"seed_cursor": self.seed_cursor, "episode": self.episode, "ret_std": dict(vars(self.ret_std)),
                 "generator": self.gen.get_state()}
+        if self.worlds:
+            meta["world_std"] = [dict(vars(r)) for r in self.world_std]
+            meta["world_mean"] = [dict(vars(r)) for r in self.world_mean]
+        return meta
 
     def restore(self, meta: dict) -> None:
         self.seed_cursor, self.episode = meta.get("seed_cursor", 0), meta["episode"]
         self.ret_std.__dict__.update(meta["ret_std"])
+        if self.worlds:
+            for mine, saved in zip(self.world_std + self.world_mean, meta["world_std"] + meta["world_mean"],
+                                   strict=True):
+                mine.__dict__.update(saved)
         self.gen.set_state(meta["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
 
     def start(self, model) -> None:
         """A fresh Simulator on the next B training seeds, a fresh LSTM state of ``model``."""
-        self.sim = Simulator(self.scenario, self.take_seeds(self.cfg.num_envs), keep_series=False, threads=1)
+        if self.worlds:  # the environments dealt to the worlds, each its share of the batch's seeds
+            seeds = self.take_seeds(self.cfg.num_envs)
+            bounds = np.cumsum(deal(self.cfg.num_envs, len(self.worlds)))[:-1]
+            self.sim = Worlds(self.worlds, [list(s) for s in np.split(np.asarray(seeds), bounds)])
+            self.horizons = self.sim.horizons
+            j, n = self.sim.position()  # staggered within each world
+        else:
+            self.sim = Simulator(self.scenario, self.take_seeds(self.cfg.num_envs), keep_series=False, threads=1)
+            self.horizons = np.full(self.sim.B, self.scenario.horizon)
+            j, n = np.arange(self.sim.B), self.sim.B
         self.obs = self.sim.reset()
-        H, B = self.scenario.horizon, self.sim.B
-        self.cut = (H * (np.arange(B) + 1)) // B if self.staggered else np.full(B, H)
+        H, B = self.horizons, self.sim.B
+        self.cut = (H * (j + 1)) // n if self.staggered else H.copy()
         self.helper = None
         if self.make_helper is not None:
             self.helper = self.make_helper()
@@ -247,6 +279,8 @@ class Collector:
 
     def _shaped(self, nsw: np.ndarray, ended: np.ndarray) -> np.ndarray:
         c = self.cfg
+        if self.worlds:
+            return self._shaped_worlds(step_reward(self.reward, nsw, self.sim.state.last), ended)
         reward = (step_reward(self.reward, nsw, self.sim.state.last) - c.reward_offset) * c.reward_scale
         if c.normalize_returns:
             self.ret = self.ret * c.gamma + reward
@@ -255,17 +289,45 @@ class Collector:
             self.ret[ended] = 0.0
         return reward
 
+    def _shaped_worlds(self, raw: np.ndarray, ended: np.ndarray) -> np.ndarray:
+        """Per world: the step reward minus the world's running mean, scaled, over the world's running return std.
+
+        The worlds' welfare differs in level and in spread (``small``'s NSW is not
+        ``table2-g256-f25-s5``'s); centring and scaling each by its own statistics keeps any
+        one world from dominating the advantages and the value loss. ``reward_offset`` is
+        not used: each world's own mean takes its place.
+        """
+        c, world = self.cfg, self.sim.world
+        reward = np.empty_like(raw)
+        for k, mean in enumerate(self.world_mean):
+            rows = world == k
+            mean.update(raw[rows])
+            reward[rows] = (raw[rows] - mean.mean) * c.reward_scale
+        if c.normalize_returns:
+            self.ret = self.ret * c.gamma + reward
+            for k, std in enumerate(self.world_std):
+                rows = world == k
+                std.update(self.ret[rows])
+                reward[rows] /= std.std
+            self.ret[ended] = 0.0
+        return reward
+
     def _episode_ends(self, ended: np.ndarray, model, episodes: list[dict]) -> None:
         full = self.sim.dones  # whole episodes only in the logs (not the cut first ones)
         if full.any():
-            episodes.append(episode_kpis(self.sim, full))
+            kpis = episode_kpis(self.sim, full)
+            if self.worlds:  # and the score of each world with a whole episode among them
+                means = self.sim.episode_means()[SCORE]
+                for k in np.unique(self.sim.world[full]):
+                    kpis[f"{SCORE}/{self.worlds[k].name}"] = float(means[full & (self.sim.world == k)].mean())
+            episodes.append(kpis)
         self.episode += int(ended.sum())
         if ended.all() and self.fresh_batches and not self.staggered:
             self.start(model)
             return
         idx = np.flatnonzero(ended)  # partial reset onto fresh training seeds
         self.obs = self.sim.reset(indices=idx, seeds=self.take_seeds(len(idx)))
-        self.cut[idx] = self.scenario.horizon
+        self.cut[idx] = self.horizons[idx]
         self.state = tuple(s * torch.as_tensor(~ended, dtype=s.dtype, device=self.device).view(1, -1, 1)
                            for s in self.state)
 
@@ -352,7 +414,8 @@ def start_run(trainer, config: BaseConfig, progress: bool, log: bool) -> BaseCon
     trainer.cuda = trainer.device.type == "cuda"
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
-    trainer.scenario = ScenarioConfig.resolve(config.scenario)
+    # several worlds (``scenarios``): a WorldSet, which the collector, the public scores and the checkpoint read
+    trainer.scenario = world_set(config.scenarios) if config.scenarios else ScenarioConfig.resolve(config.scenario)
     trainer.mcfg = config.network_config()
     trainer.best = {"score": -math.inf, "update": None}
     trainer.history = []
@@ -397,6 +460,7 @@ def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
         "algo": algo,
         "variant": t.cfg.variant,
         "scenario": t.scenario.name,
+        **({"worlds": t.scenario.names} if isinstance(t.scenario, WorldSet) else {}),
         "train_config": asdict(t.cfg),
         "update": count,
         "global_step": t.global_step,
@@ -457,6 +521,8 @@ def score_public(policy: Callable[[str], Any], scenario, eval_seeds: str) -> dic
     ``policy(mode)`` gives the deployable policy in ``mode`` (``"sample"`` or ``"greedy"``).
     """
     seeds = resolve_seeds(eval_seeds)
+    if isinstance(scenario, WorldSet):
+        return score_worlds(policy, scenario, seeds)
     res: dict = {}
     for mode in ("sample", "greedy"):
         df = evaluate(policy(mode), scenario, seeds, backend="serial", act_timeout_s=None)
@@ -466,11 +532,39 @@ def score_public(policy: Callable[[str], Any], scenario, eval_seeds: str) -> dic
     return res
 
 
+def score_worlds(policy: Callable[[str], Any], worlds: WorldSet, seeds: list[int]) -> dict:
+    """A run across worlds: the sampled policy on the public seeds of every world; the score is their mean.
+
+    Each world's mean NSW is put on the suite's normalized scale (``(NSW - random) /
+    (bound - random)``, :func:`wfbench.suites.normalize`, the published constants of the
+    world's suite id) when every world has constants, so that no world counts more because
+    its NSW spreads more; otherwise the score is the mean NSW over the worlds. The
+    constants are fixed numbers per scenario: no test-seed result of the policy enters.
+    Greedy decisions are not scored (one mode, to halve the cost of scoring eight worlds).
+    """
+    per_world, nsw, cost = {}, {}, {}
+    for w in worlds.worlds:
+        df = evaluate(policy("sample"), w.config, seeds, backend="serial", act_timeout_s=None)
+        nsw[w.name], cost[w.name] = float(df["nsw"].mean()), float(df["workforce_cost"].mean())
+    try:
+        per_world = {name: float(normalize(v, name)) for name, v in nsw.items()}
+        scale = "normalized"
+    except ValueError:  # a world no suite has constants for: the plain mean NSW
+        per_world, scale = dict(nsw), "nsw"
+    return {"sample": float(np.mean(list(per_world.values()))), "greedy": None, "scale": scale,
+            "worlds": per_world, "nsw_worlds": nsw,
+            "sample_workforce_cost": float(np.mean(list(cost.values()))), "seeds": seeds}
+
+
 def log_public(writer, res: dict, step: int) -> None:
-    """The TensorBoard scalars of a :func:`score_public` result (``public/*``)."""
-    writer.add_scalar("public/nsw_sample", res["sample"], step)
-    writer.add_scalar("public/nsw_greedy", res["greedy"], step)
+    """The TensorBoard scalars of a :func:`score_public` result (``public/*``; across worlds, one per world too)."""
+    writer.add_scalar("public/nsw_sample" if res.get("scale", "nsw") == "nsw" else "public/score_sample",
+                      res["sample"], step)
+    if res["greedy"] is not None:
+        writer.add_scalar("public/nsw_greedy", res["greedy"], step)
     writer.add_scalar("public/workforce_cost_sample", res["sample_workforce_cost"], step)
+    for name, v in res.get("worlds", {}).items():
+        writer.add_scalar(f"public/{name}", v, step)
 
 
 class RunOutputs:

@@ -1,0 +1,232 @@
+"""Training across worlds: several scenarios in one batch (domain randomization, docs/rl.md "Generalists").
+
+``--scenarios`` names the worlds: a suite's split (``suite-v1:train``), scenario names
+(``paper-64,small``, a suite id such as ``paper-64-v1`` or a .toml/.json path), or both,
+comma-separated. A suite's held-out split is refused: held-out scenarios are never
+trained or tuned on.
+
+:class:`Worlds` puts one :class:`~wfbench.core.simulator.Simulator` per world behind the
+face of one batched simulator: ``B`` environments, the slot counts of the largest world
+(``M``, ``N``), one observation in which a smaller world's rows are padded with empty,
+masked slots (the network is built for any number of slots: an empty slot is masked
+everywhere), and one action split back per world (the dispatch no-op, column ``N``, is
+mapped to each world's own ``N``). The draw is **stratified**: the ``B`` environments are
+dealt to the worlds as evenly as possible (``B = 128`` on the eight training scenarios
+of ``suite-v1``: 16 each) and an environment whose episode ends is reset onto a fresh
+training seed of its own world, so every rollout holds every world in the same
+proportion and no world's share of the update depends on the dice. Episodes of worlds
+with different horizons end at different steps; each ends at its own.
+
+The per-world reward normalization is the collector's (:class:`wfbench.train.toolkit.Collector`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.observe import allocate_obs
+from wfbench.core.simulator import Simulator
+from wfbench.suites.definition import SPLITS, SUITES, lookup
+
+SEPARATOR = ","
+
+
+@dataclass(frozen=True)
+class World:
+    """One training world: the name the logs and the checkpoint use, and its scenario."""
+
+    name: str
+    config: ScenarioConfig
+
+
+@dataclass(frozen=True)
+class WorldSet:
+    """The worlds of a run trained across scenarios; a trainer's ``scenario`` when ``scenarios`` is set.
+
+    ``name`` is the spec as given (what the checkpoint records as its scenario), ``horizon``
+    the longest world's (a progress bar's unit).
+    """
+
+    name: str
+    worlds: tuple[World, ...]
+
+    @property
+    def names(self) -> list[str]:
+        return [w.name for w in self.worlds]
+
+    @property
+    def horizon(self) -> int:
+        return max(w.config.horizon for w in self.worlds)
+
+
+def world_set(spec: str) -> WorldSet:
+    """The :class:`WorldSet` of a ``--scenarios`` spec (:func:`resolve_worlds`)."""
+    return WorldSet(spec, tuple(resolve_worlds(spec)))
+
+
+def resolve_worlds(spec: str) -> list[World]:
+    """The worlds of a ``--scenarios`` spec, in its order, each once.
+
+    ``SUITE:SPLIT`` (only the ``train`` split) is the suite's scenarios of that split,
+    named by their suite ids; any other item is a scenario a suite knows by id or
+    preset (named by its suite id when it is in suite-v1's training split) or anything
+    :meth:`ScenarioConfig.resolve` takes.
+
+    Raises:
+        ValueError: an empty spec, an unknown suite or split, a held-out split, an unknown
+            scenario; the message names what is allowed.
+    """
+    items = [s.strip() for s in spec.split(SEPARATOR)] if isinstance(spec, str) else []
+    if not items or not all(items):
+        raise ValueError(f"scenarios {spec!r}: allowed: a comma-separated list of scenarios and suite splits, "
+                         "e.g. 'suite-v1:train' or 'paper-64,small'")
+    worlds: dict[str, World] = {}
+    for item in items:
+        suite, colon, split = item.partition(":")
+        if colon and suite in SUITES:
+            if split not in SPLITS:
+                raise ValueError(f"scenarios {item!r}: unknown split {split!r} of {suite}; allowed: "
+                                 f"{suite}:train")
+            if split != "train":
+                raise ValueError(f"scenarios {item!r}: the {split} split is never trained on; allowed: "
+                                 f"{suite}:train")
+            for sid in SUITES[suite].ids(split):
+                sc = SUITES[suite].scenario(sid)
+                worlds.setdefault(sc.id, World(sc.id, sc.config))
+            continue
+        try:
+            _, sc = lookup("suite-v1", item)
+        except ValueError:
+            config = ScenarioConfig.resolve(item)  # raises naming the presets
+            worlds.setdefault(config.name, World(config.name, config))
+            continue
+        if sc.split != "train":
+            raise ValueError(f"scenarios {item!r}: {sc.id} is a held-out scenario of suite-v1 and is never trained "
+                             "on; allowed: its training split, suite-v1:train")
+        worlds.setdefault(sc.id, World(sc.id, sc.config))
+    return list(worlds.values())
+
+
+def deal(B: int, k: int) -> np.ndarray:
+    """The environments of each of ``k`` worlds in a batch of ``B``: as even as possible, the first get more."""
+    if B < k:
+        raise ValueError(f"num_envs = {B} is smaller than the {k} worlds; allowed: num_envs >= {k}, so that every "
+                         "world has an environment")
+    return np.array([B // k + (i < B % k) for i in range(k)], dtype=np.int64)
+
+
+class _State:
+    """What a trainer reads of ``Simulator.state`` (``t``, ``last``), concatenated over the worlds."""
+
+    def __init__(self, sims: Sequence[Simulator]):
+        self._sims = sims
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.concatenate([s.state.t for s in self._sims])
+
+    @property
+    def last(self) -> np.ndarray:
+        return np.concatenate([s.state.last for s in self._sims])
+
+
+class Worlds:
+    """The environments of several scenarios, stepped as one batch (the :class:`Simulator` methods a trainer uses).
+
+    Args:
+        worlds: the worlds, each with the seeds of its environments (``seeds[i]``).
+        seeds: one list of seeds per world; the batch is the worlds' environments in order.
+    """
+
+    def __init__(self, worlds: Sequence[World], seeds: Sequence[Sequence[int]]):
+        if len(worlds) != len(seeds):
+            raise ValueError(f"{len(worlds)} worlds but {len(seeds)} seed lists")
+        self.worlds = list(worlds)
+        self.sims = [Simulator(w.config, s, keep_series=False, threads=1) for w, s in zip(worlds, seeds, strict=True)]
+        sizes = np.array([s.B for s in self.sims], dtype=np.int64)
+        self.bounds = np.concatenate([[0], np.cumsum(sizes)])
+        self.B = int(self.bounds[-1])
+        self.M = max(s.M for s in self.sims)
+        self.N = max(s.N for s in self.sims)
+        self.world = np.repeat(np.arange(len(self.sims)), sizes)  # (B,) the world of each environment
+        self.horizons = np.repeat([s.config.horizon for s in self.sims], sizes)
+        self.state = _State(self.sims)
+        self.obs_buffers = allocate_obs(self.B, self.M, self.N)
+        self.config = max((s.config for s in self.sims), key=lambda c: (c.max_facilities, c.max_personnel))
+
+    @property
+    def seeds(self) -> np.ndarray:
+        return np.concatenate([s.seeds for s in self.sims])
+
+    @property
+    def dones(self) -> np.ndarray:
+        return np.concatenate([s.dones for s in self.sims])
+
+    def position(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each environment's index within its world and its world's size (the staggered cuts per world)."""
+        sizes = np.diff(self.bounds)[self.world]
+        return np.arange(self.B) - self.bounds[self.world], sizes
+
+    def _padded(self, k: int, obs: dict[str, np.ndarray]) -> None:
+        """Copy world ``k``'s observation into its rows of the batch's buffers, its missing slots empty."""
+        lo, hi = self.bounds[k], self.bounds[k + 1]
+        sim = self.sims[k]
+        M, N = sim.M, sim.N
+        for name, buf in self.obs_buffers._asdict().items():
+            src = obs[name]
+            if name == "dispatch_mask":  # (B, M, N + 1): the no-op column is the last of each
+                buf[lo:hi, :M, :N] = src[:, :, :N]
+                buf[lo:hi, :M, self.N] = src[:, :, N]
+            elif name in ("facilities", "facility_mask", "requesting"):
+                buf[lo:hi, :M] = src
+            elif name in ("personnel", "personnel_mask", "personnel_status", "under_notice", "dispatchable"):
+                buf[lo:hi, :N] = src
+            else:
+                buf[lo:hi] = src
+
+    def _obs(self) -> dict[str, np.ndarray]:
+        obs = self.obs_buffers._asdict()
+        obs["t"] = self.state.t
+        return obs
+
+    def reset(self, indices=None, seeds=None) -> dict[str, np.ndarray]:
+        """Reset every environment, or those at ``indices`` (of the batch) onto ``seeds``; the padded observation."""
+        if indices is None:
+            for k, sim in enumerate(self.sims):
+                self._padded(k, sim.reset())
+            return self._obs()
+        idx = np.asarray(indices, dtype=np.int64)
+        seeds = None if seeds is None else np.asarray(list(seeds), dtype=np.int64)
+        for k, sim in enumerate(self.sims):
+            lo, hi = self.bounds[k], self.bounds[k + 1]
+            mine = (idx >= lo) & (idx < hi)
+            if mine.any():
+                obs = sim.reset(indices=idx[mine] - lo, seeds=None if seeds is None else seeds[mine].tolist())
+                self._padded(k, obs)
+        return self._obs()
+
+    def step_observe(self, action: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Step each world with its rows of ``action``; the rewards (B,) and the padded observation."""
+        rewards = []
+        for k, sim in enumerate(self.sims):
+            lo, hi = self.bounds[k], self.bounds[k + 1]
+            part = {}
+            if "dispatch" in action:
+                d = action["dispatch"][lo:hi, :sim.M]
+                part["dispatch"] = np.where(d >= sim.N, sim.N, d)  # the batch's no-op (N) is the world's
+            if "workforce" in action:
+                part["workforce"] = action["workforce"][lo:hi]
+            if "positioning" in action:
+                part["positioning"] = np.ascontiguousarray(action["positioning"][lo:hi, :, :sim.M])
+            r, obs = sim.step_observe(part)
+            rewards.append(r)
+            self._padded(k, obs)
+        return np.concatenate(rewards), self._obs()
+
+    def episode_means(self) -> dict[str, np.ndarray]:
+        means = [s.episode_means() for s in self.sims]
+        return {k: np.concatenate([m[k] for m in means]) for k in means[0]}
