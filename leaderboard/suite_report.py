@@ -9,6 +9,15 @@ which nobody trained or tuned on; the training scenarios' aggregate is shown bes
 Each entry's interval is computed with the same fixed seed and alone, so it does not
 change when other entries are added. Costs and the budget filter are those of
 :mod:`leaderboard.report`.
+
+A learned method trained with several training seeds is entered as one entry per seed,
+each running the policy ``METHOD#seedK`` (:data:`policies.registry.SEED_RUNS`). The seeds
+are not ranked one by one (one lucky run is not a result): the board adds the row
+``METHOD (N seeds)``, whose runs pool every seed's (a run is a (training seed, evaluation
+seed) pair, :func:`wfbench.aggregate.pool_seeds`), and ranks it by the held-out IQM with
+its interval like any entry; each seed's own scores are in a table of their own
+(:func:`seed_cells`). An entry of the shipped pick (``METHOD``, a copy of one seed's
+checkpoint) is shown but not ranked beside its method's row, and named as the pick.
 """
 
 from __future__ import annotations
@@ -27,10 +36,12 @@ from leaderboard.report import (
     entry_record,
     page,
     png_data,
+    reads_future,
 )
 from leaderboard.store import Store
 from leaderboard.tracks import SuiteTrack
-from wfbench.aggregate import METRICS, aggregate_suite
+from policies.registry import parse_member, shipped_member
+from wfbench.aggregate import METRICS, aggregate_suite, over_seeds, pool_seeds, seed_scores
 from wfbench.suites import normalize
 from wfbench.tables import markdown_table, text_table
 
@@ -74,15 +85,29 @@ def ranking(store: Store, track: SuiteTrack, baseline: str = "heuristic", max_de
     subs = {s.name: s for s in store.submissions(track.name)}
     n_units = len(track.units())
     out, left_out, frames = [], [], {}
+    groups: dict[str, list[tuple[int, str, bool]]] = {}  # method -> (training seed, entry, complete) per member
     for name, sub in subs.items():
         mine = rows[rows["name"] == name]
         complete = sub.status == "complete" and len(mine) == n_units and mine["normalized"].notna().all()
         rec = entry_record(name, sub, mine)
         rec["nsw"] = float(mine["nsw"].mean()) if len(mine) else np.nan
         rec["ranked"] = rec["deployable"] and complete
+        method = _member_of(sub.policy)
+        rec["member_of"], rec["pick_of"], rec["seeds_of"], rec["members"] = method[0] if method else "", "", "", ""
+        if method:  # a training seed: ranked through its method's row
+            rec["ranked"] = False
+            groups.setdefault(method[0], []).append((method[1], name, complete))
         add_budget(rec, sub, mine, max_decision_ms, max_cpu_s, left_out)
-        if complete:
+        if complete and not method:
             frames[name] = mine[["scenario", "split", "seed", "normalized"]]
+        out.append(rec)
+    for rec in out:  # the shipped pick of a method whose seeds are entered: shown, named, not ranked twice
+        if rec["policy"] in groups:
+            rec["pick_of"], rec["ranked"] = rec["policy"], False
+    for method, members in groups.items():
+        rec, pooled = _method_record(method, sorted(members), subs, rows, max_decision_ms, max_cpu_s, left_out)
+        if pooled is not None:
+            frames[rec["name"]] = pooled
         out.append(rec)
     table = pd.DataFrame(out)
     if frames:
@@ -104,6 +129,39 @@ def ranking(store: Store, track: SuiteTrack, baseline: str = "heuristic", max_de
     return Ranking(track, baseline, table, rows, refused, limits, left_out)  # type: ignore[arg-type]
 
 
+def _member_of(policy: str) -> tuple[str, int] | None:
+    """A training seed's policy ``METHOD#seedK[@MODE]`` -> (``METHOD[@MODE]``, K); None for any other policy."""
+    parsed = parse_member(policy)
+    if parsed is None or parsed[1] < 0:
+        return None
+    method, k, mode = parsed
+    return method + (f"@{mode}" if mode else ""), k
+
+
+def _method_record(method: str, members: list[tuple[int, str, bool]], subs: dict, rows: pd.DataFrame,
+                   max_decision_ms: float | None, max_cpu_s: float | None,
+                   left_out: list[str]) -> tuple[dict, pd.DataFrame | None]:
+    """The row of a learned method over its entered training seeds, and its pooled runs when every seed is complete."""
+    names = [name for _, name, _ in members]
+    mine = rows[rows["name"].isin(names)]
+    first = subs[names[0]]
+    rec = entry_record(over_seeds(method, len(members)), first, mine)
+    missing = [name for _, name, complete in members if not complete]
+    rec.update(policy=f"{method} over training seeds " + ", ".join(str(k) for k, _, _ in members),
+               submitter=", ".join(dict.fromkeys(subs[n].submitter for n in names)),
+               status="complete" if not missing else "incomplete",
+               reason=f"training seeds not complete: {', '.join(missing)}" if missing else "",
+               builtin=False, fingerprint=",".join(subs[n].fingerprint or "legacy" for n in names),
+               deployable=all(not reads_future(subs[n].policy) for n in names), nsw=float(mine["nsw"].mean())
+               if len(mine) else np.nan, member_of="", pick_of="", seeds_of=method, members=",".join(names))
+    rec["ranked"] = rec["deployable"] and not missing
+    add_budget(rec, first, mine, max_decision_ms, max_cpu_s, left_out)
+    if missing:
+        return rec, None
+    cols = ["scenario", "split", "seed", "normalized"]
+    return rec, pool_seeds({n: rows.loc[rows["name"] == n, cols] for n in names})
+
+
 def _interval(t: pd.Series, metric: str, split: str) -> str:
     v = t.get(f"{metric}_{split}", np.nan)
     if pd.isna(v):
@@ -119,34 +177,92 @@ def cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[str
               f"P(improvement over {r.baseline}), held out [95% CI]", "Episodes", "Status", *BUDGET_HEADER]
     rows = []
     for _, t in r.table.iterrows():
-        if bool(t["deployable"]) != deployable:
+        if bool(t["deployable"]) != deployable or t.get("member_of"):  # a training seed: in seed_cells
             continue
         if t["name"] == r.baseline:
             poi = "(baseline)"
         else:
             poi = _interval(t, "p_improve", RANK_SPLIT).replace(".000", ".00")
         status = t["status"] + (f": {t['reason']}" if t["reason"] else "")
-        if t["status"] == "complete" and t["seeds"] < n:
-            status += f" ({n - t['seeds']} episodes missing or refused)"
+        total = n * len(t["members"].split(",")) if t.get("members") else n  # a method: every seed's episodes
+        if t["status"] == "complete" and t["seeds"] < total:
+            status += f" ({total - t['seeds']} episodes missing or refused)"
         if t["over_budget"]:
             status += f"; outside the budget: {t['over_budget']}"
+        if t.get("pick_of"):
+            status += f"; the shipped pick of {t['pick_of']}, ranked over its training seeds"
         rank = str(int(t["rank"])) if pd.notna(t["rank"]) else "-"
         rows.append([rank, t["name"], t["policy"], _interval(t, "iqm", RANK_SPLIT), _interval(t, "mean", RANK_SPLIT),
                      _interval(t, "optimality_gap", RANK_SPLIT), _interval(t, "iqm", "train"), poi,
-                     f"{t['seeds']}/{n}", status, *budget_cells(t)])
+                     f"{t['seeds']}/{total}", status, *budget_cells(t)])
     return header, rows
 
 
 def scenario_cells(r: Ranking) -> tuple[list[str], list[list[str]]]:
-    """Mean normalized score per scenario (rows, with their split) and entry (columns)."""
-    names = r.table["name"].tolist() if len(r.table) else []
+    """Mean normalized score per scenario (rows, with their split) and entry (columns); training seeds in seed_cells."""
+    shown = r.table[~_is_member(r.table)] if len(r.table) else r.table
+    names = shown["name"].tolist() if len(shown) else []
     header = ["Scenario", "Split", *names]
-    means = r.per_seed.groupby(["scenario", "name"])["normalized"].mean() if len(r.per_seed) else pd.Series()
+    rows_of = {t["name"]: t["members"].split(",") if t.get("members") else [t["name"]] for _, t in shown.iterrows()}
+    per = r.per_seed
     rows = []
     for sc in r.track.suite.scenarios:
-        rows.append([sc.id, sc.split, *[f"{means[sc.id, n]:.3f}" if (sc.id, n) in means.index else "-"
-                                        for n in names]])
+        cells = []
+        for n in names:
+            g = per[(per["scenario"] == sc.id) & per["name"].isin(rows_of[n])] if len(per) else per
+            cells.append(f"{g['normalized'].mean():.3f}" if len(g) else "-")
+        rows.append([sc.id, sc.split, *cells])
     return header, rows
+
+
+def _is_member(table: pd.DataFrame) -> pd.Series:
+    if "member_of" not in table:
+        return pd.Series(False, index=table.index)
+    return table["member_of"].fillna("").astype(str) != ""
+
+
+def seed_cells(r: Ranking) -> tuple[list[str], list[list[str]]]:
+    """Each learned method's training seeds: IQM per split of each seed's normalized score, and its mean per scenario.
+
+    One row per entered seed (the shipped pick marked), then the method's pooled row with its 95% intervals;
+    empty when no method's seeds are entered.
+    """
+    splits = [RANK_SPLIT, "train"]
+    ids = [sc.id for sc in r.track.suite.scenarios]
+    header = ["Method", "Training seed (entry)", *(f"{SPLIT_LABELS[sp]} IQM" for sp in splits), "Status", *ids]
+    if not len(r.table) or not _is_member(r.table).any():
+        return header, []
+    rows = []
+    members = r.table[_is_member(r.table)]
+    for method, g in members.groupby("member_of", sort=True):
+        base = method.partition("@")[0]
+        pick = shipped_member(base)
+        complete = g[g["status"] == "complete"]["name"].tolist()
+        per = r.per_seed[r.per_seed["name"].isin(complete)]
+        scores = seed_scores({n: per[per["name"] == n] for n in complete if (per["name"] == n).any()}) \
+            if len(per) else pd.DataFrame(columns=["member"])
+        scores = scores.set_index("member") if len(scores) else scores
+        for _, t in g.sort_values("policy").iterrows():
+            name = t["name"]
+            is_pick = pick is not None and t["policy"].partition("@")[0] == pick
+            have = len(scores) and name in scores.index
+            rows.append([method, name + (" (shipped pick)" if is_pick else ""),
+                         *(f"{scores.loc[name, f'iqm_{sp}']:.3f}" if have and f"iqm_{sp}" in scores else "-"
+                           for sp in splits),
+                         t["status"] + (f": {t['reason']}" if t["reason"] else ""),
+                         *(f"{scores.loc[name, sc]:.3f}" if have and sc in scores else "-" for sc in ids)])
+        pooled = r.table[r.table["seeds_of"] == method]
+        for _, t in pooled.iterrows():
+            rank = f"#{int(t['rank'])}" if pd.notna(t["rank"]) else "not ranked"
+            per_all = r.per_seed[r.per_seed["name"].isin(t["members"].split(","))]
+            means = per_all.groupby("scenario")["normalized"].mean()
+            rows.append([method, f"{t['name']}, pooled ({rank})", *(_interval(t, "iqm", sp) for sp in splits),
+                         t["status"], *(f"{means[sc]:.3f}" if sc in means.index else "-" for sc in ids)])
+    return header, rows
+
+
+SEEDS_TITLE = ("Learned methods over training seeds: each seed's IQM and mean normalized score per scenario, the "
+               "shipped pick (chosen on public seeds, before any test) marked; the method is ranked by the pooled row")
 
 
 def caption(r: Ranking) -> str:
@@ -156,8 +272,10 @@ def caption(r: Ranking) -> str:
             f"({len(seeds)}) on each of {len(t.suite.scenarios)} scenarios. Ranked by the IQM of the normalized "
             "score over the held-out scenarios (0 = the random policy, 1 = the proven upper bound, per scenario; "
             "higher is better), with 95% stratified bootstrap intervals over seeds within scenarios (rliable); the "
-            "training scenarios' IQM is shown beside it. Costs: wall ms per decision of one environment (median / "
-            "worst 99th percentile over chunks), CPU s per episode, on the machine named" + budget_note(r) + ".")
+            "training scenarios' IQM is shown beside it. A learned method entered once per training seed is "
+            "ranked by the aggregate over its seeds, 'METHOD (N seeds)'. Costs: wall ms per decision of one "
+            "environment (median / worst 99th percentile over chunks), CPU s per episode, on the machine named"
+            + budget_note(r) + ".")
 
 
 def render(r: Ranking, fmt: str = "table") -> str:
@@ -179,6 +297,9 @@ def render(r: Ranking, fmt: str = "table") -> str:
         out += f"\n\n{REFERENCE_TITLE}\n" + ("\n" if fmt == "md" else "") + table(header, ref)
     sh, sr = scenario_cells(r)
     out += "\n\nMean normalized score per scenario\n" + ("\n" if fmt == "md" else "") + table(sh, sr)
+    th, tr = seed_cells(r)
+    if tr:
+        out += f"\n\n{SEEDS_TITLE}\n" + ("\n" if fmt == "md" else "") + table(th, tr)
     return out
 
 
@@ -224,5 +345,8 @@ def render_html(r: Ranking, header: list[str], rows: list[list[str]], ref: list[
         plt.close(fig)
     sh, sr = scenario_cells(r)
     extra = [("Mean normalized score per scenario", "scenarios", sh, sr)]
+    th, tr = seed_cells(r)
+    if tr:
+        extra.append((SEEDS_TITLE, "seeds", th, tr))
     return page(r, caption(r), header, rows, ref, figures, extra)
 

@@ -10,7 +10,9 @@ current definition are refused when read.
 A :class:`SuiteTrack` (``suite-v1``) evaluates a policy on every scenario of a suite
 (:mod:`wfbench.suites`) on its test seeds, one stored row per (scenario, seed); its
 hash is the suite's, and it is ranked by the aggregate of the normalized score over the
-held-out scenarios (:mod:`wfbench.aggregate`). Both kinds name what a submission runs
+held-out scenarios (:mod:`wfbench.aggregate`); a learned method entered once per training
+seed (``METHOD#seedK``) is ranked by the aggregate over its seeds
+(:mod:`leaderboard.suite_report`). Both kinds name what a submission runs
 as :meth:`Track.units`, (scenario, seed) pairs, with scenario ``""`` for a one-scenario
 track.
 """
@@ -67,7 +69,8 @@ class SuiteTrack:
 
     Ranked by the IQM of the normalized score over the held-out scenarios (shown for the
     training scenarios too), with its 95% stratified bootstrap interval
-    (:func:`wfbench.aggregate.aggregate_suite`).
+    (:func:`wfbench.aggregate.aggregate_suite`); a learned method's training seeds, each an
+    entry, are ranked together by the pool of their runs (:func:`wfbench.aggregate.pool_seeds`).
     """
 
     name: str

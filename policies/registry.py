@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import re
 import warnings
 from pathlib import Path
 from typing import Any
@@ -78,6 +79,86 @@ LEARNED: dict[str, tuple[str, str]] = {
                       "learning on its own action values (the known future, its own policy acting) on paper-64"),
 }
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
+
+
+# method -> the checkpoint files (under CHECKPOINT_DIR) of its training seeds: the same training command with only
+# the seed varied (issue #28, docs/suite.md "Learned methods over training seeds"). A method is reported by the
+# aggregate over these members; its LEARNED entry is the shipped pick, a copy of the file of one of them (the seed
+# whose mean score on the public seeds of the training scenarios is the median, wfbench.aggregate.median_seed).
+# Members are not in LEARNED, learned_names() or oracle_candidates(): the oracle plays the shipped pick only.
+SEED_RUNS: dict[str, tuple[str, ...]] = {
+    "ppo-general": tuple(f"ppo-general-seed{i}.pt" for i in range(5)),
+    "hindsight-general": tuple(f"hindsight-general-seed{i}.pt" for i in range(5)),
+}
+SEED_SEP = "#seed"  # a member's spec: METHOD#seedK, METHOD#seedK@greedy
+_MEMBER = re.compile(r"^(?P<method>[A-Za-z0-9_.-]+)#seed(?P<k>[^@]*)(?:@(?P<mode>.*))?$")
+
+
+def member_spec(method: str, k: int) -> str:
+    """The policy spec of training seed ``k`` of ``method``: ``METHOD#seedK``."""
+    return f"{method}{SEED_SEP}{k}"
+
+
+def seed_members(method: str) -> list[str]:
+    """The specs (``METHOD#seedK``) of ``method``'s training seeds whose checkpoint file exists, in seed order.
+
+    Empty for a policy that is not in :data:`SEED_RUNS` (or whose files are not there yet).
+    """
+    return [member_spec(method, k) for k, f in enumerate(SEED_RUNS.get(method, ()))
+            if (CHECKPOINT_DIR / f).is_file()]
+
+
+def parse_member(spec: str) -> tuple[str, int, str] | None:
+    """``METHOD#seedK[@MODE]`` -> (method, k, mode), the mode ``""`` when not given; None for any other spec.
+
+    Only the form is read (a path or ``module:attr`` is never one; K not a number is -1):
+    :func:`member_file` checks that the method and seed exist.
+    """
+    m = _MEMBER.match(spec) if isinstance(spec, str) else None
+    if m is None:
+        return None
+    return m["method"], int(m["k"]) if m["k"].isdigit() else -1, m["mode"] or ""
+
+
+def member_file(spec: str) -> Path:
+    """The checkpoint file of a member spec ``METHOD#seedK[@MODE]``.
+
+    Raises:
+        ValueError: not a member spec, an unknown method, a seed it has not, or a file not there; the
+            message names what is allowed.
+    """
+    parsed = parse_member(spec)
+    if parsed is None:
+        raise ValueError(f"{spec!r} is not a training seed's spec; give METHOD{SEED_SEP}K[@greedy]")
+    method, k, _ = parsed
+    if method not in SEED_RUNS:
+        raise ValueError(f"policy {spec!r}: {method!r} has no training seeds; methods with seeds: "
+                         f"{', '.join(SEED_RUNS)}")
+    files = SEED_RUNS[method]
+    if not 0 <= k < len(files):
+        raise ValueError(f"policy {spec!r}: {method!r} has training seeds 0-{len(files) - 1} "
+                         f"({method}{SEED_SEP}0 ... {method}{SEED_SEP}{len(files) - 1}); present: "
+                         f"{', '.join(seed_members(method)) or 'none yet'}")
+    path = CHECKPOINT_DIR / files[k]
+    if not path.is_file():
+        raise ValueError(f"policy {spec!r}: its checkpoint {files[k]} is not in {CHECKPOINT_DIR.name}/ (not trained "
+                         f"yet?); present: {', '.join(seed_members(method)) or 'none yet'}")
+    return path
+
+
+def shipped_member(method: str) -> str | None:
+    """The member whose checkpoint is byte for byte the shipped pick's (``LEARNED[method]``'s file), or None."""
+    if method not in LEARNED:
+        return None
+    shipped = CHECKPOINT_DIR / LEARNED[method][0]
+    if not shipped.is_file():
+        return None
+    data = shipped.read_bytes()
+    for spec in seed_members(method):
+        f = member_file(spec)
+        if f.stat().st_size == len(data) and f.read_bytes() == data:
+            return spec
+    return None
 
 
 def learned_names() -> list[str]:
@@ -188,7 +269,8 @@ def get(spec: Any) -> Any:
     the files shipped in ``policies/tuned/``. ``ALGO:PATH`` is a checkpoint of ``wfbench
     train --algo ALGO`` (``ppo``, ``impala``, ``hindsight``; ``ppo:PATH`` loads any of them;
     ``ALGO:PATH@greedy`` for argmax decisions, sampled by default), and ``ppo-joint``,
-    ``impala-joint``, ... the shipped ones (``LEARNED``).
+    ``impala-joint``, ... the shipped ones (``LEARNED``). ``METHOD#seedK`` (``@greedy`` too) is
+    training seed K of a method of :data:`SEED_RUNS` (:func:`seed_members`).
     """
     if not isinstance(spec, str):
         if hasattr(spec, "act") and hasattr(spec, "reset"):
@@ -204,6 +286,8 @@ def get(spec: Any) -> Any:
     name, _, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
     if name in LEARNED and name in learned_names():
         return load_learned(CHECKPOINT_DIR / LEARNED[name][0], mode or "sample", name=spec)
+    if parse_member(spec) is not None:  # ppo-general#seed3, ppo-general#seed3@greedy: one training seed
+        return load_learned(member_file(spec), mode or "sample", name=spec)
     checkpoint = _checkpoint_spec(spec)
     if checkpoint is not None:
         algo, path, mode = checkpoint

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["AGGREGATE_NOTE", "METRICS", "Aggregate", "aggregate", "aggregate_cells", "aggregate_suite", "score_matrix"]
+__all__ = ["AGGREGATE_NOTE", "METRICS", "Aggregate", "aggregate", "aggregate_cells", "aggregate_suite", "median_seed",
+           "over_seeds", "pool_seeds", "score_matrix", "seed_scores"]
 
 METRICS = ("iqm", "mean", "optimality_gap")
 """The aggregate metrics, in the order of the columns: IQM and mean higher is better, optimality gap lower."""
@@ -228,3 +229,76 @@ def aggregate_cells(aggs: Mapping[str, Aggregate]) -> tuple[list[str], list[list
                              f"{r['p_improve']:.2f} [{r['p_improve_low']:.2f}, {r['p_improve_high']:.2f}]")
             rows.append(cells)
     return header, rows
+
+
+def over_seeds(method: str, n: int) -> str:
+    """The name of a learned method's aggregate over its ``n`` training seeds, e.g. ``ppo-general (5 seeds)``."""
+    return f"{method} ({n} seeds)"
+
+
+def pool_seeds(members: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
+    """The runs of a learned method's training seeds as one frame: a run is a (training seed, evaluation seed) pair.
+
+    Args:
+        members: member (a training seed's name, e.g. ``ppo-general#seed0``) -> its per-(scenario, seed)
+            frame (:func:`wfbench.evaluate_suite`'s, or a suite result's rows), all on the same scenarios and seeds.
+
+    Returns:
+        The frames stacked with a ``train_seed`` column holding the member's name, so that
+        :func:`score_matrix` (and :func:`aggregate_suite`) make the ``(members x seeds, scenarios)`` matrix.
+
+    Raises:
+        ValueError: no members.
+    """
+    if not members:
+        raise ValueError("no training seeds to pool")
+    return pd.concat([df.assign(train_seed=name) for name, df in members.items()], ignore_index=True)
+
+
+def seed_scores(members: Mapping[str, pd.DataFrame], value: str = "normalized") -> pd.DataFrame:
+    """Each training seed's own scores: its IQM and mean per split, and its mean score per scenario.
+
+    Args:
+        members: member name -> its per-(scenario, seed) frame with ``scenario``, ``split``, ``seed`` and ``value``.
+        value: the score column.
+
+    Returns:
+        One row per member, in the mapping's order: ``member``, ``iqm_<split>`` and ``mean_<split>`` for each
+        split present (rliable's IQM and mean over that member's seeds x the split's scenarios, no interval:
+        the interval is the pooled one's), and one column per scenario (its mean ``value``).
+    """
+    from rliable import metrics
+
+    rows = []
+    for name, df in members.items():
+        row: dict = {"member": name}
+        present = list(dict.fromkeys(df["split"]))
+        for split in sorted(present, key=lambda s: (SPLIT_ORDER.index(s) if s in SPLIT_ORDER else len(SPLIT_ORDER),
+                                                    s)):
+            m, _ = score_matrix(df[df["split"] == split], value)
+            row[f"iqm_{split}"] = float(metrics.aggregate_iqm(m))
+            row[f"mean_{split}"] = float(metrics.aggregate_mean(m))
+        for sc, g in df.groupby("scenario", sort=False):
+            row[str(sc)] = float(g[value].mean())
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def median_seed(scores: Mapping[str, float]) -> str:
+    """The training seed to ship: the one whose score is the median of the seeds' scores, stated before any test.
+
+    The rule of issue #28 (docs/suite.md, "Learned methods over training seeds"): ``scores`` are the
+    members' mean scores on the public seeds of the training scenarios (never the test seeds); the
+    pick is the middle one once sorted, the 3rd of 5 (for an even count the lower of the two middle
+    ones). Equal scores keep the mapping's order (seed order), so ties go to the lower seed.
+
+    Raises:
+        ValueError: no scores, or a score that is not a finite number.
+    """
+    if not scores:
+        raise ValueError("no training seeds to choose from")
+    bad = [k for k, v in scores.items() if not np.isfinite(float(v))]
+    if bad:
+        raise ValueError(f"the scores of {', '.join(map(str, bad))} are not finite numbers")
+    order = sorted(scores, key=lambda k: float(scores[k]))  # stable: ties stay in seed order
+    return order[(len(order) - 1) // 2]

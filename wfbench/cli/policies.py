@@ -11,7 +11,16 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from policies import DECISIONS
-    from policies.registry import COMPOSITES, LEARNED, ORACLES, TUNED, learned_names
+    from policies.registry import (
+        COMPOSITES,
+        LEARNED,
+        ORACLES,
+        SEED_RUNS,
+        TUNED,
+        learned_names,
+        seed_members,
+        shipped_member,
+    )
 
     for name, (d, w, p, text) in COMPOSITES.items():
         print(f"{name:<22s} dispatch={d}, workforce={w}, positioning={p}: {text}")
@@ -21,6 +30,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"{name:<22s} policies/tuned/{file}: {text}")
     for name in learned_names():
         print(f"{name:<22s} policies/neural/checkpoints/{LEARNED[name][0]}: {LEARNED[name][1]}")
+    for method, files in SEED_RUNS.items():  # training seeds: reported by their aggregate (docs/suite.md)
+        present = seed_members(method)
+        if not present:
+            continue
+        pick = shipped_member(method)
+        print(f"{method + '#seedK':<22s} the training seeds of {method}: {', '.join(present)} ({len(present)} of "
+              f"{len(files)} trained); its shipped pick is " + (pick.rpartition("#")[2] if pick else "none of them")
+              + "; wfbench reproduce suite reports the method over its seeds (docs/suite.md)")
     for decision, table in DECISIONS.items():
         print(f"{decision} decisions (for Composite and fixed agents): {', '.join(table)}")
     return 0

@@ -15,7 +15,16 @@ bound. Writes into the output folder:
   against the number of facilities and people, per policy family (the evaluator's budget
   columns where it writes them, else episode wall time over steps);
 - ``suite-checks.md``/``.csv``: that no policy scores above the bound on any seed, and
-  whether the oracle is at least every deployable policy per scenario.
+  whether the oracle is at least every deployable policy per scenario;
+- ``suite-per-seed.md``/``.csv`` (when a learned method has training seeds,
+  :data:`policies.registry.SEED_RUNS`): each training seed's mean normalized score per
+  scenario and its IQM and mean per split, the shipped pick marked.
+
+A learned method with training seeds (``ppo-general``: ``ppo-general#seed0`` ...) is run as
+each of its members on each scenario as well as its shipped pick; its aggregate row,
+``METHOD (N seeds)``, pools the members' runs (a run is a (training seed, evaluation seed)
+pair: a ``(N x seeds, scenarios)`` matrix per split, :func:`wfbench.aggregate.pool_seeds`).
+The shipped pick keeps its own row, marked as such in the markdown.
 
 Each (policy, scenario) result is cached under ``cache/`` in the output folder with the
 scenario's hash and the seeds, so a stopped run resumes where it stopped and a changed
@@ -34,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite
+from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite, over_seeds, pool_seeds, seed_scores
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.evaluation import evaluate
@@ -56,11 +65,24 @@ def default_policies(networks: bool = True) -> list[str]:
     return [*BUILTIN, *(learned_names() if networks else []), ORACLE]
 
 
+def with_members(names: Sequence[str]) -> tuple[list[str], dict[str, list[str]]]:
+    """``names`` with each learned method's training seeds (present ones) after it, and method -> its members."""
+    from policies.registry import seed_members
+
+    methods = {n: seed_members(n) for n in names}
+    methods = {n: m for n, m in methods.items() if m}
+    out = []
+    for n in names:
+        out += [n, *methods.get(n, [])]
+    return list(dict.fromkeys(out)), methods
+
+
 def family(policy: str) -> str:
     """The family a policy is drawn with in the scaling figure: random, heuristic, solver, network or oracle."""
-    from policies.registry import LEARNED
+    from policies.registry import LEARNED, parse_member
 
-    if policy in LEARNED or ":" in policy and policy.split(":")[0] in ("ppo", "impala", "hindsight"):
+    if policy in LEARNED or parse_member(policy) is not None \
+            or ":" in policy and policy.split(":")[0] in ("ppo", "impala", "hindsight"):
         return "network"
     for name in ("oracle", "solver", "heuristic", "random"):
         if policy.startswith(name):
@@ -74,8 +96,8 @@ def _chosen(suite: Suite, scenarios: Sequence[str] | None) -> list[SuiteScenario
 
 def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, networks: bool = True,
          suite_name: str = "suite-v1", **_: object) -> int:
-    """The evaluations :func:`suite` runs (for a progress bar): each policy and the bound on each scenario."""
-    n_policies = len(policies) if policies else len(default_policies(networks))
+    """The evaluations :func:`suite` runs (for a progress bar): each policy, training seed and bound per scenario."""
+    n_policies = len(with_members(list(policies) if policies else default_policies(networks))[0])
     return (n_policies + 1) * len(_chosen(get_suite(suite_name), scenarios))
 
 
@@ -184,7 +206,8 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
         address: Ray cluster address.
         progress: called with the name of each evaluation as it starts.
         seeds: the seeds (a set name such as ``"test"`` or a list); default ``range(runs)``.
-        policies: the policies (default :func:`default_policies`); the bound is always added.
+        policies: the policies (default :func:`default_policies`); the bound is always added, and so are
+            the training seeds of a learned method (:func:`policies.registry.seed_members`).
         scenarios: a subset of the suite's ids or presets (default all).
         networks: include the shipped networks in the default policies.
         suite_name: the suite.
@@ -197,7 +220,8 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
     s = get_suite(suite_name)
     chosen = _chosen(s, scenarios)
     seed_list = resolve_seeds(seeds) if seeds is not None else list(range(runs))
-    names = list(dict.fromkeys(policies)) if policies else default_policies(networks)
+    names, methods = with_members(list(dict.fromkeys(policies)) if policies else default_policies(networks))
+    members = {m for ms in methods.values() for m in ms}
     frames: dict[str, list[pd.DataFrame]] = {n: [] for n in names}
     bound: dict[str, np.ndarray] = {}
     failures: list[tuple[str, str, str]] = []
@@ -224,7 +248,8 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
             df.insert(0, "split", sc.split)
             df.insert(0, "scenario", sc.id)
             frames[name].append(df)
-            scaling.append(_scaling_row(name, sc, df))
+            if name not in members:  # a training seed costs what its shipped pick costs
+                scaling.append(_scaling_row(name, sc, df))
     runs_by = {n: pd.concat(f, ignore_index=True) for n, f in frames.items() if len(f) == len(chosen)}
     files: list[Path] = []
     out.mkdir(parents=True, exist_ok=True)
@@ -242,8 +267,9 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
                             "normalized": float(np.mean(normalize(bound[sc.id], sc.id, s))),
                             "seeds": len(bound[sc.id])})
     scores = pd.DataFrame(records)
-    columns = [*runs_by, "bound"]
-    header = ["Scenario", "Split", *columns]
+    columns = [*(n for n in runs_by if n not in members), "bound"]
+    picks = _picks(methods)
+    header = ["Scenario", "Split", *(picks.get(c, c) for c in columns)]
     rows = []
     for sc in chosen:
         cells = [sc.id, sc.split]
@@ -256,23 +282,49 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
         f"{s.name} (hash {s.hash}), seeds {seeds_text}: mean normalized score (raw mean NSW) per scenario and "
         "policy; normalized = (NSW - random_ref) / (bound_ref - random_ref), 0 the random policy and 1 the mean "
         "proven bound (docs/suite.md). The networks run zero-shot (trained on paper-64); the oracle reads the "
-        "future (not deployable); 'bound' is the proven upper bound, not a policy.",
+        "future (not deployable); 'bound' is the proven upper bound, not a policy."
+        + (" The training seeds of a learned method are in suite-per-seed (and in the CSV here)." if methods else ""),
         "", markdown_table(header, rows)])
     files += write(out, "suite-scores", scores_md, scores)
 
     # the aggregate per split
     baseline = BASELINE if BASELINE in runs_by else None
-    aggs = aggregate_suite(runs_by, baseline=baseline, reps=reps, poi_reps=poi_reps) if runs_by else {}
+    pooled: dict[str, tuple[str, list[str]]] = {}  # the aggregate row's name -> (method, the members it pools)
+    agg_frames: dict[str, pd.DataFrame] = {}
+    for name, df in runs_by.items():
+        if name in members:
+            continue
+        agg_frames[name] = df
+        done = [m for m in methods.get(name, []) if m in runs_by]
+        if done:
+            pooled[over_seeds(name, len(done))] = (name, done)
+            agg_frames[over_seeds(name, len(done))] = pool_seeds({m: runs_by[m] for m in done})
+    for method, ms in methods.items():  # a method whose shipped pick failed: its seeds are still pooled
+        done = [m for m in ms if m in runs_by]
+        if done and method not in runs_by:
+            pooled[over_seeds(method, len(done))] = (method, done)
+            agg_frames[over_seeds(method, len(done))] = pool_seeds({m: runs_by[m] for m in done})
+    aggs = aggregate_suite(agg_frames, baseline=baseline, reps=reps, poi_reps=poi_reps) if agg_frames else {}
     agg_table = pd.concat([a.table.assign(split=split) for split, a in aggs.items()], ignore_index=True) \
         if aggs else pd.DataFrame()
+    agg_header, agg_rows = aggregate_cells(aggs)
+    for row in agg_rows:  # the shipped pick's row says so (the CSV keeps the policy's name)
+        if row[1] in picks:
+            row[1] = picks[row[1]]
     agg_md = "\n".join([f"Aggregate of {s.name} per split, seeds {seeds_text}"
                         + (f"; probability of improvement over {baseline}" if baseline else "") + ".", "",
-                        markdown_table(*aggregate_cells(aggs)) if aggs else "(no policy ran on every scenario)",
-                        "", AGGREGATE_NOTE])
+                        markdown_table(agg_header, agg_rows) if aggs else "(no policy ran on every scenario)",
+                        "", AGGREGATE_NOTE + (SEEDS_NOTE if pooled else "")])
     files += write(out, "suite-aggregate", agg_md, agg_table)
     for split, agg in aggs.items():
         agg.profiles.to_csv(out / f"suite-profile-{split}.csv", index=False)
         files += [out / f"suite-profile-{split}.csv", *_figure_profiles(agg, split, out / f"suite-profile-{split}")]
+
+    # the training seeds
+    per_seed_md = ""
+    if methods:
+        per_seed, per_seed_md = _per_seed(methods, runs_by, aggs, pooled, chosen, seeds_text)
+        files += write(out, "suite-per-seed", per_seed_md, per_seed)
 
     # the scaling
     scale = pd.DataFrame(scaling)
@@ -295,8 +347,68 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
         checks_md += "\n\nFailed (not cached; a rerun tries them again):\n\n" + markdown_table(
             ["Scenario", "Policy", "Error"], [list(f) for f in failures])
     files += write(out, "suite-checks", checks_md, pd.DataFrame(checks))
-    text = "\n\n".join([scores_md, agg_md, checks_md])
+    text = "\n\n".join([x for x in (scores_md, agg_md, per_seed_md, checks_md) if x])
     return Output(text, files)
+
+
+SEEDS_NOTE = (" 'METHOD (N seeds)' pools the runs of a learned method's N training seeds (a run is a (training seed, "
+              "evaluation seed) pair); the method's own row is its shipped pick, one of those seeds chosen before "
+              "any test (the median on the public seeds of the training scenarios; docs/suite.md).")
+
+
+def _picks(methods: dict[str, list[str]]) -> dict[str, str]:
+    """How the markdown names each method's shipped pick: ``ppo-general (shipped pick: seed2)``."""
+    from policies.registry import parse_member, shipped_member
+
+    out = {}
+    for method in methods:
+        pick = shipped_member(method)
+        out[method] = f"{method} (shipped pick: " + (f"seed{parse_member(pick)[1]})" if pick else "no seed's copy)")
+    return out
+
+
+def _per_seed(methods: dict[str, list[str]], runs_by: dict[str, pd.DataFrame], aggs: dict,
+              pooled: dict[str, tuple[str, list[str]]], chosen: list[SuiteScenario],
+              seeds_text: str) -> tuple[pd.DataFrame, str]:
+    """Each training seed's scores (:func:`wfbench.aggregate.seed_scores`) per method, and its markdown."""
+    from policies.registry import shipped_member
+
+    frames, parts = [], []
+    splits = [sp for sp in ("train", "heldout") if any(sc.split == sp for sc in chosen)]
+    for method, ms in methods.items():
+        done = [m for m in ms if m in runs_by]
+        pick = shipped_member(method)
+        if not done:
+            parts.append(f"{method}: no training seed ran on every scenario.")
+            continue
+        t = seed_scores({m: runs_by[m] for m in done})
+        t.insert(0, "shipped", t["member"] == pick)
+        t.insert(0, "method", method)
+        frames.append(t)
+        header = ["Training seed", *(f"{sp} IQM" for sp in splits), *(sc.id for sc in chosen)]
+        rows = []
+        for _, r in t.iterrows():
+            rows.append([r["member"] + (" (shipped pick)" if r["shipped"] else ""),
+                         *(f"{r[f'iqm_{sp}']:.3f}" for sp in splits), *(f"{r[sc.id]:.3f}" for sc in chosen)])
+        name = over_seeds(method, len(done))
+        if name in pooled:
+            cells = []
+            for sp in splits:
+                a = aggs[sp].table.set_index("policy") if sp in aggs else None
+                cells.append(f"{a.loc[name, 'iqm']:.3f} [{a.loc[name, 'iqm_low']:.3f}, {a.loc[name, 'iqm_high']:.3f}]"
+                             if a is not None and name in a.index else "-")
+            means = [float(np.mean([runs_by[m].loc[runs_by[m]["scenario"] == sc.id, "normalized"].mean()
+                                    for m in done])) for sc in chosen]
+            rows.append([f"**{name}**", *cells, *(f"{v:.3f}" for v in means)])
+        parts.append(f"{method}, {len(done)} of {len(ms)} training seeds"
+                     + (f", shipped pick {pick}" if pick else ", no seed is byte for byte the shipped file") + ":\n\n"
+                     + markdown_table(header, rows))
+    md = "\n\n".join([f"The training seeds of each learned method, seeds {seeds_text}: each seed's IQM of the "
+                      "normalized score per split and its mean per scenario; the last row pools them (IQM with its 95% "
+                      "stratified bootstrap interval over (training seed, evaluation seed) runs within each "
+                      "scenario). The shipped pick is the seed with the median mean score on the public seeds of "
+                      "the training scenarios, chosen before any test (docs/suite.md).", *parts])
+    return (pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()), md
 
 
 def _scaling_row(policy: str, scenario: SuiteScenario, df: pd.DataFrame) -> dict:
