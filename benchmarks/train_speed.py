@@ -38,14 +38,16 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
         tr.learn(tr.rollout())  # warm-up
         for k in tr.timing:
             tr.timing[k] = 0.0
-        t0, steps0 = time.perf_counter(), tr.global_step
+        load0 = os.getloadavg()[0]
+        t0, c0, steps0 = time.perf_counter(), time.process_time(), tr.global_step
         for _ in range(updates):
             tr.learn(tr.rollout())
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         steps = tr.global_step - steps0
     return {"scenario": scenario, "model": model, "agents": agents, "parameters": count_parameters(tr.model),
             "threads": threads, "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
-            **{f"{k}_share": v / wall for k, v in tr.timing.items()}}
+            "cpu_s": cpu, "env_steps_per_cpu_s": steps / cpu, "load_avg_before": load0,
+            "load_avg_after": os.getloadavg()[0], **{f"{k}_share": v / wall for k, v in tr.timing.items()}}
 
 
 def main() -> None:
@@ -57,17 +59,20 @@ def main() -> None:
     ap.add_argument("--updates", type=int, default=2)
     ap.add_argument("--num-envs", type=int, default=32)
     ap.add_argument("--num-steps", type=int, default=32)
+    ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     rows = []
-    for model, agents in ((m, g) for m in a.models.split(",") for g in a.agents.split(",")):
-        for threads in (int(t) for t in a.threads.split(",")):
+    settings = [(m, g, int(t)) for m in a.models.split(",") for g in a.agents.split(",") for t in a.threads.split(",")]
+    for _ in range(a.repeat):
+        for model, agents, threads in settings:
             r = measure(a.scenario, model, threads, a.updates, a.num_envs, a.num_steps, agents)
             rows.append(r)
             print(f"{r['scenario']:9s} {r['model']:6s} {agents:11s} {r['parameters']:>8,d} params  threads {threads}  "
                   f"{r['env_steps_per_s']:7.0f} env-steps/s  simulator {r['simulator_share']:.0%}  "
                   f"obs->tensor {r['obs_to_tensor_share']:.0%}  forward {r['forward_share']:.0%}  "
-                  f"update {r['update_share']:.0%}", flush=True)
+                  f"update {r['update_share']:.0%}  ({r['env_steps_per_cpu_s']:.0f} per CPU-s, load "
+                  f"{r['load_avg_before']:.1f}-{r['load_avg_after']:.1f})", flush=True)
     machine = {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
                "torch": torch.__version__, "load_avg_1min": os.getloadavg()[0]}
     print(json.dumps(machine))

@@ -39,7 +39,7 @@ def _safe_rows(mask: torch.Tensor) -> torch.Tensor:
 
 def gumbel(shape, generator: torch.Generator | None = None, device="cpu") -> torch.Tensor:
     u = torch.rand(shape, generator=generator, device=device).clamp_(1e-10, 1.0 - 1e-7)
-    return -torch.log(-torch.log(u))
+    return u.log_().neg_().log_().neg_()  # -log(-log(u)) in place: the same bits, no temporaries
 
 
 def noise_shapes(B: int, M: int, N: int) -> dict[str, tuple[int, ...]]:

@@ -207,12 +207,15 @@ class Trainer:
                                                   "ent_dispatch", "ent_workforce", "ent_positioning")}
         mb = B // c.minibatches
         perm_gen = torch.Generator().manual_seed(c.seed * 7919 + self.update)
+        # the features of the T steps (not the last observation), once per update rather than once per
+        # minibatch and epoch: featurize is row by row, so a minibatch's rows are the same bits either way
+        with torch.no_grad():
+            feats = featurize({k: v[:-1] for k, v in roll["raw"].items()}, self.mcfg.coord_scale)
         for _ in range(c.epochs):
             perm = torch.randperm(B, generator=perm_gen).to(self.device)
             for i in range(c.minibatches):
                 idx = perm[i * mb:(i + 1) * mb]
-                raw = {k: v[:-1, idx].flatten(0, 1) for k, v in roll["raw"].items()}  # the T steps, not the last
-                x = featurize(raw, self.mcfg.coord_scale)
+                x = {k: v[:, idx].flatten(0, 1) for k, v in feats.items()}
                 acts = {k: roll[k][:, idx].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
                 state = tuple(s[:, idx] for s in roll["init_state"])
                 with toolkit.autocast(self.device, c.bf16):
