@@ -86,9 +86,11 @@ from policies.hindsight.oracles import OracleDispatch, OraclePositioning, Oracle
 from policies.hindsight.planner import Planner
 from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
 from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, obs_to_torch
+from wfbench.core.kpis import SCORE
 from wfbench.core.lookahead import copy_state, fork, fork_index
 from wfbench.core.simulator import Simulator
 from wfbench.train import toolkit
+from wfbench.train.worlds import FACILITY_KEYS, PERSONNEL_KEYS, WorldSet
 
 VARIANTS = ("joint",)
 # the teachers: the full oracle, or the oracle's workforce and positioning beside nearest-first dispatch
@@ -306,12 +308,16 @@ class Trainer:
     # -- environments -------------------------------------------------------------------------
     def _new_episode(self) -> None:
         """Synchronized episodes: a new Simulator and teacher on the next B training seeds."""
+        scenario = self.scenario
+        if isinstance(scenario, WorldSet):  # across worlds: each episode of the batch on the next world in turn
+            self.world = scenario.worlds[(self.seed_cursor // self.cfg.num_envs) % len(scenario.worlds)]
+            scenario = self.world.config
         seeds = toolkit.take_seeds(self.cfg.seed, self.seed_cursor, self.cfg.num_envs)
         self.seed_cursor += self.cfg.num_envs
-        self.sim = Simulator(self.scenario, seeds, keep_series=False, threads=1)
+        self.sim = Simulator(scenario, seeds, keep_series=False, threads=1)
         self.obs = self.sim.reset()
         self.planner = teacher_planner(self.cfg.teacher, self.cfg.oracle)
-        self.planner.attach(self.scenario)
+        self.planner.attach(scenario)
         self.planner.reset(seeds)
         self.state = self.model.initial_state(self.sim.B, self.device)
         self.starts = torch.ones(self.sim.B, device=self.device)
@@ -343,6 +349,7 @@ class Trainer:
         for _ in range(T):
             if self.sim.done:
                 self._new_episode()
+                M, N = self.sim.M, self.sim.N  # across worlds the next episode may be of another size
             t0 = time.perf_counter()
             raw, x, out, self.state, acts = toolkit.policy_step(self.model, self.obs, self.state, self.starts,
                                                                 self.mcfg.coord_scale, gen, c.bf16)
@@ -378,9 +385,9 @@ class Trainer:
                               "action": {k: v.copy() for k, v in action.items()},
                               "learner": {k: v.copy() for k, v in mine.items()},
                               "label": {"dispatch": ld, "workforce": lw, "positioning": lp}})
-            raws.append(raw if dev.type == "cpu" else {k: v.cpu() for k, v in raw.items()})
+            raws.append(self._padded(raw if dev.type == "cpu" else {k: v.cpu() for k, v in raw.items()}))
             starts.append(self.starts.cpu())
-            for k, v in zip(HEADS, (ld, lw, lp), strict=True):
+            for k, v in zip(HEADS, (self._padded_dispatch(ld), lw, lp), strict=True):
                 labels[k].append(torch.from_numpy(v))
             choosing = x["dispatch_mask"][..., :N].any(-1).cpu().numpy()
             if choosing.any():
@@ -397,6 +404,8 @@ class Trainer:
             self.starts = torch.zeros(B, device=dev)
             if self.sim.done:
                 episodes.append(toolkit.episode_kpis(self.sim) | {"beta": beta})
+                if isinstance(self.scenario, WorldSet):
+                    episodes[-1][f"{SCORE}/{self.world.name}"] = episodes[-1][SCORE]
                 self.episode += B
                 # the LSTM state is reset through the starts flags of the next episode's first step
             t4 = time.perf_counter()
@@ -415,6 +424,30 @@ class Trainer:
             chunk["wf_scored"] = torch.stack(scored, 1)  # (B, T)
         chunk["h"], chunk["c"] = h0, c0
         return {"chunk": chunk, "stats": stats, "episodes": episodes, "trail": trail}
+
+    def _padded(self, raw: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """Across worlds: the observation tensors padded to the largest world's slots (empty, masked)."""
+        if not isinstance(self.scenario, WorldSet):
+            return raw
+        M, N = self.scenario.slots
+        out = {}
+        for k, v in raw.items():
+            size = M if k in FACILITY_KEYS else N if k in PERSONNEL_KEYS else None
+            if size is None or v.shape[1] == size:
+                out[k] = v
+            else:
+                out[k] = v.new_zeros((v.shape[0], size, *v.shape[2:]))
+                out[k][:, :v.shape[1]] = v
+        return out
+
+    def _padded_dispatch(self, d: np.ndarray) -> np.ndarray:
+        """Across worlds: the dispatch labels (B, M) padded with the no-op, which becomes the batch's (column N)."""
+        if not isinstance(self.scenario, WorldSet):
+            return d
+        M, N = self.scenario.slots
+        out = np.full((d.shape[0], M), N, dtype=d.dtype)
+        out[:, :d.shape[1]] = np.where(d >= self.sim.N, N, d)
+        return out
 
     @torch.no_grad()
     def learner_values(self, mine: dict[str, np.ndarray]) -> np.ndarray:

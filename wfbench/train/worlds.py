@@ -33,6 +33,9 @@ from wfbench.core.simulator import Simulator
 from wfbench.suites.definition import SPLITS, SUITES, lookup
 
 SEPARATOR = ","
+# the observation's arrays with a facility axis and with a personnel axis (axis 1), padded to the largest world's
+FACILITY_KEYS = ("facilities", "facility_mask", "requesting")
+PERSONNEL_KEYS = ("personnel", "personnel_mask", "personnel_status", "under_notice", "dispatchable")
 
 
 @dataclass(frozen=True)
@@ -61,6 +64,11 @@ class WorldSet:
     @property
     def horizon(self) -> int:
         return max(w.config.horizon for w in self.worlds)
+
+    @property
+    def slots(self) -> tuple[int, int]:
+        """The facility and personnel slots of a batch that holds every world (the largest of each)."""
+        return (max(w.config.max_facilities for w in self.worlds), max(w.config.max_personnel for w in self.worlds))
 
 
 def world_set(spec: str) -> WorldSet:
@@ -181,9 +189,9 @@ class Worlds:
             if name == "dispatch_mask":  # (B, M, N + 1): the no-op column is the last of each
                 buf[lo:hi, :M, :N] = src[:, :, :N]
                 buf[lo:hi, :M, self.N] = src[:, :, N]
-            elif name in ("facilities", "facility_mask", "requesting"):
+            elif name in FACILITY_KEYS:
                 buf[lo:hi, :M] = src
-            elif name in ("personnel", "personnel_mask", "personnel_status", "under_notice", "dispatchable"):
+            elif name in PERSONNEL_KEYS:
                 buf[lo:hi, :N] = src
             else:
                 buf[lo:hi] = src
