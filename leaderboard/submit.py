@@ -159,6 +159,8 @@ def policy_fingerprint(spec: str, policy: Any = None) -> tuple[str, dict[str, An
             detail["file"] = _file_digest(spec, _tuned.TUNED_DIR / _registry.TUNED[spec][0])
         elif name in _registry.LEARNED:
             detail["file"] = _file_digest(spec, _registry.CHECKPOINT_DIR / _registry.LEARNED[name][0])
+        elif _registry.parse_member(spec) is not None:  # METHOD#seedK: one training seed's checkpoint
+            detail["file"] = _file_digest(spec, _registry.member_file(spec))
         elif name in _registry.ORACLES:  # it plays its candidates: their shipped files decide its numbers too
             detail["candidates"] = {
                 c: _file_digest(spec, _tuned.TUNED_DIR / _registry.TUNED[c][0]) if c in _registry.TUNED

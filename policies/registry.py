@@ -252,10 +252,21 @@ def warn_if_trained_elsewhere(policy: Any, scenario: str, stacklevel: int = 3) -
     if not trained_on or trained_on == scenario:
         return False
     name = getattr(policy, "name", None) or type(policy).__qualname__
+    if isinstance(trained_on, tuple):  # trained across worlds (suite ids such as paper-64-v1, or scenario names)
+        if _unversioned(scenario) in {_unversioned(w) for w in trained_on}:
+            return False
+        warnings.warn(f"policy {name!r} was trained on scenarios {', '.join(trained_on)} and is evaluated on "
+                      f"{scenario!r}, none of them: zero-shot", ScenarioMismatchWarning, stacklevel=stacklevel)
+        return True
     warnings.warn(f"policy {name!r} was trained on scenario {trained_on!r} and is evaluated on {scenario!r}: "
                   "it runs, but what it learned is of another scenario", ScenarioMismatchWarning,
                   stacklevel=stacklevel)
     return True
+
+
+def _unversioned(scenario: str) -> str:
+    """A scenario's name without a suite version suffix (``paper-64-v1`` -> ``paper-64``)."""
+    return re.sub(r"-v\d+$", "", scenario)
 
 
 def get(spec: Any) -> Any:

@@ -158,7 +158,9 @@ def from_checkpoint(path: str | Path, mode: str = "sample", device: str = "cpu",
                          f"{' or '.join(allowed)}")
     model = build_model(ckpt, device)
     name = name or f"{trained_by}:{path}"
-    net = NetworkPolicy(model, mode=mode, device=device, name=name, trained_on=ckpt.get("scenario"))
+    # a run across worlds records them (wfbench.train.worlds): evaluated on one of them, the network is at home
+    trained_on = tuple(ckpt["worlds"]) if ckpt.get("worlds") else ckpt.get("scenario")
+    net = NetworkPolicy(model, mode=mode, device=device, name=name, trained_on=trained_on)
     if set(net.decisions) == {"dispatch", "workforce", "positioning"}:
         return net
     parts = {d: (net if d in net.decisions else default)
