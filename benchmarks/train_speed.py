@@ -74,7 +74,8 @@ def main() -> None:
                   f"update {r['update_share']:.0%}  ({r['env_steps_per_cpu_s']:.0f} per CPU-s, load "
                   f"{r['load_avg_before']:.1f}-{r['load_avg_after']:.1f})", flush=True)
     machine = {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
-               "torch": torch.__version__, "load_avg_1min": os.getloadavg()[0]}
+               "torch": torch.__version__, "load_avg_1min": os.getloadavg()[0],
+               "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
     print(json.dumps(machine))
     if a.json:
         with open(a.json, "w") as fh:
