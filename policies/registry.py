@@ -77,6 +77,8 @@ LEARNED: dict[str, tuple[str, str]] = {
                         "agents), trained together on paper-64"),
     "hindsight-ppo": ("hindsight-ppo-paper-64.pt", "ppo-joint with its workforce head improved by hindsight "
                       "learning on its own action values (the known future, its own policy acting) on paper-64"),
+    "ppo-general": ("ppo-general.pt", "the joint PPO network trained across suite-v1's eight training scenarios "
+                    "(from ppo-joint's weights); the median of 5 training seeds (ppo-general#seedK)"),
 }
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
 
@@ -339,6 +341,8 @@ LEARNED_PARTS: dict[str, tuple[str, str, str]] = {
     "hindsight-joint": ("Hindsight learning", "Hindsight learning", "Hindsight learning"),
     "ppo-independent": ("PPO (own net)", "PPO (own net)", "PPO (own net)"),
     "hindsight-ppo": ("PPO", "PPO + hindsight learning", "PPO"),
+    "ppo-general": ("PPO (generalist)", "PPO (generalist)", "PPO (generalist)"),
+    "hindsight-general": ("PPO (generalist)", "PPO + hindsight learning (generalist)", "PPO (generalist)"),
 }
 
 
