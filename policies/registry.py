@@ -79,6 +79,8 @@ LEARNED: dict[str, tuple[str, str]] = {
                       "learning on its own action values (the known future, its own policy acting) on paper-64"),
     "ppo-general": ("ppo-general.pt", "the joint PPO network trained across suite-v1's eight training scenarios "
                     "(from ppo-joint's weights); the median of 5 training seeds (ppo-general#seedK)"),
+    "hindsight-general": ("hindsight-general.pt", "ppo-general with its workforce head improved by hindsight "
+                          "learning on its own action values across the training scenarios; the median of 5 seeds"),
 }
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
 
