@@ -297,18 +297,17 @@ class Collector:
         one world from dominating the advantages and the value loss. ``reward_offset`` is
         not used: each world's own mean takes its place.
         """
-        c, world = self.cfg, self.sim.world
+        c, bounds = self.cfg, self.sim.bounds
+        rows = [slice(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)]  # each world's, in the batch
         reward = np.empty_like(raw)
-        for k, mean in enumerate(self.world_mean):
-            rows = world == k
-            mean.update(raw[rows])
-            reward[rows] = (raw[rows] - mean.mean) * c.reward_scale
+        for mine, mean in zip(rows, self.world_mean, strict=True):
+            mean.update(raw[mine])
+            reward[mine] = (raw[mine] - mean.mean) * c.reward_scale
         if c.normalize_returns:
             self.ret = self.ret * c.gamma + reward
-            for k, std in enumerate(self.world_std):
-                rows = world == k
-                std.update(self.ret[rows])
-                reward[rows] /= std.std
+            for mine, std in zip(rows, self.world_std, strict=True):
+                std.update(self.ret[mine])
+                reward[mine] /= std.std
             self.ret[ended] = 0.0
         return reward
 
@@ -542,7 +541,7 @@ def score_worlds(policy: Callable[[str], Any], worlds: WorldSet, seeds: list[int
     constants are fixed numbers per scenario: no test-seed result of the policy enters.
     Greedy decisions are not scored (one mode, to halve the cost of scoring eight worlds).
     """
-    per_world, nsw, cost = {}, {}, {}
+    nsw, cost = {}, {}
     for w in worlds.worlds:
         df = evaluate(policy("sample"), w.config, seeds, backend="serial", act_timeout_s=None)
         nsw[w.name], cost[w.name] = float(df["nsw"].mean()), float(df["workforce_cost"].mean())

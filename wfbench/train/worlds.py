@@ -50,8 +50,7 @@ class World:
 class WorldSet:
     """The worlds of a run trained across scenarios; a trainer's ``scenario`` when ``scenarios`` is set.
 
-    ``name`` is the spec as given (what the checkpoint records as its scenario), ``horizon``
-    the longest world's (a progress bar's unit).
+    ``name`` is the spec as given (what the checkpoint records as its scenario).
     """
 
     name: str
@@ -60,10 +59,6 @@ class WorldSet:
     @property
     def names(self) -> list[str]:
         return [w.name for w in self.worlds]
-
-    @property
-    def horizon(self) -> int:
-        return max(w.config.horizon for w in self.worlds)
 
     @property
     def slots(self) -> tuple[int, int]:
@@ -153,7 +148,6 @@ class Worlds:
     def __init__(self, worlds: Sequence[World], seeds: Sequence[Sequence[int]]):
         if len(worlds) != len(seeds):
             raise ValueError(f"{len(worlds)} worlds but {len(seeds)} seed lists")
-        self.worlds = list(worlds)
         self.sims = [Simulator(w.config, s, keep_series=False, threads=1) for w, s in zip(worlds, seeds, strict=True)]
         sizes = np.array([s.B for s in self.sims], dtype=np.int64)
         self.bounds = np.concatenate([[0], np.cumsum(sizes)])
@@ -164,7 +158,6 @@ class Worlds:
         self.horizons = np.repeat([s.config.horizon for s in self.sims], sizes)
         self.state = _State(self.sims)
         self.obs_buffers = allocate_obs(self.B, self.M, self.N)
-        self.config = max((s.config for s in self.sims), key=lambda c: (c.max_facilities, c.max_personnel))
 
     @property
     def seeds(self) -> np.ndarray:
