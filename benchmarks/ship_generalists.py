@@ -8,9 +8,10 @@ public seeds it was not selected on (``--seeds``, default 1010-1019), on every w
 was trained on, in the suite's normalized score (:func:`wfbench.train.toolkit.score_worlds`).
 The shipped pick is the seed with the median score (:func:`wfbench.aggregate.median_seed`,
 the rule fixed before any test seed was run; docs/suite.md, "Learned methods over training
-seeds"). Writes ``METHOD-seedK.pt`` for every run, ``METHOD.pt`` as a byte copy of the
-pick (the registry finds the pick by that equality) and ``METHOD-selection.json``: the
-scores, the seeds, the rule and the pick. Test seeds are refused.
+seeds"). Writes each run's file under its name in ``policies.registry.SEED_RUNS``
+(``METHOD-seedK.pt``), the shipped pick's (``LEARNED[METHOD]``, ``METHOD.pt``) as a byte copy
+of the pick (the registry finds the pick by that equality) and ``METHOD-selection.json``:
+the scores, the seeds, the rule and the pick. Test seeds are refused.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from pathlib import Path
 import torch
 
 import policies
+from policies.registry import LEARNED, SEED_RUNS, member_spec, parse_member
 from wfbench.aggregate import median_seed
 from wfbench.core.seeds import SEED_SETS, resolve_seeds
 from wfbench.train.toolkit import score_worlds
@@ -42,7 +44,13 @@ def main() -> None:
     seeds = resolve_seeds(a.seeds)
     if not set(seeds) <= set(SEED_SETS["public"]):
         raise SystemExit(f"--seeds {a.seeds}: the pick is made on public seeds (1000-1049) only")
+    if a.method not in SEED_RUNS or a.method not in LEARNED:
+        raise SystemExit(f"--method {a.method}: allowed: a method of policies.registry.SEED_RUNS and LEARNED "
+                         f"({', '.join(m for m in SEED_RUNS if m in LEARNED)})")
     runs = [Path(r) for r in a.runs.split(",")]
+    files = SEED_RUNS[a.method]
+    if len(runs) != len(files):
+        raise SystemExit(f"--runs: {len(runs)} runs, but {a.method} has {len(files)} training seeds")
     out = Path(a.out)
     scores, detail = {}, {}
     for k, run in enumerate(runs):
@@ -51,7 +59,7 @@ def main() -> None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = score_worlds(lambda mode, b=best: policies.get(f"ppo:{b}"), world_set(ckpt["scenario"]), seeds)
-        member = f"{a.method}#seed{k}"
+        member = member_spec(a.method, k)
         scores[member] = res["sample"]
         detail[member] = {"run": str(run), "train_seed": ckpt["train_config"]["seed"], "update": ckpt["update"],
                           "global_step": ckpt["global_step"], "selection": ckpt["best"], "score": res["sample"],
@@ -60,10 +68,9 @@ def main() -> None:
               flush=True)
     pick = median_seed(scores)
     out.mkdir(parents=True, exist_ok=True)
-    for k, run in enumerate(runs):
-        shutil.copyfile(run / "best.pt", out / f"{a.method}-seed{k}.pt")
-    k_pick = int(pick.rpartition("#seed")[2])
-    shutil.copyfile(out / f"{a.method}-seed{k_pick}.pt", out / f"{a.method}.pt")
+    for run, name in zip(runs, files, strict=True):
+        shutil.copyfile(run / "best.pt", out / name)
+    shutil.copyfile(out / files[parse_member(pick)[1]], out / LEARNED[a.method][0])
     record = {"method": a.method, "rule": "the median of the seeds' mean normalized score on the public seeds of "
               "the training scenarios (wfbench.aggregate.median_seed)", "seeds": seeds, "scores": scores,
               "pick": pick, "members": detail}
