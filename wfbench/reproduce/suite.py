@@ -291,19 +291,20 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
     baseline = BASELINE if BASELINE in runs_by else None
     pooled: dict[str, tuple[str, list[str]]] = {}  # the aggregate row's name -> (method, the members it pools)
     agg_frames: dict[str, pd.DataFrame] = {}
-    for name, df in runs_by.items():
-        if name in members:
-            continue
-        agg_frames[name] = df
-        done = [m for m in methods.get(name, []) if m in runs_by]
+
+    def add_pooled(method: str) -> None:  # the row over a method's seeds that ran on every scenario
+        done = [m for m in methods.get(method, []) if m in runs_by]
         if done:
-            pooled[over_seeds(name, len(done))] = (name, done)
-            agg_frames[over_seeds(name, len(done))] = pool_seeds({m: runs_by[m] for m in done})
-    for method, ms in methods.items():  # a method whose shipped pick failed: its seeds are still pooled
-        done = [m for m in ms if m in runs_by]
-        if done and method not in runs_by:
             pooled[over_seeds(method, len(done))] = (method, done)
             agg_frames[over_seeds(method, len(done))] = pool_seeds({m: runs_by[m] for m in done})
+
+    for name, df in runs_by.items():
+        if name not in members:
+            agg_frames[name] = df
+            add_pooled(name)  # right after its shipped pick
+    for method in methods:  # a method whose shipped pick failed: its seeds are still pooled
+        if method not in runs_by:
+            add_pooled(method)
     aggs = aggregate_suite(agg_frames, baseline=baseline, reps=reps, poi_reps=poi_reps) if agg_frames else {}
     agg_table = pd.concat([a.table.assign(split=split) for split, a in aggs.items()], ignore_index=True) \
         if aggs else pd.DataFrame()
