@@ -150,7 +150,7 @@ def test_the_oracle_fingerprint_covers_the_files_of_its_candidates(tmp_path, mon
     assert set(detail["candidates"]) == set(registry.oracle_candidates())
     tuned_dir = tmp_path / "tuned"
     tuned_dir.mkdir()
-    for name, (file, _) in registry.TUNED.items():
+    for file, _ in registry.TUNED.values():
         (tuned_dir / file).write_bytes((registry._tuned.TUNED_DIR / file).read_bytes())
     monkeypatch.setattr(registry._tuned, "TUNED_DIR", tuned_dir)
     assert policy_fingerprint("oracle")[0] == before, "the same bytes elsewhere: the same fingerprint"
