@@ -5,14 +5,24 @@ declares (``Composite.tunable``, from :mod:`policies.tunable`) for the highest m
 over the tuning seeds, and writes a tuned-policy file (:mod:`policies.tuned`) that is a
 policy everywhere a policy is named. ``wfbench tune`` is its command line.
 
+- **Across worlds.** ``tune("heuristic", scenarios="suite-v1:train", trials=100)``
+  scores each trial on every world of the spec (a suite's training split or its
+  training scenarios, resolved as ``wfbench train --scenarios`` resolves them,
+  :func:`wfbench.train.worlds.resolve_worlds`, which refuses held-out scenarios) and
+  maximizes the mean over the worlds of each world's normalized score
+  (:func:`wfbench.suites.normalize`: 0 the random policy, 1 the mean proven bound), so
+  that no world counts more because its NSW spreads more; the learned generalists are
+  selected on the same number. A world that no suite has constants for is refused.
+  The file records the spec as its scenario, the worlds and each one's score.
+
 - **Seeds.** Public (1000-1049, the default) or train seeds only: test seeds are
   refused, since a policy tuned on the seeds that are reported makes the report
   worthless. The file records the seeds.
 - **Resuming.** The study lives in SQLite (``study_db``) under ``study_name``;
   ``trials`` is the study's total of finished trials, so running the same call again
   after Ctrl-C or a crash runs only the missing ones, and a larger ``trials`` extends
-  a finished study. A study remembers its policy, scenario, seeds and search space, and
-  a call that differs is refused rather than mixed in.
+  a finished study. A study remembers its policy, scenario (or worlds), seeds, search
+  space and objective, and a call that differs is refused rather than mixed in.
 - **Determinism.** The sampler is seeded (``sampler_seed``, offset by the trials the
   study already holds, so a resumed study does not repeat its first proposals) and
   every evaluation is deterministic, so the same call on a fresh study gives the same
@@ -32,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import optuna
 from tqdm.auto import tqdm
 
@@ -42,9 +53,12 @@ from wfbench import __version__
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.seeds import PUBLIC, TEST, TRAIN_START, describe, resolve_seeds
 from wfbench.evaluation import evaluate
+from wfbench.suites import SUITES, normalize
+from wfbench.train.worlds import resolve_worlds
 
 DEFAULT_DB = "wfbench-tune.db"
 OBJECTIVE = "mean nsw"
+OBJECTIVE_WORLDS = "mean normalized score"  # across worlds: the mean over the worlds of each one's normalized score
 
 
 @dataclass(frozen=True)
@@ -72,6 +86,35 @@ def check_tuning_seeds(seeds: int | str | Iterable[int]) -> list[int]:
         raise ValueError(f"seed {other[0]} is in no seed set meant for tuning; allowed: public seeds (1000-1049) "
                          "or train seeds (1000000 and up)")
     return seed_list
+
+
+@dataclass(frozen=True)
+class TuningWorld:
+    """One world of a study across worlds: its suite id, the suite whose constants normalize it, its scenario."""
+
+    name: str
+    suite: str
+    config: ScenarioConfig
+
+
+def tuning_worlds(spec: str) -> list[TuningWorld]:
+    """The worlds of a ``--scenarios`` spec, if each is a training scenario of a suite, else ValueError saying why.
+
+    The spec is resolved as training resolves it (:func:`wfbench.train.worlds.resolve_worlds`:
+    ``suite-v1:train``, or comma-separated scenarios; a held-out scenario or split is refused
+    there). Each world must have a suite's normalization constants, since the objective is
+    the mean normalized score.
+    """
+    out = []
+    for w in resolve_worlds(spec):
+        suite = next((name for name, s in SUITES.items() if w.name in s.ids("train")), None)
+        if suite is None:
+            allowed = "; ".join(f"{name}:train or its ids ({', '.join(s.ids('train'))})"
+                                for name, s in SUITES.items())
+            raise ValueError(f"scenarios {spec!r}: {w.name} is in no suite's training split, so it has no "
+                             f"normalized score to tune on; allowed: {allowed}")
+        out.append(TuningWorld(w.name, suite, w.config))
+    return out
 
 
 def _number(text: str, what: str) -> float:
@@ -142,13 +185,16 @@ def _space_attr(space: dict[str, Param]) -> dict[str, dict[str, Any]]:
     return {k: {"low": p.low, "high": p.high, "type": p.type, "log": p.log} for k, p in space.items()}
 
 
-def tune(policy: str, scenario: str | ScenarioConfig, trials: int, seeds: int | str | Iterable[int] = "public",
+def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int = 100,
+         seeds: int | str | Iterable[int] = "public",
          params: str | Iterable[str] | Mapping[str, Any] | None = None, study_db: str | Path = DEFAULT_DB,
          study_name: str | None = None, backend: str = "serial", workers: int | None = None,
          threads: int | None = None, address: str | None = None, sampler_seed: int = 0,
          out: str | Path | None = None, name: str | None = None, progress: bool = False,
-         command: str | None = None) -> TuneResult:
+         command: str | None = None, scenarios: str | None = None) -> TuneResult:
     """Search ``policy``'s tunable parameters for the highest mean NSW over ``seeds``.
+
+    Or, with ``scenarios``, for the highest mean normalized score over several worlds.
 
     Args:
         policy: a registry name or ``D+W+P`` composite whose parts declare parameters
@@ -170,10 +216,15 @@ def tune(policy: str, scenario: str | ScenarioConfig, trials: int, seeds: int | 
         name: the tuned policy's name (default ``POLICY-tuned``).
         progress: show a progress bar over the trials.
         command: the command that made it, recorded in the file.
+        scenarios: instead of ``scenario``, the worlds to tune across (:func:`tuning_worlds`:
+            ``"suite-v1:train"`` or comma-separated training scenarios); each trial's score
+            is the mean over the worlds of its mean normalized score on ``seeds``. The spec
+            is recorded as the file's scenario.
 
     Raises:
         ValueError: a bad policy, scenario, seed list, parameter, range, trial count,
-            output path, or a study of that name made with other settings.
+            output path, a held-out or unnormalized world, both or neither of ``scenario``
+            and ``scenarios``, or a study of that name made with other settings.
     """
     if not isinstance(policy, str):
         raise ValueError("policy must be a registry name or a D+W+P composite (it is recorded as the file's base)")
@@ -183,8 +234,16 @@ def tune(policy: str, scenario: str | ScenarioConfig, trials: int, seeds: int | 
         raise ValueError(f"trials = {trials!r}: allowed: a whole number >= 1")
     if isinstance(sampler_seed, bool) or not isinstance(sampler_seed, int) or sampler_seed < 0:
         raise ValueError(f"sampler_seed = {sampler_seed!r}: allowed: a whole number >= 0")
-    config = ScenarioConfig.resolve(scenario)
-    scenario_name = scenario if isinstance(scenario, str) else config.name
+    if (scenario is None) == (scenarios is None):
+        raise ValueError("give a scenario or scenarios (worlds to tune across, e.g. 'suite-v1:train'), not "
+                         f"{'both' if scenarios is not None else 'neither'}")
+    worlds: list[TuningWorld] | None = None
+    if scenarios is not None:
+        worlds = tuning_worlds(scenarios)
+        scenario_name = scenarios
+    else:
+        config = ScenarioConfig.resolve(scenario)
+        scenario_name = scenario if isinstance(scenario, str) else config.name
     seed_list = check_tuning_seeds(seeds)
     base = get(policy)
     space = search_space(base, params)
@@ -200,7 +259,9 @@ def tune(policy: str, scenario: str | ScenarioConfig, trials: int, seeds: int | 
     study_name = study_name or f"{policy}@{scenario_name}"
     tuned_name = name or f"{policy}-tuned"
     settings = {"policy": policy, "scenario": scenario_name, "seeds": seed_list, "space": _space_attr(space),
-                "objective": OBJECTIVE}
+                "objective": OBJECTIVE if worlds is None else OBJECTIVE_WORLDS}
+    if worlds is not None:  # the worlds as resolved, so that a spec whose meaning changed is not resumed
+        settings["worlds"] = [w.name for w in worlds]
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     storage = f"sqlite:///{db.resolve()}"
@@ -228,9 +289,17 @@ def tune(policy: str, scenario: str | ScenarioConfig, trials: int, seeds: int | 
     def objective(trial: optuna.Trial) -> float:
         values = {k: _suggest(trial, k, p) for k, p in space.items()}
         candidate = base.with_params(values, name=f"{tuned_name}#{trial.number}")
-        df = evaluate(candidate, config, seed_list, backend=backend, workers=workers, threads=threads,
-                      address=address, act_timeout_s=None)
-        return float(df["nsw"].mean())
+        if worlds is None:
+            df = evaluate(candidate, config, seed_list, backend=backend, workers=workers, threads=threads,
+                          address=address, act_timeout_s=None)
+            return float(df["nsw"].mean())
+        per_world = {}
+        for w in worlds:
+            df = evaluate(candidate, w.config, seed_list, backend=backend, workers=workers, threads=threads,
+                          address=address, act_timeout_s=None)
+            per_world[w.name] = float(normalize(float(df["nsw"].mean()), w.name, w.suite))
+        trial.set_user_attr("world_scores", per_world)
+        return float(np.mean(list(per_world.values())))
 
     def finished() -> int:
         return sum(t.state == optuna.trial.TrialState.COMPLETE for t in study.get_trials(deepcopy=False))
@@ -252,17 +321,21 @@ def tune(policy: str, scenario: str | ScenarioConfig, trials: int, seeds: int | 
             bar.close()
     complete = [t for t in study.get_trials(deepcopy=False) if t.state == optuna.trial.TrialState.COMPLETE]
     best = study.best_trial
-    untuned = next((t.value for t in complete if t.user_attrs.get("untuned")), None)
+    first = next((t for t in complete if t.user_attrs.get("untuned")), None)
+    untuned = first.value if first is not None else None
     chosen = base.with_params(best.params, name=tuned_name)
     result = tuned_file.TunedPolicy(
         name=tuned_name, base=policy, params=chosen.params(), scenario=scenario_name, seeds=seed_list,
-        trials=len(complete), best_score=float(best.value), objective=OBJECTIVE, seed_set=describe(seed_list),
-        wfbench_version=__version__,
-        command=command or f"wfbench tune {shlex.quote(policy)} --scenario {shlex.quote(scenario_name)} "
-                           f"--trials {trials} (Python: wfbench.tune.tune)",
+        trials=len(complete), best_score=float(best.value), objective=settings["objective"],
+        seed_set=describe(seed_list), wfbench_version=__version__,
+        command=command or f"wfbench tune {shlex.quote(policy)} --scenario{'s' if worlds else ''} "
+                           f"{shlex.quote(scenario_name)} --trials {trials} (Python: wfbench.tune.tune)",
         study_name=study_name, sampler_seed=sampler_seed,
         extra={"searched": _space_attr(space), "best_trial": best.number,
-               **({"untuned_score": untuned} if untuned is not None else {})},
+               **({"untuned_score": untuned} if untuned is not None else {}),
+               **({"worlds": settings["worlds"], "world_scores": best.user_attrs["world_scores"],
+                   **({"untuned_world_scores": first.user_attrs["world_scores"]} if first is not None else {})}
+                  if worlds is not None else {})},
     )
     if out_path is not None:
         tuned_file.write(result, out_path)

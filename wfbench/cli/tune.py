@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import shlex
 import sys
 
@@ -24,7 +25,12 @@ def add_parser(sub) -> None:
                        "a tuned-policy file")
     t.add_argument("policy", help="registry name or D+W+P composite whose parts declare parameters (heuristic, "
                    "solver, ...)")
-    t.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
+    t.add_argument("--scenario", default=None, help="preset name or a .toml/.json config file (default paper-64)")
+    t.add_argument("--scenarios", default=None, metavar="SPEC",
+                   help="tune across worlds instead: a suite's training split or its training scenarios, "
+                        "comma-separated, e.g. suite-v1:train (held-out scenarios are refused); the objective is "
+                        "then the mean over the worlds of each one's normalized score (docs/suite.md), as the "
+                        "generalist networks are selected on")
     t.add_argument("--trials", type=positive, default=100,
                    help="the study's total of finished trials (default 100); re-run the same command to resume, "
                         "raise it to extend")
@@ -36,17 +42,18 @@ def add_parser(sub) -> None:
     t.add_argument("--list", action="store_true", help="list the policy's tunable parameters and ranges, and exit")
     t.add_argument("--study-db", default="wfbench-tune.db", help="SQLite file of the study (default "
                    "./wfbench-tune.db)")
-    t.add_argument("--study-name", default=None, help="the study's name in it (default POLICY@SCENARIO)")
+    t.add_argument("--study-name", default=None, help="the study's name in it (default POLICY@SCENARIO, or "
+                   "POLICY@SPEC with --scenarios)")
     t.add_argument("--sampler-seed", type=nonneg, default=0, help="seed of the TPE sampler (default 0)")
     t.add_argument("--name", default=None, help="the tuned policy's name (default POLICY-tuned)")
     t.add_argument("--out", default=None, help="tuned-policy file, .json or .toml (default "
-                   "./tuned-POLICY-SCENARIO.json)")
+                   "./tuned-POLICY-SCENARIO.json; with --scenarios suite-v1:train, ./tuned-POLICY-suite-v1-train.json)")
     t.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(t)
 
 
 def run(args: argparse.Namespace) -> int:
-    from wfbench.tune import check_tuning_seeds, search_space, tune
+    from wfbench.tune import check_tuning_seeds, search_space, tune, tuning_worlds
 
     policy = resolve_policy(args.policy)
     if args.list:
@@ -58,34 +65,48 @@ def run(args: argparse.Namespace) -> int:
         for key, p in space.items():
             print(f"{key:<30s} {p.describe():<36s} now {current[key]:g}")
         return 0
-    config = resolve_scenario(args.scenario)
+    if args.scenario is not None and args.scenarios is not None:
+        raise UsageError("--scenario and --scenarios do not go together: give one scenario, or the worlds to tune "
+                         "across")
+    if args.scenarios is not None:
+        try:
+            worlds = tuning_worlds(args.scenarios)
+        except ValueError as exc:
+            raise UsageError(f"--scenarios: {exc}") from None
+        where, scenario, judge = f"{args.scenarios} ({len(worlds)} worlds)", None, f"--suite {worlds[0].suite}"
+        slug = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.scenarios)
+    else:
+        scenario = args.scenario or "paper-64"
+        where = slug = resolve_scenario(scenario).name
+        judge = f"--scenario {scenario}"
     check_backend_args(args)
     try:
         seeds = check_tuning_seeds(args.seeds)
     except ValueError as exc:
         raise UsageError(f"--seeds: {exc}") from None
-    out = args.out or f"tuned-{args.policy}-{config.name}.json"
+    out = args.out or f"tuned-{args.policy}-{slug}.json"
     check_writable(out, "--out")
     check_writable(args.study_db, "--study-db")
     command = "wfbench " + shlex.join(args.argv)
     try:
-        r = tune(args.policy, args.scenario, args.trials, seeds=seeds, params=args.params, study_db=args.study_db,
+        r = tune(args.policy, scenario, args.trials, seeds=seeds, params=args.params, study_db=args.study_db,
                  study_name=args.study_name, backend=args.backend, workers=args.workers, address=args.address,
                  sampler_seed=args.sampler_seed, out=out, name=args.name, progress=not args.no_progress,
-                 command=command)
+                 command=command, scenarios=args.scenarios)
     except KeyboardInterrupt:
         print(f"wfbench: interrupted; the finished trials are kept in {args.study_db} (study "
-              f"{args.study_name or args.policy + '@' + args.scenario!r}): run the same command again to resume",
-              file=sys.stderr)
+              f"{args.study_name or args.policy + '@' + (args.scenarios or scenario)!r}): run the same command "
+              "again to resume", file=sys.stderr)
         return 130
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     t = r.tuned
+    what = "mean NSW" if args.scenarios is None else "mean normalized score"
     untuned = f", untuned {r.untuned_score:.4f}" if r.untuned_score is not None else ""
-    print(f"{t.name}: best mean NSW {t.best_score:.4f}{untuned} on {config.name} seeds {t.seed_set}, "
+    print(f"{t.name}: best {what} {t.best_score:.4f}{untuned} on {where} seeds {t.seed_set}, "
           f"{t.trials} trials ({r.new_trials} new) in {r.study_db} study {r.study_name!r}")
     for k, v in t.params.items():
         print(f"  {k} = {v:g}")
     print(f"wrote {r.path}; judge it on the test seeds: wfbench compare --policies {args.policy},{r.path} "
-          f"--scenario {args.scenario} --seeds test")
+          f"{judge} --seeds test")
     return 0
