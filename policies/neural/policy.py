@@ -40,10 +40,11 @@ import numpy as np
 import torch
 
 from policies.composite import Composite
-from policies.neural import ALIAS, CHECKPOINT_ALGORITHMS
+from policies.neural import ALIAS, CHECKPOINT_ALGORITHMS, scalefree
 from policies.neural.dist import env_action, sample
-from policies.neural.model import AgentSet, WorkforceNet, featurize, network_from_config, obs_to_torch
+from policies.neural.model import AgentSet, WorkforceNet, featurize, obs_to_torch
 from policies.protocol import seeds_array
+from wfbench.core.context import observe_v2
 
 MODES = ("sample", "greedy", "greedy-dispatch")
 POLICY_SEED = 0x99A
@@ -69,7 +70,7 @@ def load_checkpoint(path: str | Path, map_location: str = "cpu") -> dict:
 
 
 def build_model(ckpt: dict, device: str = "cpu") -> WorkforceNet | AgentSet:
-    model = network_from_config(ckpt["model_config"])
+    model = scalefree.build_network(ckpt["model_config"])
     model.load_state_dict(ckpt["model"])
     return model.to(device).eval()
 
@@ -87,6 +88,8 @@ class NetworkPolicy:
         # two paper-64 episodes take 120 s instead of 15 s when the cores were busy; None keeps torch's setting
         self.threads = threads
         self.decisions = tuple(model.config.decisions)
+        # the observation it reads: 1 (the paper's, every network before the scale-free one) or 2 (in travel time)
+        self.observation_version = scalefree.obs_version(model)
         # the scenario of its checkpoint: evaluated on another one, the evaluator warns once
         # (policies.registry.warn_if_trained_elsewhere)
         self.trained_on = trained_on
@@ -99,7 +102,10 @@ class NetworkPolicy:
         self._starts = torch.ones(1, len(seeds), device=self.device)
 
     def _noise(self, B: int, M: int, N: int) -> dict[str, torch.Tensor]:
-        sizes = {"dispatch": (M, N + 1), "workforce": (7,), "positioning": (2, M)}
+        if self.observation_version == 2:
+            sizes = {k: s[1:] for k, s in self.model.noise_shapes(B, M, N).items()}
+        else:
+            sizes = {"dispatch": (M, N + 1), "workforce": (7,), "positioning": (2, M)}
         total = sum(int(np.prod(s)) for s in sizes.values())
         u = np.stack([rng.random(total) for rng in self._rngs]).clip(1e-10, 1.0 - 1e-7)
         g = torch.from_numpy(-np.log(-np.log(u))).float().to(self.device)
@@ -126,7 +132,10 @@ class NetworkPolicy:
     def _act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         B, M = obs["requesting"].shape
         N = obs["personnel"].shape[1]
-        x = featurize(obs_to_torch(obs, self.device), self.model.config.coord_scale)
+        if self.observation_version == 2:
+            x = self.model.featurize(scalefree.obs_to_torch(observe_v2(obs), self.device))
+        else:
+            x = featurize(obs_to_torch(obs, self.device), self.model.config.coord_scale)
         out, self._state = self.model(x, self._state, self._starts)
         self._starts = torch.zeros_like(self._starts)
         noise = None
@@ -134,7 +143,8 @@ class NetworkPolicy:
             noise = self._noise(B, M, N)
             if self.mode == "greedy-dispatch":
                 noise["dispatch"] = torch.zeros_like(noise["dispatch"])
-        return env_action(sample(out, x, noise), M)
+        acts = self.model.sample(out, x, noise) if self.observation_version == 2 else sample(out, x, noise)
+        return env_action(acts, M)
 
 
 PPOPolicy = NetworkPolicy  # the name before every algorithm's checkpoints loaded by their own

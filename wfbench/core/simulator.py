@@ -19,6 +19,7 @@ from numba import njit
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.core.actions import AGENTS, ActionError, validate_actions
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.context import WorldKey
 from wfbench.core.dynamics import reset_batch, reset_env
 from wfbench.core.entrypoints import bind, run_split
 from wfbench.core.observe import allocate_obs, observe_env, observe_range, step_observe_range, step_range
@@ -95,6 +96,7 @@ class Simulator:
         self.N = self.config.max_personnel
         self.state = allocate(self.B, self.config, keep_series)
         self.obs_buffers = allocate_obs(self.B, self.M, self.N)
+        self.world_key = WorldKey(self.config, self.B)  # the public parameters every observation carries
         self._started = np.zeros(self.B, dtype=bool)  # environments reset at least once
         self._reset_done = False  # all of them have been (what step and lookahead.fork ask)
         self._bound: dict = {}  # compiled entry points by dispatcher, bound to the tuples in _bound_for
@@ -262,6 +264,7 @@ class Simulator:
     def _obs_dict(self) -> dict[str, np.ndarray]:
         obs = self.obs_buffers._asdict()
         obs["t"] = self.state.t
+        obs["world"] = self.world_key(self.state.t)
         return obs
 
     def check_ready(self) -> None:

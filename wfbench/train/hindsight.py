@@ -352,7 +352,7 @@ class Trainer:
                 M, N = self.sim.M, self.sim.N  # across worlds the next episode may be of another size
             t0 = time.perf_counter()
             raw, x, out, self.state, acts = toolkit.policy_step(self.model, self.obs, self.state, self.starts,
-                                                                self.mcfg.coord_scale, gen, c.bf16)
+                                                                self.model, gen, c.bf16)
             mine = {k: v.cpu().numpy() for k, v in acts.items()}
             t1 = time.perf_counter()
             values_s = 0.0

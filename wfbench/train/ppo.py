@@ -68,8 +68,8 @@ import numpy as np
 import torch
 
 import policies
-from policies.neural.dist import head_log_prob_entropy
-from policies.neural.model import AgentSet, WorkforceNet, agent_set_config, featurize, model_config
+from policies.neural import scalefree
+from policies.neural.model import AgentSet, WorkforceNet, agent_set_config
 from wfbench.train import toolkit
 
 AGENTS = ("joint", "independent")
@@ -92,6 +92,7 @@ class TrainConfig(toolkit.ActorCriticConfig):
     vf_clip: float = 0.2
     compile: bool = False  # CUDA only: torch.compile of the network
     value_warmup: int = 0  # first updates that fit the value head alone, the policy frozen (fine-tuning --init)
+    scalefree_ok = True  # PPO trains the scale-free network (--model scalefree)
 
     def check(self) -> None:
         if self.variant not in VARIANTS:
@@ -110,8 +111,11 @@ class TrainConfig(toolkit.ActorCriticConfig):
     def network_config(self):
         """The network's config: one ModelConfig (joint) or one per decision (independent agents)."""
         if self.agents == "independent":
+            if self.model == scalefree.ARCH:
+                raise ValueError("agents 'independent' with model 'scalefree' is not allowed; allowed: agents joint "
+                                 "(the scale-free network decides the three decisions together)")
             return agent_set_config(self.model, VARIANTS[self.variant], **self.model_overrides)
-        return model_config(self.model, VARIANTS[self.variant], **self.model_overrides)
+        return toolkit.network_config(self.model, VARIANTS[self.variant], self.model_overrides)
 
 
 class Trainer:
@@ -122,7 +126,10 @@ class Trainer:
         c = toolkit.start_run(self, config, progress, log)
         self.decisions = VARIANTS[c.variant]
         independent = c.agents == "independent"
-        self.model = (AgentSet(self.mcfg) if independent else WorkforceNet(self.mcfg)).to(self.device)
+        if getattr(self.mcfg, "obs_version", 1) == 2:
+            self.model = scalefree.ScaleFreeNet(self.mcfg).to(self.device)
+        else:
+            self.model = (AgentSet(self.mcfg) if independent else WorkforceNet(self.mcfg)).to(self.device)
         # the agents: their heads, and the parameters each one's gradient is clipped over
         if independent:
             self.agents = {d: (d,) for d in self.decisions}
@@ -162,7 +169,7 @@ class Trainer:
     # -- agents -------------------------------------------------------------------------------
     def agent_log_probs(self, out: dict, x: dict, acts: dict):
         """Log-probabilities (rows, A) per agent (joint: A = 1, the sum over heads), entropy (rows,), per head."""
-        heads = head_log_prob_entropy(out, x, acts)
+        heads = toolkit.head_log_probs(self.model, out, x, acts)
         logp = torch.stack([sum(heads[h][0] for h in hs) for hs in self.agents.values()], -1)
         ent = sum(e for _, e in heads.values())
         return logp, ent, {k: e for k, (_, e) in heads.items()}
@@ -182,7 +189,7 @@ class Trainer:
         self.global_step += T * self.sim.B
         t0 = time.perf_counter()
         with torch.no_grad(), toolkit.autocast(self.device, c.bf16):
-            x = featurize({k: v[T] for k, v in roll["raw"].items()}, self.mcfg.coord_scale)
+            x = toolkit.features(self.model, {k: v[T] for k, v in roll["raw"].items()})
             out, _ = self.net(x, self.env.state, roll["starts"][T][None])
             next_value = self.values(out)
         self.timing["forward"] += time.perf_counter() - t0
@@ -210,7 +217,7 @@ class Trainer:
         # the features of the T steps (not the last observation), once per update rather than once per
         # minibatch and epoch: featurize is row by row, so a minibatch's rows are the same bits either way
         with torch.no_grad():
-            feats = featurize({k: v[:-1] for k, v in roll["raw"].items()}, self.mcfg.coord_scale)
+            feats = toolkit.features(self.model, {k: v[:-1] for k, v in roll["raw"].items()})
         for _ in range(c.epochs):
             perm = torch.randperm(B, generator=perm_gen).to(self.device)
             for i in range(c.minibatches):
@@ -220,7 +227,8 @@ class Trainer:
                 state = tuple(s[:, idx] for s in roll["init_state"])
                 with toolkit.autocast(self.device, c.bf16):
                     out, _ = self.net(x, state, roll["starts"][:-1, idx])
-                acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
+                if scalefree.obs_version(self.model) == 1:  # the heads this network has (the dispatch variant: one)
+                    acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
                 # (rows, A): one column per agent, each with its own ratio, advantage and critic; the
                 # losses are summed over the agents (independent networks: independent gradients)
                 logp, ent, parts = self.agent_log_probs(out, x, acts)

@@ -40,11 +40,13 @@ import numpy as np
 import torch
 
 import policies
-from policies.neural.dist import env_action, gumbel, noise_shapes, sample
+from policies.neural import scalefree
+from policies.neural.dist import env_action, gumbel, head_log_prob_entropy, noise_shapes, sample
 from policies.neural.model import count_parameters, featurize, model_config, obs_to_torch
 from policies.neural.policy import NetworkPolicy, load_checkpoint
 from wfbench.budget import training_hardware
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.context import observe_v2
 from wfbench.core.kpis import KPI_NAMES, SCORE
 from wfbench.core.reward import step_reward
 from wfbench.core.seeds import SEED_SETS, resolve_seeds
@@ -98,6 +100,7 @@ class BaseConfig:
     run_dir: str = "runs/ppo"
     init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
     model_overrides: dict = field(default_factory=dict)
+    scalefree_ok = False  # a class attribute, not a setting: whether this trainer trains the scale-free network
 
     def validate(self) -> None:
         """The shared checks, the algorithm's (:meth:`check`), then the network's config (a bad preset says so)."""
@@ -107,6 +110,9 @@ class BaseConfig:
             raise ValueError("device 'cuda' asked for, but torch sees no CUDA device (use --device cpu or auto)")
         check_ints(self, ("steps", "num_envs", "num_steps", "threads", "checkpoint_every"))
         check_ints(self, ("eval_every",), least=0)
+        if self.model == scalefree.ARCH and not self.scalefree_ok:
+            raise ValueError(f"model 'scalefree' is not trained by {type(self).__module__.rsplit('.', 1)[-1]}; "
+                             "allowed: --algo ppo (or a model preset: tiny, small, paper, cpu)")
         self.check()
         if self.scenarios:
             resolve_worlds(self.scenarios)
@@ -125,7 +131,7 @@ class BaseConfig:
 
     def network_config(self):
         """The network's config: the joint network with all three heads (PPO's variants and agents differ)."""
-        return model_config(self.model, DECISIONS, **self.model_overrides)
+        return network_config(self.model, DECISIONS, self.model_overrides)
 
     @classmethod
     def from_dict(cls, d: dict):
@@ -173,19 +179,52 @@ def autocast(device: torch.device, bf16: bool):
     return torch.autocast(device_type=device.type, dtype=torch.bfloat16, enabled=device.type == "cuda" and bf16)
 
 
-def policy_step(net, obs: dict, state, starts: torch.Tensor, coord_scale: float, gen: torch.Generator | None,
+def network_config(preset: str, decisions: tuple[str, ...], overrides: dict):
+    """The config of network ``preset``: one of :data:`policies.neural.model.PRESETS` or ``scalefree``."""
+    if preset == scalefree.ARCH:
+        return scalefree.scalefree_config(decisions, **overrides)
+    return model_config(preset, decisions, **overrides)
+
+
+def raw_tensors(model, obs: dict, device) -> dict[str, torch.Tensor]:
+    """The observation a network reads as tensors: version 1, or 2 (:func:`observe_v2`) for the scale-free one."""
+    if scalefree.obs_version(model) == 2:
+        return scalefree.obs_to_torch(observe_v2(obs), device)
+    return obs_to_torch(obs, device)
+
+
+def features(model, raw: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The network's inputs of raw tensors (any leading axes)."""
+    if scalefree.obs_version(model) == 2:
+        return model.featurize(raw)
+    return featurize(raw, model.config.coord_scale)
+
+
+def head_log_probs(model, out: dict, x: dict, acts: dict) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+    """Per head: the log-probability and the entropy (rows,) of stored actions, by the network's distributions."""
+    if scalefree.obs_version(model) == 2:
+        return model.log_prob_entropy(out, x, acts)
+    return head_log_prob_entropy(out, x, acts)
+
+
+def policy_step(net, obs: dict, state, starts: torch.Tensor, model, gen: torch.Generator | None,
                 bf16: bool) -> tuple[dict, dict, dict, tuple, dict]:
     """One step of the network on a batch (no grad): observation -> tensors -> forward -> sampled heads.
 
-    ``gen`` draws the Gumbel noise of the sample (None: greedy). Returns the raw tensors,
-    the features, the head outputs, the LSTM state after the step and the actions.
+    ``model`` is the network ``net`` runs (``net`` may be its compiled wrapper); it says
+    which observation it reads. ``gen`` draws the Gumbel noise of the sample (None:
+    greedy). Returns the raw tensors, the features, the head outputs, the LSTM state
+    after the step and the actions.
     """
     dev = starts.device
-    raw = obs_to_torch(obs, dev)
-    x = featurize(raw, coord_scale)
+    raw = raw_tensors(model, obs, dev)
+    x = features(model, raw)
     with torch.no_grad(), autocast(dev, bf16):
         out, state = net(x, state, starts[None])
     (B, M), N = obs["requesting"].shape, obs["personnel"].shape[1]
+    if scalefree.obs_version(model) == 2:
+        noise = None if gen is None else {k: gumbel(s, gen, dev) for k, s in model.noise_shapes(B, M, N).items()}
+        return raw, x, out, state, model.sample(out, x, noise)
     noise = None if gen is None else {k: gumbel(s, gen, dev) for k, s in noise_shapes(B, M, N).items()}
     return raw, x, out, state, sample(out, x, noise)
 
@@ -359,7 +398,7 @@ class Collector:
         for t in range(T):
             t0 = time.perf_counter()
             raw, x, out, self.state, acts = policy_step(net, self.obs, self.state, self.starts,
-                                                        model.config.coord_scale, self.gen, self.cfg.bf16)
+                                                        model, self.gen, self.cfg.bf16)
             logp = log_prob(out, x, acts).float()
             if t == 0:  # the buffers of what the first step shows the shapes and types of
                 roll["raw"] = {k: torch.empty((T + 1, *v.shape), dtype=v.dtype, device=dev) for k, v in raw.items()}
@@ -390,7 +429,7 @@ class Collector:
             self.timing["forward"] += t1 - t0
             self.timing["simulator"] += time.perf_counter() - t1
         t0 = time.perf_counter()
-        for k, v in obs_to_torch(self.obs, dev).items():
+        for k, v in raw_tensors(model, self.obs, dev).items():
             roll["raw"][k][T] = v
         roll["starts"][T] = self.starts
         self.timing["obs_to_tensor"] += time.perf_counter() - t0
@@ -456,6 +495,7 @@ def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
     return {
         "model": {k: v.detach().cpu() for k, v in t.model.state_dict().items()},
         "model_config": t.mcfg.to_dict(),
+        "obs_version": getattr(t.mcfg, "obs_version", 1),  # the observation the network reads (wfbench.core.context)
         "algo": algo,
         "variant": t.cfg.variant,
         "scenario": t.scenario.name,

@@ -192,6 +192,7 @@ class Worlds:
     def _obs(self) -> dict[str, np.ndarray]:
         obs = self.obs_buffers._asdict()
         obs["t"] = self.state.t
+        obs["world"] = np.concatenate([s.world_key(s.state.t) for s in self.sims])
         return obs
 
     def reset(self, indices=None, seeds=None) -> dict[str, np.ndarray]:
