@@ -199,12 +199,6 @@ def featurize(raw: dict[str, torch.Tensor], k: int, pos_freqs: int) -> dict[str,
         cand=cand, tt=tt, cand_valid=valid, workforce_mask=flat["workforce_mask"] > 0).items()}
 
 
-def _rank_in_row(rows: torch.Tensor) -> torch.Tensor:
-    """The position of each entry among the entries of its row (``rows`` sorted, as nonzero gives them)."""
-    first = torch.searchsorted(rows, rows)
-    return torch.arange(rows.numel(), device=rows.device) - first
-
-
 class ScaleFreeNet(nn.Module):
     """The scale-free network (see the module docstring)."""
 
@@ -303,34 +297,54 @@ class ScaleFreeNet(nn.Module):
     def _dispatch_masks(self, x: dict, rows, facs, persons: torch.Tensor | None, logits: torch.Tensor | None):
         """Per choosing facility, in slot order per environment: its allowed candidates and its pick.
 
-        With ``persons`` (C,) given (the stored actions) the allowed masks are those the
-        sampler saw; with ``logits`` (C, k + 1, noise added) the picks are made here.
+        The rule is sequential (a facility may not take a person an earlier facility of its
+        environment took), computed without a loop over facilities. With ``persons`` (C,)
+        given (the stored actions): who took each person first is one table lookup. With
+        ``logits`` (C, k + 1, noise added) the picks are made here: every facility picks at
+        once, and the picks up to the first repeated person of each environment stand;
+        the rest pick again without the people taken (as many rounds as repeats, usually
+        one). Masking a person that is not the argmax does not move the argmax, so the
+        picks are those of the facility-by-facility rule.
         Returns (allowed (C, k + 1), the picks as candidate index (C,), as person (C,)).
         """
         cand, valid = x["cand"][rows, facs], x["cand_valid"][rows, facs]
         C, kk = cand.shape
         N = x["per_in"].shape[-2]
-        allowed = torch.zeros((C, kk + 1), dtype=torch.bool, device=cand.device)
+        R = x["choose"].shape[0]
+        dev = cand.device
+        idx = torch.arange(C, device=dev)
+        allowed = torch.zeros((C, kk + 1), dtype=torch.bool, device=dev)
         allowed[:, kk] = True
-        pick = torch.full((C,), kk, dtype=torch.long, device=cand.device)
-        person = torch.full((C,), N, dtype=torch.long, device=cand.device) if persons is None else persons
         if persons is not None:
+            first = torch.full((R, N + 1), C, dtype=torch.long, device=dev)  # the entry that took each person
+            first[rows, persons] = idx  # a stored action names a person once per environment (N: nobody)
+            allowed[:, :kk] = valid & ~(first[rows[:, None], cand] < idx[:, None])
             match = (cand == persons[:, None]) & valid
-            pick = torch.where(match.any(-1), match.float().argmax(-1), pick)
-        rank = _rank_in_row(rows)
-        taken = torch.zeros((x["choose"].shape[0], N + 1), dtype=torch.bool, device=cand.device)
-        for r in range(int(rank.max()) + 1 if C else 0):
-            sel = (rank == r).nonzero(as_tuple=True)[0]
-            rs = rows[sel]
-            allowed[sel, :kk] = valid[sel] & ~taken[rs[:, None], cand[sel]]
-            if persons is None:
-                j = _masked(logits[sel], allowed[sel]).argmax(-1)
-                pick[sel] = j
-                person[sel] = torch.where(j < kk, cand[sel].gather(-1, j.clamp_max(kk - 1)[:, None]).squeeze(-1),
-                                          torch.full_like(j, N))
-            taken[rs, person[sel]] = True
+            pick = torch.where(match.any(-1), match.float().argmax(-1), torch.full_like(idx, kk))
+            return allowed, pick, persons
+        pick = torch.full((C,), kk, dtype=torch.long, device=dev)
+        person = torch.full((C,), N, dtype=torch.long, device=dev)
+        taken = torch.zeros((R, N + 1), dtype=torch.bool, device=dev)
+        todo = torch.ones(C, dtype=torch.bool, device=dev)
+        while bool(todo.any()):
+            e = todo.nonzero(as_tuple=True)[0]
+            re = rows[e]
+            allowed[e, :kk] = valid[e] & ~taken[re[:, None], cand[e]]
+            j = _masked(logits[e], allowed[e]).argmax(-1)
+            p = torch.where(j < kk, cand[e].gather(-1, j.clamp_max(kk - 1)[:, None]).squeeze(-1),
+                            torch.full_like(j, N))
+            firstpick = torch.full((R * (N + 1),), C, dtype=torch.long, device=dev)
+            key = re * (N + 1) + p
+            firstpick.scatter_reduce_(0, key, e, reduce="amin")
+            dup = (p < N) & (firstpick[key] < e)  # an earlier facility of the environment picked the same person
+            stop = torch.full((R,), C, dtype=torch.long, device=dev)
+            stop.scatter_reduce_(0, re[dup], e[dup], reduce="amin")
+            ok = e < stop[re]
+            acc = e[ok]
+            pick[acc], person[acc] = j[ok], p[ok]
+            taken[re[ok], p[ok]] = True
+            todo[acc] = False
         return allowed, pick, person
-
     @torch.no_grad()
     def sample(self, out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
         """Actions: dispatch (rows, M) people (N: nobody), workforce (rows,), positioning index (rows, 2)."""
