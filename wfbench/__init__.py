@@ -10,6 +10,7 @@ first use, so importing the core never pulls in ``policies`` or the application 
 __version__ = "0.1.0"
 
 import importlib
+import warnings as _warnings
 
 import gymnasium as _gymnasium
 
@@ -21,18 +22,27 @@ from wfbench.core.trace import trace
 
 # Gymnasium imports an entry point's module only when an environment is made. The vector
 # entry points make ``gymnasium.make_vec(id, num_envs=B)`` one batched WorkforceVectorEnv.
+# A changed observation is a new version of an id (Gymnasium's convention): Workforce-v1 is
+# Workforce-v0 with observation version 2 (wfbench.core.context), its registered kwargs.
 ENV_IDS = {
     "wfbench/Workforce-v0": "wfbench.envs.gym_env:WorkforceEnv",
+    "wfbench/Workforce-v1": "wfbench.envs.gym_env:WorkforceEnv",
     "wfbench/Dispatch-v0": "wfbench.envs.gym_env:DispatchEnv",
 }
 VECTOR_ENTRY_POINTS = {
     "wfbench/Workforce-v0": "wfbench.envs.vector:workforce_vector_env",
+    "wfbench/Workforce-v1": "wfbench.envs.vector:workforce_vector_env",
     "wfbench/Dispatch-v0": "wfbench.envs.vector:dispatch_vector_env",
 }
+ENV_KWARGS = {"wfbench/Workforce-v1": {"obs_version": 2}}
+# Gymnasium calls an id "out of date" once a higher version is registered. Workforce-v0 is not: it is
+# the paper's observation, which the leaderboard and every shipped network read; v1 is another view.
+V0_CURRENT = r".*The environment wfbench/Workforce-v0 is out of date"
+_warnings.filterwarnings("ignore", message=V0_CURRENT, category=DeprecationWarning)
 for _env_id, _entry in ENV_IDS.items():
     if _env_id not in _gymnasium.registry:
         _gymnasium.register(id=_env_id, entry_point=_entry, vector_entry_point=VECTOR_ENTRY_POINTS[_env_id],
-                            disable_env_checker=False)
+                            disable_env_checker=False, kwargs=ENV_KWARGS.get(_env_id, {}))
 
 _LAZY = {"evaluate": "wfbench.evaluation", "evaluate_suite": "wfbench.suites", "env": "wfbench.envs",
          "parallel_env": "wfbench.envs"}

@@ -1,4 +1,4 @@
-"""Gymnasium environments ``wfbench/Workforce-v0`` (joint) and ``wfbench/Dispatch-v0``.
+"""Gymnasium environments ``wfbench/Workforce-v0`` (joint), ``wfbench/Workforce-v1`` and ``wfbench/Dispatch-v0``.
 
 Both observe a flat ``Dict`` of ``Box`` es (the shared observation plus action masks)
 and act through a 1-D ``MultiDiscrete``, the shape SB3's PPO and MaskablePPO take;
@@ -7,12 +7,18 @@ and act through a 1-D ``MultiDiscrete``, the shape SB3's PPO and MaskablePPO tak
 - Workforce-v0: one agent makes all three decisions. The action is
   ``[dispatch (M entries of 0..N), workforce (0..6), positioning (2M entries of
   0..10, weight = level / 10)]``.
+- Workforce-v1: Workforce-v0 with observation version 2 (``obs_version=2``,
+  :mod:`wfbench.core.context`): coordinates in travel-time steps, and the keys
+  ``context`` (the world's public parameters and counts, scale-free) and ``units``
+  (speed, grid width and height). Dynamics, reward and actions are Workforce-v0's.
 - Dispatch-v0: the action is the dispatch vector; workforce and positioning are made
   by built-in policies (``fixed``, default the paper's heuristics). ``reward="nsw"``
   (default) is the leaderboard's NSW; ``reward="nsw-no-cost"`` is the paper's
   dispatch-only reward, the geometric mean of the utilization and downtime utilities.
 
-Options (both environments, ``docs/envs.md``): ``observation="box"`` flattens the Dict
+Options (both environments, ``docs/envs.md``): ``obs_version`` 1 (default) or 2 picks the
+observation version (``wfbench/Workforce-v1`` is ``wfbench/Workforce-v0`` with
+``obs_version=2``); ``observation="box"`` flattens the Dict
 into one float32 ``Box`` (Gymnasium's ``flatten``, masks included), for libraries that take
 only a Box; ``info="flat"`` (default) gives numbers only (``t``, ``seed``,
 ``metric_<kpi>``, ``count_<counter>``, ``step_count_<counter>``), ``info="nested"`` the
@@ -37,13 +43,15 @@ from wfbench.envs.spaces import (
     INFOS,
     OBSERVATIONS,
     POSITIONING_LEVELS,
-    SHARED_KEYS,
+    check_obs_version,
     check_option,
     joint_nvec,
     observation_space,
+    shared_keys,
     shared_spaces,
     single,
     split_joint,
+    versioned,
 )
 
 
@@ -51,9 +59,10 @@ class _Base(gym.Env):
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 8}
 
     def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None, render_mode: str | None,
-                 reward: str, observation: str, info: str):
+                 reward: str, observation: str, info: str, obs_version: int):
         check_render_mode(render_mode)
         check_reward(reward)
+        self.obs_version = check_obs_version(obs_version)
         self.observation_kind = check_option("observation", observation, OBSERVATIONS)
         self.info_kind = check_option("info", info, INFOS)
         self._window: HumanWindow | None = None
@@ -64,10 +73,12 @@ class _Base(gym.Env):
         self.M, self.N = self.config.max_facilities, self.config.max_personnel
 
     def _dict_obs(self) -> dict[str, np.ndarray]:
-        raise NotImplementedError
+        return single(versioned(self.core.obs, self.obs_version), self._keys)
 
-    def _set_spaces(self, dict_space: spaces.Dict) -> None:
+    def _set_spaces(self, dict_space: spaces.Dict, masks: tuple[str, ...]) -> None:
+        """The observation spaces; the observation's keys in the order of before (a Dict sorts its keys)."""
         self.dict_observation_space = dict_space
+        self._keys = (*shared_keys(self.obs_version), *masks)
         self.observation_space = observation_space(dict_space, self.observation_kind)
 
     def _obs(self):
@@ -125,18 +136,15 @@ class WorkforceEnv(_Base):
     """Joint decision: dispatch, workforce and positioning in one MultiDiscrete action."""
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", render_mode: str | None = None,
-                 reward: str = "nsw", observation: str = "dict", info: str = "flat"):
-        super().__init__(scenario, None, render_mode, reward, observation, info)
+                 reward: str = "nsw", observation: str = "dict", info: str = "flat", obs_version: int = 1):
+        super().__init__(scenario, None, render_mode, reward, observation, info, obs_version)
         M, N = self.M, self.N
         self._set_spaces(spaces.Dict({
-            **shared_spaces(self.config),
+            **shared_spaces(self.config, self.obs_version),
             "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
             "workforce_mask": spaces.Box(0, 1, shape=(7,), dtype=np.int8),
-        }))
+        }), ("dispatch_mask", "workforce_mask"))
         self.action_space = spaces.MultiDiscrete(joint_nvec(self.config))
-
-    def _dict_obs(self) -> dict[str, np.ndarray]:
-        return single(self.core.obs, (*SHARED_KEYS, "dispatch_mask", "workforce_mask"))
 
     def action_masks(self) -> np.ndarray:
         """Flat mask over the MultiDiscrete choices (MaskablePPO's convention)."""
@@ -153,22 +161,20 @@ class DispatchEnv(_Base):
     """Dispatch only; the workforce and positioning decisions are made by built-in policies."""
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
-                 render_mode: str | None = None, reward: str = "nsw", observation: str = "dict", info: str = "flat"):
+                 render_mode: str | None = None, reward: str = "nsw", observation: str = "dict", info: str = "flat",
+                 obs_version: int = 1):
         fixed = dict(fixed or {"workforce": "threshold", "positioning": "spatial"})
         if "dispatch" in fixed:
             raise ValueError("Dispatch-v0 learns the dispatch decision; fix only workforce and positioning")
         if set(fixed) != {"workforce", "positioning"}:
             raise ValueError(f"Dispatch-v0 needs fixed policies for workforce and positioning, got {sorted(fixed)}")
-        super().__init__(scenario, fixed, render_mode, reward, observation, info)
+        super().__init__(scenario, fixed, render_mode, reward, observation, info, obs_version)
         M, N = self.M, self.N
         self._set_spaces(spaces.Dict({
-            **shared_spaces(self.config),
+            **shared_spaces(self.config, self.obs_version),
             "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
-        }))
+        }), ("dispatch_mask",))
         self.action_space = spaces.MultiDiscrete(np.full(M, N + 1, dtype=np.int64))
-
-    def _dict_obs(self) -> dict[str, np.ndarray]:
-        return single(self.core.obs, (*SHARED_KEYS, "dispatch_mask"))
 
     def action_masks(self) -> np.ndarray:
         return self.core.obs["dispatch_mask"][0].ravel().astype(bool)

@@ -24,7 +24,12 @@ Options for RL libraries that want one shape for everything (``docs/envs.md``):
 - ``info="flat"`` (default): numbers only (``t``, ``seed``, ``metric_<kpi>``,
   ``count_<counter>``, ``step_count_<counter>``); ``info="nested"``: the tallies as
   dicts ``metrics``, ``counts``, ``step_counts``.
-- ``state()`` and ``state_space``: the shared observation without the masks, flattened.
+- ``obs_version=1`` (default): the paper's observation; ``obs_version=2``: observation
+  version 2 (coordinates in travel-time steps, plus ``context`` and ``units``;
+  :mod:`wfbench.core.context`), the observation of ``wfbench/Workforce-v1``; the
+  environment's ``metadata["name"]`` then ends in ``_v1``, as the Gymnasium id does.
+- ``state()`` and ``state_space``: the shared observation without the masks, flattened
+  (in the observation's version).
 - ``render_mode``: ``"rgb_array"`` returns frames, ``"human"`` shows them in a
   matplotlib window.
 """
@@ -51,17 +56,18 @@ from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
 from wfbench.envs.render import RENDER_MODES, HumanWindow, check_render_mode, render_rgb
 from wfbench.envs.spaces import (
     INFOS,
-    OBS_KEYS,
     OBSERVATIONS,
-    SHARED_KEYS,
+    check_obs_version,
     check_option,
     dispatch_action_space,
     joint_nvec,
     observation_space,
     positioning_action_space,
+    shared_keys,
     shared_spaces,
     single,
     split_joint,
+    versioned,
     workforce_action_space,
 )
 
@@ -204,8 +210,11 @@ class WorkforceParallelEnv(ParallelEnv):
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
                  render_mode: str | None = None, observation: str = "dict", actions: str = "own",
-                 info: str = "flat"):
+                 info: str = "flat", obs_version: int = 1):
         check_render_mode(render_mode)
+        self.obs_version = check_obs_version(obs_version)
+        if self.obs_version == 2:
+            self.metadata = {**type(self).metadata, "name": "wfbench_workforce_v1"}
         self.observation_kind = check_option("observation", observation, OBSERVATIONS)
         self.actions_kind = check_option("actions", actions, ACTIONS)
         self.info_kind = check_option("info", info, INFOS)
@@ -217,14 +226,16 @@ class WorkforceParallelEnv(ParallelEnv):
             raise ValueError("every agent is fixed; leave at least one of dispatch, workforce, positioning free")
         self.agents: list[str] = []
         M, N = self.config.max_facilities, self.config.max_personnel
-        shared = shared_spaces(self.config)
+        shared = shared_spaces(self.config, self.obs_version)
+        self._shared_keys = shared_keys(self.obs_version)
+        self._obs_keys = (*self._shared_keys, "dispatch_mask", "workforce_mask")
         self._dict_space = spaces.Dict({
             **shared,
             "dispatch_mask": spaces.Box(0, 1, shape=(M, N + 1), dtype=np.int8),
             "workforce_mask": spaces.Box(0, 1, shape=(7,), dtype=np.int8),
         })
         self._obs_space = observation_space(self._dict_space, observation)
-        self._state_dict_space = spaces.Dict({k: shared[k] for k in SHARED_KEYS})
+        self._state_dict_space = spaces.Dict({k: shared[k] for k in self._shared_keys})
         self.state_space = spaces.flatten_space(self._state_dict_space)
         if actions == "shared":
             joint = spaces.MultiDiscrete(joint_nvec(self.config))
@@ -249,7 +260,7 @@ class WorkforceParallelEnv(ParallelEnv):
         # Copies, because the simulator's buffers are overwritten by the next step. The
         # agents see the same observation, so their dicts share one set of copies (a
         # third of the copying); an agent's arrays are never written by the environment.
-        shared = single(self.core.obs, OBS_KEYS)
+        shared = single(versioned(self.core.obs, self.obs_version), self._obs_keys)
         if self.observation_kind == "box":
             flat = spaces.flatten(self._dict_space, shared)
             return dict.fromkeys(self.agents, flat)
@@ -311,20 +322,23 @@ class WorkforceParallelEnv(ParallelEnv):
         """A flat global state (the shared observation without masks) for centralized critics, in ``state_space``."""
         obs = self.core.obs
         assert obs is not None
-        return spaces.flatten(self._state_dict_space, {k: obs[k][0] for k in SHARED_KEYS})
+        obs = versioned(obs, self.obs_version)
+        return spaces.flatten(self._state_dict_space, {k: obs[k][0] for k in self._shared_keys})
 
 
 def parallel_env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
                  render_mode: str | None = None, observation: str = "dict", actions: str = "own",
-                 info: str = "flat") -> WorkforceParallelEnv:
+                 info: str = "flat", obs_version: int = 1) -> WorkforceParallelEnv:
     """The PettingZoo Parallel environment (options: the module docstring)."""
     return WorkforceParallelEnv(scenario=scenario, fixed=fixed, render_mode=render_mode, observation=observation,
-                                actions=actions, info=info)
+                                actions=actions, info=info, obs_version=obs_version)
 
 
 def env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
-        render_mode: str | None = None, observation: str = "dict", actions: str = "own", info: str = "flat"):
+        render_mode: str | None = None, observation: str = "dict", actions: str = "own", info: str = "flat",
+        obs_version: int = 1):
     """The PettingZoo AEC environment (agents act in turn; the step is applied after the last)."""
     aec = parallel_to_aec(parallel_env(scenario=scenario, fixed=fixed, render_mode=render_mode,
-                                       observation=observation, actions=actions, info=info))
+                                       observation=observation, actions=actions, info=info,
+                                       obs_version=obs_version))
     return wrappers.OrderEnforcingWrapper(aec)

@@ -33,6 +33,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.vec_env import VecEnv
 
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.context import observe_v2
 from wfbench.core.state import N_WORKFORCE_ACTIONS
 from wfbench.envs.spaces import POSITIONING_LEVELS
 from wfbench.envs.vector import WorkforceVectorEnv
@@ -43,8 +44,8 @@ _N_STATUS = 6  # personnel status codes, wfbench.core.state.EMPTY..RETURNING
 class WorkforceVecEnv(VecEnv):
     """An SB3 ``VecEnv`` of ``num_envs`` wfbench environments in one batched simulator.
 
-    ``scenario``, ``num_envs``, ``kind``, ``fixed``, ``reward`` and ``threads`` are as in
-    :class:`WorkforceVectorEnv`.
+    ``scenario``, ``num_envs``, ``kind``, ``fixed``, ``reward``, ``threads`` and
+    ``obs_version`` are as in :class:`WorkforceVectorEnv`.
 
     Args:
         seed: the seed of the first episodes (environment i plays ``seed + i``); later
@@ -54,8 +55,9 @@ class WorkforceVecEnv(VecEnv):
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", num_envs: int = 8, kind: str = "workforce",
                  fixed: dict[str, Any] | None = None, reward: str = "nsw", threads: int | None = None,
-                 seed: int | None = None):
-        self.venv = WorkforceVectorEnv(scenario, num_envs, kind=kind, fixed=fixed, reward=reward, threads=threads)
+                 seed: int | None = None, obs_version: int = 1):
+        self.venv = WorkforceVectorEnv(scenario, num_envs, kind=kind, fixed=fixed, reward=reward, threads=threads,
+                                       obs_version=obs_version)
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._first_seed = seed
         self._actions: np.ndarray | None = None
@@ -191,7 +193,9 @@ class SB3Policy:
     ``kind="workforce"`` makes all three decisions; ``kind="dispatch"`` makes the dispatch
     decision only (run it in ``policies.Composite`` beside the built-in workforce and
     positioning policies it was trained with). Actions are the model's deterministic
-    choice, masked when the model is a MaskablePPO.
+    choice, masked when the model is a MaskablePPO. A model trained on observation
+    version 2 (its space has ``context``) is given :func:`~wfbench.core.context.observe_v2`
+    of the observation.
     """
 
     def __init__(self, model: Any, config: str | ScenarioConfig, kind: str = "workforce", name: str = "sb3"):
@@ -202,6 +206,7 @@ class SB3Policy:
         self.M, self.N = self.config.max_facilities, self.config.max_personnel
         self.decisions = ("dispatch", "workforce", "positioning") if kind == "workforce" else ("dispatch",)
         self._keys = tuple(model.observation_space.spaces)
+        self.observation_version = 2 if "context" in self._keys else 1
         self._masked = "action_masks" in inspect.signature(model.predict).parameters  # MaskablePPO
 
     def reset(self, seeds: Sequence[int]) -> None:
@@ -209,7 +214,8 @@ class SB3Policy:
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         B, M = len(obs["facilities"]), self.M
-        x = {k: obs[k] for k in self._keys}
+        x = {k: obs[k] for k in self._keys} if self.observation_version == 1 else {
+            k: v for k, v in observe_v2(obs).items() if k in self._keys}
         if self._masked:
             parts = [obs["dispatch_mask"].reshape(B, -1).astype(bool)]
             if self.kind == "workforce":

@@ -1,4 +1,12 @@
-"""Observation and action spaces shared by the PettingZoo and Gymnasium environments."""
+"""Observation and action spaces shared by the PettingZoo and Gymnasium environments.
+
+Two observation versions (``obs_version=``, :data:`wfbench.core.context.OBS_VERSIONS`):
+1, the paper's (coordinates in grid cells; ``wfbench/Workforce-v0``), and 2 (coordinates
+in travel-time steps, plus ``context`` and ``units``; ``wfbench/Workforce-v1``), derived
+from the simulator's observation by :func:`wfbench.core.context.observe_v2`. Neither
+space has the simulator's ``world`` key: version 1 stays as it was, and version 2 holds
+the same parameters scale-free in ``context`` and the units apart in ``units``.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +17,16 @@ from gymnasium import spaces
 
 from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.context import (
+    CONTEXT_FEATURES,
+    OBS_VERSIONS,
+    UNIT_FEATURES,
+    V2_KEYS,
+    C,
+    W,
+    WorldKey,
+    observe_v2,
+)
 from wfbench.core.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
 from wfbench.core.state import N_WORKFORCE_ACTIONS
 
@@ -18,22 +36,45 @@ SHARED_KEYS = (
     "facilities", "personnel", "facility_mask", "personnel_mask", "personnel_status", "under_notice",
     "dispatchable", "requesting", "globals",
 )
-OBS_KEYS = (*SHARED_KEYS, "dispatch_mask", "workforce_mask")
+
+
+def check_obs_version(value: Any) -> int:
+    """``value`` as an int if it is one of :data:`OBS_VERSIONS`, else a one-line ValueError naming them.
+
+    Stricter than :func:`check_option`: ``True`` and ``2.0`` compare equal to 1 and 2 but are refused.
+    """
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and int(value) in OBS_VERSIONS
+    if not ok:
+        raise ValueError(f"obs_version={value!r} is not allowed; allowed: {', '.join(map(str, OBS_VERSIONS))}")
+    return int(value)
+
+
+def shared_keys(obs_version: int) -> tuple[str, ...]:
+    """The keys of the shared observation (no action masks) of an observation version."""
+    return SHARED_KEYS if obs_version == 1 else (*SHARED_KEYS, *V2_KEYS)
+
+
+def versioned(obs: dict[str, np.ndarray], obs_version: int) -> dict[str, np.ndarray]:
+    """The simulator's batched observation in ``obs_version``: itself (1) or :func:`observe_v2` of it (2)."""
+    return obs if obs_version == 1 else observe_v2(obs)
 
 
 def _binary(*shape: int) -> spaces.Box:
     return spaces.Box(0, 1, shape=shape, dtype=np.int8)
 
 
-def shared_spaces(c: ScenarioConfig) -> dict[str, spaces.Space]:
+def shared_spaces(c: ScenarioConfig, obs_version: int = 1) -> dict[str, spaces.Space]:
+    """The shared observation's spaces; version 2 has coordinates in travel time and ``context``, ``units``."""
     M, N = c.max_facilities, c.max_personnel
     xmax, ymax = c.grid_width - 1, c.grid_height - 1
+    if obs_version == 2:  # the float64 quotient rounded once to float32, as observe_v2 rounds a coordinate
+        xmax, ymax = xmax / c.speed, ymax / c.speed
     f_lo = np.array([0, 0, 0, 0, 0, -1, 0], dtype=np.float32)
     f_hi = np.array([xmax, ymax, 1, 1, 1, N - 1, 1], dtype=np.float32)
     p_lo = np.array([0, 0, 0, 0, 0, 0, -1, 0, 0], dtype=np.float32)
     p_hi = np.array([xmax, ymax, xmax, ymax, 2, 1, M - 1, 1, 1], dtype=np.float32)
     assert len(f_lo) == len(FACILITY_FEATURES) and len(p_lo) == len(PERSONNEL_FEATURES)
-    return {
+    out: dict[str, spaces.Space] = {
         "facilities": spaces.Box(np.tile(f_lo, (M, 1)), np.tile(f_hi, (M, 1)), dtype=np.float32),
         "personnel": spaces.Box(np.tile(p_lo, (N, 1)), np.tile(p_hi, (N, 1)), dtype=np.float32),
         "facility_mask": _binary(M),
@@ -44,6 +85,46 @@ def shared_spaces(c: ScenarioConfig) -> dict[str, spaces.Space]:
         "requesting": _binary(M),
         "globals": spaces.Box(0.0, 1.0, shape=(len(GLOBAL_FEATURES),), dtype=np.float32),
     }
+    if obs_version == 2:
+        low, high = context_bounds(c)
+        units = np.array([c.speed, c.grid_width, c.grid_height], dtype=np.float32)
+        assert len(units) == len(UNIT_FEATURES)
+        out["context"] = spaces.Box(low, high, dtype=np.float32)
+        out["units"] = spaces.Box(np.zeros_like(units), units, dtype=np.float32)
+    return out
+
+
+def context_bounds(c: ScenarioConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) float32 of :data:`~wfbench.core.context.CONTEXT_FEATURES` in the world ``c``.
+
+    Every column is >= 0, so low is 0 (below 0 only for a rate whose schedule goes
+    negative). high is the greatest value the column takes in this world: for the
+    world's parameters, their value and, for the rates, the greatest multiplier of their
+    schedule over the episode, computed by :func:`observe_v2` itself so that the bits
+    agree; the step and the time left, the horizon; the counts, the slots; the ratios (a
+    count of 0 divides as 1), what the counts allow (``facilities_per_person`` and
+    ``open_per_free`` at most M, ``load_per_person`` at most 1 + M, busy people being
+    employed ones). A parameter that is 0 gets high 1: Gymnasium's checker refuses a Box
+    whose low equals its high, so a constant never gets [v, v].
+    """
+    M, N, H = c.max_facilities, c.max_personnel, c.horizon
+    key = WorldKey(c, 2)
+    world = key.buffer.copy()
+    for name, m in (("request_multiplier", key.request), ("churn_multiplier", key.churn)):
+        world[:, W[name]] = (m.min(), m.max())
+    blank = {"facilities": np.zeros((2, 1, len(FACILITY_FEATURES)), np.float32),
+             "personnel": np.zeros((2, 1, len(PERSONNEL_FEATURES)), np.float32), "t": np.zeros(2, np.int64),
+             "world": world, **{k: np.zeros((2, 1), np.int8) for k in
+                                ("facility_mask", "personnel_mask", "dispatchable", "requesting")}}
+    least, high = observe_v2(blank)["context"]
+    low = np.minimum(least, 0.0)
+    for name, hi in (("t", H), ("time_left", H), ("active_facilities", M), ("employed", N), ("free", N),
+                     ("busy", N), ("open_requests", M), ("facilities_per_person", M), ("open_per_free", M),
+                     ("load_per_person", M + 1)):
+        high[C[name]] = hi
+    high = np.where(high > low, high, low + 1.0).astype(np.float32)
+    assert len(low) == len(CONTEXT_FEATURES)
+    return low, high
 
 
 def dispatch_action_space(c: ScenarioConfig) -> spaces.MultiDiscrete:

@@ -1,7 +1,8 @@
 """A Gymnasium ``VectorEnv`` over one batched :class:`~wfbench.core.simulator.Simulator`.
 
 ``WorkforceVectorEnv(scenario, num_envs, kind="workforce")`` is B copies of
-``wfbench/Workforce-v0`` (or, ``kind="dispatch"``, of ``wfbench/Dispatch-v0``) stepped
+``wfbench/Workforce-v0`` (or, ``kind="dispatch"``, of ``wfbench/Dispatch-v0``; with
+``obs_version=2``, observation version 2, that of ``wfbench/Workforce-v1``) stepped
 by one compiled call for the whole batch, where ``SyncVectorEnv`` would make B Python
 calls. The spaces, the flat ``MultiDiscrete`` action, the observation keys and the
 reward are those of the single environments (``docs/sb3.md``):
@@ -20,8 +21,9 @@ reward are those of the single environments (``docs/sb3.md``):
   rows' actions and returns the new episode's first observation, reward 0, not done.
   The mode is in ``metadata["autoreset_mode"]`` and the ``autoreset_mode`` attribute.
 - ``gymnasium.make_vec("wfbench/Workforce-v0", num_envs=B, scenario=...)`` builds this
-  environment (the ids' ``vector_entry_point``); ``observation="box"`` flattens each
-  row as the single environment's option does.
+  environment (the ids' ``vector_entry_point``; ``"wfbench/Workforce-v1"`` passes
+  ``obs_version=2``); ``observation="box"`` flattens each row as the single
+  environment's option does.
 - Seeds: ``reset(seed=s)`` plays seeds ``s, s + 1, ...``; each environment's later
   episodes take their seeds from a generator seeded with its first seed, as the single
   environment does, so the vector environment replays ``SyncVectorEnv`` of the single
@@ -50,7 +52,7 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.core.reward import check_reward, step_reward
 from wfbench.core.simulator import Simulator
 from wfbench.envs.gym_env import DispatchEnv, WorkforceEnv
-from wfbench.envs.spaces import POSITIONING_LEVELS, flatten_batch, split_joint
+from wfbench.envs.spaces import POSITIONING_LEVELS, flatten_batch, split_joint, versioned
 
 KINDS = {"workforce": WorkforceEnv, "dispatch": DispatchEnv}
 AUTORESET_MODES = {  # the autoreset_mode option: a name, the AutoresetMode or its value
@@ -69,7 +71,7 @@ class WorkforceVectorEnv(VectorEnv):
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", num_envs: int = 8, kind: str = "workforce",
                  fixed: dict[str, Any] | None = None, reward: str = "nsw", threads: int | None = None,
                  observation: str = "dict", autoreset_mode: str | AutoresetMode = AutoresetMode.SAME_STEP,
-                 render_mode: None = None):
+                 render_mode: None = None, obs_version: int = 1):
         if render_mode is not None:
             raise ValueError(f"render_mode {render_mode!r} is not supported by the vector environment; allowed: None")
         if autoreset_mode not in AUTORESET_MODES:
@@ -84,9 +86,10 @@ class WorkforceVectorEnv(VectorEnv):
         check_reward(reward)
         if kind == "workforce" and fixed:
             raise ValueError("kind='workforce' learns every decision; fix decisions with kind='dispatch'")
-        single = (DispatchEnv(scenario, fixed=fixed, observation=observation) if kind == "dispatch"
-                  else WorkforceEnv(scenario, observation=observation))
+        single = (DispatchEnv(scenario, fixed=fixed, observation=observation, obs_version=obs_version)
+                  if kind == "dispatch" else WorkforceEnv(scenario, observation=observation, obs_version=obs_version))
         self.observation_kind = observation
+        self.obs_version = single.obs_version
         self.config = single.config
         self.kind, self.reward_kind = kind, reward
         self.fixed = single.core.fixed  # the built-in policies the single environment resolved (none for workforce)
@@ -165,6 +168,7 @@ class WorkforceVectorEnv(VectorEnv):
     def _copy_obs(self, obs: dict[str, np.ndarray] | None = None):
         obs = self._obs if obs is None else obs
         assert obs is not None
+        obs = versioned(obs, self.obs_version)
         if self.observation_kind == "box":
             return flatten_batch(self._dict_space, obs)
         return {k: obs[k].copy() for k in self._keys}
