@@ -174,8 +174,12 @@ def scaled_world(config: ScenarioConfig, k: float) -> ScenarioConfig:
     """The same world in other units: grid side, speed and the spatial spread of new facilities times ``k``.
 
     Only for worlds whose facility layout is the default (random by the heat map); a
-    layout of fixed sites is in cells and would need its sites moved too.
+    layout of fixed sites is in cells and would need its sites moved too, so any other
+    layout is refused (a ValueError of one line).
     """
+    if config.layout.kind != "uniform":
+        raise ValueError(f"scaled_world: {config.name!r} has a {config.layout.kind!r} facility layout, whose "
+                         "positions and spreads are in cells; allowed: a world with the 'uniform' layout")
     return config.replace(name=f"{config.name}-x{k:g}", grid_width=int(round(config.grid_width * k)),
                           grid_height=int(round(config.grid_height * k)), speed=config.speed * k,
                           heat_sigma=config.heat_sigma * k)
