@@ -8,7 +8,7 @@ public parameters, which every observation carries under the key ``world``
 
 - every length in **travel time** (steps at this world's speed): the coordinates of
   facilities and people are divided by the speed, and so are the grid's extent and the
-  spatial spread of new facilities;
+  width of the positioning heat map's bumps (``heat_sigma``, where hires are based);
 - the world's public parameters and counts that keep ratios as ``context``
   (:data:`CONTEXT_FEATURES`): what a dispatcher knows of its own operation, never the
   trace;
@@ -21,9 +21,10 @@ world in other units: its version-2 observation is the same (bit for bit when k 
 power of two), except ``units`` and ``world``. ``tests/test_observe_v2.py`` checks it.
 
 The keys, one by one, are in ``docs/policies.md`` ("Observation version 2"). A policy
-asks for it by its attribute ``observation_version = 2`` or calls :func:`observe_v2`
-itself on the observation it is given; the environments take ``obs_version=2``
-(``wfbench/Workforce-v1``).
+gets it by calling :func:`observe_v2` itself on the observation it is given: the
+evaluator gives every policy the same observation, and nothing converts it for a policy
+(the attribute ``observation_version`` of the networks' policies only says which version
+they read). The environments take ``obs_version=2`` (``wfbench/Workforce-v1``).
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ WORLD_DYNAMIC = ("request_multiplier", "churn_multiplier")
 # the context of version 2: scale-free (steps, probabilities, salaries, counts and their ratios)
 CONTEXT_FEATURES = (
     # the world, in travel time
-    "extent_x", "extent_y", "heat_sigma",  # steps of travel across the grid; spread of new facilities
+    "extent_x", "extent_y", "heat_sigma",  # steps of travel across the grid; width of the heat map's bumps
     "horizon", "window", "service_time", "hire_delay", "notice_delay",  # steps
     "request_interval", "churn_interval",  # steps
     "request_rate", "churn_rate",  # per step now: failures per facility, new facilities
@@ -171,7 +172,7 @@ def observe_v2(obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def scaled_world(config: ScenarioConfig, k: float) -> ScenarioConfig:
-    """The same world in other units: grid side, speed and the spatial spread of new facilities times ``k``.
+    """The same world in other units: grid side, speed and the heat map's width (``heat_sigma``) times ``k``.
 
     Only for worlds whose facility layout is the default (random by the heat map); a
     layout of fixed sites is in cells and would need its sites moved too, so any other
