@@ -39,7 +39,8 @@ def add_parser(sub) -> None:
                          "public seeds (docs/rl.md, Generalists)")
     tr.add_argument("--steps", type=positive, default=None, help="environment steps in all (default 1000000)")
     tr.add_argument("--model", default=None,
-                    help="network size: cpu (no attention, fastest on CPU), tiny, small or paper (~0.5M parameters)")
+                    help="network: cpu (no attention, fastest on CPU), tiny, small or paper (~0.5M parameters), "
+                         "or scalefree (observation version 2, any world size; PPO only; docs/rl.md)")
     tr.add_argument("--num-envs", type=positive, default=None, help="environments side by side (default 32)")
     tr.add_argument("--num-steps", type=positive, default=None, help="steps per rollout (default 32)")
     tr.add_argument("--epochs", type=positive, default=None, help="PPO epochs per rollout (default 2)")
