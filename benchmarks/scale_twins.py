@@ -9,8 +9,9 @@ training seeds (``METHOD#seedK``) the spread of its seeds at k = 1 beside the mo
 their mean. Worlds with fixed facility sites (``clustered-64``, the real-data ones) are
 left out: their sites are in cells.
 
-Writes ``scale-twins.csv`` (one row per policy, world and k) and ``scale-twins.md`` into
-``--out``. Usage::
+Writes ``scale-twins.csv`` (one row per policy, world and k, written as each is scored: a
+stopped run resumes from it, and a later call with more policies scores only the new ones)
+and ``scale-twins.md`` (the policies of this call) into ``--out``. Usage::
 
     python benchmarks/scale_twins.py --seeds 0-9 --out docs/results/scale-twins
 """
@@ -67,6 +68,9 @@ def main() -> None:
     ks = [float(k) for k in a.ks.split(",")]
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    csv = out / "scale-twins.csv"
+    done = pd.read_csv(csv).to_dict("records") if csv.exists() else []
+    have = {(r["world"], float(r["k"]), r["policy"]): r for r in done if str(r.get("seeds")) == a.seeds}
     rows = []
     t0 = time.perf_counter()
     for sid in a.worlds.split(","):
@@ -74,14 +78,20 @@ def main() -> None:
         for k in ks:
             config = base if k == 1 else scaled_world(base, k)
             for pol in expand(a.policies.split(",")):
+                if (sid, k, pol) in have:
+                    rows.append(have[(sid, k, pol)])
+                    continue
                 df = evaluate(pol, config, seeds, backend="process", workers=a.workers, act_timeout_s=None)
                 member = parse_member(pol)
-                rows.append({"world": sid, "k": k, "policy": pol, "method": member[0] if member else pol,
-                             "nsw": float(df["nsw"].mean())})
-                print(f"{sid:24s} k={k:g}  {pol:28s} {rows[-1]['nsw']:.4f}", flush=True)
+                row = {"world": sid, "k": k, "policy": pol, "method": member[0] if member else pol,
+                       "nsw": float(df["nsw"].mean()), "seeds": a.seeds}
+                rows.append(row)
+                done.append(row)
+                have[(sid, k, pol)] = row
+                pd.DataFrame(done).to_csv(csv, index=False)
+                print(f"{sid:24s} k={k:g}  {pol:28s} {row['nsw']:.4f}", flush=True)
     wall = time.perf_counter() - t0
     df = pd.DataFrame(rows)
-    df.to_csv(out / "scale-twins.csv", index=False)
     # per method and world: its mean over members at each k; the move from k = 1; the members' spread at k = 1
     per = df.groupby(["method", "world", "k"])["nsw"].agg(["mean", "min", "max", "count"]).reset_index()
     table = []
