@@ -105,8 +105,12 @@ class WorldKey:
         self.request = config.request_schedule.multipliers(config.horizon)  # (horizon + 1,)
         self.churn = config.churn_schedule.multipliers(config.horizon)
         self.buffer = np.tile(self.fixed, (B, 1))
+        # constant schedules (most worlds): the multipliers stay 1, nothing to write per step
+        self.constant = bool((self.request == 1.0).all() and (self.churn == 1.0).all())
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
+        if self.constant:
+            return self.buffer
         tt = np.minimum(t, len(self.request) - 1)
         self.buffer[:, W["request_multiplier"]] = self.request[tt]
         self.buffer[:, W["churn_multiplier"]] = self.churn[tt]
