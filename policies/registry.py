@@ -60,6 +60,12 @@ TUNED: dict[str, tuple[str, str]] = {
                         "(wfbench tune)"),
     "solver-tuned": ("solver-paper-64.json", "the solver composite tuned jointly on paper-64's public seeds "
                      "(wfbench tune)"),
+    "heuristic-tuned-train": ("heuristic-suite-v1-train.json", "the heuristic composite tuned on suite-v1's "
+                              "training split: the mean normalized score over its eight scenarios' public seeds "
+                              "(wfbench tune --scenarios suite-v1:train)"),
+    "solver-tuned-train": ("solver-suite-v1-train.json", "the solver composite tuned jointly on suite-v1's training "
+                           "split: the mean normalized score over its eight scenarios' public seeds (wfbench tune "
+                           "--scenarios suite-v1:train)"),
 }
 
 
@@ -291,8 +297,9 @@ def get(spec: Any) -> Any:
     arguments). ``"D+W+P"`` builds a composite from three per-decision names (for
     example ``"assignment+threshold+spatial"``; see ``DECISIONS``). A tuned-policy file
     (``path.json``, ``path.toml`` or ``tuned:path``, written by ``wfbench tune``) is its
-    base policy with the tuned parameters; ``heuristic-tuned`` and ``solver-tuned`` are
-    the files shipped in ``policies/tuned/``. ``ALGO:PATH`` is a checkpoint of ``wfbench
+    base policy with the tuned parameters; ``heuristic-tuned`` and ``solver-tuned`` (tuned
+    on paper-64) and ``heuristic-tuned-train`` and ``solver-tuned-train`` (tuned on
+    suite-v1's training split) are the files shipped in ``policies/tuned/``. ``ALGO:PATH`` is a checkpoint of ``wfbench
     train --algo ALGO`` (``ppo``, ``impala``, ``hindsight``; ``ppo:PATH`` loads any of them;
     ``ALGO:PATH@greedy`` for argmax decisions, sampled by default), and ``ppo-joint``,
     ``impala-joint``, ... the shipped ones (``LEARNED``). ``METHOD#seedK`` (``@greedy`` too) is
