@@ -42,11 +42,11 @@ def world(sid: str) -> ScenarioConfig:
     return get_suite("suite-v1").scenario(sid).config
 
 
-def expand(policies: list[str]) -> list[str]:
-    """A method with training seeds stands for its members (``METHOD#seedK``); any other policy for itself."""
+def expand(policies: list[str], members: set[str]) -> list[str]:
+    """A method of ``members`` stands for its training seeds (``METHOD#seedK``); any other policy for itself."""
     out = []
     for p in policies:
-        out.extend(seed_members(p) or [p])
+        out.extend((seed_members(p) if p in members else []) or [p])
     return out
 
 
@@ -59,6 +59,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--worlds", default=",".join(WORLDS))
     ap.add_argument("--policies", default=",".join(POLICIES))
+    ap.add_argument("--members", default="scalefree-general",
+                    help="methods played as each of their training seeds (the others: their shipped pick)")
     ap.add_argument("--ks", default="1,2,4")
     ap.add_argument("--seeds", default="0-9")
     ap.add_argument("--workers", type=int, default=2)
@@ -77,7 +79,7 @@ def main() -> None:
         base = world(sid)
         for k in ks:
             config = base if k == 1 else scaled_world(base, k)
-            for pol in expand(a.policies.split(",")):
+            for pol in expand(a.policies.split(","), set(a.members.split(","))):
                 if (sid, k, pol) in have:
                     rows.append(have[(sid, k, pol)])
                     continue
