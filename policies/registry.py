@@ -363,6 +363,7 @@ LEARNED_PARTS: dict[str, tuple[str, str, str]] = {
     "hindsight-ppo": ("PPO", "PPO + hindsight learning", "PPO"),
     "ppo-general": ("PPO (generalist)", "PPO (generalist)", "PPO (generalist)"),
     "hindsight-general": ("PPO (generalist)", "PPO + hindsight learning (generalist)", "PPO (generalist)"),
+    "scalefree-general": ("PPO (scale-free)", "PPO (scale-free)", "PPO (scale-free)"),
 }
 
 
