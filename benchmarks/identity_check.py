@@ -44,8 +44,10 @@ TRAIN = {  # short runs of every trainer: a few updates, two public evaluations
     "ppo-independent": ["--algo", "ppo", "--agents", "independent", "--steps", "1024", "--num-envs", "4",
                         "--num-steps", "64", "--eval-every", "2", "--eval-seeds", "public:2", "--model", "tiny",
                         "--scenario", "small"],
+    # sync: the actor and the learner in turn, deterministic; the default async mode's policy lag depends on the
+    # timing of its two threads (wfbench/train/impala.py), so two captures on a loaded machine differ by design
     "impala": ["--algo", "impala", "--steps", "1024", "--num-envs", "4", "--num-steps", "32", "--eval-every", "4",
-               "--eval-seeds", "public:2", "--model", "tiny", "--scenario", "small"],
+               "--eval-seeds", "public:2", "--model", "tiny", "--scenario", "small", "--set", "mode=sync"],
     "hindsight": ["--algo", "hindsight", "--steps", "192", "--num-envs", "2", "--eval-every", "1",
                   "--eval-seeds", "public:2", "--model", "tiny", "--scenario", "small"],
 }
