@@ -47,6 +47,9 @@ def measure(network: str, scenario: str, steps: int, warmup: int, profiled: int,
         if t >= warmup:
             times.append(time.perf_counter() - t0)
         obs = sim.step_observe(act)[1]
+        if sim.done:  # a short episode (small: 200 steps) starts again
+            obs = sim.reset()
+            pol.reset([seed])
     peak = largest_allocation(pol, obs, profiled)
     ms = np.array(times) * 1e3
     c = sim.config
