@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from wfbench import RateSchedule, ScenarioConfig, Simulator
+from wfbench.core.context import WORLD_FEATURES
 from wfbench.core.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
 
 from .reference import EMPTY, IDLE, ONBOARDING, RETURNING, SERVICING, TO_FACILITY, ReferenceEnv
@@ -119,8 +120,26 @@ def reference_observation(ref: ReferenceEnv, config: ScenarioConfig) -> dict[str
     dm[:, :N] = o["requesting"][:, None] & o["dispatchable"][None, :]
     dm[:, N] = 1
     o.update(facilities=fac, personnel=per, globals=np.array([g[k] for k in GLOBAL_FEATURES], np.float32),
-             dispatch_mask=dm, workforce_mask=np.array(wm, np.int8), t=np.int64(t))
+             dispatch_mask=dm, workforce_mask=np.array(wm, np.int8), t=np.int64(t), world=world_row(config, t))
     return o
+
+
+def world_row(config: ScenarioConfig, t: int) -> np.ndarray:
+    """The ``world`` key, by docs/policies.md "Observation version 2": the config's public fields in its own units."""
+    c, step = config, min(t, config.horizon)
+    values = dict(
+        speed=c.speed, grid_width=c.grid_width, grid_height=c.grid_height, heat_sigma=c.heat_sigma,
+        horizon=c.horizon, window=c.window, service_time=c.service_time, hire_delay=c.hire_delay,
+        notice_delay=c.fire_delay, request_interval=c.request_interval, churn_interval=c.churn_interval,
+        request_multiplier=c.request_schedule.multipliers(c.horizon)[step],
+        churn_multiplier=c.churn_schedule.multipliers(c.horizon)[step],
+        fix_novice=c.base_fix_rate * c.level_multipliers[0], fix_mid=c.base_fix_rate * c.level_multipliers[1],
+        fix_expert=c.base_fix_rate * c.level_multipliers[2], salary_novice=c.level_salaries[0],
+        salary_mid=c.level_salaries[1], salary_expert=c.level_salaries[2], target_utilization=c.target_utilization,
+        utilization_tolerance=c.utilization_tolerance, max_facilities=c.max_facilities,
+        max_personnel=c.max_personnel, min_personnel=c.min_personnel)
+    assert tuple(values) == WORLD_FEATURES, "the reference lists the world's columns in another order"
+    return np.array(list(values.values()), dtype=np.float64)
 
 
 @pytest.mark.parametrize("case", range(40))
