@@ -26,6 +26,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import socket
 from collections.abc import Iterator, Sequence
 
 from joblib.externals.loky import FIRST_COMPLETED, get_reusable_executor, wait
@@ -36,6 +37,7 @@ from wfbench.guard import LoadedPolicy
 from wfbench.runner import BatchResult, prime, run_batch
 
 BACKENDS = ("serial", "process", "ray")
+RAY_PROBE_TIMEOUT_S = 5.0  # a HOST:PORT that does not accept a TCP connection in this time has no cluster there
 IDLE_WORKER_TIMEOUT_S = 300  # start-up costs seconds per worker; consecutive evaluations reuse them
 
 
@@ -161,13 +163,46 @@ def _abandon(pool) -> None:
         _pool = None
 
 
+class ClusterError(RuntimeError):
+    """The Ray cluster an address names cannot be joined; the message is one line naming it and what to check."""
+
+
+def join_ray(address: str, **init_kwargs) -> None:
+    """``ray.init(address=...)``, failing fast with one line that names the address and what to check.
+
+    Ray itself, given a ``HOST:PORT`` where nothing listens, retries for minutes and prints a
+    warning every few seconds. A ``HOST:PORT`` address is probed first with a plain TCP
+    connection (:data:`RAY_PROBE_TIMEOUT_S`), and an error from ``ray.init`` (an
+    authentication mismatch, a version mismatch) becomes one line too (:class:`ClusterError`).
+    ``"auto"``, ``"local"`` and ``ray://`` addresses go to Ray as they are.
+    """
+    import ray
+
+    host, colon, port = address.rpartition(":")
+    if colon and host and port.isdigit() and "://" not in address:
+        try:
+            socket.create_connection((host, int(port)), timeout=RAY_PROBE_TIMEOUT_S).close()
+        except OSError as exc:
+            why = exc.strerror or type(exc).__name__
+            raise ClusterError(f"no Ray cluster answers at {address} ({why}); check that `ray start --head --port "
+                               f"{port}` runs on {host} and that this machine can reach that port (firewall, the "
+                               "address the head prints)") from None
+    try:
+        ray.init(address=address, **init_kwargs)
+    except Exception as exc:  # noqa: BLE001  (Ray's own errors are many classes; the user needs one line)
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise ClusterError(f"joining the Ray cluster at {address} failed: {type(exc).__name__}: {first}; check that "
+                           "this machine runs the cluster's Ray and Python versions and, where the cluster uses "
+                           "token authentication, the same RAY_AUTH_TOKEN") from None
+
+
 def _run_ray(loaded: LoadedPolicy, config: ScenarioConfig, chunks: list[list[int]], keep_series: bool,
              address: str | None) -> Iterator[BatchResult]:
     import ray  # optional dependency, checked by check_backend
 
     if not ray.is_initialized():
         if address:
-            ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+            join_ray(address, ignore_reinit_error=True, log_to_driver=False)
         else:
             # the local cluster we start here: Ray's notice that it turned token authentication on for it is noise
             # on a one-line failure (issue #26); a cluster the user joins (address) keeps all of Ray's messages

@@ -86,6 +86,13 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("wfbench: interrupted", file=sys.stderr)
         return 130
+    except RuntimeError as exc:
+        from wfbench.backends import ClusterError  # here, so that a command that never fails does not load joblib
+
+        if not isinstance(exc, ClusterError):
+            raise
+        print(f"wfbench: error: {exc}", file=sys.stderr)  # a Ray address that cannot be joined: one line
+        return EXIT_USAGE
     except BrokenPipeError:
         # the reader of stdout went away (``wfbench policies | head``): stop quietly, as the signal
         # module's "Note on SIGPIPE" recommends; stdout goes to devnull so that flushing it at exit

@@ -34,6 +34,8 @@ import os
 
 import ray
 
+from wfbench.backends import join_ray
+
 
 class RayActors:
     """``cfg.ray_actors`` Ray actors of class ``actor_cls``, one rollout in flight each, fed the newest parameters.
@@ -58,7 +60,7 @@ class RayActors:
                 configure_logging=False,
             )
         elif self.owns:
-            ray.init(address=cfg.address, log_to_driver=False, configure_logging=False)
+            join_ray(cfg.address, log_to_driver=False, configure_logging=False)  # one line where no cluster answers
         self.actors: list = []
         self.pending: dict = {}  # ObjectRef of a rollout in flight -> the index of its actor
         self.remaining = 0  # rollouts still to ask for
