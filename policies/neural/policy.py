@@ -41,10 +41,9 @@ import torch
 
 from policies.composite import Composite
 from policies.neural import ALIAS, CHECKPOINT_ALGORITHMS, scalefree
-from policies.neural.dist import env_action, sample
-from policies.neural.model import AgentSet, WorkforceNet, featurize, obs_to_torch
+from policies.neural.dist import env_action
+from policies.neural.model import AgentSet, WorkforceNet
 from policies.protocol import seeds_array
-from wfbench.core.context import observe_v2
 
 MODES = ("sample", "greedy", "greedy-dispatch")
 POLICY_SEED = 0x99A
@@ -102,10 +101,7 @@ class NetworkPolicy:
         self._starts = torch.ones(1, len(seeds), device=self.device)
 
     def _noise(self, B: int, M: int, N: int) -> dict[str, torch.Tensor]:
-        if self.observation_version == 2:
-            sizes = {k: s[1:] for k, s in self.model.noise_shapes(B, M, N).items()}
-        else:
-            sizes = {"dispatch": (M, N + 1), "workforce": (7,), "positioning": (2, M)}
+        sizes = {k: s[1:] for k, s in scalefree.noise_shapes(self.model, B, M, N).items()}
         total = sum(int(np.prod(s)) for s in sizes.values())
         u = np.stack([rng.random(total) for rng in self._rngs]).clip(1e-10, 1.0 - 1e-7)
         g = torch.from_numpy(-np.log(-np.log(u))).float().to(self.device)
@@ -132,10 +128,7 @@ class NetworkPolicy:
     def _act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         B, M = obs["requesting"].shape
         N = obs["personnel"].shape[1]
-        if self.observation_version == 2:
-            x = self.model.featurize(scalefree.obs_to_torch(observe_v2(obs), self.device))
-        else:
-            x = featurize(obs_to_torch(obs, self.device), self.model.config.coord_scale)
+        x = scalefree.features(self.model, scalefree.raw_tensors(self.model, obs, self.device))
         out, self._state = self.model(x, self._state, self._starts)
         self._starts = torch.zeros_like(self._starts)
         noise = None
@@ -143,8 +136,7 @@ class NetworkPolicy:
             noise = self._noise(B, M, N)
             if self.mode == "greedy-dispatch":
                 noise["dispatch"] = torch.zeros_like(noise["dispatch"])
-        acts = self.model.sample(out, x, noise) if self.observation_version == 2 else sample(out, x, noise)
-        return env_action(acts, M)
+        return env_action(scalefree.sample(self.model, out, x, noise), M)
 
 
 PPOPolicy = NetworkPolicy  # the name before every algorithm's checkpoints loaded by their own

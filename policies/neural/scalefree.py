@@ -32,6 +32,11 @@ The action distributions are here too (:meth:`ScaleFreeNet.sample`,
 :meth:`ScaleFreeNet.log_prob_entropy`): the same rules as :mod:`policies.neural.dist`
 (facilities choose in slot order, a person picked earlier is masked for the later ones,
 positioning counts only where the workforce action uses it), on the candidate lists.
+
+Which observation a network reads, and so which inputs, noise and distributions it takes,
+is decided here for every network (:func:`raw_tensors`, :func:`features`,
+:func:`noise_shapes`, :func:`sample`, :func:`head_log_probs`): the deployed policy and
+the trainers call these rather than each telling the versions apart.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from policies.neural import dist
 from policies.neural.dist import NEG, _cat_logp_ent, _masked, _safe_rows
 from policies.neural.model import (
     FAC_ASSIGNED,
@@ -63,6 +69,9 @@ from policies.neural.model import (
     _masked_mean,
     network_from_config,
 )
+from policies.neural.model import featurize as featurize_v1
+from policies.neural.model import obs_to_torch as obs_to_torch_v1
+from wfbench.core.context import observe_v2
 
 ARCH = "scalefree"
 OBS_KEYS_V2 = (*OBS_KEYS, "context")
@@ -123,6 +132,42 @@ def build_network(d: dict) -> nn.Module:
     if d.get("arch") == ARCH:
         return ScaleFreeNet(ScaleFreeConfig.from_dict(d))
     return network_from_config(d)
+
+
+# -- any network, by the observation it reads: what the deployed policy and the trainers call -------------
+def raw_tensors(model: nn.Module, obs: dict, device: torch.device | str = "cpu") -> dict[str, torch.Tensor]:
+    """The observation ``model`` reads, as tensors: version 1, or 2 (:func:`observe_v2`) for the scale-free one."""
+    if obs_version(model) == 2:
+        return obs_to_torch(observe_v2(obs), device)
+    return obs_to_torch_v1(obs, device)
+
+
+def features(model: nn.Module, raw: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The network's inputs of :func:`raw_tensors` (any leading axes)."""
+    if obs_version(model) == 2:
+        return model.featurize(raw)
+    return featurize_v1(raw, model.config.coord_scale)
+
+
+def noise_shapes(model: nn.Module, B: int, M: int, N: int) -> dict[str, tuple[int, ...]]:
+    """The Gumbel noise per head that sampling ``model``'s actions takes, leading axis B."""
+    if obs_version(model) == 2:
+        return model.noise_shapes(B, M, N)
+    return dist.noise_shapes(B, M, N)
+
+
+def sample(model: nn.Module, out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
+    """The actions of ``model``'s head outputs (``noise`` None: greedy), by its distributions."""
+    if obs_version(model) == 2:
+        return model.sample(out, x, noise)
+    return dist.sample(out, x, noise)
+
+
+def head_log_probs(model: nn.Module, out: dict, x: dict, acts: dict) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+    """Per head: the log-probability and the entropy (rows,) of stored actions, by ``model``'s distributions."""
+    if obs_version(model) == 2:
+        return model.log_prob_entropy(out, x, acts)
+    return dist.head_log_prob_entropy(out, x, acts)
 
 
 # -- observation -> tensors ----------------------------------------------------------------------

@@ -169,7 +169,7 @@ class Trainer:
     # -- agents -------------------------------------------------------------------------------
     def agent_log_probs(self, out: dict, x: dict, acts: dict):
         """Log-probabilities (rows, A) per agent (joint: A = 1, the sum over heads), entropy (rows,), per head."""
-        heads = toolkit.head_log_probs(self.model, out, x, acts)
+        heads = scalefree.head_log_probs(self.model, out, x, acts)
         logp = torch.stack([sum(heads[h][0] for h in hs) for hs in self.agents.values()], -1)
         ent = sum(e for _, e in heads.values())
         return logp, ent, {k: e for k, (_, e) in heads.items()}
@@ -189,7 +189,7 @@ class Trainer:
         self.global_step += T * self.sim.B
         t0 = time.perf_counter()
         with torch.no_grad(), toolkit.autocast(self.device, c.bf16):
-            x = toolkit.features(self.model, {k: v[T] for k, v in roll["raw"].items()})
+            x = scalefree.features(self.model, {k: v[T] for k, v in roll["raw"].items()})
             out, _ = self.net(x, self.env.state, roll["starts"][T][None])
             next_value = self.values(out)
         self.timing["forward"] += time.perf_counter() - t0
@@ -217,7 +217,7 @@ class Trainer:
         # the features of the T steps (not the last observation), once per update rather than once per
         # minibatch and epoch: featurize is row by row, so a minibatch's rows are the same bits either way
         with torch.no_grad():
-            feats = toolkit.features(self.model, {k: v[:-1] for k, v in roll["raw"].items()})
+            feats = scalefree.features(self.model, {k: v[:-1] for k, v in roll["raw"].items()})
         for _ in range(c.epochs):
             perm = torch.randperm(B, generator=perm_gen).to(self.device)
             for i in range(c.minibatches):

@@ -41,12 +41,11 @@ import torch
 
 import policies
 from policies.neural import scalefree
-from policies.neural.dist import env_action, gumbel, head_log_prob_entropy, noise_shapes, sample
-from policies.neural.model import count_parameters, featurize, model_config, obs_to_torch
+from policies.neural.dist import env_action, gumbel
+from policies.neural.model import count_parameters, model_config
 from policies.neural.policy import NetworkPolicy, load_checkpoint
 from wfbench.budget import training_hardware
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.context import observe_v2
 from wfbench.core.kpis import KPI_NAMES, SCORE
 from wfbench.core.reward import step_reward
 from wfbench.core.seeds import SEED_SETS, resolve_seeds
@@ -186,27 +185,6 @@ def network_config(preset: str, decisions: tuple[str, ...], overrides: dict):
     return model_config(preset, decisions, **overrides)
 
 
-def raw_tensors(model, obs: dict, device) -> dict[str, torch.Tensor]:
-    """The observation a network reads as tensors: version 1, or 2 (:func:`observe_v2`) for the scale-free one."""
-    if scalefree.obs_version(model) == 2:
-        return scalefree.obs_to_torch(observe_v2(obs), device)
-    return obs_to_torch(obs, device)
-
-
-def features(model, raw: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-    """The network's inputs of raw tensors (any leading axes)."""
-    if scalefree.obs_version(model) == 2:
-        return model.featurize(raw)
-    return featurize(raw, model.config.coord_scale)
-
-
-def head_log_probs(model, out: dict, x: dict, acts: dict) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
-    """Per head: the log-probability and the entropy (rows,) of stored actions, by the network's distributions."""
-    if scalefree.obs_version(model) == 2:
-        return model.log_prob_entropy(out, x, acts)
-    return head_log_prob_entropy(out, x, acts)
-
-
 def policy_step(net, obs: dict, state, starts: torch.Tensor, model, gen: torch.Generator | None,
                 bf16: bool) -> tuple[dict, dict, dict, tuple, dict]:
     """One step of the network on a batch (no grad): observation -> tensors -> forward -> sampled heads.
@@ -217,16 +195,14 @@ def policy_step(net, obs: dict, state, starts: torch.Tensor, model, gen: torch.G
     after the step and the actions.
     """
     dev = starts.device
-    raw = raw_tensors(model, obs, dev)
-    x = features(model, raw)
+    raw = scalefree.raw_tensors(model, obs, dev)
+    x = scalefree.features(model, raw)
     with torch.no_grad(), autocast(dev, bf16):
         out, state = net(x, state, starts[None])
     (B, M), N = obs["requesting"].shape, obs["personnel"].shape[1]
-    if scalefree.obs_version(model) == 2:
-        noise = None if gen is None else {k: gumbel(s, gen, dev) for k, s in model.noise_shapes(B, M, N).items()}
-        return raw, x, out, state, model.sample(out, x, noise)
-    noise = None if gen is None else {k: gumbel(s, gen, dev) for k, s in noise_shapes(B, M, N).items()}
-    return raw, x, out, state, sample(out, x, noise)
+    shapes = scalefree.noise_shapes(model, B, M, N)
+    noise = None if gen is None else {k: gumbel(s, gen, dev) for k, s in shapes.items()}
+    return raw, x, out, state, scalefree.sample(model, out, x, noise)
 
 
 def episode_kpis(sim: Simulator, which: np.ndarray | None = None) -> dict[str, float]:
@@ -429,7 +405,7 @@ class Collector:
             self.timing["forward"] += t1 - t0
             self.timing["simulator"] += time.perf_counter() - t1
         t0 = time.perf_counter()
-        for k, v in raw_tensors(model, self.obs, dev).items():
+        for k, v in scalefree.raw_tensors(model, self.obs, dev).items():
             roll["raw"][k][T] = v
         roll["starts"][T] = self.starts
         self.timing["obs_to_tensor"] += time.perf_counter() - t0
