@@ -13,9 +13,9 @@ import time
 
 import numpy as np
 from numba import njit
+from wfbench.policies import get
+from wfbench.policies.kernels import act_env
 
-from policies import get
-from policies.kernels import act_env
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.dynamics import reset_env, step_env
 from wfbench.core.observe import observe_env

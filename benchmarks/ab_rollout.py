@@ -3,7 +3,7 @@
     python benchmarks/ab_rollout.py /path/to/checkout_a
     python benchmarks/ab_rollout.py /path/to/checkout_b    # alternate a, b, a, b ...
 
-Times ``policies.rollout.rollout_parallel`` on an already built batch (the traces are
+Times ``wfbench.policies.rollout.rollout_parallel`` on an already built batch (the traces are
 not in the clock), heuristic policy, ``paper-64``, best of 3 (of 20 at B = 1). The
 checkout given is put first on ``sys.path``, so one virtual environment serves both.
 Run the two checkouts alternately: this machine's speed drifts from minute to minute
@@ -19,12 +19,12 @@ sys.path.insert(0, sys.argv[1])
 
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
+from wfbench.policies import get  # noqa: E402
+from wfbench.policies.rollout import rollout_parallel  # noqa: E402
 
-from policies import get  # noqa: E402
-from policies.rollout import rollout_parallel  # noqa: E402
 from wfbench.core.config import ScenarioConfig  # noqa: E402
 from wfbench.core.simulator import Simulator  # noqa: E402
-from wfbench.runner import run_batch  # noqa: E402
+from wfbench.harness.runner import run_batch  # noqa: E402
 
 config = ScenarioConfig.resolve("paper-64")
 run_batch("heuristic", config, [0], threads=1)  # loads (or compiles) the kernels

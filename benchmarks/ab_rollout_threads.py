@@ -4,7 +4,7 @@
 
 Each measurement is a fresh process that imports wfbench from one checkout (put first
 on ``PYTHONPATH``; one virtual environment serves both) and times
-``policies.rollout.rollout`` of the heuristic on ``paper-64`` (traces built before the
+``wfbench.policies.rollout.rollout`` of the heuristic on ``paper-64`` (traces built before the
 clock, best of 3 whole batches) on each thread count. The processes alternate
 A, B, A, B, ... so that the drift of a shared machine hits both. Each checkout gets its
 own numba cache (``NUMBA_CACHE_DIR`` and ``WFBENCH_CACHE_DIR`` under ``--cache``); the
@@ -22,8 +22,8 @@ from pathlib import Path
 
 CHILD = r"""
 import json, sys, time
-from policies import get
-from policies.rollout import rollout
+from wfbench.policies import get
+from wfbench.policies.rollout import rollout
 from wfbench.core.simulator import Simulator
 B, counts = int(sys.argv[1]), [int(t) for t in sys.argv[2].split(",")]
 seeds = list(range(B))

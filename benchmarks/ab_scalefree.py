@@ -29,12 +29,12 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
+from wfbench.policies.neural import scalefree
 
-import policies
-from policies.neural import scalefree
-from wfbench.budget import machine, machine_line
+from wfbench import policies
 from wfbench.core.context import observe_v2
 from wfbench.core.simulator import Simulator
+from wfbench.harness.budget import machine, machine_line
 
 
 def batch(scenario: str, B: int, steps: int) -> dict:

@@ -20,8 +20,8 @@ import time
 
 import numpy as np
 
-import policies
 import wfbench
+from wfbench import policies
 from wfbench.core.bound import score_upper_bound
 from wfbench.core.config import ScenarioConfig
 

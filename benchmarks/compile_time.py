@@ -8,7 +8,7 @@ compiled from scratch:
 
 - ``simulator``: ``Simulator("paper-64", [0])``: reset, ``step_observe``, ``step``,
   ``observe`` (what an environment compiles);
-- ``rollout``: ``policies.rollout.rollout`` of the heuristic on ``paper-64``, one seed,
+- ``rollout``: ``wfbench.policies.rollout.rollout`` of the heuristic on ``paper-64``, one seed,
   one thread (the compiled whole-episode rollout with the built-in kernels; what
   ``wfbench evaluate`` compiles).
 
@@ -65,8 +65,8 @@ if target in ("simulator", "both"):
     sim.step(a)
     sim.observe()
 if target in ("rollout", "both"):
-    from policies import get
-    from policies.rollout import rollout
+    from wfbench.policies import get
+    from wfbench.policies.rollout import rollout
     from wfbench.core.simulator import Simulator
     sim = Simulator("paper-64", [0], keep_series=False)
     rollout(sim, *get("heuristic").compiled_plan([0], sim.M, sim.N), threads=1)

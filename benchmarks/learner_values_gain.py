@@ -22,10 +22,10 @@ import time
 
 import numpy as np
 import torch
+from wfbench.policies.neural.dist import gumbel, noise_shapes, sample
+from wfbench.policies.neural.model import featurize, obs_to_torch
+from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED
 
-from policies.neural.dist import gumbel, noise_shapes, sample
-from policies.neural.model import featurize, obs_to_torch
-from policies.registry import CHECKPOINT_DIR, LEARNED
 from wfbench.core.config import ScenarioConfig
 from wfbench.train.hindsight import HindsightConfig, Trainer
 

@@ -20,9 +20,9 @@ import time
 import numpy as np
 import torch
 
-import policies
-from wfbench.budget import machine, machine_line
+from wfbench import policies
 from wfbench.core.simulator import Simulator
+from wfbench.harness.budget import machine, machine_line
 
 SCENARIOS = ["small", "paper-64", "large", "city"]
 

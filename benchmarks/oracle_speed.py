@@ -7,7 +7,7 @@ worker process (what ``wfbench evaluate``'s process backend does), and prints:
   split (shadow upkeep and check, base kernels, workforce and positioning look-ahead,
   dispatch look-ahead) with the number of roll-forwards;
 - the NSW of every policy with its bootstrap interval, and the paired difference of
-  each policy against each ``--against`` policy (``wfbench.stats``).
+  each policy against each ``--against`` policy (``wfbench.analysis.stats``).
 
 Until the runner attaches trace-reading policies itself, the oracles run through the
 local loop ``attach(config); reset(seeds); act/step``, which is what the runner does
@@ -29,10 +29,11 @@ import time
 
 import numpy as np
 
+from wfbench import policies
+
 
 def run_chunk(args):
     name, scenario, seeds = args
-    import policies
     from wfbench import ScenarioConfig, Simulator
 
     config = ScenarioConfig.resolve(scenario)
@@ -66,7 +67,7 @@ def main() -> None:
     ap.add_argument("--policies", default="oracle,oracle-dispatch,solver,heuristic")
     ap.add_argument("--against", default="solver,heuristic")
     a = ap.parse_args()
-    from wfbench.stats import bootstrap_ci, paired_difference
+    from wfbench.analysis.stats import bootstrap_ci, paired_difference
 
     seeds = list(range(a.first_seed, a.first_seed + a.seeds))
     chunks = [c.tolist() for c in np.array_split(np.array(seeds), a.workers) if len(c)]

@@ -18,8 +18,7 @@ import time
 from pathlib import Path
 
 import pandas as pd
-
-from solvers import assignment, facility_location, orlib
+from wfbench.solvers import assignment, facility_location, orlib
 
 HERE = Path(__file__).resolve().parent
 

@@ -20,12 +20,13 @@ from pathlib import Path
 
 import matplotlib
 
+from wfbench import policies
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-import policies  # noqa: E402
 from wfbench.train.toolkit import score_worlds  # noqa: E402
 from wfbench.train.worlds import world_set  # noqa: E402
 

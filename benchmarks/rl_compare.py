@@ -14,8 +14,8 @@ import itertools
 
 import pandas as pd
 
-from wfbench.compare import compare, format_comparison
-from wfbench.stats import paired_difference
+from wfbench.analysis.stats import paired_difference
+from wfbench.harness.compare import compare, format_comparison
 
 
 def main() -> None:

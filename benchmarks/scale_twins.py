@@ -23,15 +23,15 @@ import time
 from pathlib import Path
 
 import pandas as pd
+from wfbench.policies.registry import parse_member, seed_members
 
-from policies.registry import parse_member, seed_members
-from wfbench.budget import machine, machine_line
+from wfbench.analysis.tables import markdown_table
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.context import scaled_world
 from wfbench.core.seeds import describe, resolve_seeds
-from wfbench.evaluation import evaluate
-from wfbench.suites import get_suite
-from wfbench.tables import markdown_table
+from wfbench.harness.budget import machine, machine_line
+from wfbench.harness.evaluation import evaluate
+from wfbench.scenarios import get_suite
 
 WORLDS = ("small-v1", "paper-64-v1", "table2-g32-f25-s10-v1", "slow-64-v1", "churn-64-v1",
           "table2-g32-f100-s25-v1")

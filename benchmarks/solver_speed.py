@@ -23,13 +23,13 @@ import sys
 import time
 
 import numpy as np
+from wfbench.policies import kernels as K
+from wfbench.policies.builtin import BuiltinDecision
+from wfbench.solvers import facility_location
 
-import policies
-from policies import kernels as K
-from policies.builtin import BuiltinDecision
-from solvers import facility_location
-from wfbench.bench import machine
+from wfbench import policies
 from wfbench.core.observe import make_obs
+from wfbench.harness.bench import machine
 
 
 def random_obs(M: int, N: int, n_active: int, n_req: int, n_people: int, seed: int = 0, grid: int = 64):
@@ -79,7 +79,7 @@ def dispatch_per_step(sizes, repeats):
 
 def lp_first_vs_resolve():
     """cvxpy compiles a problem once per shape; later solves only swap parameter values."""
-    from solvers import assignment
+    from wfbench.solvers import assignment
 
     rows = []
     rng = np.random.default_rng(3)
@@ -135,7 +135,7 @@ def positioning_per_step(repeats):
 
 def episodes(n_seeds: int, slow_seeds: int, slow_steps: int):
     from wfbench.core.simulator import Simulator
-    from wfbench.runner import run_batch
+    from wfbench.harness.runner import run_batch
 
     rows = []
     for name in ("heuristic", "solver-dispatch", "solver-workforce", "solver-positioning", "solver"):

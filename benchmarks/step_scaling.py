@@ -5,7 +5,7 @@ For each scenario, on one thread (``threads=1``, so the numbers are per core):
 - ``sim``: the simulator alone, ``Simulator.step`` with the no-op action (nobody dispatched,
   hired or let go), over whole episodes of B environments: the floor every policy pays;
 - ``heuristic`` and ``solver``: the compiled rollout of the built-in composite
-  (``wfbench.runner.run_batch``), simulator and decisions together, whole episodes.
+  (``wfbench.harness.runner.run_batch``), simulator and decisions together, whole episodes.
 
 It prints, per scenario, the slots and the people and facilities at the start, then the
 env-steps per second and the microseconds per env-step of each row (best of
@@ -23,10 +23,10 @@ import time
 
 import numpy as np
 
-from wfbench.budget import machine, machine_line
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
-from wfbench.runner import run_batch
+from wfbench.harness.budget import machine, machine_line
+from wfbench.harness.runner import run_batch
 
 SCENARIOS = ["small", "paper-64", "large", "city"]
 

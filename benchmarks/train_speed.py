@@ -23,8 +23,8 @@ import tempfile
 import time
 
 import torch
+from wfbench.policies.neural.model import count_parameters
 
-from policies.neural.model import count_parameters
 from wfbench.train.ppo import TrainConfig, Trainer
 
 

@@ -22,9 +22,9 @@ import time
 import numpy as np
 import torch
 from sb3_contrib import MaskablePPO
+from wfbench.policies import Composite
 
 import wfbench
-from policies import Composite
 from wfbench.core.seeds import TRAIN_START
 from wfbench.envs.sb3 import EntitySetExtractor, SB3Policy, WorkforceVecEnv
 

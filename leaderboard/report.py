@@ -18,15 +18,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from wfbench.leaderboard.store import KPI_COLUMNS, Store, scrub_paths
+from wfbench.leaderboard.tracks import Track
+from wfbench.policies import get
 
-from leaderboard.store import KPI_COLUMNS, Store, scrub_paths
-from leaderboard.tracks import Track
-from policies import get
-from wfbench.budget import budget_line
+from wfbench.analysis.stats import bootstrap_ci, paired_difference
+from wfbench.analysis.tables import markdown_table, text_table
 from wfbench.core.kpis import KPI_LABELS
-from wfbench.evaluation import format_kpi, summarize
-from wfbench.stats import bootstrap_ci, paired_difference
-from wfbench.tables import markdown_table, text_table
+from wfbench.harness.budget import budget_line
+from wfbench.harness.evaluation import format_kpi, summarize
 
 FORMATS = ("table", "md", "csv", "html")
 
@@ -114,7 +114,7 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic", max_decisio
     difference to ``baseline`` is taken over the seeds both have; incomplete and failed
     submissions are listed after the ranked ones, with their status and reason. No
     absolute path of the submitter's machine reaches the table (policy specs and reasons
-    show a file's name only, :func:`~leaderboard.store.scrub_paths`); an entry stored
+    show a file's name only, :func:`~wfbench.leaderboard.store.scrub_paths`); an entry stored
     without a fingerprint (an older wfbench) has ``fingerprint`` ``"legacy"``.
     """
     rows, refused = store.results(track)
@@ -259,7 +259,7 @@ def _figures(r: Ranking) -> list[tuple[str, str]]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from wfbench.plots import draw_kpi_distribution, utilization_band
+    from wfbench.analysis.plots import draw_kpi_distribution, utilization_band
 
     if r.table.empty:
         return []
@@ -334,7 +334,7 @@ def nsw_figure(r: Ranking):
 
 def _paired_difference_figure(r: Ranking, shown: pd.DataFrame) -> tuple[str, str] | None:
     """The paired NSW differences to the baseline with their intervals, as in the table (none resampled here)."""
-    from wfbench.plots import draw_paired_differences, new_figure
+    from wfbench.analysis.plots import draw_paired_differences, new_figure
 
     if "diff" not in shown:
         return None

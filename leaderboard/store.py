@@ -14,7 +14,7 @@ Safety:
   SQLite, or a store from a newer wfbench is refused with a one-line message before
   anything is written.
 - Every result row stores the track hash, the seed, the policy spec and its fingerprint
-  (a digest of what the policy runs, ``leaderboard.submit.policy_fingerprint``), the
+  (a digest of what the policy runs, ``wfbench.leaderboard.submit.policy_fingerprint``), the
   submitter, the wfbench version and the time, plus a digest over all of them and the KPIs. At
   read time a row is refused, with the reason, when its hash is not the track's
   current hash (another version of the track), its seed is not a test seed of the
@@ -25,7 +25,7 @@ Safety:
   (``audit_submissions``, ``audit_results``) with the action, a note and the time.
 - Every result row also stores what it cost (schema 3): the milliseconds per decision
   (p50, p99), the CPU seconds of the episode and a line naming the machine it ran on
-  (:mod:`wfbench.budget`), covered by its digest; every submission stores what its
+  (:mod:`wfbench.harness.budget`), covered by its digest; every submission stores what its
   policy states about its own cost (training env-steps, wall time and hardware, tuning
   trials, solver time limits) as JSON.
 - An older store is upgraded in place when opened, in one transaction: schema 1 (before
@@ -52,17 +52,17 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
+from wfbench.leaderboard.tracks import SuiteTrack, Track
 
-from leaderboard.tracks import SuiteTrack, Track
-from wfbench.budget import BUDGET_COLUMNS
 from wfbench.core.kpis import KPI_NAMES
+from wfbench.harness.budget import BUDGET_COLUMNS
 
 APPLICATION_ID = 0x57464231  # "WFB1"
 # 1: no fingerprints, no audit tables; 2: no budgets; 3: one row per seed only (all upgraded in place when opened)
 SCHEMA_VERSION = 4
 KPI_COLUMNS = KPI_NAMES  # the KPI table (wfbench.core.kpis); a new KPI there is a new column here
 ROW_COLUMNS = (*KPI_COLUMNS, "episode_length", "invalid_actions")
-# what a row cost (wfbench.budget.BUDGET_COLUMNS, and the machine's line); NULL in rows stored before schema 3
+# what a row cost (wfbench.harness.budget.BUDGET_COLUMNS, and the machine's line); NULL in rows stored before schema 3
 BUDGET_ROW_COLUMNS = (*BUDGET_COLUMNS, "machine")
 
 # each table's columns as schema 2 had them, then with what schema 3 added
@@ -245,7 +245,8 @@ class Submission:
     builtin: bool
     fingerprint: str = ""  # "" for a legacy entry, stored before fingerprints (schema 1)
     fingerprint_detail: str = ""  # JSON: what the fingerprint covers
-    budget: str = ""  # JSON: what the policy states about its cost (wfbench.budget.policy_budget); "" before schema 3
+    # JSON: what the policy states about its cost (wfbench.harness.budget.policy_budget); "" before schema 3
+    budget: str = ""
 
     @property
     def legacy(self) -> bool:

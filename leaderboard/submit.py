@@ -8,7 +8,7 @@ is the only writer of the store. The child sends each finished chunk of seeds as
 as it is done and the parent commits it in one transaction, so an interruption loses
 at most the chunks in flight. A policy that cannot be loaded is a user error (nothing
 is stored); one that raises, returns malformed actions, overruns its act timeout
-(``act_timeout_s`` per ``reset``/``act`` call, :mod:`wfbench.guard`), hangs past the
+(``act_timeout_s`` per ``reset``/``act`` call, :mod:`wfbench.harness.guard`), hangs past the
 wall-time limit, exhausts its memory or kills its process marks the submission
 ``failed`` with a one-line reason naming its file and line, and every stored row and
 every other submission stay as they were.
@@ -19,7 +19,7 @@ with the seeds still missing; another fingerprint under a taken name is refused 
 ``replace`` is set, which moves the old entry to the store's audit tables and evaluates
 every seed anew.
 
-Every row carries what it cost (:mod:`wfbench.budget`): the milliseconds per decision
+Every row carries what it cost (:mod:`wfbench.harness.budget`): the milliseconds per decision
 (p50, p99) and CPU seconds per episode measured where its chunk ran, and a line naming
 that machine, the backend and its workers; every entry carries what its policy states
 about its own cost (a network's training env-steps, wall time and hardware, a tuned
@@ -42,20 +42,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import wfbench.policies as _policies_pkg
+import wfbench.solvers as _solvers_pkg
 from joblib.externals.loky.backend.context import get_context
+from wfbench.leaderboard.store import ROW_COLUMNS, NameTaken, Store, Submission, scrub_paths
+from wfbench.leaderboard.tracks import SuiteTrack, Track, get_track
+from wfbench.policies import registry as _registry
+from wfbench.policies import tuned as _tuned
+from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
 
-import policies as _policies_pkg
-import solvers as _solvers_pkg
-from leaderboard.store import ROW_COLUMNS, NameTaken, Store, Submission, scrub_paths
-from leaderboard.tracks import SuiteTrack, Track, get_track
-from policies import registry as _registry
-from policies import tuned as _tuned
-from policies.neural import CHECKPOINT_ALGORITHMS
 from wfbench import __version__
-from wfbench.backends import check_backend, run_chunks, shutdown_pools
-from wfbench.budget import BUDGET_COLUMNS, machine_line, policy_budget
-from wfbench.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError, check_act_timeout, load_policy
-from wfbench.runner import results_frame
+from wfbench.harness.backends import check_backend, run_chunks, shutdown_pools
+from wfbench.harness.budget import BUDGET_COLUMNS, machine_line, policy_budget
+from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError, check_act_timeout, load_policy
+from wfbench.harness.runner import results_frame
 
 DEFAULT_WALL_TIME_S = 3600.0
 DEFAULT_MEMORY_MB = 8192
@@ -101,7 +101,9 @@ def policy_code_digest() -> str:
     for pkg in (_policies_pkg, _solvers_pkg):
         root = Path(pkg.__file__).resolve().parent
         for f in sorted(root.rglob("*.py")):
-            h.update(f"{pkg.__name__}/{f.relative_to(root).as_posix()}".encode())
+            # the folder's name (policies/, solvers/): the digest names files as it did before they were installed
+            # under wfbench., so moving a name changes no fingerprint
+            h.update(f"{root.name}/{f.relative_to(root).as_posix()}".encode())
             h.update(hashlib.sha256(f.read_bytes()).digest())
     return h.hexdigest()
 
@@ -233,7 +235,7 @@ def _child(conn, policy_spec: str, configs, backend, workers, address, chunk_siz
 
     Messages to the parent: ``("note", text)``, ``("load_error", line, trace)``,
     ``("ready", fingerprint, detail, budget)`` (the first two ``None`` unless the policy is an
-    entry point; ``budget``, :func:`wfbench.budget.policy_budget`),
+    entry point; ``budget``, :func:`wfbench.harness.budget.policy_budget`),
     ``("rows", rows)``, ``("done",)``, ``("error", line, trace)``; from the parent, after
     ready: ``("run", units)`` (the (scenario, seed) pairs to evaluate, scenario a key of
     ``configs``: ``""`` on a one-scenario track) or ``("stop",)``. The child leads its own
@@ -319,16 +321,17 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, replace: bool = False) -> Outcome:
     """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows.
 
-    On a suite track (:class:`~leaderboard.tracks.SuiteTrack`) the policy runs on every
+    On a suite track (:class:`~wfbench.leaderboard.tracks.SuiteTrack`) the policy runs on every
     scenario of the suite, one row per (scenario, seed).
 
     Args:
-        track: a track name, :class:`~leaderboard.tracks.Track` or :class:`~leaderboard.tracks.SuiteTrack`.
+        track: a track name, :class:`~wfbench.leaderboard.tracks.Track` or
+            :class:`~wfbench.leaderboard.tracks.SuiteTrack`.
         policy: a registry name or a ``module:attr`` entry point.
         name: the entry's name on the track; submitting it again resumes.
         submitter: who submits (default: the user name).
-        db: a store path or :class:`~leaderboard.store.Store` (default: the user's store).
-        backend: where the child runs the episodes (:mod:`wfbench.backends`).
+        db: a store path or :class:`~wfbench.leaderboard.store.Store` (default: the user's store).
+        backend: where the child runs the episodes (:mod:`wfbench.harness.backends`).
         workers: processes or Ray tasks of the child.
         address: Ray cluster address.
         wall_time_s: the whole evaluation's limit in seconds.

@@ -1,20 +1,20 @@
 """The ranking of a suite track (``suite-v1``): the aggregate over scenarios, per split.
 
 Each stored row is one (scenario, seed) episode. Its NSW is normalized per scenario
-(:func:`wfbench.suites.normalize`: 0 the random policy, 1 the proven bound), and an
-entry's scores are aggregated per split by :func:`wfbench.aggregate.aggregate_suite`
+(:func:`wfbench.scenarios.normalize`: 0 the random policy, 1 the proven bound), and an
+entry's scores are aggregated per split by :func:`wfbench.analysis.aggregate.aggregate_suite`
 (rliable: IQM, mean and optimality gap with 95% stratified bootstrap intervals over the
 seeds within each scenario). Entries are ranked by the IQM over the held-out scenarios,
 which nobody trained or tuned on; the training scenarios' aggregate is shown beside it.
 Each entry's interval is computed with the same fixed seed and alone, so it does not
 change when other entries are added. Costs and the budget filter are those of
-:mod:`leaderboard.report`.
+:mod:`wfbench.leaderboard.report`.
 
 A learned method trained with several training seeds is entered as one entry per seed,
-each running the policy ``METHOD#seedK`` (:data:`policies.registry.SEED_RUNS`). The seeds
+each running the policy ``METHOD#seedK`` (:data:`wfbench.policies.registry.SEED_RUNS`). The seeds
 are not ranked one by one (one lucky run is not a result): the board adds the row
 ``METHOD (N seeds)``, whose runs pool every seed's (a run is a (training seed, evaluation
-seed) pair, :func:`wfbench.aggregate.pool_seeds`), and ranks it by the held-out IQM with
+seed) pair, :func:`wfbench.analysis.aggregate.pool_seeds`), and ranks it by the held-out IQM with
 its interval like any entry; each seed's own scores are in a table of their own
 (:func:`seed_cells`). An entry of the shipped pick (``METHOD``, a copy of one seed's
 checkpoint) is shown but not ranked beside its method's row, and named as the pick.
@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-
-from leaderboard.report import (
+from wfbench.leaderboard.report import (
     BUDGET_HEADER,
     FORMATS,
     REFERENCE_TITLE,
@@ -38,12 +37,13 @@ from leaderboard.report import (
     png_data,
     reads_future,
 )
-from leaderboard.store import Store
-from leaderboard.tracks import SuiteTrack
-from policies.registry import parse_member, shipped_member
-from wfbench.aggregate import METRICS, aggregate_suite, over_seeds, pool_seeds, seed_scores
-from wfbench.suites import normalize
-from wfbench.tables import markdown_table, text_table
+from wfbench.leaderboard.store import Store
+from wfbench.leaderboard.tracks import SuiteTrack
+from wfbench.policies.registry import parse_member, shipped_member
+
+from wfbench.analysis.aggregate import METRICS, aggregate_suite, over_seeds, pool_seeds, seed_scores
+from wfbench.analysis.tables import markdown_table, text_table
+from wfbench.scenarios import normalize
 
 RANK_SPLIT = "heldout"  # the split the ranking reads; the training split is shown beside it
 SPLIT_LABELS = {"heldout": "Held-out", "train": "Training"}

@@ -8,11 +8,11 @@ hashed; every stored result carries the hash, and results whose hash differs fro
 current definition are refused when read.
 
 A :class:`SuiteTrack` (``suite-v1``) evaluates a policy on every scenario of a suite
-(:mod:`wfbench.suites`) on its test seeds, one stored row per (scenario, seed); its
+(:mod:`wfbench.scenarios`) on its test seeds, one stored row per (scenario, seed); its
 hash is the suite's, and it is ranked by the aggregate of the normalized score over the
-held-out scenarios (:mod:`wfbench.aggregate`); a learned method entered once per training
+held-out scenarios (:mod:`wfbench.analysis.aggregate`); a learned method entered once per training
 seed (``METHOD#seedK``) is ranked by the aggregate over its seeds
-(:mod:`leaderboard.suite_report`). Both kinds name what a submission runs
+(:mod:`wfbench.leaderboard.suite_report`). Both kinds name what a submission runs
 as :meth:`Track.units`, (scenario, seed) pairs, with scenario ``""`` for a one-scenario
 track.
 """
@@ -26,7 +26,7 @@ from typing import Any
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.seeds import PUBLIC, TEST
-from wfbench.suites import Suite, get_suite
+from wfbench.scenarios import Suite, get_suite
 
 TRACK_SCHEMA = 1
 
@@ -69,8 +69,8 @@ class SuiteTrack:
 
     Ranked by the IQM of the normalized score over the held-out scenarios (shown for the
     training scenarios too), with its 95% stratified bootstrap interval
-    (:func:`wfbench.aggregate.aggregate_suite`); a learned method's training seeds, each an
-    entry, are ranked together by the pool of their runs (:func:`wfbench.aggregate.pool_seeds`).
+    (:func:`wfbench.analysis.aggregate.aggregate_suite`); a learned method's training seeds, each an
+    entry, are ranked together by the pool of their runs (:func:`wfbench.analysis.aggregate.pool_seeds`).
     """
 
     name: str
@@ -87,7 +87,7 @@ class SuiteTrack:
 
     @property
     def hash(self) -> str:
-        """The suite's hash (:attr:`wfbench.suites.Suite.hash`): its scenarios, splits, versions and seeds."""
+        """The suite's hash (:attr:`wfbench.scenarios.Suite.hash`): its scenarios, splits, versions and seeds."""
         return self.suite.hash
 
     def configs(self) -> dict[str, ScenarioConfig]:
@@ -98,7 +98,7 @@ class SuiteTrack:
 
 
 def suite_track(suite: str | Suite, description: str | None = None) -> SuiteTrack:
-    """The track of a suite (a name such as ``"suite-v1"`` or a :class:`~wfbench.suites.Suite`), named after it."""
+    """The track of a suite (a name such as ``"suite-v1"`` or a :class:`~wfbench.scenarios.Suite`), named after it."""
     s = get_suite(suite)
     return SuiteTrack(name=s.name, suite=s, description=description or (
         f"every scenario of suite {s.name} ({len(s.ids('train'))} training, {len(s.ids('heldout'))} held out)"))

@@ -9,10 +9,10 @@ episodes compiled); ``tunable`` declares each kernel's tunable parameters and ra
 draws the layers; ``docs/policies.md`` is the protocol for your own policy.
 """
 
-from policies.builtin import BuiltinDecision
-from policies.composite import Composite
-from policies.decisions import DECISIONS
-from policies.protocol import Policy
-from policies.registry import get, names
+from wfbench.policies.builtin import BuiltinDecision
+from wfbench.policies.composite import Composite
+from wfbench.policies.decisions import DECISIONS
+from wfbench.policies.protocol import Policy
+from wfbench.policies.registry import get, names
 
 __all__ = ["BuiltinDecision", "Composite", "DECISIONS", "Policy", "get", "names"]

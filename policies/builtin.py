@@ -1,7 +1,7 @@
-"""Built-in decisions: one decision made by a compiled kernel of :mod:`policies.kernels`.
+"""Built-in decisions: one decision made by a compiled kernel of :mod:`wfbench.policies.kernels`.
 
 A :class:`BuiltinDecision` is a policy for one agent; a composite made only of them can
-run a whole episode in compiled code (:mod:`policies.rollout`) with results identical to
+run a whole episode in compiled code (:mod:`wfbench.policies.rollout`) with results identical to
 stepping it through ``act``.
 """
 
@@ -10,16 +10,16 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from wfbench.policies import kernels as K
+from wfbench.policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
+from wfbench.policies.tunable import Param, kernel_params
 
-from policies import kernels as K
-from policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
-from policies.tunable import Param, kernel_params
 from wfbench.core.actions import AGENTS
 from wfbench.core.observe import Obs
 
 
 class BuiltinDecision:
-    """One decision made by a compiled kernel (see :mod:`policies.kernels` for the codes)."""
+    """One decision made by a compiled kernel (see :mod:`wfbench.policies.kernels` for the codes)."""
 
     def __init__(self, decision: str, code: int, name: str, seed: int = 0, **hp: float):
         if decision not in DECISION_INDEX:
@@ -37,7 +37,7 @@ class BuiltinDecision:
 
     @property
     def tunable(self) -> dict[str, Param]:
-        """The hyper-parameters a tuner may change, with their ranges (:mod:`policies.tunable`)."""
+        """The hyper-parameters a tuner may change, with their ranges (:mod:`wfbench.policies.tunable`)."""
         return kernel_params(self.decision, self.code)
 
     def params(self) -> dict[str, float]:

@@ -1,9 +1,9 @@
 """The composite: one policy per decision, which is how the paper's Table 3 rows are built.
 
 ``Composite(dispatch=..., workforce=..., positioning=...)`` takes for each decision a
-policy object or the name of a built-in decision policy (:data:`policies.decisions.DECISIONS`).
+policy object or the name of a built-in decision policy (:data:`wfbench.policies.decisions.DECISIONS`).
 A composite made only of built-in kernels can run whole episodes compiled
-(:meth:`Composite.compiled_plan`, :func:`policies.rollout.rollout`).
+(:meth:`Composite.compiled_plan`, :func:`wfbench.policies.rollout.rollout`).
 """
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from wfbench.policies import kernels as K
+from wfbench.policies.builtin import BuiltinDecision
+from wfbench.policies.decisions import DECISIONS
+from wfbench.policies.protocol import decision_key, seeds_array
+from wfbench.policies.tunable import Param
 
-from policies import kernels as K
-from policies.builtin import BuiltinDecision
-from policies.decisions import DECISIONS
-from policies.protocol import decision_key, seeds_array
-from policies.tunable import Param
 from wfbench.core.actions import AGENTS
 
 
@@ -36,7 +36,7 @@ class Composite:
     """One policy per decision: ``Composite(dispatch=..., workforce=..., positioning=...)``.
 
     Each argument is a policy object or the name of a built-in decision policy
-    (``policies.registry.DECISIONS``).
+    (``wfbench.policies.registry.DECISIONS``).
     """
 
     def __init__(self, dispatch: Any, workforce: Any, positioning: Any, name: str | None = None):
@@ -48,7 +48,7 @@ class Composite:
         self.decisions = AGENTS
         self.name = name or "+".join(getattr(p, "name", type(p).__name__) for p in self.parts.values())
         self._unique = list({id(p): p for p in self.parts.values()}.values())
-        # hindsight oracles (policies.hindsight) share one planner and model the built-in parts exactly
+        # hindsight oracles (wfbench.policies.oracle) share one planner and model the built-in parts exactly
         joiners = [p for p in self._unique if getattr(p, "reads_trace", False) and hasattr(p, "join")]
         if joiners:
             joiners[0].join(self.parts)
@@ -90,7 +90,7 @@ class Composite:
     def tunable(self) -> dict[str, Param]:
         """Its parts' tunable hyper-parameters as ``decision.field`` -> range (``workforce.high``).
 
-        Only built-in kernel parts declare any (:mod:`policies.tunable`); ``wfbench tune``
+        Only built-in kernel parts declare any (:mod:`wfbench.policies.tunable`); ``wfbench tune``
         searches these.
         """
         out: dict[str, Param] = {}
@@ -131,7 +131,7 @@ class Composite:
         return all(isinstance(p, BuiltinDecision) for p in self.parts.values())
 
     def compiled_plan(self, seeds: Sequence[int], M: int, N: int) -> tuple[np.ndarray, np.ndarray, K.PolicyState]:
-        """Codes, hyper-parameters and fresh state for :func:`policies.rollout.rollout`."""
+        """Codes, hyper-parameters and fresh state for :func:`wfbench.policies.rollout.rollout`."""
         if not self.compiled:
             raise ValueError(f"{self!r} has parts that are not built-in kernels")
         seeds = seeds_array(seeds)

@@ -10,10 +10,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from policies import kernels as K
-from policies.builtin import BuiltinDecision
-from policies.hindsight import OracleDispatch, OraclePositioning, OracleWorkforce
-from policies.solver import AssignmentDispatch
+from wfbench.policies import kernels as K
+from wfbench.policies.builtin import BuiltinDecision
+from wfbench.policies.oracle import OracleDispatch, OraclePositioning, OracleWorkforce
+from wfbench.policies.solver import AssignmentDispatch
 
 
 def _d(decision: str, code: int, name: str, **hp: float) -> Callable[[], BuiltinDecision]:

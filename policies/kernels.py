@@ -2,7 +2,7 @@
 
 Every kernel reads only the observation (:class:`wfbench.core.observe.Obs`) and its own
 policy state, so the same kernel serves ``Policy.act(obs)`` and the compiled whole-
-episode rollout (:mod:`policies.rollout`), which therefore give identical results.
+episode rollout (:mod:`wfbench.policies.rollout`), which therefore give identical results.
 Randomized kernels draw from :func:`wfbench.core.rng.uniform` with the policy's own key per
 environment, indexed by (step, purpose, item): a seed gives the same decisions alone
 or inside any batch.
@@ -10,11 +10,11 @@ or inside any batch.
 Codes (the compiled rollout dispatches on them):
 
 - dispatch: 0 no-op, 1 nearest, 2 inverse-distance sampling, 3 random, 4 optimal
-  assignment (:func:`solvers.lap.lap_min`);
+  assignment (:func:`wfbench.solvers.lap.lap_min`);
 - workforce: 0 no-op, 1 threshold, 2 epsilon-greedy threshold, 3 random, 4 square-root
-  staffing (:mod:`solvers.staffing`);
+  staffing (:mod:`wfbench.solvers.staffing`);
 - positioning: 0 none (zeros), 1 spatial averaging, 2 spatial averaging with Gaussian
-  noise, 3 random, 4 p-median facility location (:mod:`solvers.facility_location`).
+  noise, 3 random, 4 p-median facility location (:mod:`wfbench.solvers.facility_location`).
 
 Each decision reads its own row of the hyper-parameter matrix ``hp`` (3 x
 ``len(HP_FIELDS)``: dispatch, workforce, positioning), so two parts of a composite never
@@ -27,10 +27,10 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from wfbench.solvers.facility_location import greedy_open, local_search
+from wfbench.solvers.lap import lap_min
+from wfbench.solvers.staffing import sqrt_staffing_servers
 
-from solvers.facility_location import greedy_open, local_search
-from solvers.lap import lap_min
-from solvers.staffing import sqrt_staffing_servers
 from wfbench.core.observe import (
     FAC_DOWNTIME,
     FAC_REQUESTING,
@@ -603,7 +603,7 @@ def positioning_facility(b, O, S, hp, out, t):
     heuristic's demand (smoothed request rate and rolling downtime); candidate sites are
     the active facilities. Every ``refresh`` steps: solve the p-median with
     ``p = retained headcount + 1`` (greedy + swap local search,
-    :mod:`solvers.facility_location`), match the medians to the current homes by an
+    :mod:`wfbench.solvers.facility_location`), match the medians to the current homes by an
     optimal assignment on distance, and put the hire map's weight on the median left
     unmatched (the site the workforce lacks). The let-go map gives the facility nearest
     each home a weight that falls with the increase in p-median cost that person's

@@ -3,7 +3,7 @@
 A policy has ``decisions`` (the agents it acts for), ``reset(seeds)`` (one seed per
 environment of the batch it will see) and ``act(obs) -> {agent: batched action}`` for
 those agents. The evaluator never asks what kind of policy it holds. ``docs/policies.md``
-lists every observation key and action; :mod:`policies.composite` combines one policy
+lists every observation key and action; :mod:`wfbench.policies.composite` combines one policy
 per decision.
 """
 
@@ -13,8 +13,8 @@ from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+from wfbench.policies import kernels as K
 
-from policies import kernels as K
 from wfbench.core.observe import Obs
 from wfbench.core.rng import key_from_seed
 
@@ -53,7 +53,7 @@ def seeds_array(seeds: int | Sequence[int]) -> np.ndarray:
 
 
 def hp_vector(hp: dict[str, float], name: str) -> np.ndarray:
-    """The hyper-parameter vector (``policies.kernels.HP_FIELDS`` order) with ``hp`` over the defaults."""
+    """The hyper-parameter vector (``wfbench.policies.kernels.HP_FIELDS`` order) with ``hp`` over the defaults."""
     unknown = set(hp) - set(K.HP_FIELDS)
     if unknown:
         raise ValueError(f"unknown parameter(s) {sorted(unknown)} for {name}; allowed: {list(K.HP_FIELDS)}")

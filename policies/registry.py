@@ -12,10 +12,10 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from policies import tuned as _tuned
-from policies.composite import Composite
-from policies.hindsight.best import BestInHindsight
-from policies.neural import CHECKPOINT_ALGORITHMS
+from wfbench.policies import tuned as _tuned
+from wfbench.policies.composite import Composite
+from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
+from wfbench.policies.oracle.best import BestInHindsight
 
 # name -> (dispatch, workforce, positioning, description)
 COMPOSITES: dict[str, tuple[str, str, str, str]] = {
@@ -97,7 +97,7 @@ CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
 # method -> the checkpoint files (under CHECKPOINT_DIR) of its training seeds: the same training command with only
 # the seed varied (issue #28, docs/suite.md "Learned methods over training seeds"). A method is reported by the
 # aggregate over these members; its LEARNED entry is the shipped pick, a copy of the file of one of them (the seed
-# whose mean score on the public seeds of the training scenarios is the median, wfbench.aggregate.median_seed).
+# whose mean score on the public seeds of the training scenarios is the median, wfbench.analysis.aggregate.median_seed).
 # Members are not in LEARNED, learned_names() or oracle_candidates(): the oracle plays the shipped pick only.
 SEED_RUNS: dict[str, tuple[str, ...]] = {
     "ppo-general": tuple(f"ppo-general-seed{i}.pt" for i in range(5)),
@@ -209,7 +209,7 @@ def oracle_candidates() -> list[str]:
 
 
 def best_in_hindsight(name: str = "oracle") -> Any:
-    """The ``oracle``: per seed, the best of :func:`oracle_candidates` (:mod:`policies.hindsight.best`).
+    """The ``oracle``: per seed, the best of :func:`oracle_candidates` (:mod:`wfbench.policies.oracle.best`).
 
     Raises:
         ValueError: networks are shipped but torch is missing. The oracle refuses rather
@@ -223,13 +223,13 @@ def best_in_hindsight(name: str = "oracle") -> Any:
 
 
 def load_learned(path: Any, mode: str = "sample", name: str | None = None, algo: str | None = None) -> Any:
-    """The policy of a trained checkpoint (:mod:`policies.neural.policy`, imported here so torch loads only now).
+    """The policy of a trained checkpoint (:mod:`wfbench.policies.neural.policy`, imported here: torch loads now).
 
     ``algo`` (the prefix of ``ALGO:PATH``) must be the algorithm the checkpoint records, or
     ``ppo`` (the alias that loads any); None takes the checkpoint's own.
     """
     try:
-        from policies.neural.policy import from_checkpoint
+        from wfbench.policies.neural.policy import from_checkpoint
     except ImportError as exc:
         raise ValueError(f"trained checkpoints need torch ({exc}); install the rl extra: "
                          "pip install 'wfbench[rl]'") from None
@@ -249,7 +249,7 @@ def _checkpoint_spec(spec: str) -> tuple[str, str, str] | None:
 
 
 def load_tuned(path: Any) -> Any:
-    """The policy a tuned-policy file describes (:mod:`policies.tuned`); ValueError names what is wrong."""
+    """The policy a tuned-policy file describes (:mod:`wfbench.policies.tuned`); ValueError names what is wrong."""
     spec = _tuned.read(path)
     return _tuned.build(spec, get(spec.base), path)
 
@@ -370,10 +370,10 @@ LEARNED_PARTS: dict[str, tuple[str, str, str]] = {
 def parts(name: str) -> tuple[str, str, str]:
     """How tables name the dispatch, workforce and positioning of the registered policy ``name``.
 
-    A composite's parts are the labels of its decisions (``policies.decisions.LABELS``), a
+    A composite's parts are the labels of its decisions (``wfbench.policies.decisions.LABELS``), a
     tuned file's are its base's with " (tuned)", a network's are in :data:`LEARNED_PARTS`.
     """
-    from policies.decisions import DECISIONS, label
+    from wfbench.policies.decisions import DECISIONS, label
 
     if name in COMPOSITES:
         return tuple(label(decision, n) for decision, n in zip(DECISIONS, COMPOSITES[name][:3], strict=True))

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 from numba import njit
+from wfbench.policies.kernels import act_env
 
-from policies.kernels import act_env
 from wfbench.core.dynamics import reset_env, step_env
 from wfbench.core.entrypoints import bind, run_split
 from wfbench.core.observe import observe_env

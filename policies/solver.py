@@ -1,8 +1,8 @@
 """Solver-backed decisions that call :mod:`solvers` from Python, one environment at a time.
 
-The registry's ``assignment`` dispatch runs compiled (:func:`policies.kernels.dispatch_assignment`
+The registry's ``assignment`` dispatch runs compiled (:func:`wfbench.policies.kernels.dispatch_assignment`
 with the numba assignment solver). :class:`AssignmentDispatch` solves the same problem,
-with the same costs, through :func:`solvers.assignment.solve`, so the exact, MILP and
+with the same costs, through :func:`wfbench.solvers.assignment.solve`, so the exact, MILP and
 LP methods can be compared inside the simulator (``assignment-scipy``,
 ``assignment-milp``, ``assignment-lp``, ``assignment-lp-osqp`` in the registry). A
 test checks that every method picks an assignment of the same total cost.
@@ -12,7 +12,7 @@ Every solve has a stated time limit, ``time_limit_s`` (default
 (``lp``); scipy's exact method is polynomial and takes no limit. A solve stopped by
 the limit without an assignment fails the step with a message naming the limit; one
 stopped with an incumbent uses it. The leaderboard records the limit with the entry
-(:func:`wfbench.budget.policy_budget`); docs/solvers.md, "Time limits".
+(:func:`wfbench.harness.budget.policy_budget`); docs/solvers.md, "Time limits".
 """
 
 from __future__ import annotations
@@ -20,16 +20,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-
-from policies import kernels as K
-from policies.protocol import as_obs, hp_vector, seeds_array
-from solvers import assignment
+from wfbench.policies import kernels as K
+from wfbench.policies.protocol import as_obs, hp_vector, seeds_array
+from wfbench.solvers import assignment
 
 DEFAULT_TIME_LIMIT_S = 1.0  # per solve: the dispatch problems here take milliseconds (docs/solvers.md, "Time limits")
 
 
 class AssignmentDispatch:
-    """Optimal-assignment dispatch through :func:`solvers.assignment.solve`.
+    """Optimal-assignment dispatch through :func:`wfbench.solvers.assignment.solve`.
 
     ``method``: ``"exact"`` (scipy), ``"milp"`` (HiGHS) or ``"lp"`` (cvxpy with
     ``lp_solver`` HIGHS or OSQP), each solve limited to ``time_limit_s`` seconds.

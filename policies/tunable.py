@@ -1,6 +1,6 @@
 """What each built-in kernel lets a tuner change: its hyper-parameters with their ranges.
 
-A kernel reads its row of the hyper-parameter matrix (:data:`policies.kernels.HP_FIELDS`)
+A kernel reads its row of the hyper-parameter matrix (:data:`wfbench.policies.kernels.HP_FIELDS`)
 at run time, so a tuned value reaches the compiled rollout without a recompile. This
 module declares, per decision kernel, the fields worth searching and the range of each
 (:class:`Param`: low, high, type, log scale). ``BuiltinDecision.tunable`` and
@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from policies import kernels as K
+from wfbench.policies import kernels as K
 
 
 class Param(NamedTuple):

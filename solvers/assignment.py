@@ -42,8 +42,7 @@ import warnings
 from typing import Any
 
 import numpy as np
-
-from solvers.result import (
+from wfbench.solvers.result import (
     EMPTY,
     FEASIBLE,
     INFEASIBLE,
@@ -262,7 +261,7 @@ def solve(
     pairs (their cost may then be anything, NaN included); ``unassigned_cost`` lets
     rows stay unassigned at that cost. See the module docstring for the methods.
     """
-    check_method(method, METHODS, "solvers.assignment.solve")
+    check_method(method, METHODS, "wfbench.solvers.assignment.solve")
     if lp_solver not in LP_SOLVERS:
         raise SolverInputError(f"lp_solver={lp_solver!r} is not allowed; allowed: {', '.join(LP_SOLVERS)}")
     time_limit = check_time_limit(time_limit)

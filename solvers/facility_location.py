@@ -32,8 +32,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit
-
-from solvers.result import (
+from wfbench.solvers.result import (
     FEASIBLE,
     OPTIMAL,
     OSQP_POLISH,
@@ -325,7 +324,7 @@ def _check_lp_solver(lp_solver: str) -> None:
 def solve_ufl(fixed_cost: Any, cost: Any, method: str = "milp", lp_solver: str = "HIGHS",
               time_limit: float | None = None) -> SolveResult:
     """Uncapacitated facility location: ``fixed_cost`` (m,), ``cost`` (m, n) facility x client."""
-    check_method(method, METHODS, "solvers.facility_location.solve_ufl")
+    check_method(method, METHODS, "wfbench.solvers.facility_location.solve_ufl")
     _check_lp_solver(lp_solver)
     time_limit = check_time_limit(time_limit)
     C = as_matrix(cost, "cost")
@@ -342,7 +341,7 @@ def solve_p_median(dist: Any, p: int, method: str = "milp", weights: Any = None,
 
     ``weights`` (n,), default all 1, scale each client's distance (demand weights).
     """
-    check_method(method, METHODS, "solvers.facility_location.solve_p_median")
+    check_method(method, METHODS, "wfbench.solvers.facility_location.solve_p_median")
     _check_lp_solver(lp_solver)
     time_limit = check_time_limit(time_limit)
     D = as_matrix(dist, "dist")

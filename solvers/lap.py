@@ -1,6 +1,6 @@
 """A compiled rectangular linear assignment solver, callable from numba code.
 
-:func:`scipy.optimize.linear_sum_assignment` is the reference (``solvers.assignment``
+:func:`scipy.optimize.linear_sum_assignment` is the reference (``wfbench.solvers.assignment``
 uses it), but it cannot be called from inside a compiled simulation loop. The
 dispatch policy solves one small assignment per step per environment (a few open
 requests x tens of free people), so a Python call per environment would cost more

@@ -27,8 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-
-from solvers.result import SolverInputError
+from wfbench.solvers.result import SolverInputError
 
 
 def _positive(name: str, v: float, *, zero_ok: bool = False) -> float:

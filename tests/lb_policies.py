@@ -5,8 +5,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
-from policies import get
+from wfbench.policies import get
 
 
 class _Base:

@@ -44,7 +44,7 @@ for _env_id, _entry in ENV_IDS.items():
         _gymnasium.register(id=_env_id, entry_point=_entry, vector_entry_point=VECTOR_ENTRY_POINTS[_env_id],
                             disable_env_checker=False, kwargs=ENV_KWARGS.get(_env_id, {}))
 
-_LAZY = {"evaluate": "wfbench.evaluation", "evaluate_suite": "wfbench.suites", "env": "wfbench.envs",
+_LAZY = {"evaluate": "wfbench.harness.evaluation", "evaluate_suite": "wfbench.harness.suite", "env": "wfbench.envs",
          "parallel_env": "wfbench.envs"}
 
 

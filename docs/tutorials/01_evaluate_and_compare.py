@@ -24,7 +24,7 @@
 # [01_evaluate_and_compare.py](01_evaluate_and_compare.py) in `docs/tutorials/`.
 # JupyterLab with jupytext installed opens it as a notebook, and
 # `jupytext --to ipynb 01_evaluate_and_compare.py` converts it (jupytext comes with the
-# `docs` extra). The test suite runs all of them (`tests/test_tutorials.py`), so what
+# `docs` extra). The test suite runs all of them (`tests/contracts/test_tutorials.py`), so what
 # they show stays true.
 
 # %%
@@ -34,8 +34,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import wfbench
-from wfbench.compare import compare, format_comparison
 from wfbench.core.state import METRICS  # the names of the last axis of the per-step series
+from wfbench.harness.compare import compare, format_comparison
 
 QUICK = os.environ.get("WFBENCH_TUTORIAL_QUICK") == "1"  # set by the test suite: fewer seeds
 SCENARIO = "small"

@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-import policies
 import wfbench
-from wfbench.compare import compare, format_comparison
+from wfbench import policies
+from wfbench.harness.compare import compare, format_comparison
 
 QUICK = os.environ.get("WFBENCH_TUTORIAL_QUICK") == "1"  # set by the test suite: fewer seeds
 SCENARIO = "small"
@@ -62,7 +62,7 @@ print(workdir)
 POLICY_SOURCE = '''\
 import numpy as np
 
-import policies
+from wfbench import policies
 from wfbench.core.observe import FAC_DOWNTIME, FAC_X, FAC_Y, PER_X, PER_Y
 
 
@@ -152,13 +152,13 @@ assert (runs[mine.name]["invalid_actions"] == 0).all()  # only free people, only
 
 # The frames carry, beside the results, what each run cost (`decision_ms_p50`,
 # `decision_ms_p99`, `cpu_s`): measurements of this machine at this moment, which differ
-# from run to run. `wfbench.budget.results_only` drops them, and what is left must agree
+# from run to run. `wfbench.harness.budget.results_only` drops them, and what is left must agree
 # to the bit on every backend.
 
 # %%
 import ray
 
-from wfbench.budget import results_only
+from wfbench.harness.budget import results_only
 
 ray.init(num_cpus=os.cpu_count(), include_dashboard=False, logging_level="ERROR", log_to_driver=False)
 
@@ -184,10 +184,10 @@ ray.shutdown()
 # %%
 import sys
 
-from leaderboard.report import ranking, render, render_html
-from leaderboard.store import Store
-from leaderboard.submit import submit
-from leaderboard.tracks import Track
+from wfbench.leaderboard.report import ranking, render, render_html
+from wfbench.leaderboard.store import Store
+from wfbench.leaderboard.submit import submit
+from wfbench.leaderboard.tracks import Track
 
 sys.path.insert(0, str(workdir))
 track = Track(name="small-tutorial", config=wfbench.ScenarioConfig.preset(SCENARIO),

@@ -44,9 +44,9 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-import policies
 import wfbench
-from wfbench.compare import compare, format_comparison
+from wfbench import policies
+from wfbench.harness.compare import compare, format_comparison
 from wfbench.train.ppo import TrainConfig, Trainer
 
 QUICK = os.environ.get("WFBENCH_TUTORIAL_QUICK") == "1"

@@ -32,8 +32,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
-
-from solvers import assignment, facility_location, orlib
+from wfbench.solvers import assignment, facility_location, orlib
 
 
 def orlib_folder() -> Path:

@@ -7,6 +7,6 @@ algorithm), and the shipped checkpoints (``policies/neural/checkpoints/``).
 """
 
 # the algorithms a checkpoint can name in its ``algo`` key, each its prefix ``ALGO:PATH``
-# (wfbench.train.registry.ALGORITHMS; tests/test_train_registry.py checks the two agree)
+# (wfbench.train.registry.ALGORITHMS; tests/train/test_train_registry.py checks the two agree)
 CHECKPOINT_ALGORITHMS = ("ppo", "impala", "hindsight")
 ALIAS = "ppo"  # the prefix that loads a checkpoint of any algorithm (the one every checkpoint loaded by before)

@@ -21,7 +21,7 @@ The network, per step::
 
 The cross-attention between facilities and people also gets a learned per-head bias
 on their Manhattan distance. Masks are applied by the distributions
-(:mod:`policies.neural.dist`), not here: the heads return raw logits.
+(:mod:`wfbench.policies.neural.dist`), not here: the heads return raw logits.
 
 torch is imported here and only here (and in the modules that import this one);
 ``import policies`` never imports it.

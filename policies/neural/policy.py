@@ -38,12 +38,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
-
-from policies.composite import Composite
-from policies.neural import ALIAS, CHECKPOINT_ALGORITHMS, scalefree
-from policies.neural.dist import env_action
-from policies.neural.model import AgentSet, WorkforceNet
-from policies.protocol import seeds_array
+from wfbench.policies.composite import Composite
+from wfbench.policies.neural import ALIAS, CHECKPOINT_ALGORITHMS, scalefree
+from wfbench.policies.neural.dist import env_action
+from wfbench.policies.neural.model import AgentSet, WorkforceNet
+from wfbench.policies.protocol import seeds_array
 
 MODES = ("sample", "greedy", "greedy-dispatch")
 POLICY_SEED = 0x99A
@@ -90,7 +89,7 @@ class NetworkPolicy:
         # the observation it reads: 1 (the paper's, every network before the scale-free one) or 2 (in travel time)
         self.observation_version = scalefree.obs_version(model)
         # the scenario of its checkpoint: evaluated on another one, the evaluator warns once
-        # (policies.registry.warn_if_trained_elsewhere)
+        # (wfbench.policies.registry.warn_if_trained_elsewhere)
         self.trained_on = trained_on
         self._state = None
 

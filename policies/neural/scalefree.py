@@ -24,12 +24,12 @@ The network, per step::
       value      from [mean F, mean P, h, g]
 
 No attention: the entities meet through the pooled summary, the memory and the pointer,
-like the ``cpu`` preset of :mod:`policies.neural.model`, whose cost it cuts further (the
+like the ``cpu`` preset of :mod:`wfbench.policies.neural.model`, whose cost it cuts further (the
 pointer on the few facilities that choose, k candidates instead of N, no per-entity
 fusion with the memory; docs/rl.md, "Scale-free network").
 
 The action distributions are here too (:meth:`ScaleFreeNet.sample`,
-:meth:`ScaleFreeNet.log_prob_entropy`): the same rules as :mod:`policies.neural.dist`
+:meth:`ScaleFreeNet.log_prob_entropy`): the same rules as :mod:`wfbench.policies.neural.dist`
 (facilities choose in slot order, a person picked earlier is masked for the later ones,
 positioning counts only where the workforce action uses it), on the candidate lists.
 
@@ -48,10 +48,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
-
-from policies.neural import dist
-from policies.neural.dist import NEG, _cat_logp_ent, _masked, _safe_rows
-from policies.neural.model import (
+from wfbench.policies.neural import dist
+from wfbench.policies.neural.dist import NEG, _cat_logp_ent, _masked, _safe_rows
+from wfbench.policies.neural.model import (
     FAC_ASSIGNED,
     FAC_DOWNTIME,
     FAC_OPERATIONAL,
@@ -69,8 +68,9 @@ from policies.neural.model import (
     _masked_mean,
     network_from_config,
 )
-from policies.neural.model import featurize as featurize_v1
-from policies.neural.model import obs_to_torch as obs_to_torch_v1
+from wfbench.policies.neural.model import featurize as featurize_v1
+from wfbench.policies.neural.model import obs_to_torch as obs_to_torch_v1
+
 from wfbench.core.context import observe_v2
 
 ARCH = "scalefree"

@@ -62,7 +62,7 @@ def _search_current_folder() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``) and return its exit status."""
-    from wfbench.guard import PolicyError
+    from wfbench.harness.guard import PolicyError
 
     args = None
     try:
@@ -87,7 +87,9 @@ def main(argv: list[str] | None = None) -> int:
         print("wfbench: interrupted", file=sys.stderr)
         return 130
     except RuntimeError as exc:
-        from wfbench.backends import ClusterError  # here, so that a command that never fails does not load joblib
+        from wfbench.harness.backends import (
+            ClusterError,  # here, so that a command that never fails does not load joblib
+        )
 
         if not isinstance(exc, ClusterError):
             raise

@@ -1,4 +1,4 @@
-"""``wfbench bench``: measure environment steps per second (wfbench.bench)."""
+"""``wfbench bench``: measure environment steps per second (wfbench.harness.bench)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wfbench.bench import run as run_bench
+    from wfbench.harness.bench import run as run_bench
 
     resolve_scenario(args.scenario)
     if args.json:

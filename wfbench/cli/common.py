@@ -83,7 +83,7 @@ def act_timeout(text: str) -> float | None:
 
 def add_policy_run_args(p: argparse.ArgumentParser) -> None:
     """The options of commands that run a user's policy: its act timeout and --traceback."""
-    from wfbench.guard import DEFAULT_ACT_TIMEOUT_S
+    from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S
 
     p.add_argument("--act-timeout", type=act_timeout, default=DEFAULT_ACT_TIMEOUT_S, metavar="SECONDS",
                    help=f"limit of each reset/act call of a module:attr policy (default {DEFAULT_ACT_TIMEOUT_S:g}; "
@@ -92,7 +92,7 @@ def add_policy_run_args(p: argparse.ArgumentParser) -> None:
 
 
 def check_backend_args(args: argparse.Namespace) -> None:
-    from wfbench.backends import check_backend
+    from wfbench.harness.backends import check_backend
 
     try:
         check_backend(args.backend, args.address)
@@ -112,7 +112,7 @@ def resolve_scenario(name: str):
 
 def resolve_policy(spec: str):
     """A fresh policy for ``spec`` (:func:`policies.get`); a bad spec is a usage error."""
-    from policies import get
+    from wfbench.policies import get
 
     try:
         return get(spec)
@@ -141,7 +141,7 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
 
 def check_suite_args(args: argparse.Namespace):
     """The suite of ``--suite`` with ``--split`` checked; one-line usage errors for what does not go together."""
-    from wfbench.suites import SPLITS, get_suite
+    from wfbench.scenarios import SPLITS, get_suite
 
     if args.suite is None:
         raise UsageError(f"--split {args.split} applies to --suite only")

@@ -39,12 +39,12 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    # imported here, not at the top: wfbench.compare loads scipy.stats (wfbench.stats), which
+    # imported here, not at the top: wfbench.harness.compare loads scipy.stats (wfbench.analysis.stats), which
     # took the warm start of 'wfbench evaluate --seeds 1' from 1.8 to 2.7 s of CPU (/usr/bin/time)
-    from wfbench.compare import compare, format_comparison, plot_comparison
+    from wfbench.analysis.plots import figure_format
     from wfbench.core.seeds import describe
-    from wfbench.guard import PolicyLoadError
-    from wfbench.plots import figure_format
+    from wfbench.harness.compare import compare, format_comparison, plot_comparison
+    from wfbench.harness.guard import PolicyLoadError
 
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
     if not names:
@@ -86,11 +86,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_suite(args: argparse.Namespace, names: list[str]) -> int:
-    from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells
-    from wfbench.compare import compare_suite
+    from wfbench.analysis.aggregate import AGGREGATE_NOTE, aggregate_cells
+    from wfbench.analysis.tables import markdown_table, text_table
     from wfbench.core.seeds import describe
-    from wfbench.guard import PolicyLoadError
-    from wfbench.tables import markdown_table, text_table
+    from wfbench.harness.compare import compare_suite
+    from wfbench.harness.guard import PolicyLoadError
 
     if args.suite is not None and args.plot:
         raise UsageError("--plot applies to one scenario, not to --suite ('wfbench reproduce suite' draws the "

@@ -6,7 +6,6 @@ import argparse
 import json
 import sys
 
-from wfbench.budget import BUDGET_COLUMNS  # the evaluator's cost columns, shown where present
 from wfbench.cli.common import (
     UsageError,
     add_run_args,
@@ -16,6 +15,7 @@ from wfbench.cli.common import (
     resolve_scenario,
     seed_list,
 )
+from wfbench.harness.budget import BUDGET_COLUMNS  # the evaluator's cost columns, shown where present
 
 
 def add_parser(sub) -> None:
@@ -34,11 +34,11 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from wfbench.analysis.tables import markdown_table, text_table
     from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
     from wfbench.core.seeds import describe
-    from wfbench.evaluation import evaluate, format_kpi, summarize
-    from wfbench.guard import PolicyLoadError
-    from wfbench.tables import markdown_table, text_table
+    from wfbench.harness.evaluation import evaluate, format_kpi, summarize
+    from wfbench.harness.guard import PolicyLoadError
 
     if args.suite is not None or args.split is not None:
         return run_suite(args)
@@ -85,12 +85,12 @@ def suite_rows(df, seeds_text: str) -> tuple[list[str], list[list[str]]]:
 
 
 def run_suite(args: argparse.Namespace) -> int:
-    from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite
+    from wfbench.analysis.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite
+    from wfbench.analysis.tables import markdown_table, text_table
     from wfbench.core.kpis import KPI_NAMES
     from wfbench.core.seeds import describe
-    from wfbench.guard import PolicyLoadError
-    from wfbench.suites import evaluate_suite
-    from wfbench.tables import markdown_table, text_table
+    from wfbench.harness.guard import PolicyLoadError
+    from wfbench.harness.suite import evaluate_suite
 
     suite = check_suite_args(args)
     check_backend_args(args)

@@ -71,11 +71,11 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # the report is imported here: it loads scipy.stats, which slows every start of the command line
-    from leaderboard import report, suite_report
-    from leaderboard.report import FORMATS
-    from leaderboard.store import Store, StoreError
-    from leaderboard.submit import SubmitError, seed_builtins, submit
-    from leaderboard.tracks import TRACKS, SuiteTrack, get_track
+    from wfbench.leaderboard import report, suite_report
+    from wfbench.leaderboard.report import FORMATS
+    from wfbench.leaderboard.store import Store, StoreError
+    from wfbench.leaderboard.submit import SubmitError, seed_builtins, submit
+    from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, get_track
 
     def track(name: str):
         try:

@@ -10,8 +10,8 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from policies import DECISIONS
-    from policies.registry import (
+    from wfbench.policies import DECISIONS
+    from wfbench.policies.registry import (
         COMPOSITES,
         LEARNED,
         ORACLES,

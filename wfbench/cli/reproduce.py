@@ -103,7 +103,7 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
         if given:
             raise UsageError(f"{given[0]} applies to suite only, not to {args.target}")
         return {}
-    from wfbench.suites import get_suite
+    from wfbench.scenarios import get_suite
 
     kwargs: dict = {"networks": not args.no_networks}
     if args.seeds is not None:

@@ -2,7 +2,7 @@
 
 ``wfbench scenarios import --sites sites.csv [--requests log.csv] --name NAME --out NAME.toml``
 (also ``wfbench scenario import ...``) writes the scenario of
-:func:`wfbench.scenario_import.from_files`. A malformed file is one line naming the file,
+:func:`wfbench.scenarios.importer.from_files`. A malformed file is one line naming the file,
 line and column, exit status 2, and nothing is written: the file is written to a
 temporary name beside ``--out`` and renamed when complete.
 """
@@ -37,7 +37,7 @@ def add_parser(sub) -> None:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from wfbench.scenario_import import from_files
+    from wfbench.scenarios.importer import from_files
 
     for option, value in (("--sites", args.sites), ("--name", args.import_name), ("--out", args.out)):
         if not value:

@@ -18,7 +18,7 @@ def add_parser(sub) -> None:
 
 
 def _suite(name: str):
-    from wfbench.suites import get_suite
+    from wfbench.scenarios import get_suite
 
     try:
         return get_suite(name)
@@ -27,8 +27,8 @@ def _suite(name: str):
 
 
 def run(args: argparse.Namespace) -> int:
-    from wfbench.suites import SUITES, references
-    from wfbench.tables import markdown_table, text_table
+    from wfbench.analysis.tables import markdown_table, text_table
+    from wfbench.scenarios import SUITES, references
 
     if args.suite_action == "list":
         rows = [[s.name, str(s.version), str(len(s.ids("train"))), str(len(s.ids("heldout"))), s.hash, s.description]

@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise UsageError(f"wfbench train needs torch ({exc}); install the rl extra: "
                          "pip install 'wfbench[rl]'") from None
-    from policies.neural.policy import load_checkpoint
+    from wfbench.policies.neural.policy import load_checkpoint
 
     given = {flag: getattr(args, flag) for flag in TRAIN_FLAGS if getattr(args, flag) is not None}
     if args.compile:

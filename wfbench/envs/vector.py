@@ -27,7 +27,7 @@ reward are those of the single environments (``docs/sb3.md``):
 - Seeds: ``reset(seed=s)`` plays seeds ``s, s + 1, ...``; each environment's later
   episodes take their seeds from a generator seeded with its first seed, as the single
   environment does, so the vector environment replays ``SyncVectorEnv`` of the single
-  environments bit for bit (``tests/test_vector_env.py``).
+  environments bit for bit (``tests/envs/test_vector_env.py``).
 - Masks: ``action_masks()`` is the (B, sum(nvec)) boolean mask of MaskablePPO's
   convention; the observation carries ``dispatch_mask`` and ``workforce_mask`` too.
 - ``kind="dispatch"``: the workforce and positioning decisions are made by built-in

@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from policies.registry import LEARNED, learned_names
 from wfbench.core.kpis import KPI_LABELS, MEASURED
-from wfbench.evaluation import evaluate
+from wfbench.harness.evaluation import evaluate
+from wfbench.policies.registry import LEARNED, learned_names
 from wfbench.reproduce.common import Output, Progress, write
 
 # the methods of Figure 3, in groups drawn side by side; the paper's figure has the first group and PPO. The
-# learned group holds every network of the registry (policies.registry.LEARNED), drawn where it is shipped
+# learned group holds every network of the registry (wfbench.policies.registry.LEARNED), drawn where it is shipped
 FIGURE3_GROUPS = (
     ("Paper rows 1-4", ("random", "random-dispatch", "random-positioning", "heuristic")),
     ("Solvers and tuned", ("solver", "heuristic-tuned", "solver-tuned")),
@@ -28,7 +28,7 @@ FIGURE3_COLORS = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#93786
 def figure3_methods() -> tuple[str, ...]:
     """The methods Figure 3 draws here: all of :data:`FIGURE3_METHODS` but the learned ones not available.
 
-    A learned policy (``policies.registry.LEARNED``) needs its shipped checkpoint and torch.
+    A learned policy (``wfbench.policies.registry.LEARNED``) needs its shipped checkpoint and torch.
     """
     import importlib.util
 
@@ -54,10 +54,10 @@ def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | 
     :func:`figure3_methods` (the learned ones only where their checkpoint and torch are).
     Writes figure3.png, figure3.svg, figure3.md and figure3.csv (the bands every 10 steps).
     """
+    from wfbench.analysis.plots import new_figure, save_figure, utilization_band
     from wfbench.core.config import ScenarioConfig
     from wfbench.core.kpis import BY_NAME
     from wfbench.core.state import METRICS
-    from wfbench.plots import new_figure, save_figure, utilization_band
 
     methods = figure3_methods() if methods is None else tuple(methods)
     grouped = [(title, tuple(m for m in ms if m in methods)) for title, ms in FIGURE3_GROUPS]

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
-from wfbench.evaluation import evaluate
+from wfbench.harness.evaluation import evaluate
 from wfbench.reproduce.common import Output, Progress, write
-from wfbench.tables import markdown_table
 
 GAP_SCENARIOS = ("small", "paper-64", "nonstationary", "table2-g32-f25-s10")
 GAP_METHODS = ("heuristic", "solver", "oracle")
@@ -35,9 +35,9 @@ def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from wfbench.analysis.plots import save_figure
+    from wfbench.analysis.stats import bootstrap_ci, paired_difference
     from wfbench.core.bound import score_upper_bound
-    from wfbench.plots import save_figure
-    from wfbench.stats import bootstrap_ci, paired_difference
 
     seeds = list(range(runs))
     records, rows, per_seed = [], [], {}

@@ -9,7 +9,7 @@ bound. Writes into the output folder:
 - ``suite-scores.md``/``.csv``: the mean normalized score and raw NSW per scenario and policy;
 - ``suite-aggregate.md``/``.csv``: IQM, mean and optimality gap with 95% stratified bootstrap
   intervals and the probability of improvement over the heuristic, per split
-  (:mod:`wfbench.aggregate`);
+  (:mod:`wfbench.analysis.aggregate`);
 - ``suite-profile-<split>.png``/``.svg`` with ``.csv``: the performance profiles per split;
 - ``suite-scaling.png``/``.svg`` with ``.csv``: env-steps per second and decision latency
   against the number of facilities and people, per policy family (the evaluator's budget
@@ -17,13 +17,13 @@ bound. Writes into the output folder:
 - ``suite-checks.md``/``.csv``: that no policy scores above the bound on any seed, and
   whether the oracle is at least every deployable policy per scenario;
 - ``suite-per-seed.md``/``.csv`` (when a learned method has training seeds,
-  :data:`policies.registry.SEED_RUNS`): each training seed's mean normalized score per
+  :data:`wfbench.policies.registry.SEED_RUNS`): each training seed's mean normalized score per
   scenario and its IQM and mean per split, the shipped pick marked.
 
 A learned method with training seeds (``ppo-general``: ``ppo-general#seed0`` ...) is run as
 each of its members on each scenario as well as its shipped pick; its aggregate row,
 ``METHOD (N seeds)``, pools the members' runs (a run is a (training seed, evaluation seed)
-pair: a ``(N x seeds, scenarios)`` matrix per split, :func:`wfbench.aggregate.pool_seeds`).
+pair: a ``(N x seeds, scenarios)`` matrix per split, :func:`wfbench.analysis.aggregate.pool_seeds`).
 The shipped pick keeps its own row, marked as such in the markdown.
 
 Each (policy, scenario) result is cached under ``cache/`` in the output folder with the
@@ -43,13 +43,20 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wfbench.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite, over_seeds, pool_seeds, seed_scores
+from wfbench.analysis.aggregate import (
+    AGGREGATE_NOTE,
+    aggregate_cells,
+    aggregate_suite,
+    over_seeds,
+    pool_seeds,
+    seed_scores,
+)
+from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
-from wfbench.evaluation import evaluate
+from wfbench.harness.evaluation import evaluate
 from wfbench.reproduce.common import Output, Progress, write
-from wfbench.suites import Suite, SuiteScenario, get_suite, normalize
-from wfbench.tables import markdown_table
+from wfbench.scenarios import Suite, SuiteScenario, get_suite, normalize
 
 # the composites tuned on the training split see the data the generalist networks learn from (issue #32): the
 # verdict compares a learned method with them as well as with the composites tuned on paper-64
@@ -63,14 +70,14 @@ BOUND_SLACK = 1e-9  # a policy's NSW may exceed the bound by floating-point roun
 
 def default_policies(networks: bool = True) -> list[str]:
     """The built-in policies, the shipped networks (zero-shot) unless ``networks`` is false, and the oracle."""
-    from policies.registry import learned_names
+    from wfbench.policies.registry import learned_names
 
     return [*BUILTIN, *(learned_names() if networks else []), ORACLE]
 
 
 def with_members(names: Sequence[str]) -> tuple[list[str], dict[str, list[str]]]:
     """``names`` with each learned method's training seeds (present ones) after it, and method -> its members."""
-    from policies.registry import seed_members
+    from wfbench.policies.registry import seed_members
 
     methods = {n: seed_members(n) for n in names}
     methods = {n: m for n, m in methods.items() if m}
@@ -82,7 +89,7 @@ def with_members(names: Sequence[str]) -> tuple[list[str], dict[str, list[str]]]
 
 def family(policy: str) -> str:
     """The family a policy is drawn with in the scaling figure: random, heuristic, solver, network or oracle."""
-    from policies.registry import LEARNED, parse_member
+    from wfbench.policies.registry import LEARNED, parse_member
 
     if policy in LEARNED or parse_member(policy) is not None \
             or ":" in policy and policy.split(":")[0] in ("ppo", "impala", "hindsight"):
@@ -129,7 +136,7 @@ def _store(path: Path, df: pd.DataFrame, scenario: SuiteScenario, seeds: list[in
 
 def _run(policy: str, scenario: SuiteScenario, seeds: list[int], backend: str, workers: int | None,
          address: str | None) -> tuple[pd.DataFrame, float]:
-    from policies.registry import ScenarioMismatchWarning
+    from wfbench.policies.registry import ScenarioMismatchWarning
 
     t0 = time.perf_counter()
     if policy == "bound":
@@ -149,7 +156,7 @@ def _figure_profiles(agg, split: str, path_stem: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from wfbench.plots import save_figure
+    from wfbench.analysis.plots import save_figure
 
     fig, ax = plt.subplots(figsize=(6.5, 4))
     colors = plt.get_cmap("tab20").colors  # more policies than tab10 has colours: no two lines share one
@@ -173,7 +180,7 @@ def _figure_scaling(scaling: pd.DataFrame, path_stem: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from wfbench.plots import save_figure
+    from wfbench.analysis.plots import save_figure
 
     by = scaling.groupby(["family", "entities"], sort=True)[["env_steps_per_s", "decision_ms"]].median().reset_index()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
@@ -210,7 +217,7 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
         progress: called with the name of each evaluation as it starts.
         seeds: the seeds (a set name such as ``"test"`` or a list); default ``range(runs)``.
         policies: the policies (default :func:`default_policies`); the bound is always added, and so are
-            the training seeds of a learned method (:func:`policies.registry.seed_members`).
+            the training seeds of a learned method (:func:`wfbench.policies.registry.seed_members`).
         scenarios: a subset of the suite's ids or presets (default all).
         networks: include the shipped networks in the default policies.
         suite_name: the suite.
@@ -362,7 +369,7 @@ SEEDS_NOTE = (" 'METHOD (N seeds)' pools the runs of a learned method's N traini
 
 def _picks(methods: dict[str, list[str]]) -> dict[str, str]:
     """How the markdown names each method's shipped pick: ``ppo-general (shipped pick: seed2)``."""
-    from policies.registry import parse_member, shipped_member
+    from wfbench.policies.registry import parse_member, shipped_member
 
     out = {}
     for method in methods:
@@ -374,8 +381,8 @@ def _picks(methods: dict[str, list[str]]) -> dict[str, str]:
 def _per_seed(methods: dict[str, list[str]], runs_by: dict[str, pd.DataFrame], aggs: dict,
               pooled: dict[str, tuple[str, list[str]]], chosen: list[SuiteScenario],
               seeds_text: str) -> tuple[pd.DataFrame, str]:
-    """Each training seed's scores (:func:`wfbench.aggregate.seed_scores`) per method, and its markdown."""
-    from policies.registry import shipped_member
+    """Each training seed's scores (:func:`wfbench.analysis.aggregate.seed_scores`) per method, and its markdown."""
+    from wfbench.policies.registry import shipped_member
 
     frames, parts = [], []
     splits = [sp for sp in ("train", "heldout") if any(sc.split == sp for sc in chosen)]
@@ -436,7 +443,7 @@ def _scaling_row(policy: str, scenario: SuiteScenario, df: pd.DataFrame) -> dict
 
 def outside_oracle(name: str) -> bool:
     """Whether ``name`` (or the method of a ``METHOD#seedK`` member) is one the oracle does not play."""
-    from policies.registry import NOT_ORACLE_CANDIDATES, parse_member
+    from wfbench.policies.registry import NOT_ORACLE_CANDIDATES, parse_member
 
     member = parse_member(name)
     return (member[0] if member else name) in NOT_ORACLE_CANDIDATES

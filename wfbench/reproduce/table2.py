@@ -14,12 +14,12 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES, MEASURED, SCORE, better_text, kpi_score
 from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
-from wfbench.evaluation import evaluate
+from wfbench.harness.evaluation import evaluate
 from wfbench.reproduce.common import DIRECTION, Output, Progress, write
 from wfbench.reproduce.paper import table2_nsw_cost
-from wfbench.tables import markdown_table
 
 TREND_KPIS = (SCORE, *reversed(MEASURED))
 """The KPIs whose trends are counted, in the order of the rows and panels: the score, then the measured ones."""
@@ -153,8 +153,8 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
 
 def _figure(out: Path, values: dict[str, dict[tuple[int, int, int], float]], per_kpi: dict[str, list[TrendCount]],
             better: dict[str, str], runs: int, config) -> list[Path]:
+    from wfbench.analysis.plots import new_figure, save_figure, utilization_band
     from wfbench.core.kpis import BY_NAME
-    from wfbench.plots import new_figure, save_figure, utilization_band
 
     fig = new_figure(figsize=(4.6 * len(TREND_KPIS), 4.4), layout="constrained")
     axes = fig.subplots(1, len(TREND_KPIS))

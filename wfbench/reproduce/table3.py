@@ -1,7 +1,7 @@
 """Table 3: the paper's rows 1-7 on paper-64 beside wfbench's solver, tuned, learned and oracle rows and the bound.
 
 Rows 1-7 carry the paper's own names of their decisions (``paper.toml``); every other
-row names its decisions as the policy registry does (:func:`policies.registry.parts`).
+row names its decisions as the policy registry does (:func:`wfbench.policies.registry.parts`).
 """
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from policies.registry import LEARNED, learned_names, parts
+from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
-from wfbench.evaluation import evaluate, format_kpi, summarize
+from wfbench.harness.evaluation import evaluate, format_kpi, summarize
+from wfbench.policies.registry import LEARNED, learned_names, parts
 from wfbench.reproduce.common import DIRECTION, Output, Progress, write
 from wfbench.reproduce.paper import table3_rows
-from wfbench.tables import markdown_table
 
 # our policy for each of the paper's rows (the learned ones: docs/rl.md)
 TABLE3_POLICIES = {"1": "random", "2": "random-dispatch", "3": "random-positioning", "4": "heuristic",

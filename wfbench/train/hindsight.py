@@ -5,7 +5,7 @@ the exogenous future of a training episode (failures, repairs, arrivals) is a pu
 function of its seed, so on *training* seeds a planner may read it and say what it
 would do; the network, which never reads it, learns to do the same from what it
 observes. The teacher (``teacher``) is the full ``oracle`` of ``docs/hindsight.md`` (one
-:class:`~policies.hindsight.planner.Planner` deciding dispatch, workforce and
+:class:`~wfbench.policies.oracle.planner.Planner` deciding dispatch, workforce and
 positioning by exact look-ahead), or ``nearest+oracle+oracle``: the oracle's workforce
 and positioning planned beside nearest-first dispatch.
 
@@ -25,7 +25,7 @@ The loop, per iteration i::
              state (as ``wfbench.train.ppo`` does), the first ``burn_in`` steps only
              warm it up (unless an episode starts within them); the loss is the
              negative log-probability of the label under each head's masked
-             distribution (``policies.neural.dist.log_prob_entropy``), a weight per head
+             distribution (``wfbench.policies.neural.dist.log_prob_entropy``), a weight per head
 
 ``beta_i = beta0 * beta_decay ** i``: with the defaults iteration 0 follows the oracle
 alone and later ones mostly the learner, so the states the network is trained on are
@@ -38,7 +38,7 @@ given, then plans from the shadow's state by forking it. Recording the action th
 episode really took (the mixture's, not the oracle's) keeps the shadow on the
 learner's trajectory, so ``act`` answers for the learner's state. Its base kernels
 (nearest dispatch, spatial averaging) keep memory built from observations only, so
-that memory is the one it would have in this episode too. ``tests/test_hindsight_learning.py``
+that memory is the one it would have in this episode too. ``tests/train/test_hindsight_learning.py``
 replays the executed actions through a fresh oracle and checks every label.
 
 Labels are the oracle's actions as the network's heads express them: the dispatch row
@@ -81,14 +81,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from policies.composite import Composite
-from policies.hindsight.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
-from policies.hindsight.planner import Planner
-from policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
-from policies.neural.model import OBS_KEYS, WorkforceNet, featurize, obs_to_torch
 from wfbench.core.kpis import SCORE
 from wfbench.core.lookahead import copy_state, fork, fork_index
 from wfbench.core.simulator import Simulator
+from wfbench.policies.composite import Composite
+from wfbench.policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
+from wfbench.policies.neural.model import OBS_KEYS, WorkforceNet, featurize, obs_to_torch
+from wfbench.policies.oracle.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
+from wfbench.policies.oracle.planner import Planner
 from wfbench.train import toolkit
 from wfbench.train.worlds import FACILITY_KEYS, PERSONNEL_KEYS, WorldSet
 
@@ -115,7 +115,7 @@ class HindsightConfig(toolkit.BaseConfig):
     """Every setting of a run (the shared ones in :class:`wfbench.train.toolkit.BaseConfig`)."""
 
     variant: str = "joint"  # the teacher gives all three decisions
-    model: str = "cpu"  # policies.neural.model.PRESETS
+    model: str = "cpu"  # wfbench.policies.neural.model.PRESETS
     steps: int = 200_000  # environment steps collected in all (B per simulator step)
     num_envs: int = 16  # B
     num_steps: int = 32  # T: steps per stored sequence

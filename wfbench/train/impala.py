@@ -44,7 +44,7 @@ V-trace (section 4.1 of the paper), per environment, for t = T-1 down to 0, with
     A_t     = rho_t * (r_t + gamma_t v_{t+1} - V(x_t))
 
 On-policy (pi = mu) with rho_bar, c_bar >= 1 and lambda = 1, v_t is the n-step return
-bootstrapped from V(x_T), i.e. GAE(lambda = 1)'s return (``tests/test_impala.py`` checks it).
+bootstrapped from V(x_T), i.e. GAE(lambda = 1)'s return (``tests/train/test_impala.py`` checks it).
 
 Checkpoints have the keys every trainer's have (:func:`wfbench.train.toolkit.run_checkpoint`,
 ``algo: impala``), so ``impala:RUN/best.pt`` loads one as a policy (``ppo:RUN/best.pt``, the
@@ -67,10 +67,10 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from policies.neural.dist import log_prob_entropy
-from policies.neural.model import WorkforceNet, featurize
-from wfbench.backends import require_ray
 from wfbench.core.config import ScenarioConfig
+from wfbench.harness.backends import require_ray
+from wfbench.policies.neural.dist import log_prob_entropy
+from wfbench.policies.neural.model import WorkforceNet, featurize
 from wfbench.train import toolkit
 
 MODES = ("async", "sync")
@@ -85,7 +85,7 @@ class ImpalaConfig(toolkit.ActorCriticConfig):
     """Every setting of an IMPALA run (the shared ones in :class:`wfbench.train.toolkit.ActorCriticConfig`)."""
 
     variant: str = "joint"  # joint only (the paper trains joint IMPALA)
-    model: str = "cpu"  # policies.neural.model.PRESETS
+    model: str = "cpu"  # wfbench.policies.neural.model.PRESETS
     run_dir: str = "runs/impala"
     mode: str = "async"  # async: actor thread + bounded queue; sync: actor and learner in turn
     queue_size: int = 1  # async: rollouts waiting for the learner, at most

@@ -3,8 +3,8 @@
 The loop, per update::
 
     rollout: T steps of the B environments of a Simulator
-             observation -> tensors (policies.neural.model.featurize, no loop over environments)
-             network forward (no grad) -> sample actions (policies.neural.dist) -> sim.step_observe
+             observation -> tensors (wfbench.policies.neural.model.featurize, no loop over environments)
+             network forward (no grad) -> sample actions (wfbench.policies.neural.dist) -> sim.step_observe
     returns: GAE(gamma, lambda) on the shaped rewards, the value of the last observation bootstrapped
     update:  epochs x minibatches of whole sequences (a minibatch is a set of environments with all
              T of their steps, so the LSTM is rerun from the state it had at the rollout's start);
@@ -35,7 +35,7 @@ Rewards (documented in docs/rl.md):
 Agents (``agents``): ``joint`` (the default) is the paper's joint model, one network and
 one critic for the three decisions. ``independent`` is the multi-agent reading of the
 PettingZoo environment (``wfbench.envs.parallel``): one network per decision
-(:class:`policies.neural.model.AgentSet`), no shared parameter, each seeing the whole
+(:class:`wfbench.policies.neural.model.AgentSet`), no shared parameter, each seeing the whole
 observation and each with its own critic; the agents share the environment's reward (the
 step's NSW, as every PettingZoo agent gets it), and each has its own GAE advantage and
 clipped ratio on its own head's log-probability (independent PPO). Their losses are
@@ -67,9 +67,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-import policies
-from policies.neural import scalefree
-from policies.neural.model import AgentSet, WorkforceNet, agent_set_config
+from wfbench import policies
+from wfbench.policies.neural import scalefree
+from wfbench.policies.neural.model import AgentSet, WorkforceNet, agent_set_config
 from wfbench.train import toolkit
 
 AGENTS = ("joint", "independent")

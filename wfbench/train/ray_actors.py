@@ -34,7 +34,7 @@ import os
 
 import ray
 
-from wfbench.backends import join_ray
+from wfbench.harness.backends import join_ray
 
 
 class RayActors:

@@ -3,8 +3,8 @@
 Importing this module imports no torch: the command line reads :data:`ALGORITHMS` for
 ``--algo`` and its help. A new algorithm is one module under ``wfbench/train/`` with a
 config dataclass (built on :class:`wfbench.train.toolkit.BaseConfig`) and a ``Trainer``
-class, plus one row here and its name in :data:`policies.neural.CHECKPOINT_ALGORITHMS` (the
-policy layer cannot import this one; ``tests/test_train_registry.py`` checks the two agree).
+class, plus one row here and its name in :data:`wfbench.policies.neural.CHECKPOINT_ALGORITHMS` (the
+policy layer cannot import this one; ``tests/train/test_train_registry.py`` checks the two agree).
 Every checkpoint records its algorithm (``algo``) and loads as the policy ``NAME:PATH``;
 ``ppo:PATH`` loads any (the alias kept from before the others had their own prefix).
 """

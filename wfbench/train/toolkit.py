@@ -19,7 +19,7 @@ In the manner of Stable-Baselines3's ``RolloutBuffer``/``collect_rollouts`` and 
   state: optimizer, torch's random state, counters, history), :func:`score_public`.
 
 A checkpoint of any trainer loads as a policy by its algorithm (``impala:PATH``,
-``hindsight:PATH``, ``ppo:PATH``; ``ppo:`` loads any, :mod:`policies.registry`) because
+``hindsight:PATH``, ``ppo:PATH``; ``ppo:`` loads any, :mod:`wfbench.policies.registry`) because
 all three write the keys of :func:`run_checkpoint`; each adds what its own resume needs.
 Checkpoints are selected on the public seeds only (:func:`score_public`).
 """
@@ -39,19 +39,19 @@ from typing import Any
 import numpy as np
 import torch
 
-import policies
-from policies.neural import scalefree
-from policies.neural.dist import env_action, gumbel
-from policies.neural.model import count_parameters, model_config
-from policies.neural.policy import NetworkPolicy, load_checkpoint
-from wfbench.budget import training_hardware
+from wfbench import policies
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_NAMES, SCORE
 from wfbench.core.reward import step_reward
 from wfbench.core.seeds import SEED_SETS, resolve_seeds
 from wfbench.core.simulator import Simulator
-from wfbench.evaluation import evaluate
-from wfbench.suites.score import normalize
+from wfbench.harness.budget import training_hardware
+from wfbench.harness.evaluation import evaluate
+from wfbench.policies.neural import scalefree
+from wfbench.policies.neural.dist import env_action, gumbel
+from wfbench.policies.neural.model import count_parameters, model_config
+from wfbench.policies.neural.policy import NetworkPolicy, load_checkpoint
+from wfbench.scenarios.score import normalize
 from wfbench.train.worlds import Worlds, WorldSet, deal, resolve_worlds, world_set
 
 DECISIONS = ("dispatch", "workforce", "positioning")  # the heads of the joint network, in the simulator's order
@@ -85,7 +85,7 @@ class BaseConfig:
     scenario: str = "paper-64"
     scenarios: str = ""  # several worlds (wfbench.train.worlds): e.g. "suite-v1:train"; when set, scenario is unused
     variant: str = "joint"
-    model: str = "small"  # policies.neural.model.PRESETS
+    model: str = "small"  # wfbench.policies.neural.model.PRESETS
     steps: int = 1_000_000  # environment steps in all (B per simulator step)
     num_envs: int = 32  # B
     num_steps: int = 32  # T: steps per rollout (or stored sequence)
@@ -179,7 +179,7 @@ def autocast(device: torch.device, bf16: bool):
 
 
 def network_config(preset: str, decisions: tuple[str, ...], overrides: dict):
-    """The config of network ``preset``: one of :data:`policies.neural.model.PRESETS` or ``scalefree``."""
+    """The config of network ``preset``: one of :data:`wfbench.policies.neural.model.PRESETS` or ``scalefree``."""
     if preset == scalefree.ARCH:
         return scalefree.scalefree_config(decisions, **overrides)
     return model_config(preset, decisions, **overrides)
@@ -460,7 +460,7 @@ def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
     updates (iterations), saved as ``update``. ``train_wall_s`` (wall seconds of training
     so far, over every segment of a resumed run) and ``train_hardware`` (the CPU, cores
     and GPU of each segment) are the run's cost, which the leaderboard shows beside
-    ``global_step``, the env-steps (:func:`wfbench.budget.policy_budget`).
+    ``global_step``, the env-steps (:func:`wfbench.harness.budget.policy_budget`).
     """
     t = trainer
     cost: dict[str, Any] = {}
@@ -551,7 +551,7 @@ def score_worlds(policy: Callable[[str], Any], worlds: WorldSet, seeds: list[int
     """A run across worlds: the sampled policy on the public seeds of every world; the score is their mean.
 
     Each world's mean NSW is put on the suite's normalized scale (``(NSW - random) /
-    (bound - random)``, :func:`wfbench.suites.normalize`, the published constants of the
+    (bound - random)``, :func:`wfbench.scenarios.normalize`, the published constants of the
     world's suite id) when every world has constants, so that no world counts more because
     its NSW spreads more; otherwise the score is the mean NSW over the worlds. The
     constants are fixed numbers per scenario: no test-seed result of the policy enters.

@@ -30,7 +30,7 @@ import numpy as np
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.observe import allocate_obs
 from wfbench.core.simulator import Simulator
-from wfbench.suites.definition import SPLITS, SUITES, lookup
+from wfbench.scenarios.suites import SPLITS, SUITES, lookup
 
 SEPARATOR = ","
 # the observation's arrays with a facility axis and with a personnel axis (axis 1), padded to the largest world's

@@ -11,8 +11,7 @@ import time
 
 import numpy as np
 from numba.core.compiler_lock import global_compiler_lock
-
-from policies import get
+from wfbench.policies import get
 
 
 class _Heuristic:

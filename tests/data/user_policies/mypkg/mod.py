@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from policies import get
+from wfbench.policies import get
 
 
 class MyPolicy:

@@ -1,0 +1,217 @@
+"""The best policy in hindsight: play every candidate on each seed's known future, then replay the best one.
+
+:class:`BestInHindsight` is the registry's ``oracle``. It is told the scenario
+(``attach``) and the seeds (``reset``), so it knows each seed's whole exogenous future,
+and the simulator is a pure function of (config, seed, actions). At ``reset`` it plays
+every candidate policy on a private ``Simulator(config, seeds)`` for the whole episode,
+batched over the seeds, and keeps per seed the candidate with the highest episode NSW
+(the first in candidate order on a tie). ``act`` then makes, per seed, exactly that
+candidate's episode again:
+
+- a candidate whose every part is a built-in kernel (``compiled``: the registry's
+  deployable composites and tuned files) is played compiled
+  (:func:`~wfbench.policies.oracle.rollout.roll_forward` from the reset state, which is the
+  whole-episode rollout) and replayed live: a fresh copy of it acts on the rows of the
+  seeds that chose it. Its randomness is keyed by each environment's seed and its state
+  is per row, so it acts the same on a sub-batch as on the whole batch;
+- any other candidate (the hindsight planner ``oracle-planner``, the shipped networks)
+  is played through ``reset``/``act``/``step`` and its actions are recorded: the
+  dispatches that send somebody, the workforce code of each step, and the positioning
+  row the simulator reads (row 0 when the step hires, row 1 when it lets go; the other
+  row and every row of a no-op step are never read). ``act`` returns the recorded
+  actions. A network's sampled actions can change with the batch's size in the last
+  float bit (batched matrix products), so replaying what it did, not asking it again,
+  is what makes the replay exact.
+
+A candidate played through ``act`` stops early once it cannot win on any seed: its
+partial sum of ``NSW_t`` plus one per remaining step (``NSW_t`` lies in [0, 1]) is below
+the best episode total found so far on every seed of the batch. That is exact
+pruning, never a change of the choice. ``scores`` holds every candidate's episode NSW
+per seed (NaN where it was stopped), ``choice`` the candidate each seed replays and
+``timing`` the seconds each candidate took (``docs/hindsight.md``, "The oracle").
+
+It reads the trace (``reads_trace = True``): not deployable, refused on the
+leaderboard's deployable tracks like every oracle.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from wfbench.policies.oracle.rollout import roll_forward
+from wfbench.policies.protocol import seeds_array
+
+from wfbench.core.actions import AGENTS, validate_actions
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import Simulator
+from wfbench.core.state import METRICS
+
+K_NSW = METRICS.index("nsw")
+# prune a candidate only when it is below the best total by more than float rounding could explain
+PRUNE_MARGIN = 1e-9
+
+
+class _Recording:
+    """The actions of one candidate's episode over a batch, stored sparsely (see the module docstring)."""
+
+    def __init__(self, B: int, M: int, N: int, horizon: int):
+        self.B, self.M, self.N = B, M, N
+        self.workforce = np.zeros((horizon, B), dtype=np.int8)
+        self._dispatch: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._positioning: dict[tuple[int, int], np.ndarray] = {}
+
+    def add(self, t: int, d: np.ndarray, w: np.ndarray, p: np.ndarray) -> None:
+        b, f = np.nonzero(d != self.N)
+        if b.size:
+            self._dispatch.append((t, b.astype(np.int32), f.astype(np.int32), d[b, f].astype(np.int32)))
+        self.workforce[t] = w
+        for i in np.flatnonzero(w):
+            self._positioning[t, int(i)] = p[i, 0 if w[i] <= 3 else 1].copy()
+
+    def finish(self) -> None:
+        """Index the dispatches by step (called once the episode is over)."""
+        self.dispatch = {t: (b, f, v) for t, b, f, v in self._dispatch}
+        del self._dispatch
+
+    def actions(self, t: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The recorded actions of step ``t`` for the batch rows ``rows`` (in that order)."""
+        n = rows.size
+        d = np.full((n, self.M), self.N, dtype=np.int64)
+        w = self.workforce[t, rows].astype(np.int64)
+        p = np.zeros((n, 2, self.M), dtype=np.float64)
+        if t in self.dispatch:
+            b, f, v = self.dispatch[t]
+            where = np.full(self.B, -1, dtype=np.int64)
+            where[rows] = np.arange(n)
+            keep = where[b] >= 0
+            d[where[b[keep]], f[keep]] = v[keep]
+        for i in np.flatnonzero(w):
+            p[i, 0 if w[i] <= 3 else 1] = self._positioning[t, int(rows[i])]
+        return d, w, p
+
+
+class BestInHindsight:
+    """Per seed, the best of the candidate policies on that seed's known future (see the module docstring).
+
+    Args:
+        candidates: the candidates' names, in the order that breaks ties (the first wins).
+        resolve: makes a fresh policy from a name (``wfbench.policies.registry.get``); a module-level
+            function, so the oracle pickles for the process backend.
+        name: its name in tables.
+    """
+
+    reads_trace = True
+    decisions = AGENTS
+
+    def __init__(self, candidates: Sequence[str], resolve: Callable[[str], Any], name: str = "oracle"):
+        if not candidates:
+            raise ValueError("a best-in-hindsight oracle needs at least one candidate")
+        self.candidates = tuple(candidates)
+        self.resolve = resolve
+        self.name = name
+        self.config: ScenarioConfig | None = None
+        self.seeds: np.ndarray | None = None
+        self.scores: np.ndarray | None = None  # (B, candidates) episode NSW, NaN where stopped early
+        self.choice: list[str] = []
+        self.timing: dict[str, float] = {}
+
+    def __repr__(self) -> str:
+        return f"BestInHindsight({self.name!r}, {len(self.candidates)} candidates)"
+
+    def attach(self, config: str | ScenarioConfig) -> None:
+        """Tell it the scenario (the runner does, before ``reset``, for policies that read the trace)."""
+        self.config = ScenarioConfig.resolve(config)
+
+    # -- playing the candidates ------------------------------------------------------------------
+    def reset(self, seeds: int | Sequence[int]) -> None:
+        """Play every candidate on ``seeds`` and choose one per seed (``attach`` first)."""
+        if self.config is None:
+            raise RuntimeError("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
+                               "(wfbench's runner does this for policies with reads_trace = True)")
+        seeds = seeds_array(seeds)
+        c = self.config
+        B, T = seeds.size, c.horizon
+        self.seeds = seeds
+        self.scores = np.full((B, len(self.candidates)), np.nan)
+        best_total = np.full(B, -np.inf)
+        best = np.full(B, -1, dtype=np.int64)
+        kept: dict[int, tuple[str, Any]] = {}  # candidate -> ("live", policy) or ("recorded", _Recording)
+        self.timing = {}
+        for k, name in enumerate(self.candidates):
+            start = time.perf_counter()
+            policy = self.resolve(name)
+            if getattr(policy, "compiled", False):
+                total, how = self._play_compiled(policy, seeds), ("live", policy)
+            else:
+                total, rec = self._play_recorded(policy, seeds, best_total)
+                how = ("recorded", rec)
+            self.timing[name] = time.perf_counter() - start
+            done = ~np.isnan(total)
+            self.scores[done, k] = total[done] / T
+            better = done & (total > best_total)
+            if better.any():
+                best_total[better] = total[better]
+                best[better] = k
+                kept[k] = how
+            kept = {j: v for j, v in kept.items() if (best == j).any()}
+        self.choice = [self.candidates[j] for j in best]
+        self._groups = []
+        for j, (kind, obj) in kept.items():
+            rows = np.flatnonzero(best == j)
+            if kind == "live":
+                obj = self.resolve(self.candidates[j])  # fresh: the played copy holds the end-of-episode state
+                obj.reset(seeds[rows])
+            self._groups.append((kind, obj, rows))
+
+    def _play_compiled(self, policy: Any, seeds: np.ndarray) -> np.ndarray:
+        """Episode totals of NSW of a composite of built-in kernels, compiled."""
+        sim = Simulator(self.config, [int(s) for s in seeds], keep_series=False, threads=1)
+        sim.reset()
+        codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
+        roll_forward(sim, self.config.horizon, codes, hp, pstate)
+        return sim.state.totals[:, K_NSW].astype(np.float64)
+
+    def _play_recorded(self, policy: Any, seeds: np.ndarray, best_total: np.ndarray) -> tuple[np.ndarray, _Recording]:
+        """Episode totals of NSW of any policy played through ``act`` (NaN when stopped early), and its actions."""
+        c = self.config
+        T = c.horizon
+        sim = Simulator(c, [int(s) for s in seeds], keep_series=False, threads=1)
+        obs = sim.reset()
+        if getattr(policy, "reads_trace", False):
+            policy.attach(c)
+        policy.reset(sim.seeds)
+        rec = _Recording(sim.B, sim.M, sim.N, T)
+        while not sim.done:
+            t = sim.t
+            d, w, p = validate_actions(policy.act(obs), sim.B, sim.M, sim.N)
+            rec.add(t, d, w, p)
+            sim.step({"dispatch": d, "workforce": w, "positioning": p})
+            obs = sim.observe()
+            reach = sim.state.totals[:, K_NSW] + (T - sim.t)  # NSW_t <= 1 at every step left
+            if not sim.done and (reach < best_total - PRUNE_MARGIN).all():
+                return np.full(sim.B, np.nan), rec
+        rec.finish()
+        return sim.state.totals[:, K_NSW].astype(np.float64), rec
+
+    # -- replaying the choice --------------------------------------------------------------------
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        if self.seeds is None:
+            raise RuntimeError("call attach(config) and reset(seeds) before act()")
+        B, M = obs["requesting"].shape
+        N = obs["personnel"].shape[1]
+        t = int(obs["t"][0])
+        if len(self._groups) == 1 and self._groups[0][0] == "live":
+            return self._groups[0][1].act(obs)
+        d = np.full((B, M), N, dtype=np.int64)
+        w = np.zeros(B, dtype=np.int64)
+        p = np.zeros((B, 2, M), dtype=np.float64)
+        for kind, obj, rows in self._groups:
+            if kind == "recorded":
+                d[rows], w[rows], p[rows] = obj.actions(t, rows)
+            else:
+                sub = obj.act({k: v[rows] for k, v in obs.items()})
+                d[rows], w[rows], p[rows] = sub["dispatch"], sub["workforce"], sub["positioning"]
+        return {"dispatch": d, "workforce": w, "positioning": p}

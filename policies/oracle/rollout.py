@@ -1,0 +1,122 @@
+"""Compiled roll-forward: step a batch from its current state under built-in kernels.
+
+:func:`roll_forward` is :func:`wfbench.policies.rollout.rollout` without the reset and for a
+number of steps: every environment of a simulator (usually a fork,
+:func:`wfbench.core.lookahead.fork`) optionally takes one explicit first action, then
+observes, acts with the built-in kernels of ``codes`` and steps, ``steps`` steps in
+all (fewer at the horizon). It calls the same ``step_env``, ``observe_env`` and
+``act_env`` as ``Simulator.step`` and the whole-episode rollout, so a roll-forward is
+the episode the simulator would run under those actions (a test checks it against
+``Simulator.step`` with the kernels' actions from ``act``).
+
+It returns the sum of ``NSW_t`` over the steps it ran, per environment (the score the
+oracles maximize), and can record where requests open on the way (the facility cells
+of the failures: the known future demand the positioning oracle plans for).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from wfbench.policies.kernels import act_env
+
+from wfbench.core.dynamics import step_env
+from wfbench.core.entrypoints import bind
+from wfbench.core.observe import observe_env
+
+
+@njit(cache=True, inline="always")
+def _record_onsets(b, S, seen, onset_xy, n_onsets):
+    """Append the cell of every request opened since ``seen`` (each slot's request index) to ``onset_xy[b]``."""
+    M = S.fac_active.shape[1]
+    cap = onset_xy.shape[1]
+    for f in range(M):
+        r = S.fac_request[b, f]
+        if r != seen[b, f]:
+            seen[b, f] = r
+            if S.fac_active[b, f] and S.fac_down[b, f]:
+                k = n_onsets[b]
+                if k < cap:
+                    onset_xy[b, k, 0] = S.fac_x[b, f]
+                    onset_xy[b, k, 1] = S.fac_y[b, f]
+                n_onsets[b] = k + 1
+
+
+@njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the loop (see wfbench.core.dynamics.step_env)
+def roll_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning, first, first_d, first_w,
+               first_p, steps, record, seen, onset_xy, n_onsets, score):
+    """Roll environments lo..hi-1 forward ``steps`` steps (capped by the horizon).
+
+    With ``first``, the first step takes the explicit actions ``first_d[b]``,
+    ``first_w[b]``, ``first_p[b]``; every other step observes (the parts the kernels
+    read) and acts with the kernels of ``codes``. ``score[b]`` gets the sum of NSW over
+    the steps run. With ``record``, the cells of the requests that open are appended to
+    ``onset_xy[b]`` (``n_onsets[b]`` counts them, also past the capacity).
+    """
+    for b in range(lo, hi):
+        end = min(S.t[b] + steps, P.horizon)
+        total = 0.0
+        if record:
+            n_onsets[b] = 0
+            for f in range(S.fac_active.shape[1]):
+                seen[b, f] = S.fac_request[b, f]
+        if first and S.t[b] < end:
+            total += step_env(b, S, Tr, P, first_d[b], first_w[b], first_p[b])
+            if record:
+                _record_onsets(b, S, seen, onset_xy, n_onsets)
+        while S.t[b] < end:
+            observe_env(b, S, P, O, False, False)  # only what the kernels read
+            act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b], True)
+            total += step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
+            if record:
+                _record_onsets(b, S, seen, onset_xy, n_onsets)
+        score[b] = total
+
+
+class RollBuffers:
+    """Scratch arrays of :func:`roll_forward` for a batch of B environments (reused call to call)."""
+
+    def __init__(self, B: int, M: int, N: int, onset_capacity: int = 1024):
+        self.dispatch = np.full((B, M), N, dtype=np.int64)
+        self.workforce = np.zeros(B, dtype=np.int64)
+        self.positioning = np.zeros((B, 2, M), dtype=np.float64)
+        self.first_d = np.full((B, M), N, dtype=np.int64)
+        self.first_w = np.zeros(B, dtype=np.int64)
+        self.first_p = np.zeros((B, 2, M), dtype=np.float64)
+        self.seen = np.zeros((B, M), dtype=np.int64)
+        self.onset_xy = np.zeros((B, onset_capacity, 2), dtype=np.int64)
+        self.n_onsets = np.zeros(B, dtype=np.int64)
+        self.score = np.zeros(B, dtype=np.float64)
+
+
+def roll_forward(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, first: bool = False,
+                 buffers: RollBuffers | None = None, record: bool = False, rows: int | None = None) -> np.ndarray:
+    """Roll every environment of ``sim`` forward ``steps`` steps under the built-in kernels ``codes``.
+
+    Args:
+        sim: a reset :class:`~wfbench.core.simulator.Simulator` (typically a fork); its
+            state advances in place.
+        steps: steps to run (fewer where the horizon comes first).
+        codes: the kernel codes (dispatch, workforce, positioning), int64 (3,), as in
+            ``Composite.compiled_plan``.
+        hp: the (3, ``len(HP_FIELDS)``) hyper-parameters.
+        pstate: the kernels' :class:`~wfbench.policies.kernels.PolicyState` with B rows (advances in place).
+        first: take ``buffers.first_d``, ``first_w``, ``first_p`` as the first step's actions.
+        buffers: scratch arrays (:class:`RollBuffers` of B rows); made when None.
+        record: record the cells of the requests that open (``buffers.onset_xy``, ``n_onsets``).
+        rows: roll only environments 0..rows-1 (all when None); the others stay as they are.
+
+    Returns:
+        (B,) float64: the sum of NSW_t over the steps run (a view of ``buffers.score``).
+    """
+    if buffers is None:
+        buffers = RollBuffers(sim.B, sim.M, sim.N)
+    args = (sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, np.ascontiguousarray(codes, dtype=np.int64),
+            np.ascontiguousarray(hp, dtype=np.float64), buffers.dispatch, buffers.workforce, buffers.positioning,
+            bool(first), buffers.first_d, buffers.first_w, buffers.first_p, int(steps), bool(record), buffers.seen,
+            buffers.onset_xy, buffers.n_onsets, buffers.score)
+    bind(roll_range, 0, 0, *args)(0, sim.B if rows is None else int(rows), *args)
+    return buffers.score
+
+
+__all__ = ["RollBuffers", "roll_forward", "roll_range"]

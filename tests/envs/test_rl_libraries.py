@@ -1,0 +1,124 @@
+"""Each RL library's default path on our environments, plugged in as its documentation shows (docs/envs.md).
+
+PettingZoo's and Gymnasium's own checkers run in tests/envs/test_envs.py; here: PettingZoo's
+state and render tests, SuperSuit, Tianshou and TorchRL (the ``dev`` extra installs them;
+RLlib, too heavy for the suite, is run by benchmarks/rllib_ppo.py).
+"""
+
+import gymnasium
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test, parallel_seed_test, render_test, state_test
+
+import wfbench
+
+LIBRARY_OPTIONS = {"observation": "box", "actions": "shared"}  # one Box and one MultiDiscrete for every agent
+
+
+def test_pettingzoo_state_and_render_tests(strict_warnings):
+    state_test(wfbench.env("small"), wfbench.parallel_env("small"))
+    render_test(lambda render_mode=None: wfbench.env("small", render_mode=render_mode))
+    env = wfbench.parallel_env("small")
+    env.reset(seed=0)
+    assert env.state_space.contains(env.state()) and env.state().dtype == env.state_space.dtype
+
+
+def test_library_options_pass_the_pettingzoo_checkers_and_give_one_space_to_all(strict_warnings):
+    parallel_api_test(wfbench.parallel_env("small", **LIBRARY_OPTIONS), num_cycles=50)
+    parallel_seed_test(lambda: wfbench.parallel_env("small", **LIBRARY_OPTIONS))
+    env = wfbench.parallel_env("small", **LIBRARY_OPTIONS)
+    assert len({id(env.action_space(a)) for a in env.possible_agents}) == 1
+    assert len({id(env.observation_space(a)) for a in env.possible_agents}) == 1
+
+
+def test_shared_actions_replay_the_own_actions():
+    """An agent's part of the shared MultiDiscrete is its own action; the other parts are ignored."""
+    own, shared = wfbench.parallel_env("small"), wfbench.parallel_env("small", **LIBRARY_OPTIONS)
+    own.reset(seed=2)
+    shared.reset(seed=2)
+    space = shared.action_space("dispatch")
+    space.seed(0)
+    M = shared.config.max_facilities
+    for _ in range(30):
+        joint = {a: space.sample() for a in shared.agents}  # different samples: each agent's other parts differ
+        given = {"dispatch": joint["dispatch"][:M], "workforce": joint["workforce"][M],
+                 "positioning": joint["positioning"][M + 1 :].reshape(2, M) / 10}
+        o1, r1, *_ = own.step(given)
+        o2, r2, *_ = shared.step(joint)
+        assert r1 == r2
+        assert np.array_equal(o2["dispatch"], gymnasium.spaces.flatten(own._dict_space, o1["dispatch"]))
+    with pytest.raises(wfbench.ActionError, match=r"action of agent 'dispatch' has shape \(3,\)"):
+        shared.step({a: np.zeros(3, np.int64) for a in shared.agents})
+
+
+def test_flat_info_holds_the_nested_tallies_as_numbers():
+    flat, nested = wfbench.parallel_env("small"), wfbench.parallel_env("small", info="nested")
+    f, n = flat.reset(seed=1)[1]["dispatch"], nested.reset(seed=1)[1]["dispatch"]
+    actions = {"dispatch": np.full(8, 8), "workforce": 1, "positioning": np.full((2, 8), 0.5)}
+    f, n = flat.step(actions)[4]["dispatch"], nested.step(actions)[4]["dispatch"]
+    assert all(isinstance(v, (int, float)) for v in f.values())
+    expect = {"t": n["t"], "seed": n["seed"], **{f"metric_{k}": v for k, v in n["metrics"].items()},
+              **{f"count_{k}": v for k, v in n["counts"].items()},
+              **{f"step_count_{k}": v for k, v in n["step_counts"].items()}}
+    assert f == expect and f["t"] == 1
+
+
+def test_bad_options_are_named():
+    with pytest.raises(ValueError, match=r"actions='same' is not allowed; allowed: 'own', 'shared'"):
+        wfbench.parallel_env("small", actions="same")
+    with pytest.raises(ValueError, match=r"info='deep' is not allowed; allowed: 'flat', 'nested'"):
+        wfbench.parallel_env("small", info="deep")
+    with pytest.raises(ValueError, match=r"render_mode 'ansi' is not supported; allowed: None, 'rgb_array', 'human'"):
+        wfbench.parallel_env("small", render_mode="ansi")
+
+
+def test_supersuit_vectorizes_and_flattens_with_its_defaults():
+    import supersuit as ss
+
+    env = ss.flatten_v0(wfbench.parallel_env("small", **LIBRARY_OPTIONS))
+    vec = ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), 2, num_cpus=0, base_class="gymnasium")
+    obs, _ = vec.reset(seed=0)
+    assert obs.shape == (6, vec.observation_space.shape[0])
+    for _ in range(3):
+        obs, rew, term, trunc, _ = vec.step(np.stack([vec.action_space.sample() for _ in range(6)]))
+    assert obs.shape[0] == rew.shape[0] == 6 and not term.any()
+
+
+def test_tianshou_pettingzoo_env_takes_the_aec_env():
+    from tianshou.env import PettingZooEnv
+
+    env = PettingZooEnv(wfbench.env("small", **LIBRARY_OPTIONS))
+    obs, _ = env.reset(seed=0)
+    assert env.agents == ["dispatch", "workforce", "positioning"] and obs["agent_id"] == "dispatch"
+    for _ in range(6):
+        obs, rew, term, trunc, _ = env.step(env.action_space.sample())
+    assert len(rew) == 3 and not term
+
+
+@pytest.mark.filterwarnings("ignore:PettingZoo in TorchRL is tested using version")
+def test_torchrl_pettingzoo_wrapper_and_gym_env_with_their_defaults():
+    from torchrl.envs import GymWrapper, PettingZooWrapper
+
+    for options in ({}, LIBRARY_OPTIONS):  # the flat info is what its default path needs
+        env = PettingZooWrapper(wfbench.parallel_env("small", **options))
+        rollout = env.rollout(4)
+        assert rollout.batch_size == (4,)
+        assert rollout["next", "dispatch", "info", "t"].tolist() == [[1], [2], [3], [4]]
+    vec = GymWrapper(gymnasium.make_vec("wfbench/Workforce-v0", 2, scenario="small", observation="box"))
+    rollout = vec.rollout(3)
+    assert rollout.batch_size == (2, 3)
+
+
+def test_cleanrl_style_example_trains_from_the_env_id():
+    """examples/cleanrl_ppo.py, from the env id: one PPO iteration over one 200-step episode, its return recorded."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "cleanrl_ppo.py"
+    spec = importlib.util.spec_from_file_location("cleanrl_ppo", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    args = ["--scenario", "small", "--total-timesteps", "200", "--num-envs", "1", "--num-steps", "200",
+            "--update-epochs", "1", "--num-minibatches", "2"]
+    returns = module.main(args)
+    assert len(returns) == 1 and np.isfinite(returns[0]) and returns[0] > 0

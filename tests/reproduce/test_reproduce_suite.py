@@ -1,0 +1,98 @@
+"""wfbench reproduce suite on a tiny subset: the files, the numbers, the checks, and resuming from the cache."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+import wfbench
+import wfbench.reproduce.suite as target
+from wfbench.cli import main
+from wfbench.scenarios import normalize
+
+POLICIES = ("random", "heuristic", "oracle")
+FAST = {"reps": 200, "poi_reps": 20}
+
+
+@pytest.fixture(scope="module")
+def first(tmp_path_factory):
+    out = tmp_path_factory.mktemp("suite")
+    steps = []
+    result = target.suite(out, seeds=[0, 1], policies=POLICIES, scenarios=["small"], backend="serial",
+                          progress=steps.append, **FAST)
+    return out, result, steps
+
+
+def test_suite__writes_scores_aggregate_profiles_scaling_and_checks(first):
+    out, result, steps = first
+    assert steps == ["small-v1: random", "small-v1: heuristic", "small-v1: oracle", "small-v1: bound"]
+    assert target.size(policies=POLICIES, scenarios=["small"]) == len(steps)
+    names = {p.name for p in result.files}
+    for stem in ("suite-scores", "suite-aggregate", "suite-checks"):
+        assert {f"{stem}.md", f"{stem}.csv"} <= names
+    assert {"suite-profile-train.csv", "suite-profile-train.svg", "suite-profile-train.png", "suite-scaling.csv",
+            "suite-scaling.svg", "suite-scaling.png"} <= names
+    assert "suite-profile-heldout.csv" not in names  # small is in the training split only
+    assert all(p.exists() and p.stat().st_size > 0 for p in result.files)
+
+
+def test_suite__scores_are_the_evaluator_s_normalized(first):
+    out, _, _ = first
+    scores = pd.read_csv(out / "suite-scores.csv").set_index("policy")
+    heuristic = wfbench.evaluate("heuristic", "small", [0, 1], backend="serial")["nsw"].to_numpy()
+    assert scores.loc["heuristic", "nsw"] == pytest.approx(heuristic.mean(), abs=1e-12)
+    assert scores.loc["heuristic", "normalized"] == pytest.approx(normalize(heuristic, "small-v1").mean(), abs=1e-12)
+    from wfbench.core.bound import score_upper_bound
+
+    assert scores.loc["bound", "nsw"] == pytest.approx(score_upper_bound("small", [0, 1]).mean(), abs=1e-12)
+    agg = pd.read_csv(out / "suite-aggregate.csv").set_index("policy")
+    assert list(agg["split"].unique()) == ["train"]
+    assert agg.loc["heuristic", "mean"] == pytest.approx(scores.loc["heuristic", "normalized"])
+    assert agg.loc["oracle", "p_improve"] == 1.0  # the oracle beats the heuristic on both seeds
+    scaling = pd.read_csv(out / "suite-scaling.csv")
+    assert set(scaling["family"]) == {"random", "heuristic", "oracle"} and (scaling["env_steps_per_s"] > 0).all()
+
+
+def test_suite__checks_that_the_bound_holds_and_the_oracle_leads(first):
+    out, result, _ = first
+    checks = pd.read_csv(out / "suite-checks.csv").iloc[0]
+    assert bool(checks["bound_holds"]) and bool(checks["oracle_at_least_deployable"])
+    assert checks["best_deployable"] == "heuristic"
+    assert "The bound holds: yes" in result.text
+    assert "The oracle is at least every deployable policy on 1 of 1 scenarios" in result.text
+
+
+def test_suite__a_rerun_reads_the_cache_and_writes_the_same_files(first, monkeypatch):
+    out, result, _ = first
+    before = {p.name: p.read_bytes() for p in result.files if p.suffix in (".csv", ".md", ".svg")}
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a cached (policy, scenario) ran again")
+
+    monkeypatch.setattr(target, "_run", refuse)
+    again = target.suite(out, seeds=[0, 1], policies=POLICIES, scenarios=["small"], backend="serial", **FAST)
+    after = {p.name: p.read_bytes() for p in again.files if p.suffix in (".csv", ".md", ".svg")}
+    assert after.keys() == before.keys()
+    for name in after:
+        if name != "suite-scaling.csv" and name != "suite-scaling.svg":  # fresh wall times vs the cached ones
+            assert after[name] == before[name], name
+
+
+def test_suite__other_seeds_are_not_taken_from_the_cache(first, monkeypatch):
+    out, _, _ = first
+    ran = []
+    real = target._run
+    monkeypatch.setattr(target, "_run", lambda policy, *a: (ran.append(policy), real(policy, *a))[1])
+    target.suite(out, seeds=[0], policies=("random",), scenarios=["small"], backend="serial", **FAST)
+    assert ran == ["random", "bound"]
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["reproduce", "gap", "--policies", "random"], "--policies applies to suite only, not to gap"),
+    (["reproduce", "suite", "--scenarios", "nope"], "--scenarios: unknown scenario 'nope' in suite-v1; allowed: "),
+    (["reproduce", "suite", "--policies", "no-such-policy"], "no-such-policy"),
+])
+def test_cli_reproduce_suite__bad_options_in_one_line(capsys, tmp_path, argv, message):
+    status = main([*argv, "--out", str(tmp_path)])
+    out, err = capsys.readouterr()
+    assert status == 2 and err.count("\n") == 1 and message in err and "Traceback" not in err, err

@@ -1,0 +1,171 @@
+"""Same numbers before and after a refactor: capture what users see, then compare two captures bit for bit.
+
+A refactor that moves code must not move a number. This script records, through the
+public interfaces only (``wfbench.evaluate``, the ``wfbench`` command line), so that it
+runs unchanged on the code before and after:
+
+- the per-seed rows (every KPI, utility and counter) of the built-in policies, the
+  tuned files and the shipped networks on ``paper-64``, ``small`` and ``nonstationary``;
+- the reproduced tables (``wfbench reproduce table3|table2|gap``, CSV files);
+- short training runs of each trainer (PPO joint, dispatch and independent agents,
+  IMPALA, hindsight learning): the weights of ``latest.pt`` and ``best.pt``, the
+  history of public scores, and ``config.json`` less the git commit.
+
+Usage (run the capture of the old code from a checkout of it, e.g. a git worktree)::
+
+    PYTHONPATH=/path/to/old/checkout python tools/identity_check.py capture /tmp/before
+    python tools/identity_check.py capture /tmp/after
+    python tools/identity_check.py compare /tmp/before /tmp/after
+
+``compare`` prints every difference and exits 1 if there is one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+POLICIES = ["random", "heuristic", "heuristic-stochastic", "random-dispatch", "random-positioning",
+            "fixed-workforce", "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle-planner",
+            "oracle-dispatch", "heuristic-tuned", "solver-tuned", "ppo-joint", "ppo-dispatch", "impala-joint",
+            "hindsight-joint", "ppo-independent", "hindsight-ppo"]
+SCENARIOS = ["paper-64", "small", "nonstationary"]
+SLOW = {"oracle-planner", "oracle-dispatch"}  # fewer seeds: the planners look over the whole future
+
+TRAIN = {  # short runs of every trainer: a few updates, two public evaluations
+    "ppo-joint": ["--algo", "ppo", "--variant", "joint", "--steps", "1536", "--num-envs", "8", "--num-steps", "64",
+                  "--eval-every", "1", "--eval-seeds", "public:2", "--model", "tiny", "--scenario", "small"],
+    "ppo-dispatch": ["--algo", "ppo", "--variant", "dispatch", "--steps", "1024", "--num-envs", "4",
+                     "--num-steps", "64", "--eval-every", "2", "--eval-seeds", "public:2", "--model", "tiny",
+                     "--scenario", "small"],
+    "ppo-independent": ["--algo", "ppo", "--agents", "independent", "--steps", "1024", "--num-envs", "4",
+                        "--num-steps", "64", "--eval-every", "2", "--eval-seeds", "public:2", "--model", "tiny",
+                        "--scenario", "small"],
+    # sync: the actor and the learner in turn, deterministic; the default async mode's policy lag depends on the
+    # timing of its two threads (wfbench/train/impala.py), so two captures on a loaded machine differ by design
+    "impala": ["--algo", "impala", "--steps", "1024", "--num-envs", "4", "--num-steps", "32", "--eval-every", "4",
+               "--eval-seeds", "public:2", "--model", "tiny", "--scenario", "small", "--set", "mode=sync"],
+    "hindsight": ["--algo", "hindsight", "--steps", "192", "--num-envs", "2", "--eval-every", "1",
+                  "--eval-seeds", "public:2", "--model", "tiny", "--scenario", "small"],
+}
+
+
+def capture(out: Path, seeds: int, only: set[str] | None) -> None:
+    import pandas as pd
+
+    import wfbench
+    from wfbench.cli import main as cli
+
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"wfbench from {Path(wfbench.__file__).parent}", flush=True)
+    if only is None or "evaluate" in only:
+        for scenario in SCENARIOS:
+            for name in POLICIES:
+                t0 = time.perf_counter()
+                n = min(seeds, 4) if name in SLOW else seeds
+                df = wfbench.evaluate(name, scenario, list(range(n)), backend="serial", progress=False)
+                # the budget columns are measurements that differ run to run (an older wfbench has none)
+                df = df.drop(columns=["decision_ms_p50", "decision_ms_p99", "cpu_s"], errors="ignore")
+                df.attrs.pop("budget", None)
+                df.to_pickle(out / f"eval__{scenario}__{name}.pkl")
+                print(f"evaluate {name:22s} {scenario:14s} {n} seeds {time.perf_counter() - t0:6.1f} s", flush=True)
+    if only is None or "reproduce" in only:
+        for target, runs in (("table3", "10"), ("table2", "4"), ("gap", "4")):
+            t0 = time.perf_counter()
+            code = cli(["reproduce", target, "--out", str(out / f"reproduce-{target}"), "--runs", runs,
+                        "--backend", "serial", "--no-progress"])
+            print(f"reproduce {target} exit {code} {time.perf_counter() - t0:6.1f} s", flush=True)
+    if only is None or "train" in only:
+        import torch
+
+        for name, flags in TRAIN.items():
+            t0 = time.perf_counter()
+            run = out / f"train-{name}"
+            cli(["train", *flags, "--device", "cpu", "--run-dir", str(run), "--no-progress", "--no-tensorboard"])
+            for ckpt in ("latest.pt", "best.pt"):
+                if (run / ckpt).exists():
+                    c = torch.load(run / ckpt, map_location="cpu", weights_only=False)
+                    torch.save({"model": c["model"], "history": c.get("history")}, run / f"{ckpt}.model")
+            cfg = json.loads((run / "config.json").read_text())
+            for key in ("git_commit", "run_dir"):  # the commit and the capture's folder, not the code's doing
+                cfg.pop(key, None)
+            (run / "config.clean.json").write_text(json.dumps(cfg, indent=1, sort_keys=True))
+            print(f"train {name} {time.perf_counter() - t0:6.1f} s", flush=True)
+    pd.Series({"python": sys.version}).to_json(out / "meta.json")
+
+
+def _same(a, b) -> bool:
+    import numpy as np
+    import torch
+
+    if isinstance(a, torch.Tensor):
+        return isinstance(b, torch.Tensor) and a.dtype == b.dtype and a.shape == b.shape and torch.equal(a, b)
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, list | tuple):
+        return isinstance(b, list | tuple) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float) and isinstance(b, float):
+        return (np.isnan(a) and np.isnan(b)) or a == b
+    return a == b
+
+
+def compare(a: Path, b: Path) -> int:
+    import pandas as pd
+    import torch
+
+    diffs, checked = [], 0
+    for fa in sorted(a.rglob("*")):
+        if not fa.is_file() or fa.name == "meta.json":
+            continue
+        rel = fa.relative_to(a)
+        fb = b / rel
+        if rel.parts[0].startswith("train-") and fa.suffix not in (".model",) and fa.name != "config.clean.json":
+            continue  # raw checkpoints hold the commit and paths; their models are compared through .model
+        if not fb.exists():
+            diffs.append(f"{rel}: missing in {b}")
+            continue
+        checked += 1
+        if fa.suffix == ".pkl":
+            x, y = pd.read_pickle(fa), pd.read_pickle(fb)
+            try:
+                pd.testing.assert_frame_equal(x, y, check_exact=True)
+            except AssertionError as exc:
+                diffs.append(f"{rel}: {str(exc).splitlines()[0]}")
+        elif fa.suffix == ".model":
+            if not _same(torch.load(fa, weights_only=False), torch.load(fb, weights_only=False)):
+                diffs.append(f"{rel}: weights or history differ")
+        elif fa.name == "config.clean.json":
+            x, y = json.loads(fa.read_text()), json.loads(fb.read_text())
+            if x != y:
+                keys = sorted(k for k in x.keys() | y.keys() if x.get(k) != y.get(k))
+                diffs.append(f"{rel}: keys differ: {keys}")
+        elif fa.read_bytes() != fb.read_bytes():
+            diffs.append(f"{rel}: bytes differ")
+    for d in diffs:
+        print(d)
+    print(f"{checked} files compared, {len(diffs)} differences")
+    return 1 if diffs else 0
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    c = sub.add_parser("capture")
+    c.add_argument("out", type=Path)
+    c.add_argument("--seeds", type=int, default=10, help="test seeds 0..N-1 per policy and scenario (default 10)")
+    c.add_argument("--only", default=None, help="comma-separated parts: evaluate, reproduce, train")
+    d = sub.add_parser("compare")
+    d.add_argument("a", type=Path)
+    d.add_argument("b", type=Path)
+    args = p.parse_args()
+    if args.cmd == "capture":
+        capture(args.out, args.seeds, set(args.only.split(",")) if args.only else None)
+        return 0
+    return compare(args.a, args.b)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,201 @@
+"""One batch of full episodes, and the per-seed result rows.
+
+:func:`run_batch` runs every seed of a chunk as one batch: a composite of built-in
+kernels as one compiled rollout, any other policy through one batched ``reset`` /
+``act`` / ``step`` loop (a user's policy through its :class:`~wfbench.harness.guard.Guard`).
+A policy that declares ``reads_trace = True`` (a hindsight oracle, docs/hindsight.md) is
+handed the scenario with ``attach(config)`` before ``reset``; no other policy is.
+Each environment is independent and all its randomness is indexed by its seed, so a
+seed's numbers do not depend on the batch it ran in. :func:`results_frame` turns
+finished batches into one row per seed.
+
+A batch also measures what it cost, in the process that ran it: the wall time of each
+decision and the CPU seconds per episode (the budget columns, :mod:`wfbench.harness.budget`
+says how each policy family is timed), and the machine. These are measurements, not
+results: they differ from run to run.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numba.core import event as numba_event
+
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import Simulator
+from wfbench.core.state import COUNTERS, INVALID_COUNTERS, METRICS
+from wfbench.harness.budget import machine
+from wfbench.harness.guard import LoadedPolicy, load_policy
+from wfbench.policies import Composite
+from wfbench.policies.rollout import rollout
+
+
+@dataclass
+class BatchResult:
+    """The finished episodes of one batch, row ``i`` for ``seeds[i]``."""
+
+    seeds: list[int]
+    means: dict[str, np.ndarray]  # metric -> (B,) episode mean
+    counters: dict[str, np.ndarray]  # counter -> (B,) int
+    steps: np.ndarray  # (B,) steps run
+    series: np.ndarray | None  # (B, horizon, len(METRICS)) float32
+    decision_ms: tuple[float, float] = (float("nan"), float("nan"))  # p50, p99 ms per decision of one environment
+    cpu_s: float = float("nan")  # CPU seconds of the process per episode
+    timing: str = ""  # "act" (each act call timed) or "rollout" (a compiled rollout's time per environment-step)
+    machine: dict[str, Any] = field(default_factory=dict)  # where the batch ran (wfbench.harness.budget.machine)
+
+
+class _CompileClock(numba_event.Listener):
+    """Wall and CPU seconds numba held its compiler lock (loading from its cache or compiling) while installed.
+
+    Both clocks: on a busy machine a compile's wall time exceeds its CPU time, and each
+    is subtracted from a measurement on the same clock.
+    """
+
+    def __init__(self) -> None:
+        self.depth = 0
+        self.wall = self.cpu = 0.0
+        self.w0 = self.c0 = 0.0
+
+    def on_start(self, event: numba_event.Event) -> None:
+        if self.depth == 0:
+            self.w0, self.c0 = time.perf_counter(), time.process_time()
+        self.depth += 1
+
+    def on_end(self, event: numba_event.Event) -> None:
+        self.depth -= 1
+        if self.depth == 0:
+            self.wall += time.perf_counter() - self.w0
+            self.cpu += time.process_time() - self.c0
+
+
+@contextmanager
+def _compile_clock() -> Iterator[_CompileClock]:
+    clock = _CompileClock()
+    with numba_event.install_listener("numba:compiler_lock", clock):
+        yield clock
+
+
+def run_batch(policy: Any, config: str | ScenarioConfig, seeds: Sequence[int], keep_series: bool = False,
+              threads: int | None = None) -> BatchResult:
+    """Run full episodes of ``seeds`` as one batch.
+
+    Args:
+        policy: a :class:`~wfbench.harness.guard.LoadedPolicy` (what the backends pass: resolved
+            once per evaluation), or anything :func:`~wfbench.harness.guard.load_policy` takes,
+            loaded here with the default act timeout.
+        config: the scenario (a :class:`ScenarioConfig` or what it resolves).
+        seeds: one environment per seed.
+        keep_series: also keep the per-step metrics.
+        threads: numba threads of a compiled rollout (default: all cores).
+
+    Returns:
+        The batch's episode means, counters and steps (and series).
+
+    Raises:
+        wfbench.harness.guard.PolicyError: a user's policy raised, hung past its act timeout or
+            returned a malformed action.
+    """
+    loaded = load_policy(policy)
+    policy, guard = loaded.policy, loaded.guard
+    with _compile_clock() as compiling:
+        cpu0 = time.process_time()
+        sim = Simulator(ScenarioConfig.resolve(config), seeds, keep_series=keep_series)
+        per_step: list[float] = []  # ms per decision of one environment, one entry per act call
+
+        def timed(act: Any, obs: Any) -> Any:
+            c0, t0 = compiling.wall, time.perf_counter()
+            out = act(obs)
+            per_step.append((time.perf_counter() - t0 - (compiling.wall - c0)) * 1e3 / sim.B)
+            return out
+
+        if isinstance(policy, Composite) and policy.compiled:
+            codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
+            c0, r0 = compiling.cpu, time.process_time()
+            rollout(sim, codes, hp, pstate, threads)
+            # one compiled call: its CPU time over the environment-steps it ran (wfbench.harness.budget)
+            cpu = max(0.0, time.process_time() - r0 - (compiling.cpu - c0))
+            step_ms = cpu * 1e3 / max(1, int(sim.state.t.sum()))
+            decision_ms, timing = (step_ms, step_ms), "rollout"
+        else:
+            obs = sim.reset()
+            if guard is None:  # a built-in: our own code runs as it is
+                if getattr(policy, "reads_trace", False):  # a hindsight oracle: handed the scenario, so the future
+                    policy.attach(sim.config)
+                policy.reset(sim.seeds)
+                while not sim.done:
+                    sim.step(timed(policy.act, obs))
+                    obs = sim.observe()
+            else:
+                if getattr(policy, "reads_trace", False):  # declared: the leaderboard keeps it off deployable tracks
+                    guard.call("attach", policy.attach, sim.config)
+                guard.call("reset", policy.reset, sim.seeds)
+                while not sim.done:
+                    guard.step(sim, timed(lambda o: guard.call("act", policy.act, o), obs), policy.act)
+                    obs = sim.observe()
+            q = np.percentile(per_step, [50, 99]) if per_step else (float("nan"), float("nan"))
+            decision_ms, timing = (float(q[0]), float(q[1])), "act"
+        cpu_s = max(0.0, time.process_time() - cpu0 - compiling.cpu) / max(1, len(seeds))
+    return BatchResult(
+        seeds=list(seeds), means=sim.episode_means(), counters=sim.counters(), steps=sim.state.t.copy(),
+        series=sim.state.series.copy() if keep_series else None, decision_ms=decision_ms, cpu_s=cpu_s,
+        timing=timing, machine=machine(),
+    )
+
+
+def prime(loaded: LoadedPolicy, config: ScenarioConfig) -> None:
+    """Compile (or load from numba's cache) what :func:`run_batch` will run for ``loaded`` on ``config``.
+
+    A two-step episode of one seed on ``config``'s shapes: the compiled rollout of a
+    built-in composite, a built-in policy's own loop, or for a user's policy (whose code
+    does not run here) the simulator's reset, step and observe with empty actions. The
+    process and Ray backends call it before starting their workers, so that on a cold
+    cache the core compiles once, here, and the workers load it from disk instead of
+    each compiling the same code (and printing the notice) at the same time. On a warm
+    cache it only loads: about 0.1 s for the simulator, 0.4 s for a compiled rollout.
+    """
+    short = config.replace(horizon=2)
+    if loaded.guard is None:
+        # on a copy: playing leaves state on a policy (an oracle's planner holds compiled closures), and the
+        # workers are sent the untouched one, which must still pickle
+        run_batch(copy.deepcopy(loaded), short, [0], threads=1)
+        return
+    sim = Simulator(short, [0])
+    sim.reset()
+    M, N = sim.M, sim.N
+    sim.step({"dispatch": np.full((1, M), N), "workforce": np.zeros(1, dtype=np.int64),
+              "positioning": np.ones((1, 2, M))})
+    sim.observe()
+
+
+def results_frame(results: Sequence[BatchResult], config: ScenarioConfig, policy_name: str) -> pd.DataFrame:
+    """One row per seed of the batches, in batch order.
+
+    The metrics, episode length and action counters, then the budget columns
+    (``decision_ms_p50``, ``decision_ms_p99``, ``cpu_s``: the batch's measurements, the same
+    for every seed of one batch).
+    """
+    rows = []
+    for r in results:
+        for i, seed in enumerate(r.seeds):
+            row: dict[str, Any] = {"seed": seed}
+            for k in METRICS:
+                row[k] = float(r.means[k][i])
+            row["episode_length"] = int(r.steps[i])
+            for c in COUNTERS:
+                row[c] = int(r.counters[c][i])
+            row["invalid_actions"] = int(sum(r.counters[c][i] for c in INVALID_COUNTERS))
+            row["decision_ms_p50"], row["decision_ms_p99"] = r.decision_ms
+            row["cpu_s"] = r.cpu_s
+            rows.append(row)
+    df = pd.DataFrame(rows)
+    df.attrs["scenario"] = config.name
+    df.attrs["policy"] = policy_name
+    return df
