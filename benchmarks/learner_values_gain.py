@@ -54,7 +54,7 @@ def main() -> None:
     start = time.perf_counter()
     for _ in range(a.states):
         tr.collect(0.0)  # the network plays `every` steps
-        x = featurize(obs_to_torch(tr.obs, tr.device), tr.mcfg.coord_scale)
+        x = featurize(obs_to_torch(tr.obs, tr.run.device), tr.run.network.coord_scale)
         with torch.no_grad():
             out, state = tr.model(x, tr.state, torch.zeros(1, a.envs))
             logits = out["workforce"].float().masked_fill(x["workforce_mask"] <= 0, -1e9)

@@ -39,11 +39,11 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
         for k in tr.timing:
             tr.timing[k] = 0.0
         load0 = os.getloadavg()[0]
-        t0, c0, steps0 = time.perf_counter(), time.process_time(), tr.global_step
+        t0, c0, steps0 = time.perf_counter(), time.process_time(), tr.run.global_step
         for _ in range(updates):
             tr.learn(tr.rollout())
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        steps = tr.global_step - steps0
+        steps = tr.run.global_step - steps0
     return {"scenario": scenario, "model": model, "agents": agents, "parameters": count_parameters(tr.model),
             "threads": threads, "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
             "cpu_s": cpu, "env_steps_per_cpu_s": steps / cpu, "load_avg_before": load0,

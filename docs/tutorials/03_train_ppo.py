@@ -72,16 +72,16 @@ trainer = Trainer(config, progress=False)  # progress=True shows a progress bar
 start = time.perf_counter()
 last = trainer.train()
 minutes = (time.perf_counter() - start) / 60
-print(f"{trainer.global_step} environment steps in {minutes:.1f} min "
-      f"({trainer.global_step / (minutes * 60):.0f} steps/s), {trainer.update} updates")
+print(f"{trainer.run.global_step} environment steps in {minutes:.1f} min "
+      f"({trainer.run.global_step / (minutes * 60):.0f} steps/s), {trainer.update} updates")
 print("last update:", {k: round(v, 4) for k, v in last.items()})
-print("best checkpoint:", {k: trainer.best[k] for k in ("update", "global_step", "score", "greedy")})
+print("best checkpoint:", {k: trainer.run.best[k] for k in ("update", "global_step", "score", "greedy")})
 print("run folder:", sorted(p.name for p in run_dir.iterdir()))
 
 # %% [markdown]
 # ## The learning curve
 #
-# Two sources. The trainer's `history` holds each score on the public seeds; the
+# Two sources. The run's `history` (`trainer.run.history`) holds each score on the public seeds; the
 # TensorBoard scalars in `RUN/tb` hold, among others, the NSW of every finished training
 # episode (`episode/nsw`), read here with TensorBoard's `EventAccumulator`
 # (`tensorboard --logdir RUN/tb` shows them all in a browser). The dashed line is the
@@ -92,7 +92,7 @@ scalars = EventAccumulator(str(run_dir / "tb"))
 scalars.Reload()
 print("scalars:", sorted(scalars.Tags()["scalars"]))
 episodes = scalars.Scalars("episode/nsw")
-public = trainer.history
+public = trainer.run.history
 heuristic_public = wfbench.evaluate("heuristic", "small", seeds=public[0]["seeds"])["nsw"].mean()
 
 fig, ax = plt.subplots(figsize=(10, 4))
@@ -104,7 +104,7 @@ ax.plot([h["global_step"] for h in public], [h["greedy"] for h in public], "s--"
 ax.axhline(heuristic_public, color="black", ls=":", label="heuristic, public seeds")
 ax.set_xlabel("environment steps")
 ax.set_ylabel("episode NSW")
-ax.set_title(f"PPO on small, cpu network, {trainer.global_step} steps in {minutes:.1f} min")
+ax.set_title(f"PPO on small, cpu network, {trainer.run.global_step} steps in {minutes:.1f} min")
 ax.legend(loc="lower right", fontsize=8)
 fig.tight_layout()
 plt.show()

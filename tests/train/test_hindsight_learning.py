@@ -131,9 +131,9 @@ def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
 
     more = Trainer(HindsightConfig(**{**vars(cfg), "steps": 96}), resume=run / "latest.pt", progress=False,
                    log=False)
-    assert more.iteration == 1 and more.global_step == 48
+    assert more.iteration == 1 and more.run.global_step == 48
     more.train()
-    assert more.iteration == 2 and more.global_step == 96
+    assert more.iteration == 2 and more.run.global_step == 96
 
     from wfbench.train.ppo import TrainConfig
     from wfbench.train.ppo import Trainer as PPOTrainer
@@ -295,7 +295,7 @@ def test_learner_values_are_roll_forwards_in_copies_that_leave_the_episode_alone
     want = np.where(mask, reward - reward[:, :1], np.nan)
     np.testing.assert_array_equal(v, want)
 
-    tr.cfg.value_horizon, tr.cfg.value_samples = 6, 2  # the learner acts for 5 more steps, two noise samples
+    tr.run.config.value_horizon, tr.run.config.value_samples = 6, 2  # the learner acts 5 more steps, two noise samples
     tr.value_fork = None
     state = tr.value_gen.get_state()
     first = tr.learner_values(mine)

@@ -184,7 +184,7 @@ def test_impala_ray__trainer_resume_and_ctrl_c_with_a_stand_in_for_ray(tmp_path,
     before = {k: v.clone() for k, v in tr.model.state_dict().items()}
     stats = tr.train()
     assert all(math.isfinite(v) for v in stats.values()), stats
-    assert tr.update == 4 and tr.global_step == 128 and tr._ray is None
+    assert tr.update == 4 and tr.run.global_step == 128 and tr._ray is None
     # both actors asked with update 0's parameters at the start; then each asked again as its rollout is taken
     assert tr.lags == [0, 1, 2, 2]
     assert fake.log == [("init", "local", False), ("kill",), ("kill",), ("shutdown",)]

@@ -335,7 +335,7 @@ def test_rl__init_starts_from_a_checkpoints_weights(tmp_path):
     second = Trainer(_cfg(tmp_path / "b", seed=9, init=str(ckpt)), progress=False, log=False)
     for k, v in first.model.state_dict().items():
         assert torch.equal(v, second.model.state_dict()[k]), k
-    assert second.update == 0 and second.global_step == 0  # a new run, not a resume
+    assert second.update == 0 and second.run.global_step == 0  # a new run, not a resume
     with pytest.raises(ValueError, match="is not this run's"):
         Trainer(_cfg(tmp_path / "c", model="small", init=str(ckpt)), progress=False, log=False)
     # value warm-up: for its first updates only the value head moves, then everything does

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from contextlib import nullcontext as _no_raise
+from types import SimpleNamespace
 
 import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -11,16 +12,16 @@ from wfbench.train.toolkit import RunOutputs
 
 
 class StandIn:
-    """The attributes RunOutputs reads of a trainer; ``save`` records what was written, and how."""
+    """What RunOutputs reads of a trainer: its run record, its counter; ``save`` records what was written, and how."""
 
     def __init__(self, run_dir, log=False, progress=False):
-        self.run_dir, self.log, self.progress = run_dir, log, progress
-        self.global_step, self.iteration = 0, 0
-        self.best = {"score": float("-inf"), "update": None}
+        self.run = SimpleNamespace(dir=run_dir, log=log, progress=progress, global_step=0,
+                                   best={"score": float("-inf"), "update": None})
+        self.iteration = 0
         self.saved: list[tuple[str, bool]] = []
 
     def save(self, path, full=True):
-        self.saved.append((str(path.relative_to(self.run_dir)), full))
+        self.saved.append((str(path.relative_to(self.run.dir)), full))
         return path
 
 
@@ -33,12 +34,12 @@ def test_run_outputs__best_only_on_a_better_public_score_and_latest_at_the_end(t
     t = StandIn(tmp_path)
     with RunOutputs(t, "iteration", "test", 30, 0) as out:
         for i, score in enumerate([0.70, 0.75, 0.74], start=1):
-            t.iteration, t.global_step = i, 10 * i
+            t.iteration, t.run.global_step = i, 10 * i
             out.public(_public(score), i)
             out.checkpoint(f"iter_{i:04d}.pt")
             out.advance(10, {"sps": "1"})
-    assert t.best["score"] == 0.75 and t.best["update"] == 2 and t.best["global_step"] == 20
-    assert t.best["greedy"] == pytest.approx(0.74) and t.best["seeds"] == [1000, 1001]
+    assert t.run.best["score"] == 0.75 and t.run.best["update"] == 2 and t.run.best["global_step"] == 20
+    assert t.run.best["greedy"] == pytest.approx(0.74) and t.run.best["seeds"] == [1000, 1001]
     best = [s for s in t.saved if s[0] == "best.pt"]
     assert best == [("best.pt", False), ("best.pt", False)], "saved at 0.70 and 0.75, the policy only, not at 0.74"
     assert t.saved[-1] == ("latest.pt", True), "leaving the loop saves a resumable latest.pt"
@@ -65,7 +66,7 @@ def test_run_outputs__a_failure_saves_nothing(tmp_path):
 def test_run_outputs__tensorboard_scalars_at_the_global_step(tmp_path):
     t = StandIn(tmp_path, log=True)
     with RunOutputs(t, "update", "test", 30, 0) as out:
-        t.global_step = 64
+        t.run.global_step = 64
         out.scalars("loss", {"policy": 0.5, "value": 2.0, "kl": 0.1}, ("policy", "value", "entropy"))
         out.episodes([{"nsw": 0.7}, {"nsw": 0.8}])
         out.public(_public(0.72), 1)

@@ -64,7 +64,7 @@ def test_train_speed__a_resume_from_latest_pt_is_bit_identical_twice(tmp_path):
 def test_train_speed__features_once_per_update_equal_features_per_minibatch(tmp_path):
     tr = Trainer(_cfg(tmp_path, num_steps=4), progress=False, log=False)
     roll = tr.rollout()
-    scale = tr.mcfg.coord_scale
+    scale = tr.run.network.coord_scale
     once = featurize({k: v[:-1] for k, v in roll["raw"].items()}, scale)
     idx = torch.tensor([5, 0, 3, 6])
     per_mb = featurize({k: v[:-1, idx].flatten(0, 1) for k, v in roll["raw"].items()}, scale)

@@ -10,7 +10,11 @@ ends the command quietly with status 141, as a command stopped by SIGPIPE would.
 first, as ``python -m`` does.
 
 A command module has ``add_parser(subparsers)`` and ``run(args) -> int``; it imports
-what its handler needs inside ``run``, so ``wfbench --help`` stays fast. The shared
+what its handler needs inside ``run``, so ``wfbench --help`` stays fast. A command is a
+shell over the function of the same name, which Python calls alike (``evaluate``,
+``compare``, ``simulate`` and ``train`` over :func:`wfbench.evaluate`, :func:`wfbench.compare`,
+:func:`wfbench.simulate` and :func:`wfbench.train.fit`): it parses the flags, calls the
+function, prints what it returns and turns its refusals into one line. The shared
 argument types and :class:`UsageError` are in :mod:`wfbench.cli.common`.
 """
 

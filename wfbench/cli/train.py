@@ -17,8 +17,6 @@ from wfbench.train.registry import ALGORITHMS, DEFAULT_ALGORITHM, get_algorithm
 TRAIN_FLAGS = ("variant", "scenario", "scenarios", "steps", "model", "num_envs", "num_steps", "epochs", "minibatches",
                "lr", "ent_coef", "seed", "device", "threads", "checkpoint_every", "eval_every", "eval_seeds", "run_dir",
                "init", "gae_lambda", "gamma", "agents", "address")
-# what --resume may change of a run: how long it goes on, and where and on what it runs
-RESUME_MAY_CHANGE = ("steps", "run_dir", "device", "threads", "address")
 
 
 def add_parser(sub) -> None:
@@ -86,47 +84,25 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise UsageError(f"wfbench train needs torch ({exc}); install the rl extra: "
                          "pip install 'wfbench[rl]'") from None
-    from wfbench.policies.neural.policy import load_checkpoint
+    from wfbench.train.runs import SettingsError, fit, resumed_algorithm
 
     given = {flag: getattr(args, flag) for flag in TRAIN_FLAGS if getattr(args, flag) is not None}
     if args.compile:
         given["compile"] = True
     if args.no_bf16:
         given["bf16"] = False
-    try:
-        saved = None
-        if args.resume:
-            saved = load_checkpoint(args.resume)
-            if "optimizer" not in saved:
-                raise ValueError(f"checkpoint {args.resume!r} has no optimizer state (a best.pt?): resume from "
-                                 "latest.pt or a checkpoints/update_*.pt")
-            run_algo = saved.get("algo", DEFAULT_ALGORITHM)
-            if args.algo is not None and args.algo != run_algo:
-                raise ValueError(f"checkpoint {args.resume!r} is a {run_algo} run, not --algo {args.algo}")
-        algo = saved.get("algo", DEFAULT_ALGORITHM) if saved is not None else (args.algo or DEFAULT_ALGORITHM)
-        algorithm = get_algorithm(algo)
-        config_cls = algorithm.config_class()
-        given = train_settings(config_cls, given, algo, args.set or [])
-        if saved is not None:
-            kept = saved["train_config"]
-            changed = sorted(k for k in given if k not in RESUME_MAY_CHANGE and given[k] != kept.get(k))
-            if changed:
-                raise ValueError(f"--resume keeps the run's settings; these differ from it: {', '.join(changed)}")
-            config = config_cls.from_dict({**saved["train_config"], **given})
-        else:
-            where = given.get("scenarios", given.get("scenario", "paper-64")).replace(":", "-").replace(",", "+")
-            given.setdefault("run_dir", str(Path("runs") / f"{algo}-{given.get('variant', 'joint')}-{where}"))
-            config = config_cls(**given)
-        trainer = algorithm.trainer_class()(config, resume=args.resume, progress=not args.no_progress,
-                                            log=not args.no_tensorboard)
-    except (ValueError, TypeError) as exc:
+    try:  # the algorithm first: it types the --set values (a resumed run's is its checkpoint's)
+        algo = resumed_algorithm(args.resume, args.algo) if args.resume else (args.algo or DEFAULT_ALGORITHM)
+        given = train_settings(get_algorithm(algo).config_class(), given, algo, args.set or [])
+    except ValueError as exc:
         raise UsageError(str(exc)) from None
-    trainer.train()
-    from wfbench.train.toolkit import save_unselected_best
-
-    save_unselected_best(trainer)  # best.pt after every run: the last weights when no evaluation chose one
-    best = trainer.best
-    print(f"trained {trainer.global_step} environment steps ({algo}) in {config.run_dir}")
+    try:
+        trainer = fit(algo, resume=args.resume, progress=not args.no_progress, log=not args.no_tensorboard, **given)
+    except SettingsError as exc:  # refused before training started
+        raise UsageError(str(exc)) from None
+    run = trainer.run
+    config, best = run.config, run.best
+    print(f"trained {run.global_step} environment steps ({algo}) in {config.run_dir}")
     best_pt = Path(config.run_dir) / "best.pt"
     if best["update"] is not None:
         what = "mean normalized score over the worlds" if config.scenarios else "mean NSW"

@@ -275,13 +275,14 @@ class Trainer:
 
     def __init__(self, config: HindsightConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True):
-        c = toolkit.start_run(self, config, progress, log)
+        self.run = toolkit.start_run(config, progress, log)
+        c = config
         # the random streams of its own (the network's initial weights come from torch's, seeded by start_run)
-        self.gen = torch.Generator(device=self.device).manual_seed(c.seed)  # the learner's sampling noise
+        self.gen = torch.Generator(device=self.run.device).manual_seed(c.seed)  # the learner's sampling noise
         self.batch_gen = torch.Generator().manual_seed(c.seed * 7919 + 1)  # minibatch draws
         self.mix_rng = np.random.default_rng([c.seed, 0x4D1])  # oracle-or-learner draws
-        self.value_gen = torch.Generator(device=self.device).manual_seed(c.seed * 7919 + 2)  # roll-forward noise
-        self.model = WorkforceNet(self.mcfg).to(self.device)
+        self.value_gen = torch.Generator(device=self.run.device).manual_seed(c.seed * 7919 + 2)  # roll-forward noise
+        self.model = WorkforceNet(self.run.network).to(self.run.device)
         self.opt = torch.optim.Adam(self.trainable(), lr=c.lr)
         self.data = Dataset(max(c.dataset_steps // c.num_steps, c.num_envs), c.num_steps)
         self.iteration, self.episode, self.seed_cursor = 0, 0, 0
@@ -295,9 +296,9 @@ class Trainer:
 
     def trainable(self) -> list[torch.nn.Parameter]:
         """The parameters the update trains (``train_params``); the others are frozen (requires_grad False)."""
-        if self.cfg.train_params == "all":
+        if self.run.config.train_params == "all":
             return list(self.model.parameters())
-        names = {m for h in HEADS if getattr(self.cfg, f"{h}_weight") > 0 for m in HEAD_MODULES[h]}
+        names = {m for h in HEADS if getattr(self.run.config, f"{h}_weight") > 0 for m in HEAD_MODULES[h]}
         keep = []
         for name, param in self.model.named_parameters():
             param.requires_grad_(name.split(".")[0] in names)
@@ -308,24 +309,24 @@ class Trainer:
     # -- environments -------------------------------------------------------------------------
     def _new_episode(self) -> None:
         """Synchronized episodes: a new Simulator and teacher on the next B training seeds."""
-        scenario = self.scenario
+        scenario = self.run.scenario
         if isinstance(scenario, WorldSet):  # across worlds: each episode of the batch on the next world in turn
-            self.world = scenario.worlds[(self.seed_cursor // self.cfg.num_envs) % len(scenario.worlds)]
+            self.world = scenario.worlds[(self.seed_cursor // self.run.config.num_envs) % len(scenario.worlds)]
             scenario = self.world.config
-        seeds = toolkit.take_seeds(self.cfg.seed, self.seed_cursor, self.cfg.num_envs)
-        self.seed_cursor += self.cfg.num_envs
+        seeds = toolkit.take_seeds(self.run.config.seed, self.seed_cursor, self.run.config.num_envs)
+        self.seed_cursor += self.run.config.num_envs
         self.sim = Simulator(scenario, seeds, keep_series=False, threads=1)
         self.obs = self.sim.reset()
-        self.planner = teacher_planner(self.cfg.teacher, self.cfg.oracle)
+        self.planner = teacher_planner(self.run.config.teacher, self.run.config.oracle)
         self.planner.attach(scenario)
         self.planner.reset(seeds)
-        self.state = self.model.initial_state(self.sim.B, self.device)
-        self.starts = torch.ones(self.sim.B, device=self.device)
+        self.state = self.model.initial_state(self.sim.B, self.run.device)
+        self.starts = torch.ones(self.sim.B, device=self.run.device)
         self.value_fork = None  # the copies the learner's roll-forwards run in (value_rollout "learner")
 
     def beta(self, iteration: int | None = None) -> float:
         i = self.iteration if iteration is None else iteration
-        return self.cfg.beta0 * self.cfg.beta_decay ** i
+        return self.run.config.beta0 * self.run.config.beta_decay ** i
 
     # -- collection ---------------------------------------------------------------------------
     @torch.no_grad()
@@ -335,7 +336,7 @@ class Trainer:
         ``record_actions`` also returns, per step, the seeds, the step and the executed
         and learner's actions (what the tests replay).
         """
-        c, dev = self.cfg, self.device
+        c, dev = self.run.config, self.run.device
         if self.sim is None:
             self._new_episode()
         B, T, M, N = self.sim.B, c.num_steps, self.sim.M, self.sim.N
@@ -400,11 +401,11 @@ class Trainer:
             self.planner.record(action)  # the shadow follows the episode the learner is in
             t3 = time.perf_counter()
             _, self.obs = self.sim.step_observe(action)
-            self.global_step += B
+            self.run.global_step += B
             self.starts = torch.zeros(B, device=dev)
             if self.sim.done:
                 episodes.append(toolkit.episode_kpis(self.sim) | {"beta": beta})
-                if isinstance(self.scenario, WorldSet):
+                if isinstance(self.run.scenario, WorldSet):
                     episodes[-1][f"{SCORE}/{self.world.name}"] = episodes[-1][SCORE]
                 self.episode += B
                 # the LSTM state is reset through the starts flags of the next episode's first step
@@ -427,9 +428,9 @@ class Trainer:
 
     def _padded(self, raw: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """Across worlds: the observation tensors padded to the largest world's slots (empty, masked)."""
-        if not isinstance(self.scenario, WorldSet):
+        if not isinstance(self.run.scenario, WorldSet):
             return raw
-        M, N = self.scenario.slots
+        M, N = self.run.scenario.slots
         out = {}
         for k, v in raw.items():
             size = M if k in FACILITY_KEYS else N if k in PERSONNEL_KEYS else None
@@ -442,9 +443,9 @@ class Trainer:
 
     def _padded_dispatch(self, d: np.ndarray) -> np.ndarray:
         """Across worlds: the dispatch labels (B, M) padded with the no-op, which becomes the batch's (column N)."""
-        if not isinstance(self.scenario, WorldSet):
+        if not isinstance(self.run.scenario, WorldSet):
             return d
-        M, N = self.scenario.slots
+        M, N = self.run.scenario.slots
         out = np.full((d.shape[0], M), N, dtype=d.dtype)
         out[:, :d.shape[1]] = np.where(d >= self.sim.N, N, d)
         return out
@@ -471,7 +472,7 @@ class Trainer:
         Called after the network acted on the current observation (``self.state`` is its
         memory after this step's input).
         """
-        c, dev = self.cfg, self.device
+        c, dev = self.run.config, self.run.device
         mask = np.asarray(self.obs["workforce_mask"], dtype=bool)  # (B, A)
         B, A = mask.shape
         M, N, S = self.sim.M, self.sim.N, c.value_samples
@@ -493,7 +494,7 @@ class Trainer:
             score += reward
             if k == c.value_horizon - 1 or self.value_fork.done:
                 break
-            x = featurize(obs_to_torch(obs, dev), self.mcfg.coord_scale)
+            x = featurize(obs_to_torch(obs, dev), self.run.network.coord_scale)
             with toolkit.autocast(dev, c.bf16):
                 out, state = self.model(x, state, starts)
             noise = {key: gumbel(shape, self.value_gen, dev)[noise_row]
@@ -505,11 +506,11 @@ class Trainer:
     # -- supervised update --------------------------------------------------------------------
     def losses(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, float]]:
         """The weighted negative log-likelihood of the labels on a time-major batch of sequences."""
-        c = self.cfg
+        c = self.run.config
         T, S = batch["starts"].shape
         raw = {k: batch[k].flatten(0, 1) for k in OBS_KEYS}
-        x = featurize(raw, self.mcfg.coord_scale)
-        with toolkit.autocast(self.device, c.bf16):
+        x = featurize(raw, self.run.network.coord_scale)
+        with toolkit.autocast(self.run.device, c.bf16):
             out, _ = self.model(x, (batch["h"], batch["c"]), batch["starts"])
         acts = {k: batch[k].flatten(0, 1).long() for k in HEADS}
         # a step counts once the LSTM state is trustworthy: after the burn-in, or from an episode start on
@@ -568,13 +569,13 @@ class Trainer:
         return (ce * use).sum() / use.sum().clamp_min(1.0)
 
     def learn(self) -> dict:
-        c = self.cfg
+        c = self.run.config
         t0 = time.perf_counter()
         self.model.train()
         stats: dict[str, list] = {}
         for _ in range(c.grad_steps):
             idx = torch.randint(self.data.size, (min(c.batch_seqs, self.data.size),), generator=self.batch_gen)
-            loss, s = self.losses(self.data.batch(idx, self.device))
+            loss, s = self.losses(self.data.batch(idx, self.run.device))
             self.opt.zero_grad(set_to_none=True)
             loss.backward()
             s["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(self.opt.param_groups[0]["params"],
@@ -591,7 +592,7 @@ class Trainer:
     def dataset_loss(self, max_seqs: int = 256) -> dict[str, float]:
         """The loss on (up to) the first ``max_seqs`` stored sequences, without training."""
         idx = torch.arange(min(max_seqs, self.data.size))
-        return self.losses(self.data.batch(idx, self.device))[1]
+        return self.losses(self.data.batch(idx, self.run.device))[1]
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
@@ -600,7 +601,7 @@ class Trainer:
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
         t0 = time.perf_counter()
-        res = toolkit.score_public(self.policy, self.scenario, self.cfg.eval_seeds)
+        res = toolkit.score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
         self.timing["evaluate"] += time.perf_counter() - t0
         return res
 
@@ -624,14 +625,14 @@ class Trainer:
 
     # -- the loop -----------------------------------------------------------------------------
     def train(self, iterations: int | None = None) -> dict:
-        """Run until ``cfg.steps`` environment steps are collected (or ``iterations`` more); returns the last stats."""
-        c = self.cfg
+        """Run until the config's ``steps`` environment steps are collected, or ``iterations`` more; the last stats."""
+        c = self.run.config
         stop = c.iterations if iterations is None else min(c.iterations, self.iteration + iterations)
         per_iter = c.chunks_per_iter * c.chunk_steps
-        toolkit.write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="hindsight")
-        start, start_step = time.perf_counter(), self.global_step
+        toolkit.write_run_config(self.run, self.model, algo="hindsight")
+        start, start_step = time.perf_counter(), self.run.global_step
         stats: dict = {}
-        with toolkit.RunOutputs(self, "iteration", f"hindsight {self.scenario.name}", stop * per_iter,
+        with toolkit.RunOutputs(self, "iteration", f"hindsight {self.run.scenario.name}", stop * per_iter,
                                 self.iteration * per_iter) as out:
             while self.iteration < stop:
                 beta = self.beta()
@@ -647,7 +648,7 @@ class Trainer:
                 collect_s = time.perf_counter() - t_collect
                 stats = self.learn()
                 self.iteration += 1
-                sps = (self.global_step - start_step) / (time.perf_counter() - start)
+                sps = (self.run.global_step - start_step) / (time.perf_counter() - start)
                 stats |= {"beta": beta, "dataset_steps": self.data.size * c.num_steps,
                           "collect_steps_per_s": per_iter / collect_s, "env_steps_per_s": sps,
                           "invalid_labels": sum(coll["invalid_labels"]), "label_hires": sum(coll["label_hires"]),
@@ -661,14 +662,14 @@ class Trainer:
                 out.scalars("charts", stats, ("beta", "dataset_steps", "collect_steps_per_s", "env_steps_per_s",
                                               "invalid_labels", "agree_dispatch", "agree_workforce", "oracle_share",
                                               "label_hires", "label_releases"))
-                record = {"update": self.iteration, "global_step": self.global_step, "beta": beta,
+                record = {"update": self.iteration, "global_step": self.run.global_step, "beta": beta,
                           "loss": stats["loss"], "episodes": episodes}
                 if c.eval_every and self.iteration % c.eval_every == 0:
                     res = self.evaluate_public()
                     record |= res
                     out.public(res, self.iteration)
-                self.history.append(record)
-                with (self.run_dir / "history.jsonl").open("a") as fh:
+                self.run.history.append(record)
+                with (self.run.dir / "history.jsonl").open("a") as fh:
                     fh.write(json.dumps({**record, **{k: v for k, v in stats.items()}, "timing": self.timing})
                              + "\n")
                 if self.iteration % c.checkpoint_every == 0:

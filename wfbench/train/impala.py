@@ -246,8 +246,9 @@ class Trainer:
 
     def __init__(self, config: ImpalaConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True):
-        c = toolkit.start_run(self, config, progress, log)
-        self.model = WorkforceNet(self.mcfg).to(self.device)
+        self.run = toolkit.start_run(config, progress, log)
+        c = config
+        self.model = WorkforceNet(self.run.network).to(self.run.device)
         if c.optimizer == "adam":
             self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=c.eps)
         else:
@@ -258,7 +259,7 @@ class Trainer:
         if c.init and resume is None:
             toolkit.init_weights(self)
         # the thread path's actor, here; the Ray path's live in Ray workers (started by train())
-        self.actor = None if c.address else Actor(c, self.scenario, self.model, self.device)
+        self.actor = None if c.address else Actor(c, self.run.scenario, self.model, self.run.device)
         self.n_actors = c.ray_actors if c.address else 1
         # what a checkpoint needs of each actor, as of its last rollout the learner used (None: none yet)
         self.actor_metas: list[dict | None] = [self.actor.meta()] if self.actor else [None] * self.n_actors
@@ -286,12 +287,12 @@ class Trainer:
 
     # -- one learner step -----------------------------------------------------------------------
     def learn(self, roll: dict) -> dict:
-        c = self.cfg
+        c = self.run.config
         t0 = time.perf_counter()
         T, B = roll["logp"].shape
         raw = {k: v.flatten(0, 1) for k, v in roll["raw"].items()}  # (T + 1) * B rows, time major
-        x = featurize(raw, self.mcfg.coord_scale)
-        with toolkit.autocast(self.device, c.bf16):
+        x = featurize(raw, self.run.network.coord_scale)
+        with toolkit.autocast(self.run.device, c.bf16):
             out, _ = self.model(x, roll["init_state"], roll["starts"])
         values = out["value"].float().view(T + 1, B)
         n = T * B  # the last step's rows only give the bootstrap value
@@ -325,11 +326,11 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return toolkit.deployable(self.model, self.cfg.variant, mode, name=f"impala-{self.cfg.variant}")
+        return toolkit.deployable(self.model, self.run.config.variant, mode, name=f"impala-{self.run.config.variant}")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
-        return toolkit.score_public(self.policy, self.scenario, self.cfg.eval_seeds)
+        return toolkit.score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
 
     def checkpoint(self) -> dict:
         """The shared checkpoint keys (``algo: impala``; ``impala:PATH`` loads it), the actors' counts summed."""
@@ -376,8 +377,8 @@ class Trainer:
         if self._ray is not None:
             roll = self._ray.next()
             self.timing["wait"] += time.perf_counter() - t0
-            return _to_device(roll, self.device)
-        if self.cfg.mode == "sync":
+            return _to_device(roll, self.run.device)
+        if self.run.config.mode == "sync":
             self._refresh_actor()
             roll = self.actor.rollout()
         else:
@@ -394,7 +395,7 @@ class Trainer:
         return roll
 
     def _start_actor(self, count: int) -> None:
-        self._queue: queue.Queue = queue.Queue(maxsize=self.cfg.queue_size)
+        self._queue: queue.Queue = queue.Queue(maxsize=self.run.config.queue_size)
         self._stop = threading.Event()
         self._actor_error: BaseException | None = None
         self._thread = threading.Thread(target=self._actor_thread, args=(count,), name="impala-actor", daemon=True)
@@ -415,12 +416,12 @@ class Trainer:
 
         with self._lock:
             version, params = self._published
-        self._ray = RayActors(self.cfg, RemoteActor, self.actor_metas, version, params)
+        self._ray = RayActors(self.run.config, RemoteActor, self.actor_metas, version, params)
         self._ray.run(count)
 
     def _stop_actors(self) -> None:
         """Stop the actor thread, or kill the Ray actors and shut Ray down if this run started it."""
-        if self.cfg.mode == "async" and hasattr(self, "_thread"):
+        if self.run.config.mode == "async" and hasattr(self, "_thread"):
             self._stop_actor()
             del self._thread
         if self._ray is not None:
@@ -429,16 +430,16 @@ class Trainer:
 
     # -- the loop -----------------------------------------------------------------------------
     def train(self, updates: int | None = None) -> dict:
-        """Train until ``cfg.steps`` environment steps (or ``updates`` more updates); returns the last stats."""
-        c = self.cfg
+        """Train until the config's ``steps`` environment steps, or ``updates`` more updates; the last stats."""
+        c = self.run.config
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        toolkit.write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit, algo="impala")
+        toolkit.write_run_config(self.run, self.model, algo="impala")
         how = f"ray x{c.ray_actors}" if c.address else c.mode
         stats: dict = {}
-        start, start_step = time.perf_counter(), self.global_step
-        with toolkit.RunOutputs(self, "update", f"impala {how} {self.scenario.name}", stop * per_update,
+        start, start_step = time.perf_counter(), self.run.global_step
+        with toolkit.RunOutputs(self, "update", f"impala {how} {self.run.scenario.name}", stop * per_update,
                                 self.update * per_update, cleanup=self._stop_actors) as out:
             if c.mode == "async" and not c.address and stop > self.update:
                 self._start_actor(stop - self.update)
@@ -449,11 +450,11 @@ class Trainer:
                 roll = self._next_rollout()
                 stats = self.learn(roll)
                 self.update += 1
-                self.global_step += per_update
+                self.run.global_step += per_update
                 self.actor_metas[roll["actor"]] = roll["meta"]
                 if self.update % c.sync_every == 0:
                     self.publish()
-                sps = (self.global_step - start_step) / (time.perf_counter() - start)
+                sps = (self.run.global_step - start_step) / (time.perf_counter() - start)
                 out.episodes(roll["episodes"])
                 out.scalars("loss", stats)
                 out.scalars("charts", {"env_steps_per_s": sps, "reward_std": roll["meta"]["ret_std"]["var"] ** 0.5,

@@ -123,13 +123,14 @@ class Trainer:
 
     def __init__(self, config: TrainConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True):
-        c = toolkit.start_run(self, config, progress, log)
+        self.run = run = toolkit.start_run(config, progress, log)
+        c = config
         self.decisions = VARIANTS[c.variant]
         independent = c.agents == "independent"
-        if getattr(self.mcfg, "obs_version", 1) == 2:
-            self.model = scalefree.ScaleFreeNet(self.mcfg).to(self.device)
+        if getattr(run.network, "obs_version", 1) == 2:
+            self.model = scalefree.ScaleFreeNet(run.network).to(run.device)
         else:
-            self.model = (AgentSet(self.mcfg) if independent else WorkforceNet(self.mcfg)).to(self.device)
+            self.model = (AgentSet(run.network) if independent else WorkforceNet(run.network)).to(run.device)
         # the agents: their heads, and the parameters each one's gradient is clipped over
         if independent:
             self.agents = {d: (d,) for d in self.decisions}
@@ -145,7 +146,7 @@ class Trainer:
         # the heuristic parts of the dispatch variant keep per-environment memory: they reset with the batch
         self.staggered = c.stagger and c.variant == "joint"
         helper = (lambda: policies.Composite("none", "threshold", "spatial")) if c.variant == "dispatch" else None
-        self.env = toolkit.Collector(c, self.scenario, self.device, reward=REWARDS[c.variant], staggered=self.staggered,
+        self.env = toolkit.Collector(c, run.scenario, run.device, reward=REWARDS[c.variant], staggered=self.staggered,
                                      fresh_batches=True, helper=helper)
         self.update = 0
         self.timing = self.env.timing  # simulator, obs_to_tensor, forward (the collector's), update
@@ -158,7 +159,7 @@ class Trainer:
                 self.vopt.load_state_dict(ckpt["value_optimizer"])
             self.env.restore(ckpt)
             self.update = ckpt["update"]
-        self.net = torch.compile(self.model) if (c.compile and self.cuda) else self.model
+        self.net = torch.compile(self.model) if (c.compile and run.cuda) else self.model
         self.env.start(self.model)
 
     @property
@@ -183,12 +184,12 @@ class Trainer:
     # -- rollout ------------------------------------------------------------------------------
     def rollout(self) -> dict:
         """T steps of the B environments (:meth:`Collector.collect`), then GAE per agent."""
-        c, T = self.cfg, self.cfg.num_steps
+        c, T = self.run.config, self.run.config.num_steps
         roll = self.env.collect(self.net, T, lambda out, x, acts: self.agent_log_probs(out, x, acts)[0],
                                 self.values, model=self.model)
-        self.global_step += T * self.sim.B
+        self.run.global_step += T * self.sim.B
         t0 = time.perf_counter()
-        with torch.no_grad(), toolkit.autocast(self.device, c.bf16):
+        with torch.no_grad(), toolkit.autocast(self.run.device, c.bf16):
             x = scalefree.features(self.model, {k: v[T] for k, v in roll["raw"].items()})
             out, _ = self.net(x, self.env.state, roll["starts"][T][None])
             next_value = self.values(out)
@@ -208,7 +209,7 @@ class Trainer:
 
     # -- update -------------------------------------------------------------------------------
     def learn(self, roll: dict) -> dict:
-        c, B = self.cfg, self.sim.B
+        c, B = self.run.config, self.sim.B
         t0 = time.perf_counter()
         stats: dict[str, list] = {k: [] for k in ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac",
                                                   "ent_dispatch", "ent_workforce", "ent_positioning")}
@@ -219,13 +220,13 @@ class Trainer:
         with torch.no_grad():
             feats = scalefree.features(self.model, {k: v[:-1] for k, v in roll["raw"].items()})
         for _ in range(c.epochs):
-            perm = torch.randperm(B, generator=perm_gen).to(self.device)
+            perm = torch.randperm(B, generator=perm_gen).to(self.run.device)
             for i in range(c.minibatches):
                 idx = perm[i * mb:(i + 1) * mb]
                 x = {k: v[:, idx].flatten(0, 1) for k, v in feats.items()}
                 acts = {k: roll[k][:, idx].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
                 state = tuple(s[:, idx] for s in roll["init_state"])
-                with toolkit.autocast(self.device, c.bf16):
+                with toolkit.autocast(self.run.device, c.bf16):
                     out, _ = self.net(x, state, roll["starts"][:-1, idx])
                 if scalefree.obs_version(self.model) == 1:  # the heads this network has (the dispatch variant: one)
                     acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
@@ -266,11 +267,11 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return toolkit.deployable(self.model, self.cfg.variant, mode, name=f"ppo-{self.cfg.variant}")
+        return toolkit.deployable(self.model, self.run.config.variant, mode, name=f"ppo-{self.run.config.variant}")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
-        return toolkit.score_public(self.policy, self.scenario, self.cfg.eval_seeds)
+        return toolkit.score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
 
     def checkpoint(self) -> dict:
         return toolkit.run_checkpoint(self, "ppo", self.update, episode=self.env.episode,
@@ -281,21 +282,21 @@ class Trainer:
 
     # -- the loop -----------------------------------------------------------------------------
     def train(self, updates: int | None = None) -> dict:
-        """Train until ``cfg.steps`` environment steps (or ``updates`` more updates); returns the last stats."""
-        c = self.cfg
+        """Train until the config's ``steps`` environment steps, or ``updates`` more updates; the last stats."""
+        c = self.run.config
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        toolkit.write_run_config(self.run_dir, c, self.model, self.mcfg, self.device, self.commit)
+        toolkit.write_run_config(self.run, self.model)
         stats: dict = {}
-        start, start_step = time.perf_counter(), self.global_step
-        with toolkit.RunOutputs(self, "update", f"ppo {c.variant} {self.scenario.name}", stop * per_update,
+        start, start_step = time.perf_counter(), self.run.global_step
+        with toolkit.RunOutputs(self, "update", f"ppo {c.variant} {self.run.scenario.name}", stop * per_update,
                                 self.update * per_update) as out:
             while self.update < stop:
                 roll = self.rollout()
                 stats = self.learn(roll)
                 self.update += 1
-                sps = (self.global_step - start_step) / (time.perf_counter() - start)
+                sps = (self.run.global_step - start_step) / (time.perf_counter() - start)
                 out.episodes(roll["episodes"])
                 out.scalars("loss", stats)
                 out.scalars("charts", {"env_steps_per_s": sps, "reward_std": self.env.ret_std.std})

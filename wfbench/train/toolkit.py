@@ -12,7 +12,8 @@ In the manner of Stable-Baselines3's ``RolloutBuffer``/``collect_rollouts`` and 
   :class:`Collector`, which steps the batched simulator and fills preallocated tensors:
   a rollout of T steps with the shaped, normalized rewards, episode ends with partial
   reset onto fresh training seeds and the LSTM state reset, the finished episodes' KPIs.
-- A run: :func:`start_run` (checks, threads, torch seed, the shared attributes),
+- A run: :func:`start_run` (checks, threads, torch seed; the :class:`Run` record every
+  trainer holds as ``run``: its config, device, scenario, folder, progress and cost),
   :func:`init_weights` (``init``), :class:`RunOutputs` (TensorBoard, progress bar,
   ``best.pt``, checkpoints, Ctrl-C), :func:`run_checkpoint` (the keys every checkpoint
   has, ``algo`` among them), :func:`save_run` / :func:`load_run` (the shared resume
@@ -414,39 +415,62 @@ class Collector:
 
 
 # -- a run ----------------------------------------------------------------------------------------
-def start_run(trainer, config: BaseConfig, progress: bool, log: bool) -> BaseConfig:
-    """Check ``config``, set torch's threads and seed, set the attributes every trainer has; returns ``config``.
+@dataclass
+class Run:
+    """The record of a training run that every trainer holds as ``run`` (:func:`start_run` makes it).
 
-    The attributes: ``cfg``, ``device``, ``cuda``, ``scenario``, ``mcfg`` (the network's
-    config), ``best``, ``history``, ``global_step``, ``progress``, ``log``, ``run_dir``, ``commit``,
-    and the run's cost so far: ``wall_before`` (seconds of earlier segments of a resumed run),
-    ``wall_start`` and ``hardware``.
+    Fixed at the start: ``config``, ``device``, ``scenario`` (a ScenarioConfig, or a
+    WorldSet across worlds), ``network`` (the network's config), ``dir`` (the run folder),
+    ``progress`` and ``log`` (progress bar, TensorBoard). The run's progress, saved in every
+    checkpoint and restored by :func:`load_run`: ``global_step`` (environment steps),
+    ``best`` (the best public score and where it was reached, :meth:`RunOutputs.public`) and
+    ``history`` (the public scores). Its provenance and cost: ``commit`` (the code the run
+    started from; a resumed run keeps its first), ``hardware`` (of each segment),
+    ``wall_before`` (seconds of the earlier segments of a resumed run; None when its
+    checkpoint did not record them) and ``wall_start`` (``time.monotonic()`` when this
+    segment started).
     """
+
+    config: BaseConfig
+    device: torch.device
+    scenario: ScenarioConfig | WorldSet
+    network: Any
+    dir: Path
+    progress: bool
+    log: bool
+    commit: str
+    hardware: str
+    wall_before: float | None = 0.0
+    wall_start: float = field(default_factory=time.monotonic)
+    best: dict = field(default_factory=lambda: {"score": -math.inf, "update": None})
+    history: list = field(default_factory=list)
+    global_step: int = 0
+
+    @property
+    def cuda(self) -> bool:
+        """Whether the run is on a CUDA device."""
+        return self.device.type == "cuda"
+
+
+def start_run(config: BaseConfig, progress: bool, log: bool) -> Run:
+    """Check ``config``, set torch's threads and seed; the :class:`Run` record of a fresh run on it."""
     config.validate()
-    trainer.cfg = config
-    trainer.device = torch_device(config.device)
-    trainer.cuda = trainer.device.type == "cuda"
+    device = torch_device(config.device)
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
     # several worlds (``scenarios``): a WorldSet, which the collector, the public scores and the checkpoint read
-    trainer.scenario = world_set(config.scenarios) if config.scenarios else ScenarioConfig.resolve(config.scenario)
-    trainer.mcfg = config.network_config()
-    trainer.best = {"score": -math.inf, "update": None}
-    trainer.history = []
-    trainer.global_step = 0
-    trainer.progress, trainer.log = progress, log
-    trainer.run_dir = Path(config.run_dir)
-    trainer.commit = git_commit()  # the code this run started from (a resumed run keeps its first)
-    trainer.wall_before, trainer.wall_start = 0.0, time.monotonic()
-    trainer.hardware = training_hardware(trainer.device)
-    return config
+    scenario = world_set(config.scenarios) if config.scenarios else ScenarioConfig.resolve(config.scenario)
+    return Run(config=config, device=device, scenario=scenario, network=config.network_config(),
+               dir=Path(config.run_dir), progress=progress, log=log, commit=git_commit(),
+               hardware=training_hardware(device))
 
 
 def init_weights(trainer) -> None:
     """``init``: the network weights of another checkpoint start this run (its network must be this run's)."""
-    c = trainer.cfg
-    start = load_checkpoint(c.init, str(trainer.device))
-    if start["model_config"] != trainer.mcfg.to_dict():
+    run = trainer.run
+    c = run.config
+    start = load_checkpoint(c.init, str(run.device))
+    if start["model_config"] != run.network.to_dict():
         agents = f", --agents {c.agents}" if hasattr(c, "agents") else ""
         raise ValueError(f"--init {c.init!r}: its network ({start['model_config']}) is not this run's "
                          f"(--model {c.model}, --variant {c.variant}{agents})")
@@ -462,26 +486,24 @@ def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
     and GPU of each segment) are the run's cost, which the leaderboard shows beside
     ``global_step``, the env-steps (:func:`wfbench.harness.budget.policy_budget`).
     """
-    t = trainer
-    cost: dict[str, Any] = {}
-    if hasattr(t, "wall_start"):  # a trainer set up by start_run
-        cost["train_hardware"] = t.hardware
-        if t.wall_before is not None:  # None: resumed from a checkpoint that did not record its wall time
-            cost["train_wall_s"] = t.wall_before + time.monotonic() - t.wall_start
+    run = trainer.run
+    cost: dict[str, Any] = {"train_hardware": run.hardware}
+    if run.wall_before is not None:  # None: resumed from a checkpoint that did not record its wall time
+        cost["train_wall_s"] = run.wall_before + time.monotonic() - run.wall_start
     return {
-        "model": {k: v.detach().cpu() for k, v in t.model.state_dict().items()},
-        "model_config": t.mcfg.to_dict(),
-        "obs_version": getattr(t.mcfg, "obs_version", 1),  # the observation the network reads (wfbench.core.context)
+        "model": {k: v.detach().cpu() for k, v in trainer.model.state_dict().items()},
+        "model_config": run.network.to_dict(),
+        "obs_version": getattr(run.network, "obs_version", 1),  # the observation the network reads (core.context)
         "algo": algo,
-        "variant": t.cfg.variant,
-        "scenario": t.scenario.name,
-        **({"worlds": t.scenario.names} if isinstance(t.scenario, WorldSet) else {}),
-        "train_config": asdict(t.cfg),
+        "variant": run.config.variant,
+        "scenario": run.scenario.name,
+        **({"worlds": run.scenario.names} if isinstance(run.scenario, WorldSet) else {}),
+        "train_config": asdict(run.config),
         "update": count,
-        "global_step": t.global_step,
-        "git_commit": t.commit,
-        "best": t.best,
-        "history": t.history,
+        "global_step": run.global_step,
+        "git_commit": run.commit,
+        "best": run.best,
+        "history": run.history,
         **cost,
         **fields,
     }
@@ -505,28 +527,28 @@ def load_run(trainer, path, algo: str) -> dict:
 
     Returns the checkpoint (the trainer takes its counters and its own state from it).
     """
-    t = trainer
-    ckpt = load_checkpoint(path, str(t.device))
+    t, run = trainer, trainer.run
+    ckpt = load_checkpoint(path, str(run.device))
     if "optimizer" not in ckpt:
         raise ValueError(f"checkpoint {str(path)!r} has no optimizer state: it cannot be resumed (a best.pt? "
                          "resume from latest.pt or checkpoints/*)")
     if ckpt.get("algo", "ppo") != algo:
         raise ValueError(f"checkpoint {str(path)!r} is not a {algo} run (algo {ckpt.get('algo', 'ppo')!r})")
-    if ckpt["model_config"] != t.mcfg.to_dict() or ckpt["variant"] != t.cfg.variant:
+    if ckpt["model_config"] != run.network.to_dict() or ckpt["variant"] != run.config.variant:
         raise ValueError(f"checkpoint {str(path)!r} is a {ckpt['variant']} run of another model; resume with the "
                          "settings of its config.json")
     t.model.load_state_dict(ckpt["model"])
     t.opt.load_state_dict(ckpt["optimizer"])
     torch.set_rng_state(ckpt["torch_rng"].cpu())
-    t.global_step = ckpt["global_step"]
-    t.commit = ckpt.get("git_commit", t.commit)
-    t.best, t.history = ckpt["best"], ckpt["history"]
+    run.global_step = ckpt["global_step"]
+    run.commit = ckpt.get("git_commit", run.commit)
+    run.best, run.history = ckpt["best"], ckpt["history"]
     # the cost of the segments before this one (a checkpoint from before wfbench saved it: not recorded)
-    t.wall_before = float(ckpt["train_wall_s"]) if "train_wall_s" in ckpt else None
-    t.wall_start = time.monotonic()
+    run.wall_before = float(ckpt["train_wall_s"]) if "train_wall_s" in ckpt else None
+    run.wall_start = time.monotonic()
     before = ckpt.get("train_hardware", "not recorded")
-    if before != t.hardware:
-        t.hardware = f"{before}; then {t.hardware}"
+    if before != run.hardware:
+        run.hardware = f"{before}; then {run.hardware}"
     return ckpt
 
 
@@ -586,7 +608,7 @@ class RunOutputs:
     """What the three trainers' loops write besides learning: the loop's scaffolding in one place.
 
     ``with RunOutputs(trainer, unit, desc, total, initial) as out:`` opens the TensorBoard
-    writer (``RUN/tb``, when ``trainer.log``) and the progress bar (when ``trainer.progress``;
+    writer (``RUN/tb``, when ``trainer.run.log``) and the progress bar (when ``trainer.run.progress``;
     ``initial`` of ``total`` environment steps done). Inside, the loop calls
     :meth:`scalars`, :meth:`public` (after scoring the public seeds: logs the score and keeps
     ``best.pt``), :meth:`checkpoint` and :meth:`advance`. Leaving the block saves
@@ -601,11 +623,11 @@ class RunOutputs:
         self.trainer, self.unit, self.cleanup = trainer, unit, cleanup
         self.writer = self.bar = None
         self.last_nsw: float | None = None  # of the last finished training episode, shown on the bar
-        if trainer.log:
+        if trainer.run.log:
             from torch.utils.tensorboard import SummaryWriter
 
-            self.writer = SummaryWriter(str(trainer.run_dir / "tb"))
-        if trainer.progress:
+            self.writer = SummaryWriter(str(trainer.run.dir / "tb"))
+        if trainer.run.progress:
             from tqdm.auto import tqdm
 
             self.bar = tqdm(total=total, initial=initial, unit="step", unit_scale=True, desc=desc)
@@ -615,7 +637,7 @@ class RunOutputs:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         t = self.trainer
-        latest = t.run_dir / "latest.pt"
+        latest = t.run.dir / "latest.pt"
         try:
             if exc_type is KeyboardInterrupt:
                 t.save(latest)
@@ -639,7 +661,7 @@ class RunOutputs:
         """TensorBoard ``prefix/key`` for each of ``keys`` (default: all) present in ``values``, at the global step."""
         if self.writer:
             for k in values if keys is None else [k for k in keys if k in values]:
-                self.writer.add_scalar(f"{prefix}/{k}", values[k], self.trainer.global_step)
+                self.writer.add_scalar(f"{prefix}/{k}", values[k], self.trainer.run.global_step)
 
     def episodes(self, episodes: list[dict]) -> None:
         """The finished training episodes' KPIs (``episode/*``)."""
@@ -649,13 +671,13 @@ class RunOutputs:
 
     def public(self, res: dict, count: int) -> None:
         """Log a :func:`score_public` result; keep ``best.pt`` (the policy only) when its sampled score is the best."""
-        t = self.trainer
+        t, run = self.trainer, self.trainer.run
         if self.writer:
-            log_public(self.writer, res, t.global_step)
-        if res["sample"] > t.best["score"]:
-            t.best = {"score": res["sample"], "update": count, "global_step": t.global_step, "mode": "sample",
-                      "seeds": res["seeds"], "greedy": res["greedy"]}
-            t.save(t.run_dir / "best.pt", full=False)
+            log_public(self.writer, res, run.global_step)
+        if res["sample"] > run.best["score"]:
+            run.best = {"score": res["sample"], "update": count, "global_step": run.global_step, "mode": "sample",
+                        "seeds": res["seeds"], "greedy": res["greedy"]}
+            t.save(run.dir / "best.pt", full=False)
 
     def after_update(self, count: int) -> None:
         """PPO's and IMPALA's end of update ``count``: evaluation and checkpoints when they are due.
@@ -663,18 +685,18 @@ class RunOutputs:
         Every ``eval_every`` updates score the public seeds (a history row, ``best.pt``),
         every ``checkpoint_every`` save ``checkpoints/update_<count>.pt`` and ``latest.pt``.
         """
-        t = self.trainer
-        if t.cfg.eval_every and count % t.cfg.eval_every == 0:
+        t, run = self.trainer, self.trainer.run
+        if run.config.eval_every and count % run.config.eval_every == 0:
             res = t.evaluate_public()
-            t.history.append({"update": count, "global_step": t.global_step, **res})
+            run.history.append({"update": count, "global_step": run.global_step, **res})
             self.public(res, count)
-        if count % t.cfg.checkpoint_every == 0:
+        if count % run.config.checkpoint_every == 0:
             self.checkpoint(f"update_{count:06d}.pt")
 
     def checkpoint(self, name: str) -> None:
         """``checkpoints/NAME`` and ``latest.pt``, both resumable."""
-        self.trainer.save(self.trainer.run_dir / "checkpoints" / name)
-        self.trainer.save(self.trainer.run_dir / "latest.pt")
+        self.trainer.save(self.trainer.run.dir / "checkpoints" / name)
+        self.trainer.save(self.trainer.run.dir / "latest.pt")
 
     def advance(self, steps: int, postfix: dict) -> None:
         """Move the progress bar by ``steps``; ``postfix``, the last training episode's NSW, the best public score."""
@@ -683,27 +705,27 @@ class RunOutputs:
             postfix = dict(postfix)
             if self.last_nsw is not None:
                 postfix["ep_nsw"] = f"{self.last_nsw:.3f}"
-            if self.trainer.best["update"] is not None:
-                postfix["public"] = f"{self.trainer.best['score']:.3f}"
+            if self.trainer.run.best["update"] is not None:
+                postfix["public"] = f"{self.trainer.run.best['score']:.3f}"
             self.bar.set_postfix(postfix)
 
 
 def save_unselected_best(trainer) -> Path | None:
     """``RUN/best.pt`` = the last weights when no evaluation selected one (``--eval-every 0``, or a run too short).
 
-    ``wfbench train`` calls it after training, so ``ALGO:RUN/best.pt`` names a policy after
-    every run; the file's ``best`` entry says it was not selected (``selected: False``, no
-    score). The trainer's own ``best`` stays unset (nothing of training changes), so a
-    resumed run with evaluation replaces the file at its first score. Returns the path
-    written, or None when an evaluation had chosen ``best.pt``.
+    :func:`wfbench.train.fit` (and so ``wfbench train``) calls it after training, so
+    ``ALGO:RUN/best.pt`` names a policy after every run; the file's ``best`` entry says it
+    was not selected (``selected: False``, no score). The run's own ``best`` stays unset
+    (nothing of training changes), so a resumed run with evaluation replaces the file at
+    its first score. Returns the path written, or None when an evaluation had chosen ``best.pt``.
     """
-    t = trainer
-    if t.best["update"] is not None:
+    run = trainer.run
+    if run.best["update"] is not None:
         return None
-    ckpt = t.checkpoint()
-    ckpt["best"] = {"score": None, "update": ckpt["update"], "global_step": t.global_step, "mode": None,
+    ckpt = trainer.checkpoint()
+    ckpt["best"] = {"score": None, "update": ckpt["update"], "global_step": run.global_step, "mode": None,
                     "selected": False, "why": "no evaluation on the public seeds ran: the last weights"}
-    return save_atomic(ckpt, t.run_dir / "best.pt")
+    return save_atomic(ckpt, run.dir / "best.pt")
 
 
 def save_atomic(ckpt: dict, path: Path) -> Path:
@@ -715,13 +737,12 @@ def save_atomic(ckpt: dict, path: Path) -> Path:
     return path
 
 
-def write_run_config(run_dir: Path, train_config, model: torch.nn.Module, model_config, device, commit: str,
-                     **extra) -> None:
+def write_run_config(run: Run, model: torch.nn.Module, **extra) -> None:
     """``RUN/config.json``: every setting, the git commit, the parameter count, the device and the network's sizes."""
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / "config.json").write_text(json.dumps(
-        {**asdict(train_config), **extra, "git_commit": commit, "parameters": count_parameters(model),
-         "device": str(device), "model_config": model_config.to_dict()}, indent=2))
+    run.dir.mkdir(parents=True, exist_ok=True)
+    (run.dir / "config.json").write_text(json.dumps(
+        {**asdict(run.config), **extra, "git_commit": run.commit, "parameters": count_parameters(model),
+         "device": str(run.device), "model_config": run.network.to_dict()}, indent=2))
 
 
 def git_commit() -> str:
