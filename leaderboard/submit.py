@@ -49,7 +49,6 @@ from wfbench.leaderboard.store import ROW_COLUMNS, NameTaken, Store, Submission,
 from wfbench.leaderboard.tracks import SuiteTrack, Track, get_track
 from wfbench.policies import registry as _registry
 from wfbench.policies import tuned as _tuned
-from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
 
 from wfbench import __version__
 from wfbench.harness.backends import check_backend, run_chunks, shutdown_pools
@@ -59,10 +58,7 @@ from wfbench.harness.runner import results_frame
 
 DEFAULT_WALL_TIME_S = 3600.0
 DEFAULT_MEMORY_MB = 8192
-# heuristic-tuned, solver-tuned: tuned on paper-64's public seeds (policies/tuned/), entered as they are on every track
-BUILTIN_ENTRIES = ("random", "heuristic", "heuristic-stochastic", "solver", "solver-dispatch", "solver-workforce",
-                   "solver-positioning", "heuristic-tuned", "solver-tuned",
-                   "oracle")  # oracle: shown apart, as not deployable
+BUILTIN_ENTRIES = _registry.LINEUPS["leaderboard"]  # the entries seed_builtins makes (the registry's lineups)
 
 
 class SubmitError(Exception):
@@ -115,18 +111,9 @@ def _file_digest(spec: str, path: str | Path) -> str:
         raise SubmitError(f"cannot read {str(path)!r} of policy {spec!r}: {exc.strerror or exc}") from None
 
 
-def _checkpoint(spec: str) -> tuple[str, str, str] | None:
-    """``ALGO:PATH[@MODE]`` -> (algo, path, mode), as the registry reads it; None for other specs."""
-    algo, sep, rest = spec.partition(":")
-    if not sep or algo not in CHECKPOINT_ALGORITHMS:
-        return None
-    path, _, mode = rest.rpartition("@") if "@" in rest else (rest, "", "sample")
-    return algo, path, mode
-
-
 def is_entry_point(spec: str) -> bool:
     """True for a ``module:attr`` entry point (the user's code), False for names, files and checkpoints."""
-    return ":" in spec and _checkpoint(spec) is None and not _tuned.is_tuned_spec(spec)
+    return _registry.parse_spec(spec).kind == "entry-point"
 
 
 def policy_fingerprint(spec: str, policy: Any = None) -> tuple[str, dict[str, Any]]:
@@ -147,23 +134,17 @@ def policy_fingerprint(spec: str, policy: Any = None) -> tuple[str, dict[str, An
         SubmitError: a file the policy names cannot be read.
     """
     detail: dict[str, Any]
-    checkpoint = _checkpoint(spec)
-    name = spec.partition("@")[0]
-    if checkpoint is not None:
-        algo, path, mode = checkpoint
-        detail = {"kind": "checkpoint", "algo": algo, "mode": mode, "file": _file_digest(spec, path)}
-    elif _tuned.is_tuned_spec(spec):
-        detail = {"kind": "tuned-file", "file": _file_digest(spec, _tuned.spec_path(spec)),
-                  "code": policy_code_digest()}
-    elif ":" not in spec:
+    p = _registry.parse_spec(spec)  # the registry's one reading of the spec
+    if p.kind == "checkpoint":
+        detail = {"kind": "checkpoint", "algo": p.algo, "mode": "sample" if p.mode is None else p.mode,
+                  "file": _file_digest(spec, p.path)}
+    elif p.kind == "tuned-file":
+        detail = {"kind": "tuned-file", "file": _file_digest(spec, p.path), "code": policy_code_digest()}
+    elif p.kind != "entry-point":
         detail = {"kind": "builtin", "spec": spec, "code": policy_code_digest()}
-        if spec in _registry.TUNED:
-            detail["file"] = _file_digest(spec, _tuned.TUNED_DIR / _registry.TUNED[spec][0])
-        elif name in _registry.LEARNED:
-            detail["file"] = _file_digest(spec, _registry.CHECKPOINT_DIR / _registry.LEARNED[name][0])
-        elif _registry.parse_member(spec) is not None:  # METHOD#seedK: one training seed's checkpoint
-            detail["file"] = _file_digest(spec, _registry.member_file(spec))
-        elif name in _registry.ORACLES:  # it plays its candidates: their shipped files decide its numbers too
+        if p.kind in ("tuned", "learned", "member"):  # the shipped or trained file it loads
+            detail["file"] = _file_digest(spec, p.file)
+        elif p.kind == "oracle":  # it plays its candidates: their shipped files decide its numbers too
             detail["candidates"] = {
                 c: _file_digest(spec, _tuned.TUNED_DIR / _registry.TUNED[c][0]) if c in _registry.TUNED
                 else _file_digest(spec, _registry.CHECKPOINT_DIR / _registry.LEARNED[c][0]) if c in _registry.LEARNED
@@ -171,7 +152,7 @@ def policy_fingerprint(spec: str, policy: Any = None) -> tuple[str, dict[str, An
                 for c in _registry.oracle_candidates()
             }
     else:
-        top = spec.partition(":")[0].split(".")[0]
+        top = p.name.split(".")[0]
         files = {}
         for mod_name, mod in sorted(sys.modules.items()):
             f = getattr(mod, "__file__", None)

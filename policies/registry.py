@@ -9,6 +9,7 @@ import importlib
 import importlib.util
 import re
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -93,6 +94,26 @@ LEARNED: dict[str, tuple[str, str]] = {
 }
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
 
+# The built-ins as each table lines them up, one table read by all (issue #33): the leaderboard's seeded entries
+# (wfbench.leaderboard.submit.seed_builtins), ``wfbench reproduce suite``'s policies before the networks and the
+# oracle, Table 3's solver, tuned and oracle rows (S1-S4, T1-T2, O1-O2), Figure 3's solver-and-tuned group and the
+# gap's methods. A lineup's members and order are what its table shows: a change here changes that table.
+LINEUPS: dict[str, tuple[str, ...]] = {
+    # heuristic-tuned, solver-tuned: tuned on paper-64's public seeds, entered as they are on every track;
+    # oracle: shown apart, as not deployable
+    "leaderboard": ("random", "heuristic", "heuristic-stochastic", "solver", "solver-dispatch", "solver-workforce",
+                    "solver-positioning", "heuristic-tuned", "solver-tuned", "oracle"),
+    # the composites tuned on the training split see the data the generalist networks learn from (issue #32): the
+    # verdict compares a learned method with them as well as with the composites tuned on paper-64
+    "suite": ("random", "heuristic", "heuristic-stochastic", "solver", "heuristic-tuned", "solver-tuned",
+              "heuristic-tuned-train", "solver-tuned-train"),
+    "table3-solver": ("solver", "solver-dispatch", "solver-workforce", "solver-positioning"),
+    "table3-tuned": ("heuristic-tuned", "solver-tuned"),
+    "table3-oracle": ("oracle-dispatch", "oracle"),
+    "figure3-solver": ("solver", "heuristic-tuned", "solver-tuned"),
+    "gap": ("heuristic", "solver", "oracle"),
+}
+
 
 # method -> the checkpoint files (under CHECKPOINT_DIR) of its training seeds: the same training command with only
 # the seed varied (issue #28, docs/suite.md "Learned methods over training seeds"). A method is reported by the
@@ -125,13 +146,13 @@ def seed_members(method: str) -> list[str]:
 def parse_member(spec: str) -> tuple[str, int, str] | None:
     """``METHOD#seedK[@MODE]`` -> (method, k, mode), the mode ``""`` when not given; None for any other spec.
 
-    Only the form is read (a path or ``module:attr`` is never one; K not a number is -1):
-    :func:`member_file` checks that the method and seed exist.
+    Only the form is read (:func:`parse_spec`; a path or ``module:attr`` is never one; K not a
+    number is -1): :func:`member_file` checks that the method and seed exist.
     """
-    m = _MEMBER.match(spec) if isinstance(spec, str) else None
-    if m is None:
+    p = parse_spec(spec) if isinstance(spec, str) else None
+    if p is None or p.kind != "member":
         return None
-    return m["method"], int(m["k"]) if m["k"].isdigit() else -1, m["mode"] or ""
+    return p.name, p.seed, p.mode or ""
 
 
 def member_file(spec: str) -> Path:
@@ -236,16 +257,84 @@ def load_learned(path: Any, mode: str = "sample", name: str | None = None, algo:
     return from_checkpoint(path, mode=mode, name=name, algo=algo)
 
 
-def _checkpoint_spec(spec: str) -> tuple[str, str, str] | None:
-    """``ALGO:PATH[@MODE]`` -> (algo, path, mode) when ALGO is a training algorithm's name, else None."""
-    algo, sep, rest = spec.partition(":")
-    if not sep or algo not in CHECKPOINT_ALGORITHMS:
-        return None
-    path, _, mode = rest.rpartition("@") if "@" in rest else (rest, "", "sample")
-    if not path:
-        raise ValueError(f"policy {spec!r}: give a checkpoint path, e.g. {algo}:runs/{algo}/best.pt "
-                         "(@greedy for argmax, @greedy-dispatch for argmax dispatch only)")
-    return algo, path, mode
+SPEC_KINDS = ("composite", "oracle", "tuned", "learned", "member", "checkpoint", "tuned-file", "parts",
+              "entry-point", "unknown")
+
+
+@dataclass(frozen=True)
+class PolicySpec:
+    """A policy spec as read, once (:func:`parse_spec`): what it names, without loading or reading anything.
+
+    ``kind`` is one of :data:`SPEC_KINDS`:
+
+    - ``composite``, ``oracle``, ``tuned``: a registered name (:data:`COMPOSITES`,
+      :data:`ORACLES`, :data:`TUNED`; a tuned name's ``path`` is its shipped file);
+    - ``learned``: a shipped network ``NAME[@MODE]`` (:data:`LEARNED`; ``path``: its file);
+    - ``member``: training seed ``seed`` of the method ``name``, ``METHOD#seedK[@MODE]``
+      (:data:`SEED_RUNS`; ``seed`` is -1 when K is not a number);
+    - ``checkpoint``: ``ALGO:PATH[@MODE]`` (``algo``, ``path``);
+    - ``tuned-file``: ``tuned:PATH`` or a ``.json``/``.toml`` path (``path``);
+    - ``parts``: ``D+W+P``, a composite of per-decision names (``parts``);
+    - ``entry-point``: ``module:attr`` (``name`` the module, ``attr``);
+    - ``unknown``: none of these (``name`` without its ``@MODE``).
+
+    ``mode`` is the text after ``@`` (``greedy``, ...), ``None`` when not given.
+    """
+
+    text: str
+    kind: str
+    name: str = ""
+    path: str = ""
+    seed: int | None = None
+    mode: str | None = None
+    algo: str = ""
+    attr: str = ""
+    parts: tuple[str, ...] = ()
+
+    @property
+    def file(self) -> Path | None:
+        """The file whose bytes decide the policy (a shipped or given checkpoint or tuned file), if it names one.
+
+        A member's is :func:`member_file`'s (which checks that it exists); the others' are not checked here.
+        """
+        if self.kind == "member":
+            return member_file(self.text)
+        return Path(self.path) if self.path else None
+
+
+def parse_spec(spec: str) -> PolicySpec:
+    """The one reading of a policy spec (see :class:`PolicySpec`; :func:`get` loads what it names).
+
+    The forms are tried in this order: a registered name, a shipped network ``NAME[@MODE]``,
+    ``METHOD#seedK[@MODE]``, ``ALGO:PATH[@MODE]``, a tuned-policy file, ``D+W+P`` (no ``:``),
+    ``module:attr``; anything else is ``unknown``. Nothing is checked but the form: an
+    unknown name, a missing file or a wrong part is :func:`get`'s to refuse.
+    """
+    if spec in COMPOSITES:
+        return PolicySpec(spec, "composite", name=spec)
+    if spec in ORACLES:
+        return PolicySpec(spec, "oracle", name=spec)
+    if spec in TUNED:
+        return PolicySpec(spec, "tuned", name=spec, path=str(_tuned.TUNED_DIR / TUNED[spec][0]))
+    name, at, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
+    if name in LEARNED:
+        return PolicySpec(spec, "learned", name=name, path=str(CHECKPOINT_DIR / LEARNED[name][0]),
+                          mode=mode if at else None)
+    m = _MEMBER.match(spec)
+    if m is not None:
+        return PolicySpec(spec, "member", name=m["method"], seed=int(m["k"]) if m["k"].isdigit() else -1,
+                          mode=m["mode"])
+    algo, colon, rest = spec.partition(":")
+    if colon and algo in CHECKPOINT_ALGORITHMS:
+        path, at, mode = rest.rpartition("@") if "@" in rest else (rest, "", "")
+        return PolicySpec(spec, "checkpoint", name=algo, algo=algo, path=path, mode=mode if at else None)
+    if _tuned.is_tuned_spec(spec):  # tuned:PATH or PATH.json / PATH.toml
+        return PolicySpec(spec, "tuned-file", path=str(_tuned.spec_path(spec)))
+    if "+" in spec and not colon:
+        return PolicySpec(spec, "parts", name=spec, parts=tuple(spec.split("+")))
+    if colon:
+        return PolicySpec(spec, "entry-point", name=algo, attr=rest)
+    return PolicySpec(spec, "unknown", name=name, mode=mode if at else None)
 
 
 def load_tuned(path: Any) -> Any:
@@ -309,31 +398,31 @@ def get(spec: Any) -> Any:
         if hasattr(spec, "act") and hasattr(spec, "reset"):
             return spec
         raise ValueError(f"{spec!r} is not a policy: it needs reset(seeds) and act(obs)")
-    if spec in COMPOSITES:
-        d, w, p, _ = COMPOSITES[spec]
-        return Composite(d, w, p, name=spec)
-    if spec in ORACLES:
+    p = parse_spec(spec)
+    if p.kind == "composite":
+        d, w, pos, _ = COMPOSITES[spec]
+        return Composite(d, w, pos, name=spec)
+    if p.kind == "oracle":
         return best_in_hindsight(spec)
-    if spec in TUNED:
-        return load_tuned(_tuned.TUNED_DIR / TUNED[spec][0])
-    name, _, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
-    if name in LEARNED and name in learned_names():
-        return load_learned(CHECKPOINT_DIR / LEARNED[name][0], mode or "sample", name=spec)
-    if parse_member(spec) is not None:  # ppo-general#seed3, ppo-general#seed3@greedy: one training seed
-        return load_learned(member_file(spec), mode or "sample", name=spec)
-    checkpoint = _checkpoint_spec(spec)
-    if checkpoint is not None:
-        algo, path, mode = checkpoint
-        return load_learned(path, mode, name=spec, algo=algo)
-    if _tuned.is_tuned_spec(spec):  # tuned:PATH or PATH.json / PATH.toml
-        return load_tuned(_tuned.spec_path(spec))
-    if "+" in spec and ":" not in spec:
-        parts = spec.split("+")
-        if len(parts) != 3:
+    if p.kind == "tuned":
+        return load_tuned(Path(p.path))
+    if p.kind == "learned" and p.name in learned_names():
+        return load_learned(Path(p.path), p.mode or "sample", name=spec)
+    if p.kind == "member":  # ppo-general#seed3, ppo-general#seed3@greedy: one training seed
+        return load_learned(member_file(spec), p.mode or "sample", name=spec)
+    if p.kind == "checkpoint":
+        if not p.path:
+            raise ValueError(f"policy {spec!r}: give a checkpoint path, e.g. {p.algo}:runs/{p.algo}/best.pt "
+                             "(@greedy for argmax, @greedy-dispatch for argmax dispatch only)")
+        return load_learned(p.path, "sample" if p.mode is None else p.mode, name=spec, algo=p.algo)
+    if p.kind == "tuned-file":
+        return load_tuned(Path(p.path))
+    if p.kind == "parts":
+        if len(p.parts) != 3:
             raise ValueError(f"composite {spec!r} needs three names, dispatch+workforce+positioning")
-        return Composite(*parts, name=spec)
-    if ":" in spec:
-        module_name, _, attr = spec.partition(":")
+        return Composite(*p.parts, name=spec)
+    if p.kind == "entry-point":
+        module_name, attr = p.name, p.attr
         try:
             module = importlib.import_module(module_name)
         except ImportError as exc:

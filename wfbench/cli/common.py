@@ -15,6 +15,8 @@ from wfbench.core.seeds import resolve_seeds
 
 EXIT_POLICY_FAILED = 1
 EXIT_USAGE = 2
+# what every --scenario takes (wfbench.scenarios.resolve; docs/scenarios.md, "Naming a scenario")
+SCENARIO_HELP = "a preset name, a suite's scenario id such as paper-64-v1, or a .toml/.json config file"
 
 
 class UsageError(Exception):
@@ -101,11 +103,11 @@ def check_backend_args(args: argparse.Namespace) -> None:
 
 
 def resolve_scenario(name: str):
-    """The scenario of a preset name or a config file; a bad name is a usage error."""
-    from wfbench.core.config import ScenarioConfig
+    """The scenario of a name (:func:`wfbench.scenarios.resolve.resolve_scenario`); a bad name is a usage error."""
+    from wfbench.scenarios.resolve import resolve_scenario as resolve
 
     try:
-        return ScenarioConfig.resolve(name)
+        return resolve(name)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
 
@@ -132,7 +134,7 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
     """The options of commands that run policies over seeds: scenario, seeds, backend, act timeout."""
     from wfbench.core.seeds import SPEC_HELP
 
-    p.add_argument("--scenario", default="paper-64", help="preset name or a .toml/.json config file")
+    p.add_argument("--scenario", default="paper-64", help=SCENARIO_HELP)
     p.add_argument("--seeds", type=seeds_spec, default="50", help=f"{SPEC_HELP} (default 50: the test set)")
     p.add_argument("--seed-start", type=nonneg, default=0, help="first seed of a count (default 0)")
     add_backend_args(p)

@@ -8,6 +8,7 @@ import shlex
 import sys
 
 from wfbench.cli.common import (
+    SCENARIO_HELP,
     UsageError,
     add_backend_args,
     check_backend_args,
@@ -25,7 +26,7 @@ def add_parser(sub) -> None:
                        "a tuned-policy file")
     t.add_argument("policy", help="registry name or D+W+P composite whose parts declare parameters (heuristic, "
                    "solver, ...)")
-    t.add_argument("--scenario", default=None, help="preset name or a .toml/.json config file (default paper-64)")
+    t.add_argument("--scenario", default=None, help=f"{SCENARIO_HELP} (default paper-64)")
     t.add_argument("--scenarios", default=None, metavar="SPEC",
                    help="tune across worlds instead: a suite's training split or its training scenarios, "
                         "comma-separated, e.g. suite-v1:train (held-out scenarios are refused); the objective is "
@@ -53,6 +54,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from wfbench.train.worlds import world_set
     from wfbench.tune import check_tuning_seeds, search_space, tune, tuning_worlds
 
     policy = resolve_policy(args.policy)
@@ -68,17 +70,20 @@ def run(args: argparse.Namespace) -> int:
     if args.scenario is not None and args.scenarios is not None:
         raise UsageError("--scenario and --scenarios do not go together: give one scenario, or the worlds to tune "
                          "across")
+    scenarios = None
     if args.scenarios is not None:
         try:
-            worlds = tuning_worlds(args.scenarios)
+            scenarios = world_set(args.scenarios)
+            worlds = tuning_worlds(scenarios)
         except ValueError as exc:
             raise UsageError(f"--scenarios: {exc}") from None
         where, scenario, judge = f"{args.scenarios} ({len(worlds)} worlds)", None, f"--suite {worlds[0].suite}"
         slug = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.scenarios)
     else:
-        scenario = args.scenario or "paper-64"
-        where = slug = resolve_scenario(scenario).name
-        judge = f"--scenario {scenario}"
+        given = args.scenario or "paper-64"
+        scenario = resolve_scenario(given)  # resolved once, here; tune() records it by its name
+        where = slug = scenario.name
+        judge = f"--scenario {given}"
     check_backend_args(args)
     try:
         seeds = check_tuning_seeds(args.seeds)
@@ -92,10 +97,10 @@ def run(args: argparse.Namespace) -> int:
         r = tune(args.policy, scenario, args.trials, seeds=seeds, params=args.params, study_db=args.study_db,
                  study_name=args.study_name, backend=args.backend, workers=args.workers, address=args.address,
                  sampler_seed=args.sampler_seed, out=out, name=args.name, progress=not args.no_progress,
-                 command=command, scenarios=args.scenarios)
+                 command=command, scenarios=scenarios)
     except KeyboardInterrupt:
         print(f"wfbench: interrupted; the finished trials are kept in {args.study_db} (study "
-              f"{args.study_name or args.policy + '@' + (args.scenarios or scenario)!r}): run the same command "
+              f"{args.study_name or args.policy + '@' + (args.scenarios or scenario.name)!r}): run the same command "
               "again to resume", file=sys.stderr)
         return 130
     except ValueError as exc:

@@ -3,7 +3,9 @@
 Every field is checked on construction; a bad value raises ``ValueError`` naming the
 field, the value and what is allowed. Presets (``PRESETS``, built from the
 data in :mod:`wfbench.core.presets`) are looked up by name with
-:meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON.
+:meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON. A scenario's
+name (preset, suite id or file) is resolved by :mod:`wfbench.scenarios.resolve`, also
+as :meth:`ScenarioConfig.resolve`.
 See ``docs/model.md`` for what each field means in the model.
 
 Fields added after the leaderboard began hashing ``to_dict()`` (``OMITTED_AT_DEFAULT``:
@@ -168,16 +170,17 @@ class ScenarioConfig:
         return PRESETS[name]
 
     @classmethod
-    def resolve(cls, scenario: str | ScenarioConfig) -> ScenarioConfig:
-        """A preset name, a path to a .toml/.json file, or a config."""
+    def resolve(cls, scenario: str | Path | ScenarioConfig) -> ScenarioConfig:
+        """A preset name, a suite's scenario id (``paper-64-v1``), a .toml/.json path, or a config.
+
+        The one scenario grammar, :func:`wfbench.scenarios.resolve.resolve_scenario` (this
+        method is its face on the class, for the core's own string edge: :class:`Simulator`).
+        """
         if isinstance(scenario, ScenarioConfig):
             return scenario
-        if isinstance(scenario, str):
-            if scenario.endswith((".toml", ".json")):
-                return cls.load(scenario)
-            return cls.preset(scenario)
-        raise TypeError("scenario must be a preset name, a .toml/.json path or a ScenarioConfig, "
-                        f"got {type(scenario).__name__}")
+        from wfbench.scenarios.resolve import resolve_scenario  # the suites' ids live above the core
+
+        return resolve_scenario(scenario)
 
     # -- serialization ---------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

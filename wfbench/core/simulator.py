@@ -68,7 +68,8 @@ class Simulator:
     """B independent episodes of one scenario, stepped together by the compiled core.
 
     Args:
-        scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
+        scenario: a :class:`ScenarioConfig`, or a scenario's name (a preset, a suite's id such as
+            ``paper-64-v1`` or a .toml/.json path), resolved once here by :meth:`ScenarioConfig.resolve`.
         seeds: one episode per seed.
         keep_series: keep the per-step metrics of every step (``state.series``).
         threads: threads that :meth:`step`, :meth:`observe` and :meth:`step_observe`

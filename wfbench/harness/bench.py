@@ -36,6 +36,7 @@ import numpy as np
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import machine  # the machine record every result row carries
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 @numba.njit(cache=True)
@@ -172,18 +173,19 @@ def _gym_rate(config: ScenarioConfig, steps: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
-def run(scenario: str = "paper-64", quick: bool = False, json_path: str | None = None,
+def run(scenario: str | ScenarioConfig = "paper-64", quick: bool = False, json_path: str | None = None,
         rounds: int | None = None) -> list[dict]:
     """Measure every row ``rounds`` times (default 3, 1 with ``quick``), the rows interleaved.
 
     A round runs each measurement once, so a slow spell of the machine hits every row a
     little instead of one row entirely. Each row reports its best, median and worst
     round; the best is the machine's speed when nothing else got in the way, the spread
-    is how much it drifted.
+    is how much it drifted. ``scenario`` is a scenario name
+    (:func:`wfbench.scenarios.resolve.resolve_scenario`) or a :class:`ScenarioConfig`.
     """
     from wfbench.harness.runner import run_batch
 
-    config = ScenarioConfig.resolve(scenario)
+    config = resolve_scenario(scenario)
     rounds = (1 if quick else 3) if rounds is None else rounds
     if rounds < 1:
         raise ValueError(f"rounds = {rounds} is not allowed; allowed: an integer >= 1")

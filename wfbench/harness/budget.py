@@ -128,24 +128,16 @@ def policy_budget(spec: Any, policy: Any = None) -> dict[str, Any]:
         A JSON-serializable dict with at least ``kind``.
     """
     from wfbench.policies import registry, tuned
-    from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
 
     out: dict[str, Any] = {"kind": "other"}
     if isinstance(spec, str):
-        name = spec.partition("@")[0]
-        algo, sep, rest = spec.partition(":")
-        ckpt_path = None
-        if name in registry.LEARNED:
-            ckpt_path = registry.CHECKPOINT_DIR / registry.LEARNED[name][0]
-        elif sep and algo in CHECKPOINT_ALGORITHMS:
-            ckpt_path = Path(rest.rpartition("@")[0] if "@" in rest else rest)
-        if ckpt_path is not None:
-            out = {"kind": "learned", **_checkpoint_budget(ckpt_path)}
-        elif spec in registry.TUNED or tuned.is_tuned_spec(spec):
-            path = tuned.TUNED_DIR / registry.TUNED[spec][0] if spec in registry.TUNED else tuned.spec_path(spec)
-            t = tuned.read(path)
+        p = registry.parse_spec(spec)  # the registry's one reading of the spec
+        if p.kind in ("learned", "checkpoint"):
+            out = {"kind": "learned", **_checkpoint_budget(Path(p.path))}
+        elif p.kind in ("tuned", "tuned-file"):
+            t = tuned.read(Path(p.path))
             out = {"kind": "tuned", "trials": int(t.trials), "tuned_on": t.scenario}
-        elif ":" not in spec:
+        elif p.kind != "entry-point":
             out = {"kind": "builtin"}
     limits = solver_time_limits(policy)
     if limits:

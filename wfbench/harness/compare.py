@@ -17,10 +17,10 @@ from wfbench.analysis.plots import comparison_figure, figure_format, save_figure
 from wfbench.analysis.stats import bootstrap_ci, paired_difference
 from wfbench.analysis.tables import markdown_table, text_table
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.kpis import KPI_LABELS
-from wfbench.core.kpis import KPI_NAMES as KPIS
+from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.harness.evaluation import evaluate, format_kpi, resolve_seeds, summarize
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
+from wfbench.scenarios.resolve import resolve_scenario
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -40,7 +40,8 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
 
     Args:
         policies: registry names, ``module:attr`` entry points or policy objects.
-        scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
+        scenario: a scenario name (:func:`wfbench.scenarios.resolve.resolve_scenario`) or a
+            :class:`ScenarioConfig`, resolved once here.
         seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
             :mod:`wfbench.core.seeds`) or a sequence of seeds.
         baseline: the policy the differences are taken to (a name or entry point).
@@ -57,7 +58,7 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
     """
     if plot is not None:
         figure_format(plot)  # a bad suffix fails before the runs, not after them
-    config = ScenarioConfig.resolve(scenario)
+    config = resolve_scenario(scenario)
     seed_list = resolve_seeds(seeds)
     added = baseline not in policies
     loaded = [load_policy(p, act_timeout_s) for p in ([baseline, *policies] if added else policies)]
@@ -111,11 +112,11 @@ def comparison_cells(df: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     """Header and text cells of a comparison table."""
     base = df.attrs.get("baseline", "baseline")
     n = len(df.attrs.get("seeds", []))
-    header = ["Policy", *[KPI_LABELS[k] for k in KPIS], "NSW 95% CI", f"NSW - {base} (paired, 95% CI)",
+    header = ["Policy", *[KPI_LABELS[k] for k in KPI_NAMES], "NSW 95% CI", f"NSW - {base} (paired, 95% CI)",
               f"wins / {n}"]
     rows = []
     for _, r in df.iterrows():
-        cells = [r["policy"], *[format_kpi(r[k], r[f"{k}_q25"], r[f"{k}_q75"]) for k in KPIS],
+        cells = [r["policy"], *[format_kpi(r[k], r[f"{k}_q25"], r[f"{k}_q75"]) for k in KPI_NAMES],
                  f"[{r['nsw_ci_low']:.3f}, {r['nsw_ci_high']:.3f}]"]
         if r["policy"] == base:
             cells += ["(baseline)", "-"]

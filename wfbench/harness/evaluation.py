@@ -35,11 +35,10 @@ from wfbench.harness.budget import BUDGET_COLUMNS, policy_budget, results_only
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, LoadedPolicy, load_policy
 from wfbench.harness.runner import BatchResult, results_frame
 from wfbench.policies.registry import warn_if_trained_elsewhere
+from wfbench.scenarios.resolve import resolve_scenario
 
-__all__ = ["BACKENDS", "BUDGET_COLUMNS", "KPIS", "KPI_LABELS", "evaluate", "format_kpi", "resolve_seeds",
+__all__ = ["BACKENDS", "BUDGET_COLUMNS", "KPI_LABELS", "KPI_NAMES", "evaluate", "format_kpi", "resolve_seeds",
            "results_only", "summarize"]
-
-KPIS = KPI_NAMES  # the KPI table's names (wfbench.core.kpis), the columns every summary shows
 
 
 def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,
@@ -53,7 +52,9 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
         policy: a registry name (``policies.names()``), a ``module:attr`` entry point, a
             policy object (its class may live in ``__main__`` or a notebook cell) or a
             :class:`wfbench.harness.guard.LoadedPolicy`. Resolved once per call.
-        scenario: a preset name, a .toml/.json path or a :class:`ScenarioConfig`.
+        scenario: a scenario name (a preset, a suite's scenario id such as ``paper-64-v1`` or a
+            .toml/.json path; :func:`wfbench.scenarios.resolve.resolve_scenario`), resolved once
+            here, or a :class:`ScenarioConfig`.
         seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
             :mod:`wfbench.core.seeds`) or a sequence of seeds.
         backend: ``"serial"`` (this process; built-in composites use ``threads``
@@ -83,7 +84,7 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
         wfbench.harness.guard.PolicyError: the policy raised, hung past ``act_timeout_s`` or
             returned a malformed action; its message names the policy, file and line.
     """
-    config = ScenarioConfig.resolve(scenario)
+    config = resolve_scenario(scenario)
     seed_list = resolve_seeds(seeds)
     check_backend(backend, address)
     loaded = load_policy(policy, act_timeout_s)
@@ -149,7 +150,7 @@ def _spec(loaded: LoadedPolicy, spec: Any) -> str | None:
     return None
 
 
-def summarize(df: pd.DataFrame, columns: Sequence[str] = KPIS) -> dict[str, tuple[float, float, float]]:
+def summarize(df: pd.DataFrame, columns: Sequence[str] = KPI_NAMES) -> dict[str, tuple[float, float, float]]:
     """Mean, 25% and 75% quantile of each column over the seeds."""
     return {c: (float(df[c].mean()), float(df[c].quantile(0.25)), float(df[c].quantile(0.75))) for c in columns}
 

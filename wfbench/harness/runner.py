@@ -83,7 +83,7 @@ def _compile_clock() -> Iterator[_CompileClock]:
         yield clock
 
 
-def run_batch(policy: Any, config: str | ScenarioConfig, seeds: Sequence[int], keep_series: bool = False,
+def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_series: bool = False,
               threads: int | None = None) -> BatchResult:
     """Run full episodes of ``seeds`` as one batch.
 
@@ -91,7 +91,7 @@ def run_batch(policy: Any, config: str | ScenarioConfig, seeds: Sequence[int], k
         policy: a :class:`~wfbench.harness.guard.LoadedPolicy` (what the backends pass: resolved
             once per evaluation), or anything :func:`~wfbench.harness.guard.load_policy` takes,
             loaded here with the default act timeout.
-        config: the scenario (a :class:`ScenarioConfig` or what it resolves).
+        config: the scenario, resolved (a name is resolved by :class:`Simulator` only, at its edge).
         seeds: one environment per seed.
         keep_series: also keep the per-step metrics.
         threads: numba threads of a compiled rollout (default: all cores).
@@ -107,7 +107,7 @@ def run_batch(policy: Any, config: str | ScenarioConfig, seeds: Sequence[int], k
     policy, guard = loaded.policy, loaded.guard
     with _compile_clock() as compiling:
         cpu0 = time.process_time()
-        sim = Simulator(ScenarioConfig.resolve(config), seeds, keep_series=keep_series)
+        sim = Simulator(config, seeds, keep_series=keep_series)
         per_step: list[float] = []  # ms per decision of one environment, one entry per act call
 
         def timed(act: Any, obs: Any) -> Any:

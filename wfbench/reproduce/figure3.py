@@ -9,14 +9,14 @@ import pandas as pd
 
 from wfbench.core.kpis import KPI_LABELS, MEASURED
 from wfbench.harness.evaluation import evaluate
-from wfbench.policies.registry import LEARNED, learned_names
+from wfbench.policies.registry import LEARNED, LINEUPS, learned_names
 from wfbench.reproduce.common import Output, Progress, write
 
 # the methods of Figure 3, in groups drawn side by side; the paper's figure has the first group and PPO. The
 # learned group holds every network of the registry (wfbench.policies.registry.LEARNED), drawn where it is shipped
 FIGURE3_GROUPS = (
     ("Paper rows 1-4", ("random", "random-dispatch", "random-positioning", "heuristic")),
-    ("Solvers and tuned", ("solver", "heuristic-tuned", "solver-tuned")),
+    ("Solvers and tuned", LINEUPS["figure3-solver"]),
     ("Learned (RL)", ("ppo-dispatch", "ppo-joint", *[n for n in LEARNED if n not in ("ppo-dispatch", "ppo-joint")])),
     ("Hindsight oracles (read the future)", ("oracle-dispatch", "oracle")),
 )

@@ -10,10 +10,11 @@ import pandas as pd
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.harness.evaluation import evaluate
+from wfbench.policies.registry import LINEUPS
 from wfbench.reproduce.common import Output, Progress, write
 
 GAP_SCENARIOS = ("small", "paper-64", "nonstationary", "table2-g32-f25-s10")
-GAP_METHODS = ("heuristic", "solver", "oracle")
+GAP_METHODS = LINEUPS["gap"]  # the registry's lineups
 
 
 def size(scenarios: tuple[str, ...] = GAP_SCENARIOS) -> int:

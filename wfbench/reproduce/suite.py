@@ -55,13 +55,11 @@ from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.harness.evaluation import evaluate
+from wfbench.policies.registry import LINEUPS
 from wfbench.reproduce.common import Output, Progress, write
 from wfbench.scenarios import Suite, SuiteScenario, get_suite, normalize
 
-# the composites tuned on the training split see the data the generalist networks learn from (issue #32): the
-# verdict compares a learned method with them as well as with the composites tuned on paper-64
-BUILTIN = ("random", "heuristic", "heuristic-stochastic", "solver", "heuristic-tuned", "solver-tuned",
-           "heuristic-tuned-train", "solver-tuned-train")
+BUILTIN = LINEUPS["suite"]  # the built-ins every suite run plays (the registry's lineups say why these)
 ORACLE = "oracle"
 BASELINE = "heuristic"  # the probability of improvement is taken over it
 BUDGET = ("decision_ms_p50", "decision_ms_p99", "cpu_s")  # the evaluator's cost columns, used where present
@@ -89,10 +87,9 @@ def with_members(names: Sequence[str]) -> tuple[list[str], dict[str, list[str]]]
 
 def family(policy: str) -> str:
     """The family a policy is drawn with in the scaling figure: random, heuristic, solver, network or oracle."""
-    from wfbench.policies.registry import LEARNED, parse_member
+    from wfbench.policies.registry import parse_spec
 
-    if policy in LEARNED or parse_member(policy) is not None \
-            or ":" in policy and policy.split(":")[0] in ("ppo", "impala", "hindsight"):
+    if parse_spec(policy).kind in ("learned", "member", "checkpoint"):
         return "network"
     for name in ("oracle", "solver", "heuristic", "random"):
         if policy.startswith(name):

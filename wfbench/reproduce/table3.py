@@ -14,18 +14,18 @@ import pandas as pd
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.harness.evaluation import evaluate, format_kpi, summarize
-from wfbench.policies.registry import LEARNED, learned_names, parts
+from wfbench.policies.registry import LEARNED, LINEUPS, learned_names, parts
 from wfbench.reproduce.common import DIRECTION, Output, Progress, write
 from wfbench.reproduce.paper import table3_rows
 
 # our policy for each of the paper's rows (the learned ones: docs/rl.md)
 TABLE3_POLICIES = {"1": "random", "2": "random-dispatch", "3": "random-positioning", "4": "heuristic",
                    "5": "ppo-dispatch", "6": "ppo-joint", "7": "impala-joint"}
-SOLVER_ROWS = [("S1", "solver"), ("S2", "solver-dispatch"), ("S3", "solver-workforce"), ("S4", "solver-positioning")]
-ORACLE_ROWS = [("O1", "oracle-dispatch"), ("O2", "oracle")]
+SOLVER_ROWS = [(f"S{i}", p) for i, p in enumerate(LINEUPS["table3-solver"], 1)]
+ORACLE_ROWS = [(f"O{i}", p) for i, p in enumerate(LINEUPS["table3-oracle"], 1)]
 # beyond the paper: the heuristic and solver composites with their parameters tuned on the public seeds
 # (wfbench tune, policies/tuned/, docs/policies.md#tuning)
-TUNED_ROWS = [("T1", "heuristic-tuned"), ("T2", "solver-tuned")]
+TUNED_ROWS = [(f"T{i}", p) for i, p in enumerate(LINEUPS["table3-tuned"], 1)]
 # beyond the paper: the shipped networks that are not rows 5-7 (docs/rl.md, docs/hindsight-learning.md); a row
 # whose checkpoint is not shipped says so, like rows 5-7
 LEARNED_ROWS = [("L1", "ppo-independent"), ("L2", "hindsight-joint"), ("L3", "hindsight-ppo")]

@@ -18,16 +18,19 @@ scenarios (IQM, optimality gap, probability of improvement) is :mod:`wfbench.ana
 ``docs/suite.md`` has the rules and why each scenario is there.
 
 The package says where worlds come from: ``suites`` (the suites as data,
-:func:`get_suite`), ``score`` (the constants and :func:`normalize`) and ``importer``
-(a scenario built from real data). Running a policy over a suite is the harness's
+:func:`get_suite`), ``score`` (the constants and :func:`normalize`), ``importer``
+(a scenario built from real data) and ``resolve``, the one reading of a scenario's name
+(:func:`resolve_scenario`: a preset, a suite's id such as ``paper-64-v1`` or a file;
+:func:`resolve_worlds`: several, with suite ids and ``suite-v1:train``). Running a policy over a suite is the harness's
 (:func:`wfbench.harness.suite.evaluate_suite`, also ``wfbench.evaluate_suite``).
 """
 
 from __future__ import annotations
 
+from wfbench.scenarios.resolve import World, resolve_scenario, resolve_worlds
 from wfbench.scenarios.score import DATA, REFERENCE_SEEDS, normalize, reference, references
 from wfbench.scenarios.suites import SPLITS, SUITE_SCHEMA, SUITES, Suite, SuiteScenario, get_suite, suite_scenarios
 
-__all__ = ["DATA", "REFERENCE_SEEDS", "SPLITS", "SUITES", "SUITE_SCHEMA", "Suite", "SuiteScenario",
-           "get_suite", "normalize", "reference", "references",
+__all__ = ["DATA", "REFERENCE_SEEDS", "SPLITS", "SUITES", "SUITE_SCHEMA", "Suite", "SuiteScenario", "World",
+           "get_suite", "normalize", "reference", "references", "resolve_scenario", "resolve_worlds",
            "suite_scenarios"]

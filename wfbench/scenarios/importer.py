@@ -33,6 +33,7 @@ import numpy as np
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.layout import FacilityLayout, project_latlon
 from wfbench.core.schedule import RateSchedule
+from wfbench.scenarios.resolve import resolve_scenario
 
 MARGIN = 2.0  # cells kept free on each side when lat/lon sites are projected
 MAX_BINS = 48  # pieces of a fitted request schedule at most
@@ -233,7 +234,7 @@ def from_files(sites: str | Path, requests: str | Path | None = None, *, name: s
         ScenarioFileError: a malformed file (naming the file, line and column).
         ValueError: a bad ``name``, ``base`` or ``jitter``.
     """
-    cfg = ScenarioConfig.resolve(base)
+    cfg = resolve_scenario(base)
     found = read_sites(sites, cfg.grid_width, cfg.grid_height)
     weights = {s.id: s.weight for s in found}
     changes: dict = {"name": name}

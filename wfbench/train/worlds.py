@@ -1,9 +1,9 @@
 """Training across worlds: several scenarios in one batch (domain randomization, docs/rl.md "Generalists").
 
-``--scenarios`` names the worlds: a suite's split (``suite-v1:train``), scenario names
-(``paper-64,small``, a suite id such as ``paper-64-v1`` or a .toml/.json path), or both,
-comma-separated. A suite's held-out split is refused: held-out scenarios are never
-trained or tuned on.
+``--scenarios`` names the worlds as every command does (:mod:`wfbench.scenarios.resolve`):
+a suite's split (``suite-v1:train``), scenario names (``paper-64,small``, a suite id such
+as ``paper-64-v1`` or a .toml/.json path), or both, comma-separated. A suite's held-out
+scenarios are refused: they are never trained or tuned on.
 
 :class:`Worlds` puts one :class:`~wfbench.core.simulator.Simulator` per world behind the
 face of one batched simulator: ``B`` environments, the slot counts of the largest world
@@ -27,23 +27,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wfbench.core.config import ScenarioConfig
 from wfbench.core.observe import allocate_obs
 from wfbench.core.simulator import Simulator
-from wfbench.scenarios.suites import SPLITS, SUITES, lookup
+from wfbench.scenarios.resolve import SEPARATOR, World
+from wfbench.scenarios.resolve import resolve_worlds as resolve
 
-SEPARATOR = ","
+__all__ = ["SEPARATOR", "World", "WorldSet", "Worlds", "deal", "resolve_worlds", "world_set"]
+
 # the observation's arrays with a facility axis and with a personnel axis (axis 1), padded to the largest world's
 FACILITY_KEYS = ("facilities", "facility_mask", "requesting")
 PERSONNEL_KEYS = ("personnel", "personnel_mask", "personnel_status", "under_notice", "dispatchable")
-
-
-@dataclass(frozen=True)
-class World:
-    """One training world: the name the logs and the checkpoint use, and its scenario."""
-
-    name: str
-    config: ScenarioConfig
 
 
 @dataclass(frozen=True)
@@ -72,46 +65,18 @@ def world_set(spec: str) -> WorldSet:
 
 
 def resolve_worlds(spec: str) -> list[World]:
-    """The worlds of a ``--scenarios`` spec, in its order, each once.
+    """The worlds of a ``--scenarios`` spec to train on, in its order, each once.
 
-    ``SUITE:SPLIT`` (only the ``train`` split) is the suite's scenarios of that split,
-    named by their suite ids; any other item is a scenario a suite knows by id or
-    preset (named by its suite id when it is in suite-v1's training split) or anything
-    :meth:`ScenarioConfig.resolve` takes.
+    The one grammar of several worlds, :func:`wfbench.scenarios.resolve.resolve_worlds`,
+    with a suite's held-out scenarios refused (a held-out scenario, the ``heldout`` split
+    or a whole suite): only ``SUITE:train`` and training scenarios, named by their suite
+    ids, or scenarios no suite holds.
 
     Raises:
-        ValueError: an empty spec, an unknown suite or split, a held-out split, an unknown
-            scenario; the message names what is allowed.
+        ValueError: an empty spec, an unknown suite split or scenario, a held-out one; the
+            message names what is allowed.
     """
-    items = [s.strip() for s in spec.split(SEPARATOR)] if isinstance(spec, str) else []
-    if not items or not all(items):
-        raise ValueError(f"scenarios {spec!r}: allowed: a comma-separated list of scenarios and suite splits, "
-                         "e.g. 'suite-v1:train' or 'paper-64,small'")
-    worlds: dict[str, World] = {}
-    for item in items:
-        suite, colon, split = item.partition(":")
-        if colon and suite in SUITES:
-            if split not in SPLITS:
-                raise ValueError(f"scenarios {item!r}: unknown split {split!r} of {suite}; allowed: "
-                                 f"{suite}:train")
-            if split != "train":
-                raise ValueError(f"scenarios {item!r}: the {split} split is never trained on; allowed: "
-                                 f"{suite}:train")
-            for sid in SUITES[suite].ids(split):
-                sc = SUITES[suite].scenario(sid)
-                worlds.setdefault(sc.id, World(sc.id, sc.config))
-            continue
-        try:
-            _, sc = lookup("suite-v1", item)
-        except ValueError:
-            config = ScenarioConfig.resolve(item)  # raises naming the presets
-            worlds.setdefault(config.name, World(config.name, config))
-            continue
-        if sc.split != "train":
-            raise ValueError(f"scenarios {item!r}: {sc.id} is a held-out scenario of suite-v1 and is never trained "
-                             "on; allowed: its training split, suite-v1:train")
-        worlds.setdefault(sc.id, World(sc.id, sc.config))
-    return list(worlds.values())
+    return resolve(spec, heldout=False)
 
 
 def deal(B: int, k: int) -> np.ndarray:

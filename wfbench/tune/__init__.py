@@ -1,6 +1,6 @@
 """Tuning, the OR sibling of :mod:`wfbench.train`: a policy's parameters searched on public seeds.
 
-:func:`tune` runs Optuna's TPE over a policy's declared search space (:mod:`wfbench.policies.tunable`) on one
+:func:`tune` runs Optuna's TPE over a policy's declared search space (:data:`wfbench.policies.rules.RULES`) on one
 scenario or across a suite's training worlds, and writes a tuned file that every command loads by name.
 """
 

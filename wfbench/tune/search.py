@@ -1,7 +1,7 @@
 """Tune a policy's declared hyper-parameters on public seeds with Optuna's TPE.
 
 ``tune("heuristic", "paper-64", trials=100)`` searches every parameter the policy
-declares (``Composite.tunable``, from :mod:`wfbench.policies.tunable`) for the highest mean NSW
+declares (``Composite.tunable``, from :data:`wfbench.policies.rules.RULES`) for the highest mean NSW
 over the tuning seeds, and writes a tuned-policy file (:mod:`wfbench.policies.tuned`) that is a
 policy everywhere a policy is named. ``wfbench tune`` is its command line.
 
@@ -54,7 +54,8 @@ from wfbench.policies import get
 from wfbench.policies import tuned as tuned_file
 from wfbench.policies.tunable import Param
 from wfbench.scenarios import SUITES, normalize
-from wfbench.train.worlds import resolve_worlds
+from wfbench.scenarios.resolve import resolve_scenario
+from wfbench.train.worlds import WorldSet, world_set
 
 DEFAULT_DB = "wfbench-tune.db"
 OBJECTIVE = "mean nsw"
@@ -97,17 +98,19 @@ class TuningWorld:
     config: ScenarioConfig
 
 
-def tuning_worlds(spec: str) -> list[TuningWorld]:
+def tuning_worlds(spec: str | WorldSet) -> list[TuningWorld]:
     """The worlds of a ``--scenarios`` spec, if each is a training scenario of a suite, else ValueError saying why.
 
-    The spec is resolved as training resolves it (:func:`wfbench.train.worlds.resolve_worlds`:
+    The spec is resolved as training resolves it (:func:`wfbench.train.worlds.world_set`:
     ``suite-v1:train``, or comma-separated scenarios; a held-out scenario or split is refused
-    there). Each world must have a suite's normalization constants, since the objective is
-    the mean normalized score.
+    there), or given resolved as a :class:`~wfbench.train.worlds.WorldSet`. Each world must
+    have a suite's normalization constants, since the objective is the mean normalized score.
     """
+    ws = spec if isinstance(spec, WorldSet) else world_set(spec)
+    spec = ws.name
     out = []
-    for w in resolve_worlds(spec):
-        suite = next((name for name, s in SUITES.items() if w.name in s.ids("train")), None)
+    for w in ws.worlds:
+        suite = w.suite  # the suite that holds the world (only its training scenarios get this far)
         if suite is None:
             allowed = "; ".join(f"{name}:train or its ids ({', '.join(s.ids('train'))})"
                                 for name, s in SUITES.items())
@@ -191,7 +194,7 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
          study_name: str | None = None, backend: str = "serial", workers: int | None = None,
          threads: int | None = None, address: str | None = None, sampler_seed: int = 0,
          out: str | Path | None = None, name: str | None = None, progress: bool = False,
-         command: str | None = None, scenarios: str | None = None) -> TuneResult:
+         command: str | None = None, scenarios: str | WorldSet | None = None) -> TuneResult:
     """Search ``policy``'s tunable parameters for the highest mean NSW over ``seeds``.
 
     Or, with ``scenarios``, for the highest mean normalized score over several worlds.
@@ -199,8 +202,9 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
     Args:
         policy: a registry name or ``D+W+P`` composite whose parts declare parameters
             (``heuristic``, ``solver``, ...). It is recorded as the file's base.
-        scenario: a preset name, a config file or a :class:`ScenarioConfig` (a preset
-            name is recorded as it is, so give a name to get a file others can read).
+        scenario: a scenario name (a preset, a suite's scenario id or a config file;
+            :func:`wfbench.scenarios.resolve.resolve_scenario`), recorded as it is, or a
+            :class:`ScenarioConfig`, recorded by its name.
         trials: the study's total of finished trials; a resumed study runs the rest.
         seeds: tuning seeds, public (default) or train; test seeds are refused.
         params: which parameters to search and optional narrower ranges
@@ -219,7 +223,8 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
         scenarios: instead of ``scenario``, the worlds to tune across (:func:`tuning_worlds`:
             ``"suite-v1:train"`` or comma-separated training scenarios); each trial's score
             is the mean over the worlds of its mean normalized score on ``seeds``. The spec
-            is recorded as the file's scenario.
+            (or a :class:`~wfbench.train.worlds.WorldSet`, resolved already) is recorded
+            as the file's scenario.
 
     Raises:
         ValueError: a bad policy, scenario, seed list, parameter, range, trial count,
@@ -240,9 +245,9 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
     worlds: list[TuningWorld] | None = None
     if scenarios is not None:
         worlds = tuning_worlds(scenarios)
-        scenario_name = scenarios
+        scenario_name = scenarios.name if isinstance(scenarios, WorldSet) else scenarios
     else:
-        config = ScenarioConfig.resolve(scenario)
+        config = resolve_scenario(scenario)
         scenario_name = scenario if isinstance(scenario, str) else config.name
     seed_list = check_tuning_seeds(seeds)
     base = get(policy)
