@@ -54,13 +54,16 @@ from typing import Any
 import pandas as pd
 from wfbench.leaderboard.tracks import SuiteTrack, Track
 
-from wfbench.core.kpis import KPI_NAMES
+from wfbench.core.kpis import KPI_NAMES, SCORE
 from wfbench.harness.budget import BUDGET_COLUMNS
 
 APPLICATION_ID = 0x57464231  # "WFB1"
 # 1: no fingerprints, no audit tables; 2: no budgets; 3: one row per seed only (all upgraded in place when opened)
 SCHEMA_VERSION = 4
-KPI_COLUMNS = KPI_NAMES  # the KPI table (wfbench.core.kpis); a new KPI there is a new column here
+# The KPI columns are the KPI table's names (wfbench.core.kpis), in its order, each a REAL: the SQL below is
+# generated from them. A new KPI in the table changes the results tables, so it needs a new schema version whose
+# migration adds its column to an existing store (and leaves it out of the digest of the rows stored before).
+KPI_COLUMNS = KPI_NAMES
 ROW_COLUMNS = (*KPI_COLUMNS, "episode_length", "invalid_actions")
 # what a row cost (wfbench.harness.budget.BUDGET_COLUMNS, and the machine's line); NULL in rows stored before schema 3
 BUDGET_ROW_COLUMNS = (*BUDGET_COLUMNS, "machine")
@@ -88,11 +91,8 @@ _RESULT_COLUMNS_2 = """
     policy TEXT NOT NULL,
     submitter TEXT NOT NULL,
     wfbench_version TEXT NOT NULL,
-    finished_at TEXT NOT NULL,
-    workforce_cost REAL NOT NULL,
-    utilization REAL NOT NULL,
-    downtime REAL NOT NULL,
-    nsw REAL NOT NULL,
+    finished_at TEXT NOT NULL,""" + "".join(f"""
+    {kpi} REAL NOT NULL,""" for kpi in KPI_COLUMNS) + """
     episode_length INTEGER NOT NULL,
     invalid_actions INTEGER NOT NULL,
     digest TEXT NOT NULL,
@@ -104,6 +104,9 @@ _RESULT_COLUMNS_3 = _RESULT_COLUMNS_2 + """,
     machine TEXT"""
 _RESULT_COLUMNS = _RESULT_COLUMNS_3 + """,
     scenario TEXT NOT NULL DEFAULT ''"""  # a suite track's scenario id; "" on a one-scenario track
+# the columns add_results writes, in the order of its values
+_INSERTED = ("submission_id", "seed", "track", "track_hash", "policy", "submitter", "wfbench_version", "finished_at",
+             *ROW_COLUMNS, "digest", "fingerprint", *BUDGET_ROW_COLUMNS, "scenario")
 
 
 def _names(columns: str) -> list[str]:
@@ -507,7 +510,7 @@ class Store:
     def audit(self, track: str | None = None) -> pd.DataFrame:
         """The audit trail: one row per archived result (or per archived entry that had none), oldest first."""
         q = ("SELECT a.audit_id, a.track, a.name, a.policy, a.fingerprint, a.status, a.action, a.note, a.moved_at, "
-             "r.scenario, r.seed, r.nsw, r.digest FROM audit_submissions a "
+             f"r.scenario, r.seed, r.{SCORE}, r.digest FROM audit_submissions a "
              "LEFT JOIN audit_results r ON r.audit_id = a.audit_id"
              + (" WHERE a.track = ?" if track else "") + " ORDER BY a.audit_id, r.scenario, r.seed")
         return pd.read_sql_query(q, self.conn, params=(track,) if track else ())
@@ -548,10 +551,8 @@ class Store:
                 digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed,
                                     values, sub.fingerprint)
                 cur = conn.execute(
-                    "INSERT OR IGNORE INTO results (submission_id, seed, track, track_hash, policy, submitter, "
-                    "wfbench_version, finished_at, workforce_cost, utilization, downtime, nsw, episode_length, "
-                    "invalid_actions, digest, fingerprint, decision_ms_p50, decision_ms_p99, cpu_s, machine, scenario) "
-                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    f"INSERT OR IGNORE INTO results ({', '.join(_INSERTED)}) "
+                    f"VALUES ({', '.join('?' * len(_INSERTED))})",
                     (sub.id, seed, sub.track, sub.track_hash, sub.policy, sub.submitter, version, _now(),
                      *(float(row[c]) for c in KPI_COLUMNS), int(row["episode_length"]),
                      int(row["invalid_actions"]), digest, sub.fingerprint, *budget.values(), scenario),

@@ -41,7 +41,7 @@ from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.tracks import SuiteTrack
 from wfbench.policies.registry import parse_member, shipped_member
 
-from wfbench.analysis.aggregate import METRICS, aggregate_suite, over_seeds, pool_seeds, seed_scores
+from wfbench.analysis.aggregate import STATISTICS, aggregate_suite, over_seeds, pool_seeds, seed_scores
 from wfbench.analysis.tables import markdown_table, text_table
 from wfbench.scenarios import normalize
 
@@ -115,7 +115,7 @@ def ranking(store: Store, track: SuiteTrack, baseline: str = "heuristic", max_de
                                poi_reps=max(100, reps // 10), profile_reps=10)
         for split, agg in aggs.items():
             names = {}  # iqm -> iqm_heldout, iqm_low -> iqm_heldout_low, ...
-            for base in (*METRICS, "p_improve"):
+            for base in (*STATISTICS, "p_improve"):
                 for end in ("", "_low", "_high"):
                     if base + end in agg.table.columns:
                         names[base + end] = f"{base}_{split}{end}"

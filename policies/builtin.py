@@ -1,5 +1,8 @@
 """Built-in decisions: one decision made by a compiled kernel of :mod:`wfbench.policies.kernels`.
 
+Which rules there are, their codes and what a tuner may change are the rows of
+:data:`wfbench.policies.rules.RULES`.
+
 A :class:`BuiltinDecision` is a policy for one agent; a composite made only of them can
 run a whole episode in compiled code (:mod:`wfbench.policies.rollout`) with results identical to
 stepping it through ``act``.
@@ -12,14 +15,15 @@ from collections.abc import Sequence
 import numpy as np
 from wfbench.policies import kernels as K
 from wfbench.policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
-from wfbench.policies.tunable import Param, kernel_params
+from wfbench.policies.rules import RULES
+from wfbench.policies.tunable import Param
 
 from wfbench.core.actions import AGENTS
 from wfbench.core.observe import Obs
 
 
 class BuiltinDecision:
-    """One decision made by a compiled kernel (see :mod:`wfbench.policies.kernels` for the codes)."""
+    """One decision made by a compiled kernel: ``code`` is a rule's (:data:`wfbench.policies.rules.RULES`)."""
 
     def __init__(self, decision: str, code: int, name: str, seed: int = 0, **hp: float):
         if decision not in DECISION_INDEX:
@@ -37,8 +41,9 @@ class BuiltinDecision:
 
     @property
     def tunable(self) -> dict[str, Param]:
-        """The hyper-parameters a tuner may change, with their ranges (:mod:`wfbench.policies.tunable`)."""
-        return kernel_params(self.decision, self.code)
+        """The hyper-parameters a tuner may change, with their ranges (the rule's row of ``RULES``)."""
+        rule = next((r for r in RULES if r.decision == self.decision and r.code == self.code), None)
+        return rule.params if rule is not None else {}
 
     def params(self) -> dict[str, float]:
         """The current value of each tunable hyper-parameter."""

@@ -36,7 +36,7 @@ class Composite:
     """One policy per decision: ``Composite(dispatch=..., workforce=..., positioning=...)``.
 
     Each argument is a policy object or the name of a built-in decision policy
-    (``wfbench.policies.registry.DECISIONS``).
+    (:data:`wfbench.policies.decisions.DECISIONS`).
     """
 
     def __init__(self, dispatch: Any, workforce: Any, positioning: Any, name: str | None = None):
@@ -90,7 +90,7 @@ class Composite:
     def tunable(self) -> dict[str, Param]:
         """Its parts' tunable hyper-parameters as ``decision.field`` -> range (``workforce.high``).
 
-        Only built-in kernel parts declare any (:mod:`wfbench.policies.tunable`); ``wfbench tune``
+        Only built-in kernel parts declare any (:data:`wfbench.policies.rules.RULES`); ``wfbench tune``
         searches these.
         """
         out: dict[str, Param] = {}

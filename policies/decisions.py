@@ -2,66 +2,59 @@
 
 ``DECISIONS[decision][name]()`` makes a fresh policy for that one decision; a composite
 takes these names (``Composite("nearest", "threshold", "spatial")``) and
-``wfbench policies`` lists them.
+``wfbench policies`` lists them. Both tables here are made from two others: every rule
+of :data:`wfbench.policies.rules.RULES` (a compiled kernel: its name, code and label),
+then :data:`OTHERS`, the decisions that are not compiled rules.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from functools import partial
+from typing import Any, NamedTuple
 
-from wfbench.policies import kernels as K
 from wfbench.policies.builtin import BuiltinDecision
 from wfbench.policies.oracle import OracleDispatch, OraclePositioning, OracleWorkforce
+from wfbench.policies.rules import RULES
 from wfbench.policies.solver import AssignmentDispatch
 
+from wfbench.core.actions import AGENTS
 
-def _d(decision: str, code: int, name: str, **hp: float) -> Callable[[], BuiltinDecision]:
-    return lambda: BuiltinDecision(decision, code, name, **hp)
 
+class Other(NamedTuple):
+    """A built-in decision policy that is not a compiled rule: how to make it, and how tables name it."""
+
+    decision: str
+    name: str
+    label: str
+    make: Callable[[], Any]
+
+
+OTHERS: tuple[Other, ...] = (
+    Other("dispatch", "assignment-scipy", "Assignment", lambda: AssignmentDispatch("exact", name="assignment-scipy")),
+    Other("dispatch", "assignment-milp", "Assignment", lambda: AssignmentDispatch("milp", name="assignment-milp")),
+    Other("dispatch", "assignment-lp", "Assignment", lambda: AssignmentDispatch("lp", "HIGHS", name="assignment-lp")),
+    Other("dispatch", "assignment-lp-osqp", "Assignment",
+          lambda: AssignmentDispatch("lp", "OSQP", name="assignment-lp-osqp")),
+    # the oracles read the trace: not deployable (docs/hindsight.md)
+    Other("dispatch", "oracle", "Hindsight oracle", OracleDispatch),
+    Other("workforce", "oracle", "Hindsight oracle", OracleWorkforce),
+    Other("positioning", "oracle", "Hindsight oracle", OraclePositioning),
+)
+"""The solver-backed dispatch policies (:mod:`wfbench.policies.solver`) and the hindsight oracles."""
+
+_ALL = (*((r.decision, r.name, r.label, partial(BuiltinDecision, r.decision, r.code, r.name)) for r in RULES),
+        *OTHERS)
 
 DECISIONS: dict[str, dict[str, Callable[[], Any]]] = {
-    "dispatch": {
-        "nearest": _d("dispatch", K.D_NEAREST, "nearest"),
-        "inverse-distance": _d("dispatch", K.D_INVERSE, "inverse-distance"),
-        "random": _d("dispatch", K.D_RANDOM, "random"),
-        "assignment": _d("dispatch", K.D_ASSIGN, "assignment"),
-        "assignment-scipy": lambda: AssignmentDispatch("exact", name="assignment-scipy"),
-        "assignment-milp": lambda: AssignmentDispatch("milp", name="assignment-milp"),
-        "assignment-lp": lambda: AssignmentDispatch("lp", "HIGHS", name="assignment-lp"),
-        "assignment-lp-osqp": lambda: AssignmentDispatch("lp", "OSQP", name="assignment-lp-osqp"),
-        "none": _d("dispatch", K.D_NOOP, "none"),
-        "oracle": OracleDispatch,  # reads the trace: not deployable (docs/hindsight.md)
-    },
-    "workforce": {
-        "threshold": _d("workforce", K.W_THRESHOLD, "threshold"),
-        "threshold-epsilon": _d("workforce", K.W_EPSILON, "threshold-epsilon"),
-        "random": _d("workforce", K.W_RANDOM, "random"),
-        "staffing": _d("workforce", K.W_STAFFING, "staffing"),
-        "fixed": _d("workforce", K.W_NOOP, "fixed"),
-        "oracle": OracleWorkforce,  # reads the trace: not deployable
-    },
-    "positioning": {
-        "spatial": _d("positioning", K.P_SPATIAL, "spatial"),
-        "spatial-gaussian": _d("positioning", K.P_GAUSSIAN, "spatial-gaussian"),
-        "random": _d("positioning", K.P_RANDOM, "random"),
-        "facility-location": _d("positioning", K.P_FACILITY, "facility-location"),
-        "none": _d("positioning", K.P_NONE, "none"),
-        "oracle": OraclePositioning,  # reads the trace: not deployable
-    },
+    decision: {name: make for d, name, _, make in _ALL if d == decision} for decision in AGENTS
 }
+"""Every built-in policy of each decision by name: the compiled rules in code order (no-op first), then the others."""
 
 # How tables name each built-in decision (the columns of Table 3: the paper's "Random" and "Heuristic",
 # wfbench's "Assignment", "Staffing", "p-median" and "Hindsight oracle"); :func:`label` falls back to the name.
 LABELS: dict[str, dict[str, str]] = {
-    "dispatch": {"nearest": "Heuristic", "inverse-distance": "Heuristic (stochastic)", "random": "Random",
-                 "assignment": "Assignment", "assignment-scipy": "Assignment", "assignment-milp": "Assignment",
-                 "assignment-lp": "Assignment", "assignment-lp-osqp": "Assignment", "none": "None",
-                 "oracle": "Hindsight oracle"},
-    "workforce": {"threshold": "Heuristic", "threshold-epsilon": "Heuristic (stochastic)", "random": "Random",
-                  "staffing": "Staffing", "fixed": "Fixed", "oracle": "Hindsight oracle"},
-    "positioning": {"spatial": "Heuristic", "spatial-gaussian": "Heuristic (stochastic)", "random": "Random",
-                    "facility-location": "p-median", "none": "None", "oracle": "Hindsight oracle"},
+    decision: {name: text for d, name, text, _ in _ALL if d == decision} for decision in AGENTS
 }
 
 

@@ -7,14 +7,11 @@ Randomized kernels draw from :func:`wfbench.core.rng.uniform` with the policy's 
 environment, indexed by (step, purpose, item): a seed gives the same decisions alone
 or inside any batch.
 
-Codes (the compiled rollout dispatches on them):
-
-- dispatch: 0 no-op, 1 nearest, 2 inverse-distance sampling, 3 random, 4 optimal
-  assignment (:func:`wfbench.solvers.lap.lap_min`);
-- workforce: 0 no-op, 1 threshold, 2 epsilon-greedy threshold, 3 random, 4 square-root
-  staffing (:mod:`wfbench.solvers.staffing`);
-- positioning: 0 none (zeros), 1 spatial averaging, 2 spatial averaging with Gaussian
-  noise, 3 random, 4 p-median facility location (:mod:`wfbench.solvers.facility_location`).
+The rules, their codes (the compiled rollout dispatches on them) and the layout of the
+hyper-parameter vector are read from the tables of :mod:`wfbench.policies.rules` when this
+module is imported: the ``D_``, ``W_`` and ``P_`` constants below are the codes of the
+dispatch, workforce and positioning rules there (0: each decision's no-op), and the
+``HP_`` constants the positions of the fields of ``hp`` that the kernels read.
 
 Each decision reads its own row of the hyper-parameter matrix ``hp`` (3 x
 ``len(HP_FIELDS)``: dispatch, workforce, positioning), so two parts of a composite never
@@ -27,6 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from wfbench.policies.rules import HYPERPARAMETERS, code
 from wfbench.solvers.facility_location import greedy_open, local_search
 from wfbench.solvers.lap import lap_min
 from wfbench.solvers.staffing import sqrt_staffing_servers
@@ -46,70 +44,50 @@ from wfbench.core.observe import (
 )
 from wfbench.core.rng import STREAM_POLICY_DISPATCH, STREAM_POLICY_POSITIONING, STREAM_POLICY_WORKFORCE, normal, uniform
 
-D_NOOP, D_NEAREST, D_INVERSE, D_RANDOM, D_ASSIGN = 0, 1, 2, 3, 4
-W_NOOP, W_THRESHOLD, W_EPSILON, W_RANDOM, W_STAFFING = 0, 1, 2, 3, 4
-P_NONE, P_SPATIAL, P_GAUSSIAN, P_RANDOM, P_FACILITY = 0, 1, 2, 3, 4
+# the codes of the rules (wfbench.policies.rules.RULES) that the kernels below make
+D_NOOP = code("dispatch", "none")
+D_NEAREST = code("dispatch", "nearest")
+D_INVERSE = code("dispatch", "inverse-distance")  # inverse-distance sampling
+D_RANDOM = code("dispatch", "random")
+D_ASSIGN = code("dispatch", "assignment")  # optimal assignment (wfbench.solvers.lap.lap_min)
+W_NOOP = code("workforce", "fixed")
+W_THRESHOLD = code("workforce", "threshold")
+W_EPSILON = code("workforce", "threshold-epsilon")  # epsilon-greedy threshold
+W_RANDOM = code("workforce", "random")
+W_STAFFING = code("workforce", "staffing")  # square-root staffing (wfbench.solvers.staffing)
+P_NONE = code("positioning", "none")  # zeros
+P_SPATIAL = code("positioning", "spatial")  # spatial averaging
+P_GAUSSIAN = code("positioning", "spatial-gaussian")  # spatial averaging with Gaussian noise
+P_RANDOM = code("positioning", "random")
+P_FACILITY = code("positioning", "facility-location")  # p-median (wfbench.solvers.facility_location)
 
-# Layout of the hyper-parameter vector ``hp``.
-HP_FIELDS = (
-    "high",  # threshold workforce: hire when utilization is above this
-    "low",  # ... let go when below this
-    "cooldown",  # steps between two workforce actions
-    "warmup",  # no workforce action before this step
-    "epsilon",  # epsilon-greedy: probability of a random decision per step after the cooldown
-    "p_novice",  # level draw of a hire (and of a let-go among the levels present)
-    "p_mid",
-    "p_expert",
-    "smoothing",  # spatial positioning: weight of a new request in the exponential average
-    "request_weight",  # ... share of the request history in a facility's demand (the rest: downtime)
-    "noise",  # Gaussian variant: standard deviation of the log-normal noise on the demand
-    # the policies' model of the world (defaults: the paper's / paper-64's values)
-    "speed",  # cells a person moves per step
-    "service_time",  # steps a visit takes at the facility
-    "fix_novice",  # probability that a visit by each level fixes the fault
-    "fix_mid",
-    "fix_expert",
-    # assignment dispatch
-    "revisit_cost",  # steps of downtime an unsuccessful visit adds (a new trip and service)
-    "unassigned_cost",  # cost of leaving a request unassigned this step (inf: never, if someone is free)
-    # staffing workforce
-    "beta",  # square-root staffing safety factor: c = R + beta sqrt(R)
-    "hysteresis",  # let go only when the headcount exceeds the target by more than this
-    "rate_smoothing",  # weight of a step in the exponential average of the request rate
-    # facility-location positioning
-    "refresh",  # steps between two p-median solves (the maps are reused in between)
-    "demand_floor",  # demand weight every active facility has, on top of its observed demand
-)
-HP_DEFAULTS = {
-    "high": 0.8,
-    "low": 0.45,
-    "cooldown": 30.0,
-    "warmup": 50.0,
-    "epsilon": 0.02,
-    "p_novice": 0.25,
-    "p_mid": 0.5,
-    "p_expert": 0.25,
-    "smoothing": 0.01,
-    "request_weight": 0.5,
-    "noise": 0.5,
-    "speed": 1.0,
-    "service_time": 3.0,
-    "fix_novice": 0.49,
-    "fix_mid": 0.70,
-    "fix_expert": 0.84,
-    "revisit_cost": 2.0,  # chosen on development seeds (docs/solvers.md; wfbench tune searches it now)
-    "unassigned_cost": np.inf,
-    "beta": 0.0,  # chosen on development seeds: staff the offered load (docs/solvers.md)
-    "hysteresis": 1.0,
-    "rate_smoothing": 0.01,
-    "refresh": 10.0,
-    "demand_floor": 0.1,
-}
-(
-    HP_HIGH, HP_LOW, HP_COOLDOWN, HP_WARMUP, HP_EPS, HP_P0, HP_P1, HP_P2, HP_SMOOTH, HP_REQW, HP_NOISE,
-    HP_SPEED, HP_SERVICE, HP_FIX0, HP_FIX1, HP_FIX2, HP_REVISIT, HP_UNASSIGNED, HP_BETA, HP_HYST, HP_RATE,
-    HP_REFRESH, HP_FLOOR,
-) = range(len(HP_FIELDS))
+# Layout of the hyper-parameter vector ``hp`` (wfbench.policies.rules.HYPERPARAMETERS: meanings and defaults).
+HP_FIELDS: tuple[str, ...] = tuple(h.name for h in HYPERPARAMETERS)
+HP_DEFAULTS: dict[str, float] = {h.name: h.default for h in HYPERPARAMETERS}
+# the position of each field the kernels read
+HP_HIGH = HP_FIELDS.index("high")
+HP_LOW = HP_FIELDS.index("low")
+HP_COOLDOWN = HP_FIELDS.index("cooldown")
+HP_WARMUP = HP_FIELDS.index("warmup")
+HP_EPS = HP_FIELDS.index("epsilon")
+HP_P0 = HP_FIELDS.index("p_novice")
+HP_P1 = HP_FIELDS.index("p_mid")
+HP_P2 = HP_FIELDS.index("p_expert")
+HP_SMOOTH = HP_FIELDS.index("smoothing")
+HP_REQW = HP_FIELDS.index("request_weight")
+HP_NOISE = HP_FIELDS.index("noise")
+HP_SPEED = HP_FIELDS.index("speed")
+HP_SERVICE = HP_FIELDS.index("service_time")
+HP_FIX0 = HP_FIELDS.index("fix_novice")  # a level's is HP_FIX0 + level: the three follow each other
+HP_FIX1 = HP_FIELDS.index("fix_mid")
+HP_FIX2 = HP_FIELDS.index("fix_expert")
+HP_REVISIT = HP_FIELDS.index("revisit_cost")
+HP_UNASSIGNED = HP_FIELDS.index("unassigned_cost")
+HP_BETA = HP_FIELDS.index("beta")
+HP_HYST = HP_FIELDS.index("hysteresis")
+HP_RATE = HP_FIELDS.index("rate_smoothing")
+HP_REFRESH = HP_FIELDS.index("refresh")
+HP_FLOOR = HP_FIELDS.index("demand_floor")
 
 
 class PolicyState(NamedTuple):

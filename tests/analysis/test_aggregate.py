@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 import scipy.stats
 
-from wfbench.analysis.aggregate import METRICS, aggregate, aggregate_suite, score_matrix
+from wfbench.analysis.aggregate import STATISTICS, aggregate, aggregate_suite, score_matrix
 
 FAST = {"reps": 200, "poi_reps": 30, "profile_reps": 50}
 
@@ -34,7 +34,7 @@ def test_aggregate__a_policy_s_interval_does_not_depend_on_the_others():
     s = _scores()
     alone = aggregate({"good": s["good"]}, seed=3, **FAST).table.iloc[0]
     together = aggregate(s, seed=3, **FAST).table.set_index("policy").loc["good"]
-    for k in METRICS:
+    for k in STATISTICS:
         assert alone[k] == together[k] and alone[f"{k}_low"] == together[f"{k}_low"]
 
 
@@ -44,7 +44,7 @@ def test_aggregate__points_are_rliable_s_metrics_inside_their_intervals():
     assert t.loc["good", "iqm"] == pytest.approx(scipy.stats.trim_mean(s["good"], 0.25, axis=None))
     assert t.loc["good", "mean"] == pytest.approx(s["good"].mean())
     assert t.loc["good", "optimality_gap"] == pytest.approx(1 - np.minimum(s["good"], 1).mean())
-    for k in METRICS:
+    for k in STATISTICS:
         assert (t[f"{k}_low"] <= t[k]).all() and (t[k] <= t[f"{k}_high"]).all()
     assert t.loc["good", "p_improve"] == 1.0 and np.isnan(t.loc["base", "p_improve"])
     assert 0.2 < t.loc["few", "p_improve"] < 0.8

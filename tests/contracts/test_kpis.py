@@ -87,7 +87,7 @@ def test_kpis__the_table_orders_every_report():
     assert KPI_NAMES == ("workforce_cost", "utilization", "downtime", "nsw")
     assert KPI_NAMES[-1] == SCORE and MEASURED == KPI_NAMES[:-1]
     assert METRICS[: len(KPI_NAMES)] == KPI_NAMES and METRICS[len(KPI_NAMES):len(KPI_NAMES) + 3] == UTILITIES
-    assert sum(k.welfare_exponent for k in KPIS if k.utility) == pytest.approx(1.0)
+    assert [k.utility for k in KPIS] == [*UTILITIES, None]
     assert {BY_NAME[k].better for k in KPI_NAMES} == {"lower", "band", "higher"}
 
 
@@ -129,6 +129,29 @@ def test_reward__no_cost_is_the_geometric_mean_of_the_other_two_utilities():
         step_reward("nsw2", nsw, last)
     assert set(REWARDS) == {"nsw", "nsw-no-cost"}
 
+
+
+def test_kpis__the_welfare_is_the_cube_root_of_the_product_bit_for_bit():
+    """Why the KPI table has no weight per utility: the welfare, read as weights, would round differently."""
+    from wfbench import Simulator
+
+    sim = Simulator("small", list(range(8)))
+    sim.reset()
+    rng = np.random.default_rng(0)
+    rows = []
+    for _ in range(150):
+        sim.step({"dispatch": rng.integers(0, sim.N + 1, (8, sim.M)), "workforce": rng.integers(0, 7, 8),
+                  "positioning": rng.random((8, 2, sim.M))})
+        rows += sim.state.last.tolist()
+    rows = [r for r in rows if all(0.0 < r[METRICS.index(u)] < 1.0 for u in UTILITIES)]
+    assert len(rows) > 500
+    exact = weighted = 0
+    for r in rows:
+        u = [r[METRICS.index(name)] for name in UTILITIES]
+        exact += r[METRICS.index(SCORE)] == (u[0] * u[1] * u[2]) ** (1 / 3)
+        weighted += r[METRICS.index(SCORE)] == u[0] ** (1 / 3) * u[1] ** (1 / 3) * u[2] ** (1 / 3)
+    assert exact == len(rows), "the compiled welfare is (u_cost * u_utilization * u_downtime) ** (1/3), bit for bit"
+    assert weighted < len(rows), "a weight per utility would move the welfare's last bits (kpis.py says so)"
 
 def test_reward__single_and_vector_environments_give_the_same_bits():
     import gymnasium

@@ -9,7 +9,7 @@ import sqlite3
 
 import pytest
 from wfbench.leaderboard.report import ORACLE_LABEL, nsw_figure, ranking, render
-from wfbench.leaderboard.store import APPLICATION_ID, SCHEMA_VERSION, Store, row_digest, scrub_paths
+from wfbench.leaderboard.store import APPLICATION_ID, KPI_COLUMNS, SCHEMA_VERSION, Store, row_digest, scrub_paths
 from wfbench.leaderboard.submit import policy_fingerprint, submit
 from wfbench.leaderboard.tracks import TRACKS
 
@@ -238,6 +238,22 @@ def test_a_schema_1_store_is_upgraded_in_place_and_its_legacy_entry_re_evaluated
     # the next one resumes
     assert submit(TINY, "heuristic", "old", db=db, **_fast()).action == "resumed"
 
+
+
+def test_the_store_spells_the_kpi_table_in_its_sql_and_an_old_store_gets_the_same_columns(db, tmp_path):
+    def columns(store, table):
+        return [(r[1], r[2]) for r in store.conn.execute(f"PRAGMA table_info({table})")]
+
+    fresh = Store(db)
+    old = tmp_path / "old.sqlite"
+    _schema_1_store(old)  # the KPI columns as schema 1 wrote them out by hand
+    upgraded = Store(old)
+    for table in ("results", "audit_results"):
+        assert columns(upgraded, table) == columns(fresh, table)
+        kpis = [c for c in columns(fresh, table) if c[0] in KPI_COLUMNS]
+        assert kpis == [(k, "REAL") for k in KPI_COLUMNS]
+    # the columns of schema 4: a KPI added to wfbench/core/kpis.py needs schema 5, whose migration adds its column
+    assert (SCHEMA_VERSION, KPI_COLUMNS) == (4, ("workforce_cost", "utilization", "downtime", "nsw"))
 
 def test_nsw_axis_starts_at_zero_and_oracles_look_apart(db):
     for name in ("heuristic", "oracle-dispatch"):

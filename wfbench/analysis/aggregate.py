@@ -28,11 +28,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["AGGREGATE_NOTE", "METRICS", "Aggregate", "aggregate", "aggregate_cells", "aggregate_suite", "median_seed",
-           "over_seeds", "pool_seeds", "score_matrix", "seed_scores"]
+__all__ = ["AGGREGATE_NOTE", "STATISTICS", "Aggregate", "aggregate", "aggregate_cells", "aggregate_suite",
+           "median_seed", "over_seeds", "pool_seeds", "score_matrix", "seed_scores"]
 
-METRICS = ("iqm", "mean", "optimality_gap")
-"""The aggregate metrics, in the order of the columns: IQM and mean higher is better, optimality gap lower."""
+STATISTICS = ("iqm", "mean", "optimality_gap")
+"""The aggregate statistics, in the order of the columns: IQM and mean higher is better, optimality gap lower.
+
+(The per-step metric columns of the simulator are :data:`wfbench.core.kpis.METRICS`.)
+"""
 
 RUN_KEYS = ("train_seed", "seed")  # the columns that name a run, where present
 # the suites' splits (wfbench.scenarios.SPLITS), reported in this order
@@ -55,7 +58,7 @@ class Aggregate:
 
     Attributes:
         table: one row per policy: ``policy``, ``runs``, ``scenarios``, and for each of
-            :data:`METRICS` the point estimate with ``_low`` and ``_high`` (95% interval);
+            :data:`STATISTICS` the point estimate with ``_low`` and ``_high`` (95% interval);
             with a baseline also ``p_improve`` (probability that the policy beats the
             baseline on a random scenario and pair of runs) with its interval.
         profiles: the performance profiles, long form: ``policy``, ``tau``, ``fraction``
@@ -145,7 +148,7 @@ def aggregate(scores: Mapping[str, np.ndarray], baseline: str | None = None, see
         with _seeded(seed):
             point, ci = rly.get_interval_estimates({name: m}, metric_values, reps=reps)
         row = {"policy": name, "runs": m.shape[0], "scenarios": m.shape[1]}
-        for i, k in enumerate(METRICS):
+        for i, k in enumerate(STATISTICS):
             row[k], row[f"{k}_low"], row[f"{k}_high"] = float(point[name][i]), float(ci[name][0, i]), \
                 float(ci[name][1, i])
         if baseline is not None:
@@ -224,7 +227,7 @@ def aggregate_cells(aggs: Mapping[str, Aggregate]) -> tuple[list[str], list[list
     for split, agg in aggs.items():
         for _, r in agg.table.iterrows():
             cells = [split, str(r["policy"]), f"{r['scenarios']} x {r['runs']}",
-                     *[f"{r[k]:.3f} [{r[k + '_low']:.3f}, {r[k + '_high']:.3f}]" for k in METRICS]]
+                     *[f"{r[k]:.3f} [{r[k + '_low']:.3f}, {r[k + '_high']:.3f}]" for k in STATISTICS]]
             if improvement:
                 cells.append("(baseline)" if r["policy"] == agg.baseline else
                              f"{r['p_improve']:.2f} [{r['p_improve_low']:.2f}, {r['p_improve_high']:.2f}]")

@@ -1,14 +1,21 @@
 """The KPIs in one table: name, label, unit, which direction is better, how each enters the welfare.
 
-Every list of KPIs in wfbench (the metric columns of the simulator's arrays, the
-evaluator's per-seed columns, the observation's global features, the environments'
-``info``, the trainers' episode logs, the leaderboard's store and the reproduced tables)
-is read from :data:`KPIS`; ``tests/contracts/test_kpis.py`` fails when a module writes the list out
-again. A new KPI is one row here plus its computation in :mod:`wfbench.core.dynamics`.
+Every list of KPIs in wfbench (the metric columns of the simulator's arrays and their
+index constants in :mod:`wfbench.core.state`, the evaluator's per-seed columns and
+summaries, the observation's global features, the environments' ``info``, the trainers'
+episode logs, the leaderboard store's columns and the labels of every table and figure)
+is read from :data:`KPIS`; ``tests/contracts/test_kpis.py`` fails when a module writes
+the list out again. A new KPI is one row here plus its computation in
+:func:`wfbench.core.dynamics.record_metrics`; it also changes two things that are
+versioned, so those need a new version by hand: the observation's global features
+(:mod:`wfbench.core.observe`: shipped networks read the old layout) and the leaderboard
+store's results tables (:mod:`wfbench.leaderboard.store`: a schema version whose
+migration adds the column to an existing store).
 
 The welfare (docs/metrics.md): each measured KPI maps to a utility in [0, 1], and the
 score ``nsw`` is the geometric mean of the utilities, ``(u_cost * u_utilization *
-u_downtime) ** (1/3)``; an episode's score is the mean of the per-step ``nsw``.
+u_downtime) ** (1/3)`` (:func:`wfbench.core.dynamics.record_metrics`); an episode's
+score is the mean of the per-step ``nsw``.
 """
 
 from __future__ import annotations
@@ -24,16 +31,18 @@ class KPI(NamedTuple):
     unit: str  # what one unit of it is
     better: str  # "lower", "higher" or "band" (best inside the target band of utilization)
     utility: str | None  # the utility column through which it enters the welfare (None: the welfare itself)
-    welfare_exponent: float  # the exponent of its utility in the welfare (a geometric mean: 1/3 each)
 
 
+# No weight of each utility in the welfare here: the welfare is the cube root of the product of the
+# utilities, (u_cost * u_utilization * u_downtime) ** (1/3), computed once in compiled code. Weights read
+# from this table could only enter as u_cost ** w * u_utilization ** w * u_downtime ** w, which rounds
+# differently: it changes 44% of the per-step welfare values in the last bit (and np.cbrt of the product
+# 71%; measured over 2 million random utilities), so every published number would move.
 KPIS: tuple[KPI, ...] = (
-    KPI("workforce_cost", "Workforce cost", "salary per step (novice 1.0, mid 1.5, expert 2.0)", "lower",
-        "u_cost", 1 / 3),
-    KPI("utilization", "Personnel util. rate", "fraction of the rolling window working", "band",
-        "u_utilization", 1 / 3),
-    KPI("downtime", "Facility downtime", "fraction of the rolling window down", "lower", "u_downtime", 1 / 3),
-    KPI("nsw", "Nash social welfare", "welfare in [0, 1]", "higher", None, 1.0),
+    KPI("workforce_cost", "Workforce cost", "salary per step (novice 1.0, mid 1.5, expert 2.0)", "lower", "u_cost"),
+    KPI("utilization", "Personnel util. rate", "fraction of the rolling window working", "band", "u_utilization"),
+    KPI("downtime", "Facility downtime", "fraction of the rolling window down", "lower", "u_downtime"),
+    KPI("nsw", "Nash social welfare", "welfare in [0, 1]", "higher", None),
 )
 """The three measured KPIs, then the score (the Nash social welfare of their utilities)."""
 
@@ -50,7 +59,11 @@ KPI_LABELS: dict[str, str] = {k.name: k.label for k in KPIS}
 EXTRA_METRICS = ("headcount", "log_headcount")
 """Reported beside the KPIs, not in the welfare: employed people, and the paper's log-headcount cost."""
 METRICS: tuple[str, ...] = (*KPI_NAMES, *UTILITIES, *EXTRA_METRICS)
-"""Columns of the simulator's ``last``, ``totals`` and ``series`` arrays (:mod:`wfbench.core.state`)."""
+"""Columns of the simulator's ``last``, ``totals`` and ``series`` arrays (:mod:`wfbench.core.state`).
+
+``METRICS`` names these per-step columns everywhere; the statistics over seeds and
+scenarios (IQM, mean, optimality gap) are :data:`wfbench.analysis.aggregate.STATISTICS`.
+"""
 
 
 def kpi_score(kpi: str, value: float, target_utilization: float = 0.75) -> float:

@@ -41,9 +41,18 @@ C_NOT_REQ, C_UNAVAIL, C_DUP, C_HIRE, C_RELEASE, C_DROPPED, C_HIRES, C_RELEASES, 
 )
 INVALID_COUNTERS = COUNTERS[:5]
 
-# Metric columns of ``last``, ``totals`` and ``series``: the KPI table's KPIs, utilities and extras.
+# Metric columns of ``last``, ``totals`` and ``series``: the KPI table's KPIs, utilities and extras
+# (wfbench.core.kpis.METRICS), and the column of each that the compiled code writes, looked up by name.
 METRICS = _KPI_METRICS
-K_WC, K_PUR, K_AFD, K_NSW, K_UWC, K_UPUR, K_UAFD, K_HEAD, K_LOGH = range(len(METRICS))
+K_WC = METRICS.index("workforce_cost")
+K_PUR = METRICS.index("utilization")
+K_AFD = METRICS.index("downtime")
+K_NSW = METRICS.index("nsw")
+K_UWC = METRICS.index("u_cost")
+K_UPUR = METRICS.index("u_utilization")
+K_UAFD = METRICS.index("u_downtime")
+K_HEAD = METRICS.index("headcount")
+K_LOGH = METRICS.index("log_headcount")
 
 
 class Params(NamedTuple):
