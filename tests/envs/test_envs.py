@@ -1,37 +1,105 @@
-"""The peers' own checkers on our environments."""
+"""The peers' own checkers on our environments, through wfbench.testing.check_env (what a submitter runs)."""
 
 import gymnasium
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env as gym_check_env
-from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
-from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import wfbench
+from wfbench.testing import check_env
 
 SCENARIOS = ["small", "paper-64"]
+GYMNASIUM_AND_SB3 = ("gymnasium.utils.env_checker.check_env", "stable_baselines3.common.env_checker.check_env")
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)
-def test_parallel_api(scenario, strict_warnings):
-    parallel_api_test(wfbench.parallel_env(scenario), num_cycles=200)
+def test_parallel_api(scenario):
+    assert check_env(wfbench.parallel_env(scenario), num_cycles=200) == ("pettingzoo.test.parallel_api_test",)
 
 
 @pytest.mark.parametrize("fixed", [None, {"workforce": "threshold", "positioning": "heuristic"}])
-def test_parallel_seed(fixed, strict_warnings):
-    parallel_seed_test(lambda: wfbench.parallel_env("small", fixed=fixed))
+def test_parallel_seed(fixed):
+    ran = check_env(lambda: wfbench.parallel_env("small", fixed=fixed))
+    assert ran == ("pettingzoo.test.parallel_api_test", "pettingzoo.test.parallel_seed_test")
 
 
-def test_aec_api(strict_warnings):
-    api_test(wfbench.env("small"), num_cycles=100)
+def test_aec_api():
+    assert check_env(wfbench.env("small"), num_cycles=100) == ("pettingzoo.test.api_test",)
 
 
 @pytest.mark.parametrize("env_id", ["wfbench/Workforce-v0", "wfbench/Dispatch-v0"])
 @pytest.mark.parametrize("scenario", SCENARIOS)
-def test_gymnasium_and_sb3_checkers(env_id, scenario, strict_warnings):
-    env = gymnasium.make(env_id, scenario=scenario)
-    gym_check_env(env.unwrapped)
-    sb3_check_env(env.unwrapped)
+def test_gymnasium_and_sb3_checkers(env_id, scenario):
+    assert check_env(gymnasium.make(env_id, scenario=scenario)) == GYMNASIUM_AND_SB3
+
+
+@pytest.mark.parametrize("options", [{}, {"actions": "shared"}, {"positioning": "flat"},
+                                     {"fixed": {"workforce": "threshold"}}])
+def test_space_dicts_hold_the_space_objects_of_each_agent(options):
+    """ParallelEnv declares observation_spaces and action_spaces; skrl's multi-agent wrapper reads them."""
+    env = wfbench.parallel_env("small", **options)
+    assert list(env.observation_spaces) == list(env.action_spaces) == env.possible_agents
+    for a in env.possible_agents:
+        assert env.observation_spaces[a] is env.observation_space(a)
+        assert env.action_spaces[a] is env.action_space(a)
+    assert "workforce" not in env.action_spaces if "fixed" in options else len(env.action_spaces) == 3
+
+
+def test_flat_positioning_passes_the_checkers():
+    """positioning="flat": PettingZoo's API and seed tests on the Parallel and AEC environments.
+
+    (Gymnasium's and SB3's checkers are for the Gymnasium ids, whose positioning is part of a MultiDiscrete.)
+    """
+    env = wfbench.parallel_env("small", positioning="flat")
+    assert env.action_space("positioning") == gymnasium.spaces.Box(0.0, 1.0, shape=(16,), dtype=np.float32)
+    ran = check_env(lambda: wfbench.parallel_env("small", positioning="flat"), num_cycles=100)
+    assert ran == ("pettingzoo.test.parallel_api_test", "pettingzoo.test.parallel_seed_test")
+    ran = check_env(lambda: wfbench.env("small", positioning="flat", observation="box"), num_cycles=100)
+    assert ran == ("pettingzoo.test.api_test", "pettingzoo.test.seed_test")
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_flat_positioning_plays_the_episode_of_the_2d_positioning_bit_for_bit(dtype):
+    """The same seed and the same actions, positioning given flat and as (2, M): the same episode, every bit."""
+    episodes = []
+    for positioning in ("2d", "flat"):
+        env = wfbench.parallel_env("small", positioning=positioning, info="nested")
+        rng = np.random.default_rng(7)
+        obs, infos = env.reset(seed=3)
+        trail = [(obs, infos)]
+        while env.agents:
+            weights = (rng.random((2, 8)) * (rng.random((2, 8)) < 0.7)).astype(dtype)
+            actions = {"dispatch": rng.integers(0, 9, size=8), "workforce": int(rng.integers(0, 7)),
+                       "positioning": weights if positioning == "2d" else weights.ravel()}
+            trail.append(env.step(actions))
+        episodes.append(trail)
+    two_d, flat = episodes
+    assert len(two_d) == len(flat) == 201
+    hires = 0
+    for a, b in zip(two_d, flat, strict=True):
+        for agent in a[0]:
+            assert a[0][agent].keys() == b[0][agent].keys()
+            assert all(a[0][agent][k].tobytes() == b[0][agent][k].tobytes() for k in a[0][agent])
+        assert a[1:] == b[1:]  # rewards, terminations, truncations, infos
+        hires += a[-1]["workforce"]["step_counts"]["hires"]
+    assert hires > 0, "no hire read the positioning weights: the test would not see a difference"
+
+
+def test_bad_positioning_options_and_actions_are_named():
+    with pytest.raises(ValueError, match=r"^positioning='1d' is not allowed; allowed: '2d', 'flat'$"):
+        wfbench.parallel_env("small", positioning="1d")
+    with pytest.raises(ValueError, match=r"^positioning='flat' is not allowed with actions='shared', whose positioning "
+                                         r"is already flat \(2M levels of the shared MultiDiscrete\); allowed: "
+                                         r"positioning='flat' with actions='own'$"):
+        wfbench.env("small", positioning="flat", actions="shared")
+    env = wfbench.parallel_env("small", positioning="flat")
+    env.reset(seed=0)
+    ok = {"dispatch": np.full(8, 8), "workforce": 0}
+    with pytest.raises(wfbench.ActionError, match=r"^action of agent 'positioning' has shape \(2, 8\); allowed: "
+                                                  r"\(16,\), the flat positioning Box \(positioning='flat'\)$"):
+        env.step({**ok, "positioning": np.zeros((2, 8))})
+    with pytest.raises(wfbench.ActionError, match=r"positioning action: nan at index \(0, 1, 2\) is not allowed"):
+        env.step({**ok, "positioning": np.r_[np.zeros(10), np.nan, np.zeros(5)]})
+    assert env.core.sim.t == 0
 
 
 def test_fixed_agents_leave_the_agent_list():

@@ -1,8 +1,9 @@
 """Each RL library's default path on our environments, plugged in as its documentation shows (docs/envs.md).
 
 PettingZoo's and Gymnasium's own checkers run in tests/envs/test_envs.py; here: PettingZoo's
-state and render tests, SuperSuit, Tianshou and TorchRL (the ``dev`` extra installs them;
-RLlib, too heavy for the suite, is run by benchmarks/rllib_ppo.py).
+state and render tests, SuperSuit, Tianshou, TorchRL and skrl (the ``dev`` extra installs them;
+RLlib, too heavy for the suite, is run by benchmarks/rllib_ppo.py; PufferLib, AgileRL and
+BenchMARL do not install beside our pins, docs/envs.md).
 """
 
 import gymnasium
@@ -107,6 +108,38 @@ def test_torchrl_pettingzoo_wrapper_and_gym_env_with_their_defaults():
     vec = GymWrapper(gymnasium.make_vec("wfbench/Workforce-v0", 2, scenario="small", observation="box"))
     rollout = vec.rollout(3)
     assert rollout.batch_size == (2, 3)
+
+
+@pytest.mark.parametrize("positioning", ["2d", "flat"])
+def test_skrl_wraps_the_gymnasium_and_pettingzoo_envs_with_its_defaults(positioning):
+    """skrl's ``wrap_env`` as its docs show it: auto for a Gymnasium env, ``wrapper="pettingzoo"`` for a Parallel one.
+
+    Its multi-agent wrapper reads the ``observation_spaces`` and ``action_spaces`` dicts; its actions are
+    flat tensors, which it unflattens to each agent's space (the positioning ``Box`` as (2, M) or, with
+    ``positioning="flat"``, as (2M,)).
+    """
+    import torch
+    from skrl.envs.wrappers.torch import wrap_env
+
+    env = wrap_env(wfbench.parallel_env("small", positioning=positioning), wrapper="pettingzoo", verbose=False)
+    obs, _ = env.reset()
+    size = gymnasium.spaces.flatdim(env.observation_spaces["dispatch"])
+    assert {a: o.shape for a, o in obs.items()} == dict.fromkeys(env.possible_agents, (1, size))
+    for a in env.possible_agents:
+        env.action_spaces[a].seed(0)
+    for _ in range(4):
+        actions = {a: torch.as_tensor(env.action_spaces[a].sample()).view(1, -1) for a in env.possible_agents}
+        obs, rewards, terminated, truncated, _ = env.step(actions)
+    assert env.state()["dispatch"].shape == (1, env.state_space("dispatch").shape[0])
+    assert rewards["dispatch"].shape == (1, 1) and not terminated["dispatch"].any()
+    assert env.unwrapped.core.sim.t == 4
+
+    single = wrap_env(gymnasium.make("wfbench/Workforce-v0", scenario="small"), verbose=False)
+    obs, _ = single.reset()
+    single.action_space.seed(0)
+    for _ in range(3):
+        obs, reward, terminated, truncated, _ = single.step(torch.as_tensor(single.action_space.sample()).view(1, -1))
+    assert obs.shape == (1, size) and reward.shape == (1, 1)
 
 
 def test_cleanrl_style_example_trains_from_the_env_id():

@@ -49,6 +49,16 @@ def test_policy_in_the_current_folder_loads_by_module_attr(tmp_path):
         assert values["mean"] == pytest.approx(heuristic[kpi].mean(), rel=1e-12), kpi
 
 
+def test_the_policy_check_a_submitter_runs_passes_the_users_policy_and_names_a_malformed_action():
+    from wfbench.testing import PolicyCheckError, check_policy
+
+    check_policy("tests.data.user_policies.mypkg.mod:MyPolicy", "small", seeds=[0, 1])
+    with pytest.raises(PolicyCheckError) as err:
+        check_policy(f"{SPEC}:Garbage", "small", seeds=[0, 1])
+    assert str(err.value) == (f"policy '{SPEC}:Garbage' at step 0 returned a malformed action: dispatch action has "
+                              "shape (), expected (2, 8)")
+
+
 def test_a_raising_policy_names_its_file_line_and_spec_and_exits_1(capsys):
     code, out, err = run_cli(["evaluate", "--policy", f"{SPEC}:Raises", *SMALL], capsys)
     assert code == 1

@@ -21,6 +21,11 @@ Options for RL libraries that want one shape for everything (``docs/envs.md``):
   action, 2M positioning levels); each agent's own part is read and the rest ignored.
   ``actions="own"`` (default): dispatch ``MultiDiscrete``, workforce ``Discrete``,
   positioning ``Box (2, M)``.
+- ``positioning="flat"``: with ``actions="own"``, the positioning agent acts through a
+  1-D ``Box (2M,)``, the (2, M) weights row after row (Gymnasium's flattening of the
+  2-D ``Box``), for libraries that take only 1-D ``Box`` actions; the action is reshaped,
+  not cast, so it is the same simulator action as the 2-D one of the same numbers.
+  ``positioning="2d"`` (default): the ``Box (2, M)``.
 - ``info="flat"`` (default): numbers only (``t``, ``seed``, ``metric_<kpi>``,
   ``count_<counter>``, ``step_count_<counter>``); ``info="nested"``: the tallies as
   dicts ``metrics``, ``counts``, ``step_counts``.
@@ -36,7 +41,6 @@ Options for RL libraries that want one shape for everything (``docs/envs.md``):
 
 from __future__ import annotations
 
-import functools
 import operator
 from typing import Any
 
@@ -54,9 +58,11 @@ from wfbench.envs.render import RENDER_MODES, HumanWindow, check_render_mode, re
 from wfbench.envs.spaces import (
     INFOS,
     OBSERVATIONS,
+    POSITIONINGS,
     check_obs_version,
     check_option,
     dispatch_action_space,
+    flat_positioning_action_space,
     joint_nvec,
     observation_space,
     positioning_action_space,
@@ -64,6 +70,7 @@ from wfbench.envs.spaces import (
     shared_spaces,
     single,
     split_joint,
+    unflatten_positioning,
     versioned,
     workforce_action_space,
 )
@@ -210,7 +217,7 @@ class WorkforceParallelEnv(ParallelEnv):
 
     def __init__(self, scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
                  render_mode: str | None = None, observation: str = "dict", actions: str = "own",
-                 info: str = "flat", obs_version: int = 1):
+                 info: str = "flat", obs_version: int = 1, positioning: str = "2d"):
         check_render_mode(render_mode)
         self.obs_version = check_obs_version(obs_version)
         if self.obs_version == 2:
@@ -218,6 +225,11 @@ class WorkforceParallelEnv(ParallelEnv):
         self.observation_kind = check_option("observation", observation, OBSERVATIONS)
         self.actions_kind = check_option("actions", actions, ACTIONS)
         self.info_kind = check_option("info", info, INFOS)
+        self.positioning_kind = check_option("positioning", positioning, POSITIONINGS)
+        if positioning == "flat" and actions == "shared":
+            raise ValueError("positioning='flat' is not allowed with actions='shared', whose positioning is already "
+                             "flat (2M levels of the shared MultiDiscrete); allowed: positioning='flat' with "
+                             "actions='own'")
         self.core = WorkforceCore(scenario, fixed)
         self.config = self.core.config
         self.render_mode = render_mode
@@ -241,20 +253,22 @@ class WorkforceParallelEnv(ParallelEnv):
             joint = spaces.MultiDiscrete(joint_nvec(self.config))
             self._act_spaces = dict.fromkeys(AGENTS, joint)
         else:
+            flat = positioning == "flat"
             self._act_spaces = {
                 "dispatch": dispatch_action_space(self.config),
                 "workforce": workforce_action_space(),
-                "positioning": positioning_action_space(self.config),
+                "positioning": (flat_positioning_action_space if flat else positioning_action_space)(self.config),
             }
+        # ParallelEnv's declared dicts (skrl's multi-agent wrapper reads them), one space object per agent
+        self.observation_spaces = dict.fromkeys(self.possible_agents, self._obs_space)
+        self.action_spaces = {a: self._act_spaces[a] for a in self.possible_agents}
         self._window: HumanWindow | None = None
 
-    @functools.cache  # noqa: B019 - one space object per agent, as PettingZoo asks
-    def observation_space(self, agent: str) -> spaces.Dict:
-        return self._obs_space
+    def observation_space(self, agent: str) -> spaces.Space:
+        return self.observation_spaces[agent]
 
-    @functools.cache  # noqa: B019
     def action_space(self, agent: str) -> spaces.Space:
-        return self._act_spaces[agent]
+        return self.action_spaces[agent]
 
     def _observations(self) -> dict[str, dict[str, np.ndarray]]:
         # Copies, because the simulator's buffers are overwritten by the next step. The
@@ -290,6 +304,8 @@ class WorkforceParallelEnv(ParallelEnv):
                 given[a] = split_joint(joint, self.config.max_facilities)[a]
         else:
             given = {a: actions[a] for a in self.agents}
+            if self.positioning_kind == "flat" and "positioning" in given:
+                given["positioning"] = unflatten_positioning(given["positioning"], self.config.max_facilities)
         reward, _ = self.core.step(given)
         info = self.core.info(self.info_kind)
         truncated = self.core.sim.done  # type: ignore[union-attr]
@@ -328,17 +344,17 @@ class WorkforceParallelEnv(ParallelEnv):
 
 def parallel_env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
                  render_mode: str | None = None, observation: str = "dict", actions: str = "own",
-                 info: str = "flat", obs_version: int = 1) -> WorkforceParallelEnv:
+                 info: str = "flat", obs_version: int = 1, positioning: str = "2d") -> WorkforceParallelEnv:
     """The PettingZoo Parallel environment (options: the module docstring)."""
     return WorkforceParallelEnv(scenario=scenario, fixed=fixed, render_mode=render_mode, observation=observation,
-                                actions=actions, info=info, obs_version=obs_version)
+                                actions=actions, info=info, obs_version=obs_version, positioning=positioning)
 
 
 def env(scenario: str | ScenarioConfig = "paper-64", fixed: dict[str, Any] | None = None,
         render_mode: str | None = None, observation: str = "dict", actions: str = "own", info: str = "flat",
-        obs_version: int = 1):
+        obs_version: int = 1, positioning: str = "2d"):
     """The PettingZoo AEC environment (agents act in turn; the step is applied after the last)."""
     aec = parallel_to_aec(parallel_env(scenario=scenario, fixed=fixed, render_mode=render_mode,
                                        observation=observation, actions=actions, info=info,
-                                       obs_version=obs_version))
+                                       obs_version=obs_version, positioning=positioning))
     return wrappers.OrderEnforcingWrapper(aec)

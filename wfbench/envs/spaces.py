@@ -142,6 +142,27 @@ def positioning_action_space(c: ScenarioConfig) -> spaces.Box:
     return spaces.Box(0.0, 1.0, shape=(2, c.max_facilities), dtype=np.float32)
 
 
+def flat_positioning_action_space(c: ScenarioConfig) -> spaces.Box:
+    """The ``positioning="flat"`` action: the (2, M) weights as one (2M,) ``Box``, row 0 then row 1.
+
+    Gymnasium's flattening of :func:`positioning_action_space`; :func:`unflatten_positioning` reads an action of it.
+    """
+    return spaces.flatten_space(positioning_action_space(c))
+
+
+def unflatten_positioning(action: Any, M: int) -> np.ndarray:
+    """A ``positioning="flat"`` action as the (2, M) weights: the same numbers, in their own dtype, reshaped.
+
+    Not :func:`gymnasium.spaces.unflatten`, which casts to the space's float32: a float64 action
+    keeps its bits, so a flat and a 2-D action of the same numbers give the same step.
+    """
+    a = np.asarray(action)
+    if a.shape != (2 * M,):
+        raise ActionError(f"action of agent 'positioning' has shape {a.shape}; allowed: ({2 * M},), "
+                          f"the flat positioning Box (positioning='flat')")
+    return a.reshape(2, M)
+
+
 def single(obs: dict[str, np.ndarray], keys, b: int = 0) -> dict[str, np.ndarray]:
     """Environment b of a batched observation, copied, for the given keys.
 
@@ -155,6 +176,7 @@ def single(obs: dict[str, np.ndarray], keys, b: int = 0) -> dict[str, np.ndarray
 
 OBSERVATIONS = ("dict", "box")  # the ``observation=`` option: a Dict of Boxes, or those flattened into one Box
 INFOS = ("flat", "nested")  # the ``info=`` option: numbers only, or the tallies in nested dicts
+POSITIONINGS = ("2d", "flat")  # the ``positioning=`` option: the (2, M) Box, or its (2M,) flattening
 
 
 def check_option(name: str, value: Any, allowed: tuple[str, ...]) -> str:
