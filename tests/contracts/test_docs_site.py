@@ -79,7 +79,8 @@ def test_api_page_has_key_names(site, page):
     assert not missing, f"docs/api/{page}.md renders no entry for {missing}; add a `::: name` directive"
 
 
-@pytest.mark.parametrize("package", ["wfbench", "wfbench.envs", "policies", "solvers"])
+@pytest.mark.parametrize("package", ["wfbench", "wfbench.envs", "wfbench.policies", "wfbench.solvers",
+                                     "wfbench.testing", "wfbench.scenarios"])
 def test_api_reference_covers_all(site, package):
     """Every name a package exports in __all__ has an entry somewhere in the API reference."""
     every = set().union(*(anchors(site, page) for page in API_PAGES))

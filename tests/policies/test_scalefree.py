@@ -142,7 +142,7 @@ def test_ppo_trains_it_deterministically_and_the_checkpoint_says_its_observation
     for (n, p), q in zip(a.model.state_dict().items(), b.model.state_dict().values(), strict=True):
         assert torch.equal(p, q), n
     assert any(not torch.equal(p, q) for p, q in zip(a.model.state_dict().values(),
-                                                      scalefree.ScaleFreeNet(a.mcfg).state_dict().values(),
+                                                      scalefree.ScaleFreeNet(a.run.network).state_dict().values(),
                                                       strict=True))
     path = a.save(tmp_path / "a.pt")
     ckpt = torch.load(path, weights_only=False)
