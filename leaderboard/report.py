@@ -246,6 +246,13 @@ def render(r: Ranking, fmt: str = "table") -> str:
     return out
 
 
+def check_format(fmt: str, what: str = "format") -> str:
+    """``fmt`` if a board can be shown in it (:data:`FORMATS`), else ValueError; ``what``: as the message names it."""
+    if fmt not in FORMATS:
+        raise ValueError(f"{what} {fmt!r} is not allowed; allowed: {', '.join(FORMATS)}")
+    return fmt
+
+
 def png_data(fig) -> str:
     """A matplotlib figure as base64 PNG, for a data URI."""
     buf = io.BytesIO()

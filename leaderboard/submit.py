@@ -498,6 +498,39 @@ def _death_reason(exitcode: int | None, memory_mb: int | None) -> str:
     return f"the evaluation process exited unexpectedly (exit code {exitcode})"
 
 
+def seed_tracks(track: str | Track | SuiteTrack | None = None) -> list[Track | SuiteTrack]:
+    """The tracks ``wfbench leaderboard seed`` fills: the one named, or every one-scenario track.
+
+    A suite track runs every scenario of its suite, so it is seeded only when named.
+    """
+    from wfbench.leaderboard.tracks import TRACKS
+
+    if track is not None:
+        return [track if isinstance(track, Track | SuiteTrack) else get_track(track)]
+    return [t for t in TRACKS.values() if not isinstance(t, SuiteTrack)]
+
+
+MOVED = {"replaced": "; the entry it replaced is in the audit tables",
+         "legacy": "; its rows stored without a fingerprint (an older wfbench) are in the audit tables"}
+"""What :func:`describe` adds for a submission that moved an entry to the audit tables, by ``Outcome.action``."""
+
+
+def describe(out: Outcome, track: Track | SuiteTrack, store_path: Any, hint: str = "") -> str:
+    """The line ``wfbench leaderboard submit`` prints for a submission's outcome.
+
+    A complete one says how many rows it stored and, where it replaced an entry or a
+    legacy one, that the old rows are in the audit tables (:data:`MOVED`); a failed one
+    says why and that its rows are kept for a resume. ``hint`` ends the failure's note.
+    """
+    what = "(scenario, seed) episodes" if isinstance(track, SuiteTrack) else "seeds"
+    name = out.submission.name
+    if out.status == "complete":
+        return (f"{name} on {track.name}: complete, {out.stored_rows} {what} stored ({out.new_rows} new) "
+                f"in {store_path}, {out.seconds:.1f} s{MOVED.get(out.action, '')}")
+    return (f"submission {name!r} on {track.name} failed: {out.reason} ({out.stored_rows} {what} kept in "
+            f"{store_path}; submit again to resume, or with --replace once the policy is changed{hint})")
+
+
 def seed_builtins(track: str | Track | SuiteTrack, db: Any = None, names: tuple[str, ...] = BUILTIN_ENTRIES,
                   progress: bool = False, **kwargs: Any) -> list[Outcome]:
     """Submit (or resume) the built-in policies under their registry names.

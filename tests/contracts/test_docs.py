@@ -57,3 +57,15 @@ def test_readme_in_python_example_runs(tmp_path):
 def test_fence_finds_only_python_blocks():
     text = "```python\na = 1\n```\n\n```text\nnot run\n```\n\n```python\nb = a\n```\n"
     assert python_blocks(text) == ["a = 1\n", "b = a\n"]
+
+
+def test_testing_page_maps_every_test_file():
+    """docs/testing.md names every test file of tests/ in its table, and only files that exist."""
+    import re
+
+    page = (ROOT / "docs" / "testing.md").read_text()
+    table = page[page.index("## How the suite is organized"):page.index("## The reference differential test")]
+    named = set(re.findall(r"`(test_\w+\.py)`", table))
+    files = {p.name for p in (ROOT / "tests").rglob("test_*.py")}
+    assert files - named == set(), f"docs/testing.md's table does not name {sorted(files - named)}"
+    assert named - files == set(), f"docs/testing.md's table names files that do not exist: {sorted(named - files)}"

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from wfbench.analysis.stats import bootstrap_ci, paired_difference
 from wfbench.cli import main
-from wfbench.harness.compare import compare, format_comparison
+from wfbench.harness.compare import compare, compare_suite, format_comparison, format_suite_comparison, plot_comparison
 from wfbench.harness.evaluation import evaluate
 
 
@@ -52,3 +53,40 @@ def test_compare_command_and_its_errors(capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unknown policy 'nope'" in err
     assert main(["compare", "--policies", ",", "--scenario", "small"]) == 2
+
+
+@pytest.mark.parametrize("plot, why", [("fig.gif", "has suffix '.gif'"), ("nowhere/fig.png", "does not exist"),
+                                       ("folder.png", "is a folder; give a file name")])
+def test_compare_refuses_a_plot_path_before_running_as_the_command_does(plot, why, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "folder.png").mkdir()
+    ran = []
+    monkeypatch.setattr("wfbench.harness.compare.evaluate", lambda *a, **k: ran.append(a))
+    with pytest.raises(ValueError) as api:
+        compare(["random"], "small", [0], plot=plot)
+    assert ran == [], "refused before any policy ran"
+    assert main(["compare", "--policies", "random", "--scenario", "small", "--seeds", "1", "--plot", plot]) == 2
+    assert ran == []
+    err = capsys.readouterr().err
+    assert why in str(api.value) and err == f"wfbench: error: {str(api.value).replace('plot', '--plot', 1)}\n"
+    with pytest.raises(ValueError, match=why):
+        plot_comparison(pd.DataFrame(), plot)
+
+
+def test_suite_comparison_table_is_the_api_s(monkeypatch, capsys):
+    from tests.scenarios.test_suite import _mini
+
+    result = compare_suite(["random"], _mini(), [0, 1], baseline="heuristic", poi_reps=10)
+    table = format_suite_comparison(result, "md")
+    assert table.splitlines()[0].split("|")[1:-1] == [" Scenario ", " Split ", " Policy ", " NSW ", " Normalized ",
+                                                      " - heuristic (paired, 95% CI) ", " wins / 2 "]
+    rows = [line.split("|")[1:-1] for line in table.splitlines()[2:]]
+    assert [(r[0].strip(), r[2].strip()) for r in rows] == [(sc, p) for sc in ("small-v1", "large-v1")
+                                                            for p in ("heuristic", "random")]
+    assert [r[5].strip() for r in rows[::2]] == ["(baseline)", "(baseline)"]
+    monkeypatch.setattr("wfbench.harness.compare.compare_suite", lambda *a, **k: result)
+    for fmt in ("md", "csv"):
+        assert main(["compare", "--policies", "random", "--suite", "suite-v1", "--seeds", "2", "--format", fmt]) == 0
+        out = capsys.readouterr().out
+        text = format_suite_comparison(result, fmt)
+        assert out.startswith(text) and (fmt != "csv" or out == text)

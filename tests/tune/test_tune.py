@@ -2,6 +2,7 @@
 
 import io
 import json
+from pathlib import Path
 
 import optuna
 import pandas as pd
@@ -243,4 +244,30 @@ def test_cli_ctrl_c_keeps_the_trials_and_the_same_command_resumes(tmp_path, monk
     assert not (tmp_path / "c.json").exists()
     monkeypatch.setattr(tune_mod, "evaluate", real)
     assert main(argv) == 0
-    assert "3 trials (2 new)" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "3 trials (2 new)" in out
+    study = out.split(" study ")[1].split(maxsplit=1)[0]  # the name tune() chose, as the summary prints it
+    assert f"(study {study}): run the same command" in err
+
+
+def test_tune_writes_the_command_s_default_file(tmp_path, monkeypatch, capsys):
+    cfg = tmp_path / "small60.toml"
+    cfg.write_text(SMALL.to_toml())
+    api, cli = tmp_path / "api", tmp_path / "cli"
+    api.mkdir(), cli.mkdir()
+    monkeypatch.chdir(api)
+    few = "workforce.high,workforce.cooldown=2:40"
+    r = tune("heuristic", SMALL, 1, seeds=SEEDS, params=few, study_db=tmp_path / "api.db", threads=1)
+    assert r.path == tune_mod.default_out("heuristic", SMALL.name) == Path(f"tuned-heuristic-{SMALL.name}.json")
+    monkeypatch.chdir(cli)
+    assert main(["tune", "heuristic", "--scenario", str(cfg), "--trials", "1", "--seeds", SEEDS, "--params",
+                 few, "--study-db", str(tmp_path / "cli.db"), "--backend", "serial", "--no-progress"]) == 0
+    assert f"wrote {r.path};" in capsys.readouterr().out
+    assert [p.name for p in api.iterdir()] == [p.name for p in cli.iterdir()] == [r.path.name]
+    made = [json.loads((d / r.path).read_text()) for d in (api, cli)]
+    assert [{k: m[k] for k in ("params", "searched", "scenario", "study_name")} for m in made] == \
+        [{k: made[0][k] for k in ("params", "searched", "scenario", "study_name")}] * 2
+    assert tune_mod.default_out("heuristic", "suite-v1:train").name == "tuned-heuristic-suite-v1-train.json"
+    monkeypatch.chdir(tmp_path)
+    tune("heuristic", SMALL, 1, seeds=SEEDS, params=few, study_db=tmp_path / "api.db", threads=1, out=False)
+    assert not list(tmp_path.glob("*.json")), "out=False writes no file"

@@ -101,11 +101,16 @@ def test_tune_worlds__a_study_refuses_other_worlds_or_one_scenario_under_its_nam
     assert r.new_trials == 1 and r.tuned.trials == 2
 
 
-def test_tune_worlds__scenario_or_scenarios_not_both_nor_neither(tmp_path):
-    with pytest.raises(ValueError, match="not both"):
+def test_tune_worlds__scenario_or_scenarios_not_both_nor_neither(tmp_path, capsys):
+    with pytest.raises(ValueError, match="do not go together") as api:
         tune("heuristic", "small", 1, scenarios=TWO, study_db=tmp_path / "s.db")
     with pytest.raises(ValueError, match="not neither"):
         tune("heuristic", trials=1, study_db=tmp_path / "s.db")
+    assert not (tmp_path / "s.db").exists()
+    # the command refuses both with the function's words, naming its options
+    assert main(["tune", "heuristic", "--scenario", "small", "--scenarios", TWO, "--study-db",
+                 str(tmp_path / "s.db")]) == 2
+    assert capsys.readouterr().err == f"wfbench: error: {str(api.value).replace('scenario', '--scenario', 2)}\n"
     assert not (tmp_path / "s.db").exists()
 
 

@@ -13,7 +13,6 @@ from wfbench.cli.common import (
     add_run_args,
     check_backend_args,
     check_suite_args,
-    check_writable,
     positive,
     resolve_scenario,
     seed_list,
@@ -41,9 +40,8 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: wfbench.harness.compare loads scipy.stats (wfbench.analysis.stats), which
     # took the warm start of 'wfbench evaluate --seeds 1' from 1.8 to 2.7 s of CPU (/usr/bin/time)
-    from wfbench.analysis.plots import figure_format
     from wfbench.core.seeds import describe
-    from wfbench.harness.compare import compare, format_comparison, plot_comparison
+    from wfbench.harness.compare import check_plot_path, compare, format_comparison, plot_comparison
     from wfbench.harness.guard import PolicyLoadError
 
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
@@ -56,12 +54,9 @@ def run(args: argparse.Namespace) -> int:
     plot = None
     if args.plot:  # checked before the runs, which may take long
         try:
-            figure_format(args.plot)
+            plot = check_plot_path(args.plot, "--plot")
         except ValueError as exc:
-            raise UsageError(f"--plot: {exc}") from None
-        plot = check_writable(args.plot, "--plot")
-        if plot.is_dir():
-            raise UsageError(f"--plot {args.plot!r} is a folder; give a file name")
+            raise UsageError(str(exc)) from None
     seeds = seed_list(args)
     try:  # compare loads every policy before running the first
         df = compare(names, config, seeds, baseline=args.baseline, backend=args.backend, workers=args.workers,
@@ -89,7 +84,7 @@ def run_suite(args: argparse.Namespace, names: list[str]) -> int:
     from wfbench.analysis.aggregate import AGGREGATE_NOTE, aggregate_cells
     from wfbench.analysis.tables import markdown_table, text_table
     from wfbench.core.seeds import describe
-    from wfbench.harness.compare import compare_suite
+    from wfbench.harness.compare import compare_suite, format_suite_comparison
     from wfbench.harness.guard import PolicyLoadError
 
     if args.suite is not None and args.plot:
@@ -107,18 +102,12 @@ def run_suite(args: argparse.Namespace, names: list[str]) -> int:
     if result.baseline_added:
         print(f"wfbench: note: the baseline {args.baseline!r} is not in --policies; added it as the first row "
               "(choose another with --baseline)", file=sys.stderr)
-    t = result.table
+    text = format_suite_comparison(result, args.format)
     if args.format == "csv":
-        t.to_csv(sys.stdout, index=False)
+        print(text, end="")
         return 0
     table = markdown_table if args.format == "md" else text_table
-    header = ["Scenario", "Split", "Policy", "NSW", "Normalized", f"- {args.baseline} (paired, 95% CI)",
-              f"wins / {len(seeds)}"]
-    rows = [[r["scenario"], r["split"], r["policy"], f"{r['nsw']:.4f}", f"{r['normalized']:.3f}",
-             "(baseline)" if r["policy"] == result.baseline else
-             f"{r['diff']:+.3f} [{r['diff_low']:+.3f}, {r['diff_high']:+.3f}]",
-             "-" if r["policy"] == result.baseline else str(r["wins"])] for _, r in t.iterrows()]
-    print(table(header, rows))
+    print(text)
     print(f"{suite.name} (hash {suite.hash}), seeds {describe(seeds)}: means over seeds; normalized = "
           "(NSW - random) / (bound - random); differences of the normalized score, paired by seed.\n")
     print(table(*aggregate_cells(result.aggregates)))

@@ -15,7 +15,6 @@ from wfbench.cli.common import (
     resolve_scenario,
     seed_list,
 )
-from wfbench.harness.budget import BUDGET_COLUMNS  # the evaluator's cost columns, shown where present
 
 
 def add_parser(sub) -> None:
@@ -70,27 +69,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 
-
-def suite_rows(df, seeds_text: str) -> tuple[list[str], list[list[str]]]:
-    """Header and cells of a suite evaluation: a row per scenario, means over seeds (budget columns if present)."""
-    from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
-
-    budget = [c for c in BUDGET_COLUMNS if c in df.columns]
-    header = ["Scenario", "Split", *[KPI_LABELS[k] for k in KPI_NAMES], "Normalized", *budget]
-    rows = []
-    for sc, g in df.groupby("scenario", sort=False):
-        rows.append([sc, g["split"].iloc[0], *[f"{g[k].mean():.4g}" for k in KPI_NAMES],
-                     f"{g['normalized'].mean():.3f}", *[f"{g[c].mean():.3g}" for c in budget]])
-    return header, rows
-
-
 def run_suite(args: argparse.Namespace) -> int:
     from wfbench.analysis.aggregate import AGGREGATE_NOTE, aggregate_cells, aggregate_suite
     from wfbench.analysis.tables import markdown_table, text_table
-    from wfbench.core.kpis import KPI_NAMES
     from wfbench.core.seeds import describe
     from wfbench.harness.guard import PolicyLoadError
-    from wfbench.harness.suite import evaluate_suite
+    from wfbench.harness.suite import evaluate_suite, suite_cells, suite_summary
 
     suite = check_suite_args(args)
     check_backend_args(args)
@@ -98,7 +82,7 @@ def run_suite(args: argparse.Namespace) -> int:
     seeds = seed_list(args)
     try:
         df = evaluate_suite(args.policy, suite, seeds, split=args.split, backend=args.backend, workers=args.workers,
-                            address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout or 0)
+                            address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout)
     except PolicyLoadError as exc:
         raise UsageError(str(exc)) from None
     if out:
@@ -108,16 +92,10 @@ def run_suite(args: argparse.Namespace) -> int:
         return 0
     aggs = aggregate_suite({args.policy: df})
     if args.format == "json":
-        print(json.dumps({"policy": args.policy, "suite": suite.name, "suite_hash": suite.hash, "split": args.split,
-                          "seeds": seeds,
-                          "scenarios": {sc: {"split": g["split"].iloc[0], "normalized": float(g["normalized"].mean()),
-                                             **{k: float(g[k].mean()) for k in KPI_NAMES}}
-                                        for sc, g in df.groupby("scenario", sort=False)},
-                          "aggregate": {split: a.table.drop(columns="policy").iloc[0].to_dict()
-                                        for split, a in aggs.items()}}, indent=2, default=float))
+        print(json.dumps(suite_summary(df, seeds, aggs, policy=args.policy), indent=2, default=float))
         return 0
     table = markdown_table if args.format == "md" else text_table
-    print(table(*suite_rows(df, describe(seeds))))
+    print(table(*suite_cells(df)))
     print(f"{suite.name} (hash {suite.hash}), seeds {describe(seeds)}: means over seeds; normalized = "
           "(NSW - random) / (bound - random), 0 the random policy, 1 the proven bound.\n")
     print(table(*aggregate_cells(aggs)))

@@ -71,11 +71,11 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # the report is imported here: it loads scipy.stats, which slows every start of the command line
-    from wfbench.leaderboard import report, suite_report
-    from wfbench.leaderboard.report import FORMATS
+    from wfbench.leaderboard.report import check_format
     from wfbench.leaderboard.store import Store, StoreError
-    from wfbench.leaderboard.submit import SubmitError, seed_builtins, submit
-    from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, get_track
+    from wfbench.leaderboard.submit import SubmitError, describe, seed_builtins, seed_tracks, submit
+    from wfbench.leaderboard.suite_report import show
+    from wfbench.leaderboard.tracks import TRACKS, get_track
 
     def track(name: str):
         try:
@@ -97,20 +97,13 @@ def run(args: argparse.Namespace) -> int:
                          memory_mb=args.memory, progress=not args.no_progress, act_timeout_s=args.act_timeout,
                          replace=args.replace)
             store = Store(args.db)
-            moved = {"replaced": "; the entry it replaced is in the audit tables",
-                     "legacy": "; its rows stored without a fingerprint (an older wfbench) are in the audit tables"}
-            what = "(scenario, seed) episodes" if isinstance(tr, SuiteTrack) else "seeds"
             if out.status == "complete":
-                print(f"{args.name} on {tr.name}: complete, {out.stored_rows} {what} stored ({out.new_rows} new) "
-                      f"in {store.path}, {out.seconds:.1f} s{moved.get(out.action, '')}")
+                print(describe(out, tr, store.path))
                 return 0
             if args.traceback and out.trace:
                 print(out.trace, end="" if out.trace.endswith("\n") else "\n", file=sys.stderr)
-            print(f"wfbench: submission {args.name!r} on {tr.name} failed: {out.reason} "
-                  f"({out.stored_rows} {what} kept in {store.path}; submit again to resume, or with --replace once "
-                  "the policy is changed"
-                  f"{'' if args.traceback or not out.trace else '; --traceback prints the whole trace'})",
-                  file=sys.stderr)
+            hint = "" if args.traceback or not out.trace else "; --traceback prints the whole trace"
+            print(f"wfbench: {describe(out, tr, store.path, hint)}", file=sys.stderr)
             return EXIT_POLICY_FAILED
         if args.lb_command == "withdraw":
             tr = track(args.track)
@@ -121,11 +114,8 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if args.lb_command == "seed":
             check_backend_args(args)
-            # a suite track runs every scenario of the suite: seeded only when named
-            tracks = [track(args.track)] if args.track else [t for t in TRACKS.values()
-                                                             if not isinstance(t, SuiteTrack)]
             failed = 0
-            for tr in tracks:
+            for tr in seed_tracks(track(args.track) if args.track else None):  # a suite track only when named
                 for out in seed_builtins(tr, db=args.db, backend=args.backend, workers=args.workers,
                                          address=args.address, progress=not args.no_progress):
                     print(f"{tr.name:<14s} {out.submission.name:<20s} {out.status} ({out.stored_rows} seeds, "
@@ -134,17 +124,18 @@ def run(args: argparse.Namespace) -> int:
             return 1 if failed else 0
         # show
         tr = track(args.track)
-        if args.format not in FORMATS:
-            raise UsageError(f"--format {args.format!r} is not allowed; allowed: {', '.join(FORMATS)}")
+        try:
+            check_format(args.format, "--format")
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
         out_path = check_writable(args.out, "--out") if args.out else None
-        board = suite_report if isinstance(tr, SuiteTrack) else report
-        r = board.ranking(Store(args.db, create=False), tr, baseline=args.baseline,  # showing never creates a store
-                          max_decision_ms=args.max_decision_ms, max_cpu_s=args.max_cpu_s)
-        for msg in r.refused:
+        board = show(tr, args.db, args.format, baseline=args.baseline, max_decision_ms=args.max_decision_ms,
+                     max_cpu_s=args.max_cpu_s)
+        for msg in board.refused:
             print(f"wfbench: warning: {msg}", file=sys.stderr)
-        for msg in r.left_out:
+        for msg in board.left_out:
             print(f"wfbench: left out by the budget: {msg}", file=sys.stderr)
-        text = board.render(r, args.format)
+        text = board.text
         if out_path:
             try:
                 out_path.write_text(text)

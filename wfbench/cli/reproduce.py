@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 from wfbench.cli.common import (
     UsageError,
@@ -44,28 +43,22 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm.auto import tqdm
 
-    from wfbench.reproduce import TARGETS, target_size
+    from wfbench.reproduce import check_target, output_folder, parse_methods, reproduce, target_size
 
-    if args.target not in TARGETS:
-        raise UsageError(f"unknown target {args.target!r}; allowed: {', '.join(TARGETS)}")
+    try:
+        check_target(args.target)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     check_backend_args(args)
     kwargs = {}
-    if args.methods is not None:
-        if args.target != "figure3":
-            raise UsageError(f"--methods applies to figure3 only, not to {args.target}")
-        kwargs["methods"] = tuple(dict.fromkeys(m.strip() for m in args.methods.split(",") if m.strip()))
-        if not kwargs["methods"]:
-            raise UsageError("--methods: give at least one policy name")
-        for m in kwargs["methods"]:
-            resolve_policy(m)  # an unknown name fails now, not after the others ran
-    kwargs.update(_suite_kwargs(args))
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out {args.out!r} exists and is not a folder")
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"--out {args.out!r}: cannot create the folder: {exc.strerror or exc}") from None
+        methods = parse_methods(args.methods, args.target, "--methods")
+        if methods is not None:
+            kwargs["methods"] = methods
+        kwargs.update(_suite_kwargs(args))
+        out = output_folder(args.out, "--out")  # reproduce() checks it too; made here, before the progress bar
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     t0 = time.perf_counter()
     bar = None
     if not args.no_progress:
@@ -78,8 +71,8 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
 
     try:
-        result = TARGETS[args.target](out, runs=args.runs, backend=args.backend, workers=args.workers,
-                                      address=args.address, progress=step, **kwargs)
+        result = reproduce(args.target, out, runs=args.runs, backend=args.backend, workers=args.workers,
+                           address=args.address, progress=step, **kwargs)
     finally:
         if bar:
             bar.close()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import re
 import shlex
 import sys
 
@@ -56,6 +55,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from wfbench.train.worlds import world_set
     from wfbench.tune import check_tuning_seeds, search_space, tune, tuning_worlds
+    from wfbench.tune.search import check_scenario_args, default_out, default_study_name
 
     policy = resolve_policy(args.policy)
     if args.list:
@@ -67,9 +67,11 @@ def run(args: argparse.Namespace) -> int:
         for key, p in space.items():
             print(f"{key:<30s} {p.describe():<36s} now {current[key]:g}")
         return 0
-    if args.scenario is not None and args.scenarios is not None:
-        raise UsageError("--scenario and --scenarios do not go together: give one scenario, or the worlds to tune "
-                         "across")
+    given = args.scenario or ("paper-64" if args.scenarios is None else None)  # neither: paper-64
+    try:
+        check_scenario_args(given, args.scenarios, ("--scenario", "--scenarios"))
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     scenarios = None
     if args.scenarios is not None:
         try:
@@ -78,9 +80,8 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise UsageError(f"--scenarios: {exc}") from None
         where, scenario, judge = f"{args.scenarios} ({len(worlds)} worlds)", None, f"--suite {worlds[0].suite}"
-        slug = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.scenarios)
+        slug = args.scenarios
     else:
-        given = args.scenario or "paper-64"
         scenario = resolve_scenario(given)  # resolved once, here; tune() records it by its name
         where = slug = scenario.name
         judge = f"--scenario {given}"
@@ -89,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         seeds = check_tuning_seeds(args.seeds)
     except ValueError as exc:
         raise UsageError(f"--seeds: {exc}") from None
-    out = args.out or f"tuned-{args.policy}-{slug}.json"
+    out = args.out or str(default_out(args.policy, slug))  # tune()'s default, named here to check it first
     check_writable(out, "--out")
     check_writable(args.study_db, "--study-db")
     command = "wfbench " + shlex.join(args.argv)
@@ -100,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
                  command=command, scenarios=scenarios)
     except KeyboardInterrupt:
         print(f"wfbench: interrupted; the finished trials are kept in {args.study_db} (study "
-              f"{args.study_name or args.policy + '@' + (args.scenarios or scenario.name)!r}): run the same command "
-              "again to resume", file=sys.stderr)
+              f"{args.study_name or default_study_name(args.policy, args.scenarios or scenario.name)!r}): run the "
+              "same command again to resume", file=sys.stderr)
         return 130
     except ValueError as exc:
         raise UsageError(str(exc)) from None

@@ -7,7 +7,7 @@ paired per scenario and aggregated per split (:mod:`wfbench.analysis.aggregate`)
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -51,13 +51,18 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         progress: show a progress bar per policy.
         act_timeout_s: limit of each ``reset``/``act`` call of a user's policy.
         plot: also write the comparison's figure here (:func:`plot_comparison`); the suffix
-            picks the format (``.png``, ``.svg`` or ``.pdf``), checked before anything runs.
+            picks the format (``.png``, ``.svg`` or ``.pdf``); the path is checked before anything
+            runs (:func:`check_plot_path`).
 
     Returns:
         The comparison, one row per policy.
+
+    Raises:
+        ValueError: a bad scenario, seed list or plot path; :class:`wfbench.harness.guard.PolicyLoadError`
+            (a ValueError) for a spec that names no policy.
     """
     if plot is not None:
-        figure_format(plot)  # a bad suffix fails before the runs, not after them
+        check_plot_path(plot)  # a bad suffix or folder fails before the runs, not after them
     config = resolve_scenario(scenario)
     seed_list = resolve_seeds(seeds)
     added = baseline not in policies
@@ -84,6 +89,32 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
     return out
 
 
+def check_plot_path(path: str | Path, what: str = "plot") -> Path:
+    """``path`` as a Path if a figure can be written there, else ValueError saying why.
+
+    The suffix must name a format (``.png``, ``.svg`` or ``.pdf``), the folder must exist
+    and the path must not be a folder. :func:`compare` and :func:`plot_comparison` check
+    this before they draw, ``wfbench compare --plot`` before anything runs.
+
+    Args:
+        path: where the figure goes.
+        what: how the messages name the path (``"--plot"`` on the command line).
+
+    Returns:
+        The path.
+    """
+    try:
+        figure_format(path)
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from None
+    out = Path(path)
+    if not out.parent.is_dir():
+        raise ValueError(f"{what} {str(path)!r}: folder {str(out.parent)!r} does not exist")
+    if out.is_dir():
+        raise ValueError(f"{what} {str(path)!r} is a folder; give a file name")
+    return out
+
+
 def plot_comparison(df: pd.DataFrame, path: str | Path | None = None) -> Figure:
     """The figure of a comparison: KPI distributions per policy and paired NSW differences with their intervals.
 
@@ -95,13 +126,14 @@ def plot_comparison(df: pd.DataFrame, path: str | Path | None = None) -> Figure:
     Args:
         df: a :func:`compare` result (a frame read back from its CSV works too: without
             per-seed frames the top row shows means and 25%-75% ranges).
-        path: write the figure here; the suffix picks the format: ``.png``, ``.svg`` or ``.pdf``.
+        path: write the figure here; the suffix picks the format: ``.png``, ``.svg`` or ``.pdf``
+            (checked before drawing, :func:`check_plot_path`).
 
     Returns:
         The :class:`matplotlib.figure.Figure` (not registered with ``pyplot``).
     """
     if path is not None:
-        figure_format(path)
+        check_plot_path(path)
     fig = comparison_figure(df)
     if path is not None:
         save_figure(fig, path)
@@ -127,6 +159,7 @@ def comparison_cells(df: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
 
 
 def format_comparison(df: pd.DataFrame, fmt: str = "table") -> str:
+    """A :func:`compare` result as text: ``"table"`` (aligned), ``"md"`` (markdown) or ``"csv"`` (every column)."""
     header, rows = comparison_cells(df)
     if fmt == "csv":
         return df.to_csv(index=False)
@@ -149,6 +182,7 @@ class SuiteComparison:
         runs: policy -> :func:`wfbench.evaluate_suite` frame (per scenario and seed).
         baseline: the baseline's name.
         baseline_added: whether the baseline was not among the policies and was added first.
+        seeds: the seeds every policy ran on, in every scenario.
     """
 
     table: pd.DataFrame
@@ -156,6 +190,28 @@ class SuiteComparison:
     runs: dict[str, pd.DataFrame]
     baseline: str
     baseline_added: bool
+    seeds: list[int] = field(default_factory=list)
+
+
+def suite_comparison_cells(result: SuiteComparison) -> tuple[list[str], list[list[str]]]:
+    """Header and text cells of a suite comparison's table: a row per (scenario, policy)."""
+    header = ["Scenario", "Split", "Policy", "NSW", "Normalized", f"- {result.baseline} (paired, 95% CI)",
+              f"wins / {len(result.seeds)}"]
+    rows = [[r["scenario"], r["split"], r["policy"], f"{r['nsw']:.4f}", f"{r['normalized']:.3f}",
+             "(baseline)" if r["policy"] == result.baseline else
+             f"{r['diff']:+.3f} [{r['diff_low']:+.3f}, {r['diff_high']:+.3f}]",
+             "-" if r["policy"] == result.baseline else str(r["wins"])] for _, r in result.table.iterrows()]
+    return header, rows
+
+
+def format_suite_comparison(result: SuiteComparison, fmt: str = "table") -> str:
+    """A :func:`compare_suite` result's per-scenario table as text: ``"table"``, ``"md"`` or ``"csv"`` (every column).
+
+    The aggregate per split is :func:`wfbench.analysis.aggregate.aggregate_cells` of ``result.aggregates``.
+    """
+    if fmt == "csv":
+        return result.table.to_csv(index=False)
+    return (markdown_table if fmt == "md" else text_table)(*suite_comparison_cells(result))
 
 
 def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int | str | Iterable[int] = "test",
@@ -212,4 +268,4 @@ def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int |
                          "wins": int((x > b).sum())})
     aggs = aggregate_suite(runs, baseline=baseline, seed=seed, poi_reps=poi_reps)
     return SuiteComparison(table=pd.DataFrame(rows), aggregates=aggs, runs=runs, baseline=baseline,
-                           baseline_added=added)
+                           baseline_added=added, seeds=seed_list)

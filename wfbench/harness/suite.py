@@ -8,16 +8,17 @@ from typing import Any
 import numpy as np
 
 from wfbench.harness.evaluation import evaluate
+from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S
 from wfbench.scenarios.score import REFERENCE_SEEDS, normalize
 from wfbench.scenarios.suites import Suite, SuiteScenario, get_suite
 
-__all__ = ["compute_reference", "evaluate_suite"]
+__all__ = ["compute_reference", "evaluate_suite", "suite_cells", "suite_summary"]
 
 
 def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | str | Iterable[int] = "test",
                    split: str | None = None, scenarios: Sequence[str] | None = None, backend: str = "serial",
                    workers: int | None = None, address: str | None = None, progress: bool = False,
-                   act_timeout_s: float | None = None, **kwargs: Any) -> Any:
+                   act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, **kwargs: Any) -> Any:
     """Score ``policy`` on every scenario of a suite (or of one split): one row per (scenario, seed).
 
     Each scenario runs through :func:`wfbench.evaluate` (so every backend works unchanged);
@@ -35,8 +36,9 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
         workers: processes or Ray tasks.
         address: Ray cluster address.
         progress: show a progress bar per scenario.
-        act_timeout_s: limit of each ``reset``/``act`` call of a user's policy (default: the evaluator's;
-            0 for none).
+        act_timeout_s: limit in seconds of each ``reset``/``act`` call of a policy that is not a
+            built-in registry name, as for :func:`wfbench.evaluate`: default
+            :data:`wfbench.harness.guard.DEFAULT_ACT_TIMEOUT_S`, ``None`` or 0 for no limit.
         **kwargs: passed on to :func:`wfbench.evaluate` (``threads``).
 
     Returns:
@@ -49,13 +51,13 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
     import pandas as pd
 
     from wfbench.harness.evaluation import evaluate
-    from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
+    from wfbench.harness.guard import load_policy
 
     s = get_suite(suite)
     ids = s.ids(split)  # an unknown split fails here
     chosen = [s.scenario(i) for i in ids] if scenarios is None else [s.scenario(x) for x in scenarios]
     chosen = [c for c in chosen if split is None or c.split == split]
-    loaded = load_policy(policy, DEFAULT_ACT_TIMEOUT_S if act_timeout_s is None else act_timeout_s)
+    loaded = load_policy(policy, act_timeout_s)
     frames, budgets = [], {}
     for sc in chosen:
         df = evaluate(loaded, sc.config, seeds, backend=backend, workers=workers, address=address,
@@ -71,6 +73,51 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
     if budgets:
         out.attrs["budget"] = budgets
     return out
+
+
+def suite_cells(df: Any) -> tuple[list[str], list[list[str]]]:
+    """Header and text cells of an :func:`evaluate_suite` frame: a row per scenario, means over seeds.
+
+    The columns are the scenario, its split, each KPI, the normalized score and the
+    compute-budget columns the frame has (:data:`wfbench.harness.budget.BUDGET_COLUMNS`).
+    """
+    from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
+    from wfbench.harness.budget import BUDGET_COLUMNS
+
+    budget = [c for c in BUDGET_COLUMNS if c in df.columns]
+    header = ["Scenario", "Split", *[KPI_LABELS[k] for k in KPI_NAMES], "Normalized", *budget]
+    rows = []
+    for sc, g in df.groupby("scenario", sort=False):
+        rows.append([sc, g["split"].iloc[0], *[f"{g[k].mean():.4g}" for k in KPI_NAMES],
+                     f"{g['normalized'].mean():.3f}", *[f"{g[c].mean():.3g}" for c in budget]])
+    return header, rows
+
+
+def suite_summary(df: Any, seeds: Sequence[int], aggregates: dict[str, Any] | None = None,
+                  policy: str | None = None) -> dict[str, Any]:
+    """An :func:`evaluate_suite` frame as a JSON-ready dict, as ``wfbench evaluate --suite --format json`` prints it.
+
+    Args:
+        df: the frame (its ``attrs`` name the policy, suite, hash and split).
+        seeds: the seeds it ran.
+        aggregates: :func:`wfbench.analysis.aggregate.aggregate_suite` of it (default: computed here).
+        policy: the policy's name as given (default the frame's, the loaded policy's name).
+
+    Returns:
+        ``policy``, ``suite``, ``suite_hash``, ``split``, ``seeds``, per scenario its split,
+        mean normalized score and mean KPIs, and per split the aggregate's row.
+    """
+    from wfbench.analysis.aggregate import aggregate_suite
+    from wfbench.core.kpis import KPI_NAMES
+
+    policy = df.attrs["policy"] if policy is None else policy
+    aggs = aggregate_suite({policy: df}) if aggregates is None else aggregates
+    return {"policy": policy, "suite": df.attrs["suite"], "suite_hash": df.attrs["suite_hash"],
+            "split": df.attrs["split"], "seeds": list(seeds),
+            "scenarios": {sc: {"split": g["split"].iloc[0], "normalized": float(g["normalized"].mean()),
+                               **{k: float(g[k].mean()) for k in KPI_NAMES}}
+                          for sc, g in df.groupby("scenario", sort=False)},
+            "aggregate": {split: a.table.drop(columns="policy").iloc[0].to_dict() for split, a in aggs.items()}}
 
 
 def compute_reference(scenario: SuiteScenario, seeds: Iterable[int] = REFERENCE_SEEDS,

@@ -206,15 +206,15 @@ class RemoteActor:
     """The Ray path's actor: an :class:`Actor` on CPU, ``index`` of ``cfg.ray_actors``, in a Ray worker process.
 
     A plain class: :mod:`wfbench.train.ray_actors` makes it a Ray actor (``ray.remote``), so this
-    module needs no Ray. Ray pickles ``cfg`` and ``meta`` to the worker, which builds its own
-    network and Simulator; ``params`` arrive as a CPU state_dict from the learner's ``ray.put``.
+    module needs no Ray. Ray pickles ``cfg``, ``meta`` and the learner's resolved ``scenario`` to the
+    worker, which builds its own network and Simulator; ``params`` arrive as a CPU state_dict from the
+    learner's ``ray.put``.
     """
 
-    def __init__(self, cfg: ImpalaConfig, index: int, meta: dict | None):
+    def __init__(self, cfg: ImpalaConfig, index: int, meta: dict | None, scenario: ScenarioConfig):
         torch.set_num_threads(cfg.threads)
         model = WorkforceNet(cfg.network_config())
-        self.actor = Actor(cfg, ScenarioConfig.resolve(cfg.scenario), model, torch.device("cpu"), index,
-                           cfg.ray_actors)
+        self.actor = Actor(cfg, scenario, model, torch.device("cpu"), index, cfg.ray_actors)
         if meta is not None:  # resume: this actor's return normalizer, generator and seed cursor
             self.actor.restore(meta)
         self.actor.start()  # its Simulator, on its first training seeds
@@ -416,7 +416,8 @@ class Trainer:
 
         with self._lock:
             version, params = self._published
-        self._ray = RayActors(self.run.config, RemoteActor, self.actor_metas, version, params)
+        self._ray = RayActors(self.run.config, RemoteActor, self.actor_metas, version, params,
+                              (self.run.scenario,))
         self._ray.run(count)
 
     def _stop_actors(self) -> None:

@@ -42,14 +42,16 @@ class RayActors:
 
     Args:
         cfg: the run's ``ImpalaConfig`` (``address``, ``ray_actors``, ``threads``).
-        actor_cls: the plain class to run as a Ray actor, built as ``actor_cls(cfg, index, meta)``,
+        actor_cls: the plain class to run as a Ray actor, built as ``actor_cls(cfg, index, meta, *args)``,
             with methods ``ready()`` and ``rollout(version, params)`` (``impala.RemoteActor``).
         metas: each actor's resume state, or None for a fresh actor.
         version: the learner update of ``params``.
         params: the learner's parameters (a CPU state_dict) that the actors start with.
+        args: more arguments of every actor (IMPALA's: the run's scenario, resolved once by the learner),
+            pickled to each.
     """
 
-    def __init__(self, cfg, actor_cls, metas: list, version: int, params: dict):
+    def __init__(self, cfg, actor_cls, metas: list, version: int, params: dict, args: tuple = ()):
         self.owns = not ray.is_initialized()  # True: this object started Ray (or connected) and shuts it down
         if self.owns and cfg.address == "local":
             ray.init(
@@ -66,7 +68,7 @@ class RayActors:
         self.remaining = 0  # rollouts still to ask for
         try:
             remote = ray.remote(num_cpus=cfg.threads)(actor_cls)
-            self.actors = [remote.remote(cfg, i, meta) for i, meta in enumerate(metas)]
+            self.actors = [remote.remote(cfg, i, meta, *args) for i, meta in enumerate(metas)]
             for i, ref in enumerate([a.ready.remote() for a in self.actors]):
                 self._get(ref, i)  # a worker that cannot import wfbench or build its simulator fails here
             self.publish(version, params)

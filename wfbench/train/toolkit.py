@@ -53,7 +53,7 @@ from wfbench.policies.neural.dist import env_action, gumbel
 from wfbench.policies.neural.model import count_parameters, model_config
 from wfbench.policies.neural.policy import NetworkPolicy, load_checkpoint
 from wfbench.scenarios.score import normalize
-from wfbench.train.worlds import Worlds, WorldSet, deal, resolve_worlds, world_set
+from wfbench.train.worlds import Worlds, WorldSet, deal, world_set
 
 DECISIONS = ("dispatch", "workforce", "positioning")  # the heads of the joint network, in the simulator's order
 DEVICES = ("auto", "cpu", "cuda")
@@ -102,8 +102,12 @@ class BaseConfig:
     model_overrides: dict = field(default_factory=dict)
     scalefree_ok = False  # a class attribute, not a setting: whether this trainer trains the scale-free network
 
-    def validate(self) -> None:
-        """The shared checks, the algorithm's (:meth:`check`), then the network's config (a bad preset says so)."""
+    def validate(self) -> ScenarioConfig | WorldSet:
+        """The shared checks, the algorithm's (:meth:`check`), then the network's config (a bad preset says so).
+
+        Returns:
+            The scenario, resolved (once: :func:`start_run` keeps it), or the :class:`WorldSet` of ``scenarios``.
+        """
         if self.device not in DEVICES:
             raise ValueError(f"device {self.device!r} is not allowed; allowed: {', '.join(DEVICES)}")
         if self.device == "cuda" and not torch.cuda.is_available():
@@ -115,16 +119,17 @@ class BaseConfig:
                              "allowed: --algo ppo (or a model preset: tiny, small, paper, cpu)")
         self.check()
         if self.scenarios:
-            resolve_worlds(self.scenarios)
+            scenario = world_set(self.scenarios)
             if self.variant != "joint":
                 raise ValueError(f"scenarios {self.scenarios!r} with variant {self.variant!r}: training across worlds "
                                  "is for the joint network; allowed: variant joint")
         else:
-            ScenarioConfig.resolve(self.scenario)
+            scenario = ScenarioConfig.resolve(self.scenario)
         if not set(resolve_seeds(self.eval_seeds)) <= set(SEED_SETS["public"]):
             raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
                              "(1000-1049) only, never on test seeds")
         self.network_config()
+        return scenario
 
     def check(self) -> None:
         """The algorithm's own checks (a subclass's); ValueError names what is allowed."""
@@ -154,11 +159,11 @@ class ActorCriticConfig(BaseConfig):
     normalize_returns: bool = True  # rewards divided by a running std of the discounted return
     stagger: bool = True  # staggered episodes by partial reset
 
-    def validate(self) -> None:
+    def validate(self) -> ScenarioConfig | WorldSet:
         check_numbers(self, ("gamma",), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
         check_numbers(self, ("lr", "max_grad_norm"), lambda v: v > 0.0, "a number > 0")
         check_numbers(self, ("ent_coef", "vf_coef", "reward_scale"), lambda v: v >= 0.0, "a number >= 0")
-        super().validate()
+        return super().validate()
 
 
 # -- acting ---------------------------------------------------------------------------------------
@@ -454,12 +459,12 @@ class Run:
 
 def start_run(config: BaseConfig, progress: bool, log: bool) -> Run:
     """Check ``config``, set torch's threads and seed; the :class:`Run` record of a fresh run on it."""
-    config.validate()
+    # resolved once, by the check; several worlds (``scenarios``): a WorldSet, which the collector, the public
+    # scores and the checkpoint read
+    scenario = config.validate()
     device = torch_device(config.device)
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
-    # several worlds (``scenarios``): a WorldSet, which the collector, the public scores and the checkpoint read
-    scenario = world_set(config.scenarios) if config.scenarios else ScenarioConfig.resolve(config.scenario)
     return Run(config=config, device=device, scenario=scenario, network=config.network_config(),
                dir=Path(config.run_dir), progress=progress, log=log, commit=git_commit(),
                hardware=training_hardware(device))

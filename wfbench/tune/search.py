@@ -35,12 +35,13 @@ policy everywhere a policy is named. ``wfbench tune`` is its command line.
 from __future__ import annotations
 
 import math
+import re
 import shlex
 import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import optuna
@@ -184,6 +185,31 @@ def _suggest(trial: optuna.Trial, key: str, p: Param) -> float | int:
     return trial.suggest_float(key, p.low, p.high, log=p.log)
 
 
+def check_scenario_args(scenario: Any, scenarios: Any, names: tuple[str, str] = ("scenario", "scenarios")) -> None:
+    """ValueError unless exactly one of ``scenario`` and ``scenarios`` is given (``names``: as messages say them)."""
+    if scenario is not None and scenarios is not None:
+        raise ValueError(f"{names[0]} and {names[1]} do not go together: give one scenario, or the worlds to tune "
+                         "across")
+    if scenario is None and scenarios is None:
+        raise ValueError(f"give a {names[0]} or {names[1]} (worlds to tune across, e.g. 'suite-v1:train'), not "
+                         "neither")
+
+
+def default_study_name(policy: str, where: str) -> str:
+    """The study's name when none is given: ``POLICY@SCENARIO``, or ``POLICY@SPEC`` across worlds."""
+    return f"{policy}@{where}"
+
+
+def default_out(policy: str, where: str) -> Path:
+    """The tuned-policy file when none is given: ``tuned-POLICY-WHERE.json`` in the current folder.
+
+    ``where`` is the scenario's name, or the spec of the worlds with every run of characters
+    other than letters, digits, ``_``, ``.`` and ``-`` made one ``-`` (``suite-v1:train`` gives
+    ``tuned-heuristic-suite-v1-train.json``).
+    """
+    return Path(f"tuned-{policy}-{re.sub(r'[^A-Za-z0-9_.-]+', '-', where)}.json")
+
+
 def _space_attr(space: dict[str, Param]) -> dict[str, dict[str, Any]]:
     return {k: {"low": p.low, "high": p.high, "type": p.type, "log": p.log} for k, p in space.items()}
 
@@ -193,7 +219,7 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
          params: str | Iterable[str] | Mapping[str, Any] | None = None, study_db: str | Path = DEFAULT_DB,
          study_name: str | None = None, backend: str = "serial", workers: int | None = None,
          threads: int | None = None, address: str | None = None, sampler_seed: int = 0,
-         out: str | Path | None = None, name: str | None = None, progress: bool = False,
+         out: str | Path | Literal[False] | None = None, name: str | None = None, progress: bool = False,
          command: str | None = None, scenarios: str | WorldSet | None = None) -> TuneResult:
     """Search ``policy``'s tunable parameters for the highest mean NSW over ``seeds``.
 
@@ -210,13 +236,15 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
         params: which parameters to search and optional narrower ranges
             (:func:`search_space`); default all that the policy declares.
         study_db: the SQLite file that holds the study.
-        study_name: the study's name in it (default ``POLICY@SCENARIO``).
+        study_name: the study's name in it (default ``POLICY@SCENARIO``, :func:`default_study_name`).
         backend: where each trial's evaluation runs (:func:`wfbench.harness.evaluation.evaluate`).
         workers: processes or Ray tasks of a parallel backend.
         threads: numba threads of the serial backend.
         address: Ray cluster address.
         sampler_seed: seed of the TPE sampler.
-        out: write the tuned-policy file here (.json or .toml); ``None``: do not write.
+        out: write the tuned-policy file here (.json or .toml); ``None`` (default): to
+            ``tuned-POLICY-SCENARIO.json`` in the current folder, as ``wfbench tune`` does
+            (:func:`default_out`); ``False``: do not write.
         name: the tuned policy's name (default ``POLICY-tuned``).
         progress: show a progress bar over the trials.
         command: the command that made it, recorded in the file.
@@ -239,20 +267,19 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
         raise ValueError(f"trials = {trials!r}: allowed: a whole number >= 1")
     if isinstance(sampler_seed, bool) or not isinstance(sampler_seed, int) or sampler_seed < 0:
         raise ValueError(f"sampler_seed = {sampler_seed!r}: allowed: a whole number >= 0")
-    if (scenario is None) == (scenarios is None):
-        raise ValueError("give a scenario or scenarios (worlds to tune across, e.g. 'suite-v1:train'), not "
-                         f"{'both' if scenarios is not None else 'neither'}")
+    check_scenario_args(scenario, scenarios)
     worlds: list[TuningWorld] | None = None
     if scenarios is not None:
         worlds = tuning_worlds(scenarios)
-        scenario_name = scenarios.name if isinstance(scenarios, WorldSet) else scenarios
+        scenario_name = slug = scenarios.name if isinstance(scenarios, WorldSet) else scenarios
     else:
         config = resolve_scenario(scenario)
         scenario_name = scenario if isinstance(scenario, str) else config.name
+        slug = config.name
     seed_list = check_tuning_seeds(seeds)
     base = get(policy)
     space = search_space(base, params)
-    out_path = Path(out) if out is not None else None
+    out_path = None if out is False else default_out(policy, slug) if out is None else Path(out)
     if out_path is not None:
         if out_path.suffix.lower() not in tuned_file.SUFFIXES:
             raise ValueError(f"output {str(out_path)!r}: allowed suffixes: {', '.join(tuned_file.SUFFIXES)}")
@@ -261,7 +288,7 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
     db = Path(study_db)
     if not db.parent.is_dir():
         raise ValueError(f"study database {str(db)!r}: folder {str(db.parent)!r} does not exist")
-    study_name = study_name or f"{policy}@{scenario_name}"
+    study_name = study_name or default_study_name(policy, scenario_name)
     tuned_name = name or f"{policy}-tuned"
     settings = {"policy": policy, "scenario": scenario_name, "seeds": seed_list, "space": _space_attr(space),
                 "objective": OBJECTIVE if worlds is None else OBJECTIVE_WORLDS}
