@@ -18,6 +18,7 @@ def _scores():
             "few": rng.normal(0.4, 0.05, (6, 4))}
 
 
+@pytest.mark.slow
 def test_aggregate__identical_inputs_give_bit_identical_results_and_leave_numpy_state_alone():
     np.random.seed(123)
     before = np.random.get_state()[1].copy()

@@ -35,6 +35,7 @@ def small_comparison():
     return compare(["heuristic", "random", "solver"], "small", 4, backend="serial")
 
 
+@pytest.mark.slow
 def test_compare_plot_writes_every_format(small_comparison, tmp_path):
     df = small_comparison
     plot_comparison(df, tmp_path / "c.png")
@@ -158,6 +159,7 @@ def test_trend_counts_per_kpi_on_a_made_up_world():
         kpi_score("speed", 1.0)
 
 
+@pytest.mark.slow
 def test_figure3_draws_every_kind_of_method(tmp_path):
     methods = figure3_methods()
     for m in ("random", "heuristic", "solver", "heuristic-tuned", "solver-tuned", "oracle-dispatch", "oracle"):

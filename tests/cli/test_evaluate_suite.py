@@ -29,6 +29,7 @@ def mini_run(monkeypatch):
     return seen
 
 
+@pytest.mark.slow
 def test_the_command_prints_the_api_s_table_and_json(mini_run, capsys):
     argv = ["evaluate", "--policy", "heuristic", "--suite", "suite-v1", "--seeds", "2", "--no-progress"]
     assert main([*argv, "--format", "md"]) == 0
@@ -44,6 +45,7 @@ def test_the_command_prints_the_api_s_table_and_json(mini_run, capsys):
 
 @pytest.mark.parametrize("flag, limit", [([], DEFAULT_ACT_TIMEOUT_S), (["--act-timeout", "0"], None),
                                          (["--act-timeout", "3"], 3.0)])
+@pytest.mark.slow
 def test_one_scenario_and_a_suite_get_the_same_act_timeout(flag, limit, mini_run, monkeypatch, capsys):
     loaded = []
     real = guard.load_policy

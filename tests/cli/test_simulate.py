@@ -19,6 +19,7 @@ FAILS = {  # failing policy of tests/lb_policies.py -> what its one line says
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", FAILS)
 def test_a_failing_user_policy_is_one_line_and_status_1(kind):
     run = subprocess.run([WFBENCH, "simulate", "--policy", f"tests.lb_policies:{kind}", "--scenario", "small",
@@ -66,6 +67,7 @@ def test_steps_stop_the_episode_and_the_command_prints_them(capsys):
     assert out == "small seed 0, random, 7 steps: " + ", ".join(f"{k}={v:.4g}" for k, v in episode.kpis.items())
 
 
+@pytest.mark.slow
 def test_a_hindsight_oracle_is_handed_the_scenario():
     """The oracle reads the future: like the runner, simulate attaches it before reset (it raised before)."""
     assert wfbench.simulate("oracle", "small", 0, steps=3).steps == 3

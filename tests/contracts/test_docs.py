@@ -45,6 +45,7 @@ def run_blocks(blocks: list[str], where: str, tmp_path: Path) -> None:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", PAGES)
 def test_page_examples_run(page, tmp_path):
     run_blocks(python_blocks((ROOT / page).read_text()), page, tmp_path)

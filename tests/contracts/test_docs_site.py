@@ -65,6 +65,7 @@ def anchors(site: Path, page: str) -> set[str]:
     return set(re.findall(r'id="([A-Za-z_][\w.]*)"', html))
 
 
+@pytest.mark.slow
 def test_site_builds_strict_with_every_page(site):
     for md in (ROOT / "docs").rglob("*.md"):
         built = site / md.relative_to(ROOT / "docs").with_suffix("")

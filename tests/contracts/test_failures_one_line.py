@@ -36,6 +36,7 @@ def _one_line(run: subprocess.CompletedProcess, says: str) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_evaluate_failure_is_one_line_on_the_process_pool(kind):
     # 4 seeds over the default workers: chunks run in the pool (one chunk runs in this process)
@@ -44,6 +45,7 @@ def test_evaluate_failure_is_one_line_on_the_process_pool(kind):
     _one_line(run, KINDS[kind])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", [[], ["--workers", "1"]], ids=["default-workers", "one-worker"])
 @pytest.mark.parametrize("kind", KINDS)
 def test_submit_failure_is_one_line_and_prompt(kind, workers, tmp_path):
@@ -57,6 +59,7 @@ def test_submit_failure_is_one_line_and_prompt(kind, workers, tmp_path):
     # grace: test_a_failed_chunk_kills_the_workers_mid_episode checks the mechanism, not a time)
 
 
+@pytest.mark.slow
 def test_ray_failure_is_one_line():
     pytest.importorskip("ray", reason="the ray extra is not installed (pip install 'wfbench[ray]')")
     run = _wfbench("evaluate", "--policy", "tests.lb_policies:Raises", "--scenario", "small", "--seeds", "4",

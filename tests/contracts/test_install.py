@@ -57,6 +57,7 @@ def test_import_wfbench_from_a_folder_with_its_own_policies_solvers_and_leaderbo
     ["tune", "--help"],
     ["bench", "--help"],
 ], ids=lambda a: a[0])
+@pytest.mark.slow
 def test_every_command_runs_from_that_folder(project, args):
     run = _run([str(WFBENCH), *args], project)
     assert run.returncode == 0, f"wfbench {' '.join(args)} failed in a folder with its own packages:\n{run.stderr}"

@@ -62,6 +62,7 @@ def test_names__every_function_and_command_takes_a_preset_a_file_and_a_versioned
     assert wfbench.evaluate("heuristic", ScenarioConfig.preset("small"), seeds=[3])["nsw"].iloc[0] == nsw
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", NAMES, indirect=True)
 def test_names__bench_and_train_take_them_too(scenario, tmp_path, capsys):
     pytest.importorskip("torch")

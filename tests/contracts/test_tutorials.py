@@ -47,6 +47,7 @@ def test_there_are_four_tutorials():
     assert [p.stem[:2] for p in TUTORIALS] == ["01", "02", "03", "04"], TUTORIALS
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs(path, tmp_path, monkeypatch):
     jupytext = _jupytext()
@@ -68,6 +69,7 @@ def test_tutorial_runs(path, tmp_path, monkeypatch):
     assert pictures, f"{path.name} shows no picture"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs_as_a_script(path, tmp_path):
     """``python docs/tutorials/NN_*.py`` from an empty folder ends with 0, and writes its scratch files under TMPDIR."""

@@ -77,12 +77,14 @@ def _check_never_exceeded(scenario, seeds, oracle_seeds):
     return bound
 
 
+@pytest.mark.slow
 def test_bound__no_policy_exceeds_it_on_200_small_seeds():
     seeds = list(range(200))
     bound = _check_never_exceeded("small", seeds, seeds[:100])
     assert bound.shape == (200,)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", ["paper-64", "nonstationary", "table2-g32-f25-s10"])
 def test_bound__no_policy_exceeds_it_on_the_larger_scenarios(scenario):
     _check_never_exceeded(scenario, list(range(20)), list(range(4)))
@@ -172,6 +174,7 @@ ORACLE_CHECKED = ("surge-64", "real-nyc")
 """Where the test plays the oracle itself (about 11 s a seed); `wfbench reproduce suite` checks it on every scenario."""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", NEW_SCENARIOS)
 def test_bound__holds_against_the_best_policies_on_the_new_scenarios(scenario):
     """The heuristic and the adversaries stay under the bound on three seeds and each step of the argument holds on
@@ -198,6 +201,7 @@ def test_bound__holds_against_the_best_policies_on_the_new_scenarios(scenario):
             assert series[s, p.first_failure:, K_AFD].sum() >= p.downtime_sum * (1 - 1e-5), (scenario, policy, s)
 
 
+@pytest.mark.slow
 def test_bound__holds_on_the_city_world():
     """city (576x576, 500 facilities and 500 people at start): one seed, the fast built-ins and the adversaries.
 

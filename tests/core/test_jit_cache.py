@@ -193,6 +193,7 @@ def run_copy(root: Path, cache: Path, script: str = SCRIPT) -> subprocess.Comple
     return out
 
 
+@pytest.mark.slow
 def test_editing_a_function_inlined_from_another_file_recompiles(tmp_path):
     root = tmp_path / "src"
     for pkg in PACKAGES:

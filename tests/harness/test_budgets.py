@@ -187,6 +187,7 @@ def test_a_schema_2_store_is_upgraded_in_place_and_its_rows_stay_valid_without_a
     store.close()
 
 
+@pytest.mark.slow
 def test_submit_stores_the_cost_and_show_prints_and_filters_it(tmp_path, capsys, monkeypatch):
     db = tmp_path / "lb.sqlite"
     monkeypatch.setattr("wfbench.leaderboard.tracks.TRACKS", {TINY.name: TINY})

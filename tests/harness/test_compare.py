@@ -73,6 +73,7 @@ def test_compare_refuses_a_plot_path_before_running_as_the_command_does(plot, wh
         plot_comparison(pd.DataFrame(), plot)
 
 
+@pytest.mark.slow
 def test_suite_comparison_table_is_the_api_s(monkeypatch, capsys):
     from tests.scenarios.test_suite import _mini
 

@@ -25,6 +25,7 @@ def free_port() -> int:
     ["evaluate", "--policy", "heuristic", "--scenario", "small", "--seeds", "2", "--backend", "ray", "--no-progress"],
     ["train", "--algo", "impala", "--scenario", "small", "--model", "tiny", "--steps", "64", "--no-progress"],
 ], ids=["evaluate", "train-impala"])
+@pytest.mark.slow
 def test_an_address_where_nothing_listens_fails_in_one_line(command, tmp_path):
     port = free_port()
     extra = ["--run-dir", str(tmp_path / "run")] if command[0] == "train" else []

@@ -128,6 +128,7 @@ def suite_run(members, tmp_path):
     return tmp_path, result
 
 
+@pytest.mark.slow
 def test_reproduce_suite_pools_the_members_and_writes_their_scores(suite_run):
     out, result = suite_run
     assert target.size(policies=("heuristic", "ppo-general"), scenarios=["small"]) == 5  # 2 + 2 seeds + bound
@@ -153,6 +154,7 @@ def test_reproduce_suite_pools_the_members_and_writes_their_scores(suite_run):
     assert "ppo-general#seed" not in (out / "suite-scores.md").read_text().splitlines()[2]  # the table's header
 
 
+@pytest.mark.slow
 def test_reproduce_suite_checks_every_member_against_the_bound(members, tmp_path, monkeypatch):
     real = target._run
 

@@ -80,6 +80,7 @@ HOSTILE = ROOT / "tests" / "data" / "user_policies" / "hostile.py"
         ("EatsMemory", "ran out of memory in act at "),
     ],
 )
+@pytest.mark.slow
 def test_a_misbehaving_policy_fails_alone(db, name, reason):
     good = submit(TINY, "heuristic", "good", db=db, **_fast())
     before = Store(db).results(TINY)[0]
@@ -116,6 +117,7 @@ def test_name_taken_by_another_policy(db):
         submit(TINY, "random", "mine", db=db, **_fast())
 
 
+@pytest.mark.slow
 def test_kill_minus_9_loses_no_finished_seed_and_resume_completes(db, tmp_path):
     script = tmp_path / "run.py"
     script.write_text(textwrap.dedent(f"""
@@ -225,6 +227,7 @@ def test_cli_errors_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch):
     assert len(Store(taken).results(TINY)[0]) == 4, "the taken entry is intact"
 
 
+@pytest.mark.slow
 def test_reports_in_every_format(db, tmp_path):
     for name in ("heuristic", "random"):
         submit(TINY, name, name, db=db, **_fast())
@@ -249,6 +252,7 @@ def _chromium() -> str:
     raise AssertionError("headless Chromium is needed for this test: apt-get install chromium (.ci/run does)")
 
 
+@pytest.mark.slow
 @pytest.mark.needs_browser
 def test_html_report_renders_in_headless_chromium(db, tmp_path):
     for name in ("heuristic", "random", "solver"):
@@ -283,6 +287,7 @@ def _orphan_workers() -> set[int]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("policy", ["heuristic", "tests.lb_policies:Raises"])
 def test_a_submission_leaves_no_worker_processes_behind(db, policy):
     before = _orphan_workers()
@@ -291,6 +296,7 @@ def test_a_submission_leaves_no_worker_processes_behind(db, policy):
     assert _orphan_workers() - before == set()
 
 
+@pytest.mark.slow
 def test_oracles_stand_apart_and_a_submission_cannot_claim_the_future(db):
     for name in ("heuristic", "oracle-dispatch"):
         submit(TINY, name, name, db=db, **_fast())

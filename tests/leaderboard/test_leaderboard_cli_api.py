@@ -20,6 +20,7 @@ def tiny(monkeypatch):
     return TINY
 
 
+@pytest.mark.slow
 def test_show_is_what_the_command_prints(tiny, tmp_path, capsys):
     db = tmp_path / "lb.sqlite"
     for name in ("heuristic", "random"):
@@ -53,6 +54,7 @@ def test_seed_fills_the_api_s_tracks(monkeypatch, capsys):
     assert seed_tracks(get_track("large")) == [get_track("large")]
 
 
+@pytest.mark.slow
 def test_submit_lines_are_the_api_s(tiny, tmp_path, monkeypatch, capsys):
     db = tmp_path / "lb.sqlite"
     outcomes = []

@@ -59,6 +59,7 @@ def _cli_submit(module, db, *extra):
                  "--db", str(db), "--backend", "serial", "--no-progress", *extra])
 
 
+@pytest.mark.slow
 def test_an_edited_policy_is_refused_under_its_name_until_replaced(user_folder, db, capsys):
     folder, module = user_folder
     assert _cli_submit(module, db) == 0
@@ -107,6 +108,7 @@ def test_an_edited_policy_is_refused_under_its_name_until_replaced(user_folder, 
     assert store.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
 
 
+@pytest.mark.slow
 def test_the_same_policy_resumes_with_the_missing_seeds_only(db):
     first = submit(TINY, "tests.lb_policies:Slow", "slow", db=db, **_fast())
     assert first.status == "complete" and first.action == "new"
@@ -158,6 +160,7 @@ def test_the_oracle_fingerprint_covers_the_files_of_its_candidates(tmp_path, mon
     (tuned_dir / first).write_bytes((tuned_dir / first).read_bytes() + b"\n")
     assert policy_fingerprint("oracle")[0] != before, "an edited candidate file must change the oracle's fingerprint"
 
+@pytest.mark.slow
 def test_withdraw_moves_the_entry_to_the_audit_table(db, capsys, monkeypatch):
     monkeypatch.setitem(TRACKS, TINY.name, TINY)
     for name in ("heuristic", "random"):
@@ -255,6 +258,7 @@ def test_the_store_spells_the_kpi_table_in_its_sql_and_an_old_store_gets_the_sam
     # the columns of schema 4: a KPI added to wfbench/core/kpis.py needs schema 5, whose migration adds its column
     assert (SCHEMA_VERSION, KPI_COLUMNS) == (4, ("workforce_cost", "utilization", "downtime", "nsw"))
 
+@pytest.mark.slow
 def test_nsw_axis_starts_at_zero_and_oracles_look_apart(db):
     for name in ("heuristic", "oracle-dispatch"):
         submit(TINY, name, name, db=db, **_fast())

@@ -51,6 +51,7 @@ def test_the_suite_track_is_listed_and_hashed_with_the_suite(capsys):
     assert f"suite-v1       hash {FULL.hash}" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_ranked_by_the_held_out_aggregate_not_by_the_mean_score(db):
     store = Store(db)
     _entry(store, "good-at-training", nsw_train=0.85, nsw_heldout=0.50)  # the higher mean NSW over all rows
@@ -73,6 +74,7 @@ def test_ranked_by_the_held_out_aggregate_not_by_the_mean_score(db):
     assert "| slow-64-v1 | heldout |" in text
 
 
+@pytest.mark.slow
 def test_submit_runs_every_scenario_and_resumes_and_the_html_shows_the_track(db, monkeypatch, capsys):
     monkeypatch.setitem(TRACKS, TINY.name, TINY)
     for policy in ("random", "heuristic"):

@@ -216,11 +216,13 @@ def _oracle_against_every_deployable(scenario, seeds, every_network=True):
     return pol
 
 
+@pytest.mark.slow
 def test_the_oracle_is_at_least_every_deployable_builtin_on_every_seed_of_small():
     pol = _oracle_against_every_deployable("small", [0, 1, 2])
     assert pol.timing.keys() == set(pol.candidates)
 
 
+@pytest.mark.slow
 def test_the_oracle_is_at_least_every_deployable_builtin_on_a_paper_64_sized_world():
     # table2-g128-f50-s25: the shipped networks beat the planner here on most seeds (issue #27)
     pol = _oracle_against_every_deployable("table2-g128-f50-s25", [0, 1], every_network=False)
@@ -254,6 +256,7 @@ def test_the_oracle_refuses_without_torch_rather_than_drop_the_networks(monkeypa
     assert policies.get("oracle-planner").reads_trace  # the planner alone needs no torch
 
 
+@pytest.mark.slow
 def test_the_oracle_plays_a_seed_the_same_alone_or_in_a_batch():
     import wfbench
 

@@ -36,6 +36,7 @@ def run_cli(argv, capsys):
 SMALL = ["--scenario", "small", "--seeds", "2", "--backend", "serial", "--no-progress"]
 
 
+@pytest.mark.slow
 def test_policy_in_the_current_folder_loads_by_module_attr(tmp_path):
     run = subprocess.run(
         [str(Path(sys.executable).with_name("wfbench")), "evaluate", "--policy", "mypkg.mod:MyPolicy", "--scenario",
@@ -128,6 +129,7 @@ def test_show_does_not_create_a_missing_store(tmp_path, capsys):
     assert not missing.exists()
 
 
+@pytest.mark.slow
 def test_a_hostile_submission_ends_with_one_line_from_the_command_line(tmp_path, capsys, monkeypatch):
     from wfbench.leaderboard.tracks import TRACKS
 

@@ -22,6 +22,7 @@ def test_backend_errors():
         evaluate("heuristic", "small", 2, backend="serial", address="auto")
 
 
+@pytest.mark.slow
 def test_reproduce_writes_tables_and_figure(tmp_path, capsys):
     out = tmp_path / "res"
     assert main(["reproduce", "table3", "--out", str(out), "--runs", "2", "--backend", "serial",
@@ -85,6 +86,7 @@ def test_table2_trend_counting_by_hand():
     assert np.isfinite(list(nsw.values())).all()
 
 
+@pytest.mark.slow
 def test_reproduce_gap_draws_the_methods_and_the_bound(tmp_path):
     from wfbench.reproduce.gap import gap
 

@@ -23,6 +23,7 @@ def first(tmp_path_factory):
     return out, result, steps
 
 
+@pytest.mark.slow
 def test_suite__writes_scores_aggregate_profiles_scaling_and_checks(first):
     out, result, steps = first
     assert steps == ["small-v1: random", "small-v1: heuristic", "small-v1: oracle", "small-v1: bound"]

@@ -173,6 +173,7 @@ def test_cli_bad_suite_input__one_line_naming_what_is_allowed(capsys, argv, mess
     assert "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_cli_evaluate_suite__a_row_per_scenario_then_the_aggregate_per_split(capsys):
     status, out, _ = _cli(capsys, "evaluate", "--policy", "heuristic", "--suite", "suite-v1", "--split", "train",
                           "--seeds", "2", "--backend", "serial", "--no-progress")
@@ -193,6 +194,7 @@ def test_cli_evaluate_suite__a_row_per_scenario_then_the_aggregate_per_split(cap
     assert data["scenarios"]["small-v1"]["nsw"] == pytest.approx(df["nsw"].mean())
 
 
+@pytest.mark.slow
 def test_cli_compare_suite__paired_per_scenario_with_the_probability_of_improvement(capsys):
     status, out, err = _cli(capsys, "compare", "--policies", "heuristic", "--baseline", "random", "--suite",
                             "suite-v1", "--split", "train", "--seeds", "2", "--backend", "serial", "--no-progress",

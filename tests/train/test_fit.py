@@ -34,6 +34,7 @@ def _same_checkpoint(a, b) -> None:
         assert torch.equal(x["torch_rng"], y["torch_rng"]) and torch.equal(x["generator"], y["generator"])
 
 
+@pytest.mark.slow
 def test_fit_and_the_command_line_write_the_same_run_folder(tmp_path, monkeypatch, capsys):
     """The default folder (runs/ALGO-VARIANT-SCENARIO), the same files, config.json and checkpoints bit for bit."""
     (tmp_path / "api").mkdir()

@@ -93,6 +93,7 @@ def test_pure_teacher_collection_scores_what_the_teacher_scores(tmp_path, teache
     assert episodes[0]["nsw"] == pytest.approx(float(df["nsw"].mean()), abs=1e-12)
 
 
+@pytest.mark.slow
 def test_supervised_loss_falls(tmp_path):
     tr = Trainer(_cfg(tmp_path, num_steps=32, grad_steps=60, batch_seqs=6, lr=3e-3), progress=False, log=False)
     for _ in range(2):
@@ -115,6 +116,7 @@ def test_same_seed_same_weights_on_cpu(tmp_path):
     assert not all(torch.equal(a[k], c[k]) for k in a)
 
 
+@pytest.mark.slow
 def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
     cfg = _cfg(tmp_path, eval_every=1, steps=48)
     tr = Trainer(cfg, progress=False, log=True)

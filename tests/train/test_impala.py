@@ -130,6 +130,7 @@ def test_impala__sync_training_is_deterministic_on_cpu(tmp_path):
     assert any(not torch.equal(weights[0][k], v) for k, v in tr.model.state_dict().items())
 
 
+@pytest.mark.slow
 def test_impala__train_resume_evaluate_end_to_end(tmp_path):
     run = tmp_path / "run"
     cfg = _cfg(tmp_path, eval_every=2, eval_seeds="public:2", optimizer="rmsprop", rho_bar=2.0, c_bar=0.9)

@@ -219,6 +219,7 @@ def test_impala_ray__trainer_resume_and_ctrl_c_with_a_stand_in_for_ray(tmp_path,
         Trainer(_cfg(tmp_path, address=""), resume=tmp_path / "run" / "latest.pt")
 
 
+@pytest.mark.slow
 def test_impala_ray__cli_trains_on_a_local_ray_instance(local_ray, tmp_path, monkeypatch, capsys):
     run, stats, learn = tmp_path / "run", [], Trainer.learn
 

@@ -189,6 +189,7 @@ def test_rl__training_is_deterministic_on_cpu(tmp_path):
     assert any(not torch.equal(weights[0][k], v) for k, v in tr.model.state_dict().items())
 
 
+@pytest.mark.slow
 def test_rl__train_resume_evaluate_end_to_end(tmp_path, capsys):
     run = tmp_path / "run"
     args = ["train", "--scenario", "small", "--model", "tiny", "--num-envs", "4", "--num-steps", "8", "--steps", "64",
@@ -380,6 +381,7 @@ def test_rl__train_command_runs_every_algorithm(tmp_path, capsys, algo):
     assert "seed takes a int value" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(capsys):
     """Every shipped checkpoint is listed and loads; ppo-joint scores what it recorded on its public selection seeds."""
     from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED, learned_names
@@ -433,6 +435,7 @@ def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
 
 
 
+@pytest.mark.slow
 def test_rl__evaluating_a_network_on_another_scenario_warns_once():
     """Through the evaluator on the process backend (two workers, two chunks) and the command line: one warning."""
     with warnings.catch_warnings(record=True) as caught:

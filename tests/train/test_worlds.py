@@ -87,6 +87,7 @@ def _cfg(tmp_path, **kw):
     return TrainConfig(**{**base, **kw})
 
 
+@pytest.mark.slow
 def test_worlds__ppo_across_worlds_normalizes_per_world_reproduces_and_knows_its_worlds(tmp_path):
     from wfbench.train.ppo import Trainer
 
