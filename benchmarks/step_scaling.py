@@ -1,17 +1,24 @@
-"""The cost of one env-step against the size of the world, up to suite-v1's city scenario (issue #27).
+"""The cost of one env-step against the size of the world, up to suite-v1's city scenario (issues #27, #35).
 
 For each scenario, on one thread (``threads=1``, so the numbers are per core):
 
 - ``sim``: the simulator alone, ``Simulator.step`` with the no-op action (nobody dispatched,
   hired or let go), over whole episodes of B environments: the floor every policy pays;
-- ``heuristic`` and ``solver``: the compiled rollout of the built-in composite
-  (``wfbench.harness.runner.run_batch``), simulator and decisions together, whole episodes.
+- ``heuristic``, ``solver`` and ``solver-sparse``: the compiled rollout of the built-in composite
+  (``wfbench.harness.runner.run_batch``), simulator and decisions together, whole episodes;
+  ``solver-sparse`` is ``solver`` with its assignment and p-median on sparse candidate
+  graphs (the k nearest; docs/solvers.md, "Sparse candidate graphs").
+
+Beside the presets, ``city-1024`` is ``city`` in a 1024 x 1024 grid with 1,000 facility slots
+and 800 people slots (``ScenarioConfig.replace``; same start, 500 + 500), the world of
+issue #35's scaling goal.
 
 It prints, per scenario, the slots and the people and facilities at the start, then the
 env-steps per second and the microseconds per env-step of each row (best of
 ``--rounds``), and the machine. Usage::
 
     python benchmarks/step_scaling.py --rounds 2 --seeds 4 --json step-scaling.json
+    python benchmarks/step_scaling.py --rounds 1 --seeds 2 --scenarios large,city,city-1024 --rows solver,solver-sparse
 """
 
 from __future__ import annotations
@@ -28,7 +35,16 @@ from wfbench.core.simulator import Simulator
 from wfbench.harness.budget import machine, machine_line
 from wfbench.harness.runner import run_batch
 
-SCENARIOS = ["small", "paper-64", "large", "city"]
+SCENARIOS = ["small", "paper-64", "large", "city", "city-1024"]
+ROWS = ["sim", "heuristic", "solver", "solver-sparse"]
+
+
+def scenario(name: str) -> ScenarioConfig:
+    """A preset, or ``city-1024``: city in a 1024 x 1024 grid with 1,000 facility and 800 people slots."""
+    if name == "city-1024":
+        return ScenarioConfig.preset("city").replace(grid_width=1024, grid_height=1024, max_facilities=1000,
+                                                     max_personnel=800)
+    return ScenarioConfig.preset(name)
 
 
 def _noop(sim: Simulator) -> dict[str, np.ndarray]:
@@ -60,6 +76,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=2, help="measure each row this many times, keep the best")
     ap.add_argument("--seeds", type=int, default=4, help="environments per batch (seeds 0..N-1)")
     ap.add_argument("--scenarios", default=",".join(SCENARIOS))
+    ap.add_argument("--rows", default=",".join(ROWS), help="which of " + ", ".join(ROWS))
     ap.add_argument("--json", default=None, help="also write the rows to this file")
     args = ap.parse_args()
     seeds = list(range(args.seeds))
@@ -67,9 +84,9 @@ def main() -> None:
           flush=True)
     rows = []
     for name in args.scenarios.split(","):
-        config = ScenarioConfig.preset(name)
+        config = scenario(name)
         steps = config.horizon * len(seeds)
-        for kind in ("sim", "heuristic", "solver"):
+        for kind in args.rows.split(","):
             def run(kind: str = kind, config: ScenarioConfig = config) -> float:
                 return time_sim(config, seeds) if kind == "sim" else time_policy(kind, config, seeds)
 
@@ -79,7 +96,7 @@ def main() -> None:
                    "start": config.initial_facilities + config.initial_personnel, "row": kind,
                    "env_steps_per_s": steps / best, "us_per_env_step": 1e6 * best / steps}
             rows.append(row)
-            print(f"{name:10s} slots {row['slots']:5d} start {row['start']:5d} {kind:10s} "
+            print(f"{name:10s} slots {row['slots']:5d} start {row['start']:5d} {kind:13s} "
                   f"{row['env_steps_per_s']:12,.0f} env-steps/s {row['us_per_env_step']:10.1f} us/env-step", flush=True)
     print(f"load at the end {os.getloadavg()[0]:.2f}")
     if args.json:

@@ -25,8 +25,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 from wfbench.policies.rules import HYPERPARAMETERS, code
-from wfbench.solvers.facility_location import greedy_open, local_search
-from wfbench.solvers.lap import lap_min
+from wfbench.solvers.facility_location import greedy_open, local_search, p_median_sparse
+from wfbench.solvers.lap import knn_manhattan, lap_min, lap_sparse
 from wfbench.solvers.staffing import sqrt_staffing_servers
 
 from wfbench.core.observe import (
@@ -50,6 +50,7 @@ D_NEAREST = code("dispatch", "nearest")
 D_INVERSE = code("dispatch", "inverse-distance")  # inverse-distance sampling
 D_RANDOM = code("dispatch", "random")
 D_ASSIGN = code("dispatch", "assignment")  # optimal assignment (wfbench.solvers.lap.lap_min)
+D_ASSIGN_SPARSE = code("dispatch", "assignment-sparse")  # ... on the k nearest (wfbench.solvers.lap.lap_sparse)
 W_NOOP = code("workforce", "fixed")
 W_THRESHOLD = code("workforce", "threshold")
 W_EPSILON = code("workforce", "threshold-epsilon")  # epsilon-greedy threshold
@@ -60,6 +61,15 @@ P_SPATIAL = code("positioning", "spatial")  # spatial averaging
 P_GAUSSIAN = code("positioning", "spatial-gaussian")  # spatial averaging with Gaussian noise
 P_RANDOM = code("positioning", "random")
 P_FACILITY = code("positioning", "facility-location")  # p-median (wfbench.solvers.facility_location)
+P_FACILITY_SPARSE = code("positioning", "facility-location-sparse")  # ... on the k nearest (p_median_sparse)
+
+# The candidate graphs of the sparse solver rules (docs/solvers.md, "Sparse candidate graphs"): each open
+# request considers its SPARSE_K_PEOPLE nearest dispatchable people, each p-median client its SPARSE_K_SITES
+# nearest sites, each home its SPARSE_K_MEDIANS nearest medians (Manhattan distance, ties to the lower slot);
+# chosen by measurement (benchmarks/sparse_k.py)
+SPARSE_K_PEOPLE = 8
+SPARSE_K_SITES = 8
+SPARSE_K_MEDIANS = 8
 
 # Layout of the hyper-parameter vector ``hp`` (wfbench.policies.rules.HYPERPARAMETERS: meanings and defaults).
 HP_FIELDS: tuple[str, ...] = tuple(h.name for h in HYPERPARAMETERS)
@@ -330,6 +340,61 @@ def dispatch_assignment(b, O, out, hp):
     else:
         for j in range(npl):
             out[reqs[col4row[j]]] = people[j]
+
+
+@njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
+def dispatch_assignment_sparse(b, O, out, hp):
+    """:func:`dispatch_assignment` on a sparse candidate graph: each request's ``SPARSE_K_PEOPLE`` nearest people.
+
+    Same costs (:func:`assignment_costs`) on the candidate edges, plus each request's
+    "nobody": at ``unassigned_cost`` when it is finite, else at a cost above any
+    assignment's total, so that as many requests as the graph allows are served, at the
+    least total cost (:func:`wfbench.solvers.lap.lap_sparse`, exact on the graph). The
+    decision equals the dense one's cost whenever a dense optimum uses candidate edges only.
+    """
+    N = O.personnel.shape[1]
+    out[:] = N
+    reqs, people = open_requests_and_free_people(b, O)
+    nr = reqs.shape[0]
+    npl = people.shape[0]
+    if nr == 0 or npl == 0:
+        return
+    k = min(SPARSE_K_PEOPLE, npl)
+    qx = np.empty(nr)
+    qy = np.empty(nr)
+    for i in range(nr):
+        qx[i] = O.facilities[b, reqs[i], FAC_X]
+        qy[i] = O.facilities[b, reqs[i], FAC_Y]
+    px = np.empty(npl)
+    py = np.empty(npl)
+    for j in range(npl):
+        px[j] = O.personnel[b, people[j], PER_X]
+        py[j] = O.personnel[b, people[j], PER_Y]
+    idx = np.empty((nr, k), dtype=np.int64)
+    dd = np.empty((nr, k))
+    cnt = knn_manhattan(qx, qy, px, py, k, idx, dd)
+    indptr = np.zeros(nr + 1, dtype=np.int64)
+    for i in range(nr):
+        indptr[i + 1] = indptr[i] + cnt[i]
+    indices = np.empty(indptr[nr], dtype=np.int64)
+    cost = np.empty(indptr[nr])
+    big = 1.0
+    for i in range(nr):
+        top = 0.0
+        for t in range(cnt[i]):
+            e = indptr[i] + t
+            p = people[idx[i, t]]
+            indices[e] = idx[i, t]
+            cost[e] = _dist(O, b, reqs[i], p) / hp[HP_SPEED] + revisit_penalty(hp, int(O.personnel[b, p, PER_LEVEL]))
+            top = max(top, cost[e])
+        big += top
+    u = hp[HP_UNASSIGNED]
+    nobody = np.full(nr, u if u < np.inf else big)
+    col4row = np.empty(nr, dtype=np.int64)
+    lap_sparse(npl, indptr, indices, cost, nobody, col4row)
+    for i in range(nr):
+        if col4row[i] >= 0:
+            out[reqs[i]] = people[col4row[i]]
 
 
 # -- workforce ----------------------------------------------------------------------------------
@@ -706,6 +771,143 @@ def positioning_facility(b, O, S, hp, out, t):
     S.pos_cache[b] = out
 
 
+@njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
+def positioning_facility_sparse(b, O, S, hp, out, t):
+    """:func:`positioning_facility` with its two solves on sparse candidate graphs.
+
+    The same clients, weights, refresh, p and maps; only two steps differ. The p-median
+    is solved on each client's ``SPARSE_K_SITES`` nearest sites
+    (:func:`wfbench.solvers.facility_location.p_median_sparse`: lazy greedy and swap search on the
+    lists, a client outside them priced at its distance to its next-nearest site), and the
+    homes are matched to the medians on each home's ``SPARSE_K_MEDIANS`` nearest medians
+    (:func:`wfbench.solvers.lap.lap_sparse`, with a "nobody" per home above any
+    matching's cost; the hire site is the first median left unmatched, as in the dense
+    rule). The nearest-home and second-nearest-home scans of the other steps are k-nearest
+    queries on a grid that return exactly what the dense scans find, so the let-go map
+    is the dense rule's.
+    """
+    M = O.facilities.shape[1]
+    N = O.personnel.shape[1]
+    observe_history(b, O, S, hp)
+    if t < S.pos_next[b]:
+        out[:, :] = S.pos_cache[b]
+        return
+    S.pos_next[b] = t + max(1, int(hp[HP_REFRESH]))
+    out[:, :] = 0.0
+    sites = np.empty(M, dtype=np.int64)
+    ns = 0
+    max_r = 0.0
+    max_d = 0.0
+    for f in range(M):
+        if O.facility_mask[b, f] == 1:
+            sites[ns] = f
+            ns += 1
+            max_r = max(max_r, S.demand[b, f])
+            max_d = max(max_d, O.facilities[b, f, FAC_DOWNTIME])
+    if ns == 0:
+        S.pos_cache[b] = out
+        return
+    w = np.empty(ns)
+    sx = np.empty(ns)
+    sy = np.empty(ns)
+    wr = hp[HP_REQW]
+    for k in range(ns):
+        f = sites[k]
+        d = hp[HP_FLOOR]
+        if max_r > 0.0:
+            d += wr * S.demand[b, f] / max_r
+        if max_d > 0.0:
+            d += (1.0 - wr) * O.facilities[b, f, FAC_DOWNTIME] / max_d
+        w[k] = d
+        sx[k] = O.facilities[b, f, FAC_X]
+        sy[k] = O.facilities[b, f, FAC_Y]
+    # each client's nearest sites; the (k+1)-th prices the sites outside its list
+    ks = min(SPARSE_K_SITES + 1, ns)
+    cand = np.empty((ns, ks), dtype=np.int64)
+    cd = np.empty((ns, ks))
+    knn_manhattan(sx, sy, sx, sy, ks, cand, cd)
+    kc = min(SPARSE_K_SITES, ns)
+    far = np.full(ns, np.inf)
+    ccost = np.empty((ns, kc))
+    count = np.full(ns, kc, dtype=np.int64)
+    for j in range(ns):
+        for q in range(kc):
+            ccost[j, q] = w[j] * cd[j, q]
+        if ks > kc:
+            far[j] = w[j] * cd[j, kc]
+    hx = np.empty(N)
+    hy = np.empty(N)
+    h = _retained_homes(b, O, hx, hy)
+    # hire map
+    p_med = min(h + 1, ns)
+    is_open, _ = p_median_sparse(ns, cand[:, :kc].copy(), ccost, count, far, p_med, 1000, 1e-9)
+    med = np.empty(p_med, dtype=np.int64)
+    k = 0
+    for i in range(ns):
+        if is_open[i]:
+            med[k] = i
+            k += 1
+    hire = -1
+    # each site's two nearest homes (the let-go map; the nearest alone for the hire site below)
+    kh = min(2, h)
+    hn = np.empty((ns, max(kh, 1)), dtype=np.int64)
+    hd = np.empty((ns, max(kh, 1)))
+    if h > 0:
+        knn_manhattan(sx, sy, hx[:h], hy[:h], kh, hn, hd)
+    if p_med > h:
+        if h == 0:
+            hire = med[0]
+        else:
+            # rows = homes (h < p_med), columns = medians: the first median left unmatched is the hire site
+            mx = np.empty(p_med)
+            my = np.empty(p_med)
+            for c in range(p_med):
+                mx[c] = sx[med[c]]
+                my[c] = sy[med[c]]
+            km = min(SPARSE_K_MEDIANS, p_med)
+            mi = np.empty((h, km), dtype=np.int64)
+            md = np.empty((h, km))
+            knn_manhattan(hx[:h], hy[:h], mx, my, km, mi, md)
+            indptr = np.arange(h + 1, dtype=np.int64) * km
+            big = 1.0
+            for r in range(h):
+                big += md[r, km - 1]
+            col4row = np.empty(h, dtype=np.int64)
+            lap_sparse(p_med, indptr, mi.ravel(), md.ravel(), np.full(h, big), col4row)
+            taken = np.zeros(p_med, dtype=np.bool_)
+            for r in range(h):
+                if col4row[r] >= 0:
+                    taken[col4row[r]] = True
+            for c in range(p_med):
+                if not taken[c]:
+                    hire = med[c]
+                    break
+    else:
+        # every site already has someone: the site whose demand is farthest from any home
+        best = -1.0
+        for j in range(ns):
+            near = hd[j, 0] if h > 0 else np.inf
+            if w[j] * near > best:
+                best = w[j] * near
+                hire = j
+    out[0, sites[hire]] = 1.0
+    # let-go map: removal cost of each retained person (clients move to their second nearest home)
+    if h >= 2:
+        delta = np.zeros(h)
+        for j in range(ns):
+            delta[hn[j, 0]] += w[j] * (hd[j, 1] - hd[j, 0])
+        lo = delta.min()
+        hi = delta.max()
+        ni = np.empty((h, 1), dtype=np.int64)
+        nd = np.empty((h, 1))
+        knn_manhattan(hx[:h], hy[:h], sx, sy, 1, ni, nd)
+        for r in range(h):
+            near = sites[ni[r, 0]]
+            v = 1.0 if hi <= lo else 1.0 - (delta[r] - lo) / (hi - lo)
+            out[1, near] = max(out[1, near], v * v)
+    S.pos_cache[b] = out
+
+
 # -- one environment, all three decisions --------------------------------------------------------
 @njit(cache=True, inline="always")
 def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
@@ -729,6 +931,8 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
         dispatch_random(b, O, dispatch[b], S.keys[b, 0], t, S.used_buf[b])
     elif dc == D_ASSIGN:
         dispatch_assignment(b, O, dispatch[b], hp[0])
+    elif dc == D_ASSIGN_SPARSE:
+        dispatch_assignment_sparse(b, O, dispatch[b], hp[0])
     else:
         dispatch[b, :] = O.personnel.shape[1]
     wc = codes[1]
@@ -755,6 +959,8 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
         positioning_random(b, O, positioning[b], S.keys[b, 2], t)
     elif pc == P_FACILITY:
         positioning_facility(b, O, S, hpp, positioning[b], t)
+    elif pc == P_FACILITY_SPARSE:
+        positioning_facility_sparse(b, O, S, hpp, positioning[b], t)
     else:
         positioning[b, :, :] = 0.0
 

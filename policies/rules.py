@@ -110,6 +110,8 @@ RULES: tuple[Rule, ...] = (
     Rule("dispatch", "inverse-distance", "Heuristic (stochastic)"),
     Rule("dispatch", "random", "Random"),
     Rule("dispatch", "assignment", "Assignment", ("revisit_cost",)),  # wfbench.solvers.lap
+    # the same on each request's k nearest people (wfbench.solvers.lap; docs/solvers.md, "Sparse candidate graphs")
+    Rule("dispatch", "assignment-sparse", "Assignment (sparse)", ("revisit_cost",)),
     Rule("workforce", "fixed", "Fixed"),
     Rule("workforce", "threshold", "Heuristic", _THRESHOLD),
     Rule("workforce", "threshold-epsilon", "Heuristic (stochastic)", (*_THRESHOLD, "epsilon")),
@@ -121,6 +123,8 @@ RULES: tuple[Rule, ...] = (
     Rule("positioning", "spatial-gaussian", "Heuristic (stochastic)", (*_SPATIAL, "noise")),
     Rule("positioning", "random", "Random"),
     Rule("positioning", "facility-location", "p-median",  # wfbench.solvers.facility_location
+         ("refresh", "demand_floor", *_SPATIAL)),
+    Rule("positioning", "facility-location-sparse", "p-median (sparse)",  # ... on each client's k nearest sites
          ("refresh", "demand_floor", *_SPATIAL)),
 )
 """The built-in rules: for each decision the no-op (code 0), then its rules in code order."""

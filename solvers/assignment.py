@@ -335,3 +335,42 @@ def solve(
             gap=relative_gap(obj, bound), message=f"LP status {status}; rounding: {how}",
             detail={"rebuilt": rebuilt, "lp_objective": lp_value, "lp_solution": x},
         )
+
+
+def candidate_mask(distance: Any, k: int) -> np.ndarray:
+    """Each row's ``k`` nearest columns by ``distance`` (ties to the lower column): the sparse candidate graph.
+
+    The plain reference of the compiled rule ``assignment-sparse``
+    (:func:`wfbench.solvers.lap.knn_manhattan`, docs/solvers.md "Sparse candidate graphs").
+    """
+    D = as_matrix(distance, "distance")
+    if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1:
+        raise SolverInputError(f"k = {k!r} is not allowed; allowed: an integer >= 1")
+    n, m = D.shape
+    mask = np.zeros((n, m), dtype=bool)
+    if m:
+        order = np.argsort(D, axis=1, kind="stable")[:, :k]
+        mask[np.arange(n)[:, None], order] = True
+    return mask
+
+
+def solve_sparse(cost: Any, candidates: Any, unassigned_cost: Any = None) -> SolveResult:
+    """Min-cost assignment on a candidate graph, every row allowed "nobody": the reference of ``lap_sparse``.
+
+    ``candidates`` (the shape of ``cost``, True = an edge) is usually :func:`candidate_mask`.
+    With ``unassigned_cost`` a row is left unassigned at that cost; without it, at a cost
+    above any assignment's total, so the optimum serves as many rows as the graph allows,
+    then at the least cost (the dense rule's "as many as possible"). Exact on the graph
+    (scipy); its objective counts only the pairs made and the given unassigned costs.
+    """
+    C, allowed, u = _inputs(cost, candidates, unassigned_cost)
+    n, m = C.shape
+    big = None
+    if u is None:
+        top = np.where(allowed, C, -np.inf).max(axis=1, initial=0.0) if m else np.zeros(n)
+        big = np.full(n, 1.0 + np.abs(top).sum())
+    with Timer() as clock:
+        sol = _exact(C, allowed, u if u is not None else big)
+        obj = _objective(C, u, sol)
+    return SolveResult(OPTIMAL, obj, sol, obj, clock.elapsed, "scipy.linear_sum_assignment", "exact", gap=0.0,
+                       message=f"{int((sol >= 0).sum())} of {n} rows assigned on the candidate graph")

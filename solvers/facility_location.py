@@ -22,6 +22,16 @@ Methods:
   local search over add, drop and swap moves (swaps only for p-median), evaluated with
   the nearest / second-nearest bookkeeping of Whitaker's fast interchange so that a
   full neighbourhood costs ``O(m n)``. No bound; compare with the MILP for the gap.
+
+:func:`p_median_sparse` is the compiled greedy and swap search on sparse candidate lists
+(issue #35; docs/solvers.md, "Sparse candidate graphs"): client j may be served only by its
+k nearest sites, or else at ``far[j]`` (its weight times the distance to its (k+1)-th
+nearest site, a lower bound on what any other site costs it). For a set of medians that
+gives every client one of its k nearest, the sparse objective is the dense one. The greedy
+is lazy (a gain only falls as sites open, so a stale gain bounds the fresh one) and picks
+the dense greedy's site, ties included, when the lists are complete; the swap search keeps
+the nearest / second-nearest bookkeeping over the lists, so one neighbourhood costs
+O(clients x k + sites log sites) instead of O(sites x clients).
 """
 
 from __future__ import annotations
@@ -190,6 +200,228 @@ def local_search(C, f, is_open, p, max_iter, tol):
             is_open[bk] = True
             is_open[br] = False
     return it
+
+
+# -- p-median on candidate lists -----------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _gain(rp, rj, rc, d1, i, first):
+    """Cost saved by opening site i (``first``: no site open yet, the dense greedy's minus-sum form)."""
+    s = 0.0
+    if first:
+        for e in range(rp[i], rp[i + 1]):
+            s += rc[e]
+        return -s
+    for e in range(rp[i], rp[i + 1]):
+        j = rj[e]
+        if rc[e] < d1[j]:
+            s += d1[j] - rc[e]
+    return s
+
+
+@njit(cache=True, inline="always")
+def _hbetter(ga, ia, gb, ib):
+    return ga > gb or (ga == gb and ia < ib)
+
+
+@njit(cache=True)
+def _hpush(hg, hi, size, g, i):
+    s = size
+    hg[s] = g
+    hi[s] = i
+    while s > 0:
+        par = (s - 1) // 2
+        if not _hbetter(hg[s], hi[s], hg[par], hi[par]):
+            break
+        hg[par], hg[s] = hg[s], hg[par]
+        hi[par], hi[s] = hi[s], hi[par]
+        s = par
+    return size + 1
+
+
+@njit(cache=True)
+def _hpop(hg, hi, size):
+    size -= 1
+    hg[0] = hg[size]
+    hi[0] = hi[size]
+    s = 0
+    while True:
+        a = 2 * s + 1
+        if a >= size:
+            break
+        b = a + 1
+        if b < size and _hbetter(hg[b], hi[b], hg[a], hi[a]):
+            a = b
+        if not _hbetter(hg[a], hi[a], hg[s], hi[s]):
+            break
+        hg[a], hg[s] = hg[s], hg[a]
+        hi[a], hi[s] = hi[s], hi[a]
+        s = a
+    return size
+
+
+@njit(cache=True)
+def reverse_lists(m, cand, ccost, count):
+    """Site -> its clients (ascending), with the costs: the CSR transpose of the client lists ``cand``."""
+    n = cand.shape[0]
+    rp = np.zeros(m + 1, dtype=np.int64)
+    for j in range(n):
+        for t in range(count[j]):
+            rp[cand[j, t] + 1] += 1
+    for i in range(m):
+        rp[i + 1] += rp[i]
+    fill = rp[:-1].copy()
+    rj = np.empty(rp[m], dtype=np.int64)
+    rc = np.empty(rp[m])
+    for j in range(n):
+        for t in range(count[j]):
+            i = cand[j, t]
+            rj[fill[i]] = j
+            rc[fill[i]] = ccost[j, t]
+            fill[i] += 1
+    return rp, rj, rc
+
+
+@njit(cache=True)
+def _nearest_two_sparse(cand, ccost, count, far, is_open, d1, a1, d2):
+    """Each client's cheapest and second-cheapest open candidate (``far`` standing for every other site)."""
+    for j in range(cand.shape[0]):
+        b1 = far[j]
+        b2 = far[j]
+        ai = -1
+        for t in range(count[j]):
+            i = cand[j, t]
+            if is_open[i]:
+                c = ccost[j, t]
+                if c < b1 or (c == b1 and (ai < 0 or i < ai)):
+                    b2 = b1
+                    b1 = c
+                    ai = i
+                elif c < b2:
+                    b2 = c
+        d1[j] = b1
+        a1[j] = ai
+        d2[j] = b2
+
+
+@njit(cache=True)
+def p_median_sparse(m, cand, ccost, count, far, p, max_iter, tol):
+    """Open ``p`` of ``m`` sites: lazy greedy, then best-improvement swaps, on the candidate lists.
+
+    ``cand`` (n, k) are client j's candidate sites (its k nearest), ``ccost`` the costs
+    (weight x distance), ``count`` how many are valid, ``far[j]`` the cost of serving j
+    from any other site (inf when the lists are complete). Returns the open flags and the
+    number of swap iterations.
+    """
+    n = cand.shape[0]
+    rp, rj, rc = reverse_lists(m, cand, ccost, count)
+    is_open = np.zeros(m, dtype=np.bool_)
+    d1 = far.copy()
+    complete = True
+    for j in range(n):
+        if far[j] < np.inf:
+            complete = False
+    hg = np.empty(max(m, 1))  # a pop precedes every push after the build: at most m entries
+    hi = np.empty(hg.shape[0], dtype=np.int64)
+    n_open = 0
+    size = 0
+    while n_open < p:
+        first = complete and n_open == 0
+        if n_open == 0 or (complete and n_open == 1):  # (re)build: the first gains are not bounds of the later
+            size = 0
+            for i in range(m):
+                if not is_open[i]:
+                    size = _hpush(hg, hi, size, _gain(rp, rj, rc, d1, i, first), i)
+        bi = -1
+        while size > 0:
+            i = hi[0]
+            size = _hpop(hg, hi, size)
+            g = _gain(rp, rj, rc, d1, i, first)
+            if size == 0 or not _hbetter(hg[0], hi[0], g, i):
+                bi = i
+                break
+            size = _hpush(hg, hi, size, g, i)
+        if bi < 0:
+            break
+        is_open[bi] = True
+        n_open += 1
+        for e in range(rp[bi], rp[bi + 1]):
+            j = rj[e]
+            if rc[e] < d1[j]:
+                d1[j] = rc[e]
+    # best-improvement swaps (the dense local_search's move, on the lists)
+    d2 = np.empty(n)
+    a1 = np.empty(n, dtype=np.int64)
+    base = np.zeros(m)
+    corr = np.zeros(m)
+    mark = np.zeros(m, dtype=np.bool_)
+    tl = np.empty(m, dtype=np.int64)
+    it = 0
+    while it < max_iter:
+        it += 1
+        _nearest_two_sparse(cand, ccost, count, far, is_open, d1, a1, d2)
+        base[:] = 0.0
+        for j in range(n):
+            if a1[j] >= 0:
+                base[a1[j]] += d2[j] - d1[j]
+        opened = np.flatnonzero(is_open)
+        keys = np.empty(opened.shape[0])
+        for t in range(opened.shape[0]):
+            keys[t] = base[opened[t]]
+        srt = opened[np.argsort(keys, kind="mergesort")]  # by (base, site)
+        best = -tol
+        bk = -1
+        br = -1
+        for k in range(m):
+            if is_open[k]:
+                continue
+            gain = 0.0
+            nt = 0
+            for e in range(rp[k], rp[k + 1]):
+                j = rj[e]
+                c = rc[e]
+                r = a1[j]
+                if c < d1[j]:
+                    gain += c - d1[j]
+                    if r >= 0:
+                        if not mark[r]:
+                            mark[r] = True
+                            corr[r] = 0.0
+                            tl[nt] = r
+                            nt += 1
+                        corr[r] -= d2[j] - d1[j]
+                elif r >= 0:
+                    if not mark[r]:
+                        mark[r] = True
+                        corr[r] = 0.0
+                        tl[nt] = r
+                        nt += 1
+                    corr[r] += min(c, d2[j]) - d2[j]
+            # the best site to close: the smallest base among the untouched, or a touched one
+            lr = -1
+            lv = np.inf
+            for t in range(srt.shape[0]):
+                if not mark[srt[t]]:
+                    lr = srt[t]
+                    lv = base[lr]
+                    break
+            for t in range(nt):
+                r = tl[t]
+                val = base[r] + corr[r]
+                if val < lv or (val == lv and r < lr):
+                    lv = val
+                    lr = r
+                mark[r] = False
+            if lr >= 0:
+                delta = gain + lv
+                if delta < best:
+                    best = delta
+                    bk = k
+                    br = lr
+        if bk < 0:
+            break
+        is_open[bk] = True
+        is_open[br] = False
+    return is_open, it
 
 
 def _assignment(C: np.ndarray, is_open: np.ndarray) -> np.ndarray:
