@@ -32,13 +32,14 @@ import functools
 import getpass
 import hashlib
 import json
+import math
 import os
 import signal
 import sys
 import sysconfig
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -75,6 +76,8 @@ class Outcome:
     seconds: float
     trace: str = ""  # the failure's whole traceback, formatted in the child (for --traceback)
     action: str = "resumed"  # new | resumed | replaced | legacy (Store.open_submission)
+    # CPU seconds of this run's episodes per scenario ("" on a single-scenario track), as the rows report them
+    scenario_seconds: dict[str, float] = field(default_factory=dict)
 
 
 # -- fingerprints ----------------------------------------------------------------------------------------------
@@ -295,6 +298,74 @@ def _child(conn, policy_spec: str, configs, backend, workers, address, chunk_siz
         conn.send(("error", f"{_one_line(exc)}{_where(exc)}", traceback.format_exc()))
 
 
+class RemainingTime:
+    """An honest estimate of the time left over episodes of unequal cost (a suite track's scenarios).
+
+    An episode of ``city`` costs a hundred of ``small``, so a count of episodes done says little
+    about the time left. The cost of a scenario's episode is measured (the mean CPU seconds its
+    finished rows report); a scenario not started yet is estimated from its size (slots times
+    horizon) at the cost per unit of size measured on the scenarios that have finished
+    episodes. The wall seconds per unit of cost (which folds in the workers running side by
+    side) come from what finished since :meth:`start`. Before the first rows there is no
+    estimate (``None``), never a guess.
+
+    Args:
+        units: every (scenario, seed) the entry needs.
+        configs: each scenario's config (``Track.configs()``).
+        done: the units already stored (a resumed entry).
+    """
+
+    def __init__(self, units: list[tuple[str, int]], configs: dict[str, Any], done: set[tuple[str, int]]):
+        self.size = {sc: float((c.max_facilities + c.max_personnel) * c.horizon) for sc, c in configs.items()}
+        self.left: dict[str, int] = {}
+        for sc, seed in units:
+            if (sc, seed) not in done:
+                self.left[sc] = self.left.get(sc, 0) + 1
+        self.finished: dict[str, int] = {}
+        self.cpu: dict[str, list[float]] = {}
+        self.t0 = time.monotonic()
+
+    def add(self, rows: list[dict[str, Any]]) -> None:
+        """Count finished rows and their measured CPU seconds."""
+        for row in rows:
+            sc = row.get("scenario", "")
+            self.left[sc] = max(0, self.left.get(sc, 0) - 1)
+            self.finished[sc] = self.finished.get(sc, 0) + 1
+            cpu = row.get("cpu_s")
+            if cpu is not None and math.isfinite(cpu):
+                self.cpu.setdefault(sc, []).append(float(cpu))
+
+    def cost(self, scenario: str) -> float | None:
+        """The estimated CPU seconds of one episode of ``scenario`` (None before any measurement)."""
+        if self.cpu.get(scenario):
+            return sum(self.cpu[scenario]) / len(self.cpu[scenario])
+        measured = [sc for sc in self.cpu if self.cpu[sc]]
+        if not measured:
+            return None
+        per_size = sum(self.cost(sc) for sc in measured) / sum(self.size[sc] for sc in measured)
+        return per_size * self.size[scenario]
+
+    def seconds_left(self) -> float | None:
+        """Wall seconds until every unit is done, at the pace since the episodes started."""
+        costs = {sc: self.cost(sc) for sc in self.size}
+        if any(c is None for c in costs.values()):
+            return None
+        done_work = sum(n * costs[sc] for sc, n in self.finished.items())
+        if done_work <= 0:
+            return None
+        left_work = sum(n * costs[sc] for sc, n in self.left.items())
+        return (time.monotonic() - self.t0) * left_work / done_work
+
+    def per_scenario(self) -> dict[str, float]:
+        """CPU seconds of the finished episodes, per scenario."""
+        return {sc: float(sum(v)) for sc, v in self.cpu.items()}
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.0f} min" if seconds < 5400 \
+        else f"{seconds / 3600:.1f} h"
+
+
 def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: str | None = None, db: Any = None,
            backend: str = "process", workers: int | None = None, address: str | None = None,
            wall_time_s: float = DEFAULT_WALL_TIME_S, memory_mb: int | None = DEFAULT_MEMORY_MB,
@@ -376,6 +447,7 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
     units = tr.units()
     action = "resumed"
     bar = None
+    clock: RemainingTime | None = None
     sub: Submission | None = None
     new_rows = 0
     status, reason, trace = "failed", "", ""
@@ -418,15 +490,25 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
                         status, child_ends = "complete", True
                         break
                     parent_conn.send(("run", missing))
+                    clock = RemainingTime(units, tr.configs(), done)
                     if progress:
                         from tqdm.auto import tqdm
 
+                        # tqdm's own rate assumes episodes of equal cost: the estimate is RemainingTime's
                         bar = tqdm(total=len(units), initial=len(done), desc=f"{name} on {tr.name}",
-                                   unit="episode", leave=False)
+                                   unit="episode", leave=False,
+                                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n}/{total} episodes "
+                                              "[{elapsed}{postfix}]")
+                        bar.set_postfix_str("time left: after the first episodes", refresh=True)
                 elif kind == "rows":
                     assert sub is not None
                     new_rows += store.add_results(sub, __version__, msg[1])
+                    if clock is not None:
+                        clock.add(msg[1])
                     if bar:
+                        left = clock.seconds_left() if clock is not None else None
+                        bar.set_postfix_str("time left: " + ("after the first episodes of each size" if left is None
+                                                             else f"about {_duration(left)}"), refresh=False)
                         bar.update(len(msg[1]))
                 elif kind == "done":
                     status, child_ends = "complete", True
@@ -454,7 +536,8 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
     # the board shows the stored reason: no absolute path of the submitter's machine (the caller gets it whole)
     store.set_status(sub.id, status, scrub_paths(reason, os.getcwd()))
     return Outcome(store.find(tr.name, name), status, reason, new_rows, stored,  # type: ignore[arg-type]
-                   time.perf_counter() - t0, trace, action)
+                   time.perf_counter() - t0, trace, action,
+                   clock.per_scenario() if clock is not None else {})
 
 
 def _what(tr: Track | SuiteTrack) -> str:
@@ -496,6 +579,15 @@ def _death_reason(exitcode: int | None, memory_mb: int | None) -> str:
         hint = f"; out of memory? (limit {memory_mb} MiB)" if sig == "SIGKILL" else ""
         return f"the evaluation process was killed by {sig}{hint}"
     return f"the evaluation process exited unexpectedly (exit code {exitcode})"
+
+
+def scenario_times(out: Outcome) -> str:
+    """One line: the CPU seconds this run spent per scenario, costliest first ("" on a single-scenario track)."""
+    times = {sc: t for sc, t in out.scenario_seconds.items() if sc}
+    if not times:
+        return ""
+    parts = ", ".join(f"{sc} {t:.3g}" for sc, t in sorted(times.items(), key=lambda kv: (-kv[1], kv[0])))
+    return f"CPU seconds per scenario (this run's episodes, costliest first): {parts}"
 
 
 def seed_tracks(track: str | Track | SuiteTrack | None = None) -> list[Track | SuiteTrack]:

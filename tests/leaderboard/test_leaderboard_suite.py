@@ -12,6 +12,7 @@ from wfbench.leaderboard.submit import submit
 from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, get_track
 
 from wfbench.cli import main
+from wfbench.core.config import ScenarioConfig
 from wfbench.scenarios import Suite, get_suite, normalize
 
 FULL = get_suite("suite-v1")
@@ -111,3 +112,43 @@ def test_results_of_another_suite_version_are_refused(db):
                           f"tiny-suite (hash {TINY.hash}, current {changed.hash}); refused")
     r = suite_report.ranking(store, changed)
     assert r.table.loc[0, "rank"] is None and "0/8" in suite_report.render(r, "table")
+
+
+def test_time_left_weighs_scenarios_by_their_measured_and_estimated_cost(monkeypatch):
+    """Issue #35: a count of episodes says little when one scenario costs a hundred of another."""
+    from wfbench.leaderboard import submit as submit_mod
+
+    now = [100.0]
+    monkeypatch.setattr(submit_mod.time, "monotonic", lambda: now[0])
+    small, big = ScenarioConfig.preset("small").replace(horizon=100), ScenarioConfig.preset("large")
+    configs = {"a": small, "b": big}
+    units = [(sc, s) for sc in configs for s in range(4)]
+    clock = submit_mod.RemainingTime(units, configs, done={("a", 0)})
+    assert clock.seconds_left() is None and clock.cost("b") is None  # nothing measured: no guess
+    now[0] = 110.0  # 10 s for two episodes of "a" at 1 CPU second each
+    clock.add([{"scenario": "a", "cpu_s": 1.0}, {"scenario": "a", "cpu_s": 1.0}])
+    ratio = clock.size["b"] / clock.size["a"]
+    assert clock.cost("a") == 1.0 and clock.cost("b") == pytest.approx(ratio)  # "b" by its size
+    # left: one "a" and four "b" episodes; the pace: 10 wall seconds for 2 units of cost
+    assert clock.seconds_left() == pytest.approx(10.0 * (1 + 4 * ratio) / 2)
+    now[0] = 130.0
+    clock.add([{"scenario": "b", "cpu_s": 50.0}])  # measured: "b" is what it costs, not what its size says
+    assert clock.cost("b") == 50.0
+    assert clock.seconds_left() == pytest.approx(30.0 * (1 * 1.0 + 3 * 50.0) / (2 * 1.0 + 1 * 50.0))
+    clock.add([{"scenario": "b", "cpu_s": float("nan")}])  # a row without a measurement counts, adds no cost
+    assert clock.left["b"] == 2 and clock.cost("b") == 50.0
+    assert clock.per_scenario() == {"a": 2.0, "b": 50.0}
+
+
+@pytest.mark.slow
+def test_a_suite_submission_reports_its_time_per_scenario(db, monkeypatch, capsys):
+    monkeypatch.setitem(TRACKS, TINY.name, TINY)
+    assert main(["leaderboard", "submit", "--policy", "heuristic", "--name", "h", "--track", TINY.name,
+                 "--db", str(db), "--backend", "serial"]) == 0
+    out, err = capsys.readouterr()
+    line = next(x for x in out.splitlines() if x.startswith("CPU seconds per scenario"))
+    assert "small-v1" in line and "slow-64-v1" in line, line
+    # the bar: no estimate before the first rows, then one weighted by the scenarios' costs
+    assert "0/6 episodes" in err and "time left: after the first episodes" in err and "time left: about" in err, err
+    o = submit(TINY, "random", "r", db=db, backend="serial")
+    assert set(o.scenario_seconds) == {"small-v1", "slow-64-v1"} and all(t > 0 for t in o.scenario_seconds.values())

@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     # the report is imported here: it loads scipy.stats, which slows every start of the command line
     from wfbench.leaderboard.report import check_format
     from wfbench.leaderboard.store import Store, StoreError
-    from wfbench.leaderboard.submit import SubmitError, describe, seed_builtins, seed_tracks, submit
+    from wfbench.leaderboard.submit import SubmitError, describe, scenario_times, seed_builtins, seed_tracks, submit
     from wfbench.leaderboard.suite_report import show
     from wfbench.leaderboard.tracks import TRACKS, get_track
 
@@ -99,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
             store = Store(args.db)
             if out.status == "complete":
                 print(describe(out, tr, store.path))
+                if times := scenario_times(out):
+                    print(times)
                 return 0
             if args.traceback and out.trace:
                 print(out.trace, end="" if out.trace.endswith("\n") else "\n", file=sys.stderr)
