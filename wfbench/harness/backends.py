@@ -167,6 +167,30 @@ class ClusterError(RuntimeError):
     """The Ray cluster an address names cannot be joined; the message is one line naming it and what to check."""
 
 
+def _probe_authentication(address: str) -> None:
+    """One request to the cluster's GCS with this machine's Ray token, so that a refused token is one line at once.
+
+    ``ray.init`` meets a token the cluster refuses with a warning every second for about 20 s and
+    then a ``ConnectionError`` that names a stale address. Ray's own GCS client answers the
+    same question in a fraction of a second with an ``AuthenticationError``. The client is
+    Ray's internal one (``ray._raylet.GcsClient``), so anything other than that error (another
+    Ray version's signature, a slow GCS) leaves the question to ``ray.init`` as before.
+    """
+    import ray.exceptions
+
+    try:
+        from ray._raylet import GcsClient
+
+        GcsClient(address=address, cluster_id=None).internal_kv_keys(b"", None, timeout=RAY_PROBE_TIMEOUT_S)
+    except ray.exceptions.AuthenticationError as exc:
+        first = (str(exc).strip().splitlines() or ["authentication failed"])[0].split(". ")[0]
+        raise ClusterError(f"the Ray cluster at {address} refused this machine's authentication token ({first}); "
+                           "set RAY_AUTH_TOKEN (or RAY_AUTH_TOKEN_PATH) to the cluster's token, with "
+                           "RAY_AUTH_MODE=token") from None
+    except Exception:  # noqa: BLE001, S110  (not an answer about the token: ray.init decides, as without the probe)
+        pass
+
+
 def join_ray(address: str, **init_kwargs) -> None:
     """``ray.init(address=...)``, failing fast with one line that names the address and what to check.
 
@@ -187,6 +211,7 @@ def join_ray(address: str, **init_kwargs) -> None:
             raise ClusterError(f"no Ray cluster answers at {address} ({why}); check that `ray start --head --port "
                                f"{port}` runs on {host} and that this machine can reach that port (firewall, the "
                                "address the head prints)") from None
+        _probe_authentication(address)
     try:
         ray.init(address=address, **init_kwargs)
     except Exception as exc:  # noqa: BLE001  (Ray's own errors are many classes; the user needs one line)
