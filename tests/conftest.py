@@ -62,8 +62,21 @@ def browser_or_skip() -> str:
 
 
 def pytest_configure(config):
+    # the oracle's totals cache (wfbench.policies.oracle.cache) goes to a folder of this run, never the user's
+    # cache: a test that counts plays must not find an earlier run's totals (subprocesses inherit the variable)
+    if not os.environ.get("WFBENCH_ORACLE_CACHE"):
+        import tempfile
+
+        os.environ["WFBENCH_ORACLE_CACHE"] = config._wfbench_oracle_cache = tempfile.mkdtemp(
+            prefix="wfbench-oracle-totals-")
     config.addinivalue_line("markers", "needs_browser: the test opens a page in a headless browser; it skips with "
                                        f"its reason without one, and fails instead under {REQUIRE_BROWSER}=1")
+
+
+def pytest_unconfigure(config):
+    made = getattr(config, "_wfbench_oracle_cache", None)  # only the process that made it (xdist's workers inherit)
+    if made:
+        shutil.rmtree(made, ignore_errors=True)
 
 
 def pytest_runtest_setup(item):

@@ -13,7 +13,10 @@ candidate's episode again:
   (:func:`~wfbench.policies.oracle.rollout.roll_forward` from the reset state, which is the
   whole-episode rollout) and replayed live: a fresh copy of it acts on the rows of the
   seeds that chose it. Its randomness is keyed by each environment's seed and its state
-  is per row, so it acts the same on a sub-batch as on the whole batch;
+  is per row, so it acts the same on a sub-batch as on the whole batch. For the same
+  reason its episode total on a seed is the same bits in any batch: the totals cache
+  (:mod:`wfbench.policies.oracle.cache`) holds those the runner or an earlier oracle
+  played, and only the seeds it lacks are played (``cached`` counts the others);
 - any other candidate (the hindsight planner ``oracle-planner``, the shipped networks)
   is played through ``reset``/``act``/``step`` and its actions are recorded: the
   dispatches that send somebody, the workforce code of each step, and the positioning
@@ -41,6 +44,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from wfbench.policies.oracle import cache as totals_cache
 from wfbench.policies.oracle.rollout import roll_forward
 from wfbench.policies.protocol import seeds_array
 
@@ -117,6 +121,7 @@ class BestInHindsight:
         self.scores: np.ndarray | None = None  # (B, candidates) episode NSW, NaN where stopped early
         self.choice: list[str] = []
         self.timing: dict[str, float] = {}
+        self.cached: dict[str, int] = {}  # compiled candidate -> seeds whose total came from the totals cache
 
     def __repr__(self) -> str:
         return f"BestInHindsight({self.name!r}, {len(self.candidates)} candidates)"
@@ -139,12 +144,12 @@ class BestInHindsight:
         best_total = np.full(B, -np.inf)
         best = np.full(B, -1, dtype=np.int64)
         kept: dict[int, tuple[str, Any]] = {}  # candidate -> ("live", policy) or ("recorded", _Recording)
-        self.timing = {}
+        self.timing, self.cached = {}, {}
         for k, name in enumerate(self.candidates):
             start = time.perf_counter()
             policy = self.resolve(name)
             if getattr(policy, "compiled", False):
-                total, how = self._play_compiled(policy, seeds), ("live", policy)
+                (total, self.cached[name]), how = self._play_compiled(policy, seeds), ("live", policy)
             else:
                 total, rec = self._play_recorded(policy, seeds, best_total)
                 how = ("recorded", rec)
@@ -166,13 +171,28 @@ class BestInHindsight:
                 obj.reset(seeds[rows])
             self._groups.append((kind, obj, rows))
 
-    def _play_compiled(self, policy: Any, seeds: np.ndarray) -> np.ndarray:
-        """Episode totals of NSW of a composite of built-in kernels, compiled."""
-        sim = Simulator(self.config, [int(s) for s in seeds], keep_series=False, threads=1)
+    def _play_compiled(self, policy: Any, seeds: np.ndarray) -> tuple[np.ndarray, int]:
+        """Episode totals of NSW of a composite of built-in kernels, and how many seeds' came from the cache.
+
+        The totals cache (:mod:`wfbench.policies.oracle.cache`) is asked first; only the
+        seeds it does not hold are played, compiled, as one batch: a compiled candidate's
+        total on a seed does not depend on its batch.
+        """
+        c = self.config
+        codes, hp, pstate = policy.compiled_plan(seeds, c.max_facilities, c.max_personnel)
+        key = totals_cache.policy_key(c, codes, hp)
+        total, found = totals_cache.lookup(key, seeds, pstate.keys)
+        if found.all():
+            return total, int(found.sum())
+        rows = np.flatnonzero(~found)
+        sim = Simulator(c, [int(s) for s in seeds[rows]], keep_series=False, threads=1)
         sim.reset()
-        codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
-        roll_forward(sim, self.config.horizon, codes, hp, pstate)
-        return sim.state.totals[:, K_NSW].astype(np.float64)
+        codes, hp, pstate = policy.compiled_plan(seeds[rows], sim.M, sim.N)
+        keys = pstate.keys.copy()  # before the episode (the kernels may advance them)
+        roll_forward(sim, c.horizon, codes, hp, pstate)
+        total[rows] = sim.state.totals[:, K_NSW].astype(np.float64)
+        totals_cache.store(key, seeds[rows], keys, total[rows])
+        return total, int(found.sum())
 
     def _play_recorded(self, policy: Any, seeds: np.ndarray, best_total: np.ndarray) -> tuple[np.ndarray, _Recording]:
         """Episode totals of NSW of any policy played through ``act`` (NaN when stopped early), and its actions."""

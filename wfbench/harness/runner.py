@@ -7,7 +7,10 @@ A policy that declares ``reads_trace = True`` (a hindsight oracle, docs/hindsigh
 handed the scenario with ``attach(config)`` before ``reset``; no other policy is.
 Each environment is independent and all its randomness is indexed by its seed, so a
 seed's numbers do not depend on the batch it ran in. :func:`results_frame` turns
-finished batches into one row per seed.
+finished batches into one row per seed. The compiled rollout of a registry name also
+leaves its episode totals of NSW in the totals cache
+(:mod:`wfbench.policies.oracle.cache`), where the ``oracle`` finds its compiled
+candidates' episodes instead of playing them again.
 
 A batch also measures what it cost, in the process that ran it: the wall time of each
 decision and the CPU seconds per episode (the budget columns, :mod:`wfbench.harness.budget`
@@ -34,7 +37,10 @@ from wfbench.core.state import COUNTERS, INVALID_COUNTERS, METRICS
 from wfbench.harness.budget import machine
 from wfbench.harness.guard import LoadedPolicy, load_policy
 from wfbench.policies import Composite
+from wfbench.policies.oracle import cache as totals_cache
 from wfbench.policies.rollout import rollout
+
+K_NSW = METRICS.index("nsw")
 
 
 @dataclass
@@ -118,6 +124,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
 
         if isinstance(policy, Composite) and policy.compiled:
             codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
+            keys = pstate.keys.copy()  # before the episode, for the totals cache
             c0, r0 = compiling.cpu, time.process_time()
             rollout(sim, codes, hp, pstate, threads)
             # one compiled call: its CPU time over the environment-steps it ran (wfbench.harness.budget)
@@ -143,6 +150,9 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
             q = np.percentile(per_step, [50, 99]) if per_step else (float("nan"), float("nan"))
             decision_ms, timing = (float(q[0]), float(q[1])), "act"
         cpu_s = max(0.0, time.process_time() - cpu0 - compiling.cpu) / max(1, len(seeds))
+    if timing == "rollout" and guard is None:  # a registry name: the oracle plays it as a candidate and reuses these
+        totals_cache.store(totals_cache.policy_key(sim.config, codes, hp), np.asarray(seeds), keys,
+                           sim.state.totals[:, K_NSW].astype(np.float64))
     return BatchResult(
         seeds=list(seeds), means=sim.episode_means(), counters=sim.counters(), steps=sim.state.t.copy(),
         series=sim.state.series.copy() if keep_series else None, decision_ms=decision_ms, cpu_s=cpu_s,

@@ -1,0 +1,179 @@
+"""Episode totals of compiled composites, shared by the evaluation runner and the ``oracle``.
+
+A composite of built-in kernels (``policy.compiled``) plays the same episode on a seed
+whatever batch it runs in: its randomness is keyed by the seed and its state is per row.
+So its episode total of NSW (``sim.state.totals[:, K_NSW]``, float64) on one seed of one
+scenario is a pure function of:
+
+- the compiled code: :func:`code_digest`, a sha256 of
+  :func:`wfbench.core.jit.source_digest` of ``policies/rollout.py`` (the runner's
+  rollout), ``policies/oracle/rollout.py`` (the oracle's roll-forward) and
+  ``wfbench/core/simulator.py`` (the trace and the reset): each covers the file and every
+  in-project module it imports, so the kernels and the simulator core they inline, and
+  the numba, numpy and Python versions;
+- the scenario: :func:`scenario_hash`, a sha256 of the config's canonical JSON (sorted
+  keys, as a suite hashes its scenarios);
+- the policy: its ``compiled_plan`` kernel codes and hyper-parameters, and the seed's
+  random keys (``PolicyState.keys`` before the episode, which also carry the parts' own
+  seeds);
+- the seed.
+
+:func:`lookup` and :func:`store` key a total by exactly these, so a hit is the total the
+play would give, bit for bit, and a change to any of them misses. The runner stores
+what it plays (a registry name's compiled rollout), the oracle looks up its compiled
+candidates and stores what it had to play (``docs/hindsight.md``, "Episodes played
+once").
+
+Where: in this process's memory, and on disk in ``$WFBENCH_ORACLE_CACHE`` (a folder),
+else ``$WFBENCH_CACHE_DIR/oracle-totals``, else ``platformdirs.user_cache_dir("wfbench")
+/oracle-totals``, shared by the process backend's workers and later runs.
+``WFBENCH_ORACLE_CACHE=off`` (or ``0``) turns the cache off: nothing is looked up or
+stored. On disk, one folder per (code, scenario, policy) key holds ``.npz`` files of
+``seeds``, ``keys`` and ``totals``, each written whole to a temporary file and renamed
+(atomic), so a reader never sees half a file; an unreadable file is a miss.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.jit import ENV_CACHE_DIR, PACKAGES, source_digest
+
+ENV = "WFBENCH_ORACLE_CACHE"
+OFF = ("off", "0", "false", "no", "")
+# the runner's rollout, the oracle's roll-forward and the simulator that makes the trace and resets: (package, file)
+CODE_FILES = (("wfbench.policies", "rollout.py"), ("wfbench.policies", "oracle/rollout.py"),
+              ("wfbench", "core/simulator.py"))
+
+_MEMORY: dict[str, dict[tuple[int, bytes], float]] = {}  # key -> (seed, keys bytes) -> total
+_CODE: list[str] = []
+
+
+def enabled() -> bool:
+    """False when ``WFBENCH_ORACLE_CACHE`` says off."""
+    value = os.environ.get(ENV)
+    return value is None or value.strip().lower() not in OFF
+
+
+def directory() -> Path | None:
+    """The on-disk store (None when the cache is off)."""
+    if not enabled():
+        return None
+    if os.environ.get(ENV):
+        return Path(os.environ[ENV])
+    if os.environ.get(ENV_CACHE_DIR):
+        return Path(os.environ[ENV_CACHE_DIR]) / "oracle-totals"
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("wfbench", appauthor=False)) / "oracle-totals"
+
+
+def code_digest() -> str:
+    """sha256 of the source digests of :data:`CODE_FILES` (computed once per process)."""
+    if not _CODE:
+        h = hashlib.sha256()
+        for package, rel in CODE_FILES:
+            h.update(f"{package}/{rel}".encode() + b"\0" + source_digest(PACKAGES[package] / rel).encode() + b"\0")
+        _CODE.append(h.hexdigest())
+    return _CODE[0]
+
+
+def scenario_hash(config: ScenarioConfig) -> str:
+    """sha256 of the scenario's canonical JSON."""
+    text = json.dumps(config.to_dict(), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def policy_key(config: ScenarioConfig, codes: np.ndarray, hp: np.ndarray) -> str:
+    """The key of a compiled policy's totals on ``config``: the code, the scenario, the codes and hyper-parameters."""
+    h = hashlib.sha256()
+    for part in (code_digest().encode(), scenario_hash(config).encode(),
+                 np.ascontiguousarray(codes, dtype=np.int64).tobytes(),
+                 np.ascontiguousarray(hp, dtype=np.float64).tobytes()):
+        h.update(len(part).to_bytes(8, "little") + part)
+    return h.hexdigest()[:40]
+
+
+def _entries(seeds: np.ndarray, keys: np.ndarray) -> list[tuple[int, bytes]]:
+    keys = np.ascontiguousarray(keys, dtype=np.uint64)
+    return [(int(s), keys[i].tobytes()) for i, s in enumerate(seeds)]
+
+
+def _load(key: str) -> dict[tuple[int, bytes], float]:
+    """The memory entries of ``key``, merged with what the disk holds for it."""
+    memo = _MEMORY.setdefault(key, {})
+    folder = directory()
+    if folder is None or not (folder / key).is_dir():
+        return memo
+    for path in (folder / key).glob("*.npz"):
+        try:
+            with np.load(path) as f:
+                seeds, keys, totals = f["seeds"], f["keys"], f["totals"]
+        except (OSError, ValueError, KeyError):  # unreadable: a miss, never a wrong hit
+            continue
+        for entry, total in zip(_entries(seeds, keys), totals.tolist(), strict=True):
+            memo.setdefault(entry, total)
+    return memo
+
+
+def lookup(key: str, seeds: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The stored totals of ``seeds`` (with their random ``keys``, (B, 3)): (totals, found), NaN where not found."""
+    seeds = np.asarray(seeds, dtype=np.int64)
+    totals = np.full(seeds.size, np.nan)
+    found = np.zeros(seeds.size, dtype=bool)
+    if not enabled():
+        return totals, found
+    entries = _entries(seeds, keys)
+    memo = _MEMORY.get(key, {})
+    if not all(e in memo for e in entries):
+        memo = _load(key)
+    for i, e in enumerate(entries):
+        if e in memo:
+            totals[i], found[i] = memo[e], True
+    return totals, found
+
+
+def store(key: str, seeds: np.ndarray, keys: np.ndarray, totals: np.ndarray) -> None:
+    """Keep the episode totals of ``seeds`` (random ``keys`` before the episode) in memory and on disk."""
+    if not enabled():
+        return
+    seeds = np.asarray(seeds, dtype=np.int64)
+    keys = np.ascontiguousarray(keys, dtype=np.uint64)
+    totals = np.asarray(totals, dtype=np.float64)
+    memo = _MEMORY.setdefault(key, {})
+    new = []
+    for i, (e, total) in enumerate(zip(_entries(seeds, keys), totals.tolist(), strict=True)):
+        if e not in memo:
+            memo[e] = total
+            new.append(i)
+    folder = directory()
+    if not new or folder is None:
+        return
+    rows = np.array(new)
+    name = hashlib.sha256(seeds[rows].tobytes() + keys[rows].tobytes()).hexdigest()[:16] + ".npz"
+    tmp = None
+    try:
+        (folder / key).mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder / key, suffix=".tmp", delete=False) as f:
+            tmp = f.name
+            np.savez(f, seeds=seeds[rows], keys=keys[rows], totals=totals[rows])
+        os.replace(tmp, folder / key / name)
+    except OSError:  # a read-only or full disk: the memory still holds them
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def clear_memory() -> None:
+    """Forget what this process holds in memory (the disk is left as it is)."""
+    _MEMORY.clear()
+
+
+__all__ = ["ENV", "clear_memory", "code_digest", "directory", "enabled", "lookup", "policy_key", "scenario_hash",
+           "store"]
