@@ -639,6 +639,49 @@ def positioning_random(b, O, out, key, t):
 
 
 @njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
+def _facility_clients(b, O, S, hp, out, t):
+    """What both facility-location rules start from: the refresh, the open sites and each site's client weight.
+
+    Updates the demand history; between refreshes it copies the cached maps into ``out``
+    and returns ``ns = -1``, and with no open facility it caches the zero maps and returns
+    ``ns = 0``: in both cases ``out`` is final. Otherwise ``out`` is zeroed and it returns
+    the open sites (``sites[:ns]``) and their weights ``w``: the floor plus the demand and
+    downtime shares, each relative to its largest value.
+    """
+    M = O.facilities.shape[1]
+    observe_history(b, O, S, hp)
+    sites = np.empty(M, dtype=np.int64)
+    if t < S.pos_next[b]:
+        out[:, :] = S.pos_cache[b]
+        return sites, -1, np.empty(0)
+    S.pos_next[b] = t + max(1, int(hp[HP_REFRESH]))
+    out[:, :] = 0.0
+    ns = 0
+    max_r = 0.0
+    max_d = 0.0
+    for f in range(M):
+        if O.facility_mask[b, f] == 1:
+            sites[ns] = f
+            ns += 1
+            max_r = max(max_r, S.demand[b, f])
+            max_d = max(max_d, O.facilities[b, f, FAC_DOWNTIME])
+    if ns == 0:
+        S.pos_cache[b] = out
+        return sites, 0, np.empty(0)
+    w = np.empty(ns)
+    wr = hp[HP_REQW]
+    for k in range(ns):
+        f = sites[k]
+        d = hp[HP_FLOOR]
+        if max_r > 0.0:
+            d += wr * S.demand[b, f] / max_r
+        if max_d > 0.0:
+            d += (1.0 - wr) * O.facilities[b, f, FAC_DOWNTIME] / max_d
+        w[k] = d
+    return sites, ns, w
+
+
+@njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
 def positioning_facility(b, O, S, hp, out, t):
     """p-median positioning: hire where the demand's p-median lacks a person, let go the cheapest loss.
 
@@ -654,37 +697,10 @@ def positioning_facility(b, O, S, hp, out, t):
     through its heat map (sigma = heat_sigma), so the let-go choice is approximate when
     homes of one level sit close together.
     """
-    M = O.facilities.shape[1]
     N = O.personnel.shape[1]
-    observe_history(b, O, S, hp)
-    if t < S.pos_next[b]:
-        out[:, :] = S.pos_cache[b]
+    sites, ns, w = _facility_clients(b, O, S, hp, out, t)
+    if ns <= 0:
         return
-    S.pos_next[b] = t + max(1, int(hp[HP_REFRESH]))
-    out[:, :] = 0.0
-    sites = np.empty(M, dtype=np.int64)
-    ns = 0
-    max_r = 0.0
-    max_d = 0.0
-    for f in range(M):
-        if O.facility_mask[b, f] == 1:
-            sites[ns] = f
-            ns += 1
-            max_r = max(max_r, S.demand[b, f])
-            max_d = max(max_d, O.facilities[b, f, FAC_DOWNTIME])
-    if ns == 0:
-        S.pos_cache[b] = out
-        return
-    w = np.empty(ns)
-    wr = hp[HP_REQW]
-    for k in range(ns):
-        f = sites[k]
-        d = hp[HP_FLOOR]
-        if max_r > 0.0:
-            d += wr * S.demand[b, f] / max_r
-        if max_d > 0.0:
-            d += (1.0 - wr) * O.facilities[b, f, FAC_DOWNTIME] / max_d
-        w[k] = d
     # weighted site-to-site distances: C[candidate, client]
     C = np.empty((ns, ns))
     for i in range(ns):
@@ -786,41 +802,15 @@ def positioning_facility_sparse(b, O, S, hp, out, t):
     queries on a grid that return exactly what the dense scans find, so the let-go map
     is the dense rule's.
     """
-    M = O.facilities.shape[1]
     N = O.personnel.shape[1]
-    observe_history(b, O, S, hp)
-    if t < S.pos_next[b]:
-        out[:, :] = S.pos_cache[b]
+    sites, ns, w = _facility_clients(b, O, S, hp, out, t)
+    if ns <= 0:
         return
-    S.pos_next[b] = t + max(1, int(hp[HP_REFRESH]))
-    out[:, :] = 0.0
-    sites = np.empty(M, dtype=np.int64)
-    ns = 0
-    max_r = 0.0
-    max_d = 0.0
-    for f in range(M):
-        if O.facility_mask[b, f] == 1:
-            sites[ns] = f
-            ns += 1
-            max_r = max(max_r, S.demand[b, f])
-            max_d = max(max_d, O.facilities[b, f, FAC_DOWNTIME])
-    if ns == 0:
-        S.pos_cache[b] = out
-        return
-    w = np.empty(ns)
     sx = np.empty(ns)
     sy = np.empty(ns)
-    wr = hp[HP_REQW]
     for k in range(ns):
-        f = sites[k]
-        d = hp[HP_FLOOR]
-        if max_r > 0.0:
-            d += wr * S.demand[b, f] / max_r
-        if max_d > 0.0:
-            d += (1.0 - wr) * O.facilities[b, f, FAC_DOWNTIME] / max_d
-        w[k] = d
-        sx[k] = O.facilities[b, f, FAC_X]
-        sy[k] = O.facilities[b, f, FAC_Y]
+        sx[k] = O.facilities[b, sites[k], FAC_X]
+        sy[k] = O.facilities[b, sites[k], FAC_Y]
     # each client's nearest sites; the (k+1)-th prices the sites outside its list
     ks = min(SPARSE_K_SITES + 1, ns)
     cand = np.empty((ns, ks), dtype=np.int64)
