@@ -638,6 +638,19 @@ def positioning_random(b, O, out, key, t):
         out[1, f] = uniform(key, STREAM_POLICY_POSITIONING, t, f, 2)
 
 
+@njit(cache=True, inline="always")
+def _first_unmatched(col4row, med):
+    """The first median no home was matched to (``col4row[r]``: home r's median, -1 for "nobody"), or -1."""
+    taken = np.zeros(med.shape[0], dtype=np.bool_)
+    for r in range(col4row.shape[0]):
+        if col4row[r] >= 0:
+            taken[col4row[r]] = True
+    for c in range(med.shape[0]):
+        if not taken[c]:
+            return med[c]
+    return -1
+
+
 @njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
 def _facility_clients(b, O, S, hp, out, t):
     """What both facility-location rules start from: the refresh, the open sites and each site's client weight.
@@ -735,13 +748,7 @@ def positioning_facility(b, O, S, hp, out, t):
                     D[r, c] = _dist_to(O, b, f, hx[r], hy[r])
             col4row = np.empty(h, dtype=np.int64)
             lap_min(D, col4row)
-            taken = np.zeros(p_med, dtype=np.bool_)
-            for r in range(h):
-                taken[col4row[r]] = True
-            for c in range(p_med):
-                if not taken[c]:
-                    hire = med[c]
-                    break
+            hire = _first_unmatched(col4row, med)
     else:
         # every site already has someone: the site whose demand is farthest from any home
         best = -1.0
@@ -864,14 +871,7 @@ def positioning_facility_sparse(b, O, S, hp, out, t):
                 big += md[r, km - 1]
             col4row = np.empty(h, dtype=np.int64)
             lap_sparse(p_med, indptr, mi.ravel(), md.ravel(), np.full(h, big), col4row)
-            taken = np.zeros(p_med, dtype=np.bool_)
-            for r in range(h):
-                if col4row[r] >= 0:
-                    taken[col4row[r]] = True
-            for c in range(p_med):
-                if not taken[c]:
-                    hire = med[c]
-                    break
+            hire = _first_unmatched(col4row, med)
     else:
         # every site already has someone: the site whose demand is farthest from any home
         best = -1.0

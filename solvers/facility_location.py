@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from wfbench.solvers.lap import heap_pop, heap_push
 from wfbench.solvers.result import (
     FEASIBLE,
     OPTIMAL,
@@ -218,47 +219,6 @@ def _gain(rp, rj, rc, d1, i, first):
     return s
 
 
-@njit(cache=True, inline="always")
-def _hbetter(ga, ia, gb, ib):
-    return ga > gb or (ga == gb and ia < ib)
-
-
-@njit(cache=True)
-def _hpush(hg, hi, size, g, i):
-    s = size
-    hg[s] = g
-    hi[s] = i
-    while s > 0:
-        par = (s - 1) // 2
-        if not _hbetter(hg[s], hi[s], hg[par], hi[par]):
-            break
-        hg[par], hg[s] = hg[s], hg[par]
-        hi[par], hi[s] = hi[s], hi[par]
-        s = par
-    return size + 1
-
-
-@njit(cache=True)
-def _hpop(hg, hi, size):
-    size -= 1
-    hg[0] = hg[size]
-    hi[0] = hi[size]
-    s = 0
-    while True:
-        a = 2 * s + 1
-        if a >= size:
-            break
-        b = a + 1
-        if b < size and _hbetter(hg[b], hi[b], hg[a], hi[a]):
-            a = b
-        if not _hbetter(hg[a], hi[a], hg[s], hi[s]):
-            break
-        hg[a], hg[s] = hg[s], hg[a]
-        hi[a], hi[s] = hi[s], hi[a]
-        s = a
-    return size
-
-
 @njit(cache=True)
 def reverse_lists(m, cand, ccost, count):
     """Site -> its clients (ascending), with the costs: the CSR transpose of the client lists ``cand``."""
@@ -320,6 +280,7 @@ def p_median_sparse(m, cand, ccost, count, far, p, max_iter, tol):
     for j in range(n):
         if far[j] < np.inf:
             complete = False
+    # lap's min-heap on (-gain, site): the largest gain first, the lower site on a tie
     hg = np.empty(max(m, 1))  # a pop precedes every push after the build: at most m entries
     hi = np.empty(hg.shape[0], dtype=np.int64)
     n_open = 0
@@ -330,16 +291,16 @@ def p_median_sparse(m, cand, ccost, count, far, p, max_iter, tol):
             size = 0
             for i in range(m):
                 if not is_open[i]:
-                    size = _hpush(hg, hi, size, _gain(rp, rj, rc, d1, i, first), i)
+                    size = heap_push(hg, hi, size, -_gain(rp, rj, rc, d1, i, first), i)
         bi = -1
         while size > 0:
             i = hi[0]
-            size = _hpop(hg, hi, size)
-            g = _gain(rp, rj, rc, d1, i, first)
-            if size == 0 or not _hbetter(hg[0], hi[0], g, i):
+            size = heap_pop(hg, hi, size)
+            g = -_gain(rp, rj, rc, d1, i, first)
+            if size == 0 or not (hg[0] < g or (hg[0] == g and hi[0] < i)):  # still ahead of every bound left
                 bi = i
                 break
-            size = _hpush(hg, hi, size, g, i)
+            size = heap_push(hg, hi, size, g, i)
         if bi < 0:
             break
         is_open[bi] = True

@@ -29,6 +29,20 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def _augment(path, row4col, col4row, sink, cur):
+    """Flip the shortest augmenting path from row ``cur`` to the free column ``sink`` (``path[j]``: row before j)."""
+    j = sink
+    while True:
+        i = path[j]
+        row4col[j] = i
+        nxt = col4row[i]
+        col4row[i] = j
+        j = nxt
+        if i == cur:
+            break
+
+
 @njit(cache=True)
 def lap_min(cost, col4row):
     """Min-cost assignment of every row of ``cost`` (n_rows <= n_cols) to a distinct column.
@@ -90,15 +104,7 @@ def lap_min(cost, col4row):
         for j in range(nc):
             if in_sc[j]:
                 v[j] -= min_val - spc[j]
-        j = sink
-        while True:
-            i = path[j]
-            row4col[j] = i
-            nxt = col4row[i]
-            col4row[i] = j
-            j = nxt
-            if i == cur:
-                break
+        _augment(path, row4col, col4row, sink, cur)
     total = 0.0
     for i in range(nr):
         total += cost[i, col4row[i]]
@@ -191,7 +197,11 @@ def knn_manhattan(qx, qy, px, py, k, idx, dist):
 
 # -- assignment on a sparse graph ----------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _heap_push(hk, hj, size, key, j):
+def heap_push(hk, hj, size, key, j):
+    """Add ``(key, j)`` to the min-heap ``hk[:size]``, ``hj[:size]`` (by key, then index); returns the new size.
+
+    The sparse assignment's Dijkstra and the sparse p-median's lazy greedy (on negated gains) share it.
+    """
     s = size
     hk[s] = key
     hj[s] = j
@@ -206,7 +216,7 @@ def _heap_push(hk, hj, size, key, j):
 
 
 @njit(cache=True, inline="always")
-def _heap_pop(hk, hj, size):
+def heap_pop(hk, hj, size):
     """Remove the root (smallest key, then index); returns the new size."""
     size -= 1
     hk[0] = hk[size]
@@ -291,12 +301,12 @@ def lap_sparse(nc, indptr, indices, cost, nobody, col4row):
                         nt += 1
                     dist[j] = r
                     pred[j] = i
-                    size = _heap_push(hk, hj, size, r, j)
+                    size = heap_push(hk, hj, size, r, j)
             j = -1
             while size > 0:
                 r = hk[0]
                 jj = hj[0]
-                size = _heap_pop(hk, hj, size)
+                size = heap_pop(hk, hj, size)
                 if not done[jj] and r == dist[jj]:
                     j = jj
                     break
@@ -315,15 +325,7 @@ def lap_sparse(nc, indptr, indices, cost, nobody, col4row):
             j = final[t]
             u[row4col[j]] += mv - dist[j]
             v[j] -= mv - dist[j]
-        j = sink
-        while True:
-            i = pred[j]
-            row4col[j] = i
-            nxt = c4r[i]
-            c4r[i] = j
-            j = nxt
-            if i == cur:
-                break
+        _augment(pred, row4col, c4r, sink, cur)
         for t in range(nt):
             j = touched[t]
             dist[j] = np.inf
