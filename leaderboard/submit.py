@@ -36,7 +36,6 @@ import math
 import os
 import signal
 import sys
-import sysconfig
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -54,7 +53,14 @@ from wfbench.policies import tuned as _tuned
 from wfbench import __version__
 from wfbench.harness.backends import check_backend, run_chunks, shutdown_pools
 from wfbench.harness.budget import BUDGET_COLUMNS, machine_line, policy_budget
-from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, PolicyError, PolicyLoadError, check_act_timeout, load_policy
+from wfbench.harness.guard import (
+    DEFAULT_ACT_TIMEOUT_S,
+    NOT_USER,
+    PolicyError,
+    PolicyLoadError,
+    check_act_timeout,
+    load_policy,
+)
 from wfbench.harness.runner import results_frame
 
 DEFAULT_WALL_TIME_S = 3600.0
@@ -81,12 +87,6 @@ class Outcome:
 
 
 # -- fingerprints ----------------------------------------------------------------------------------------------
-_WFBENCH_ROOT = Path(__file__).resolve().parents[1]
-# files that are not the user's: the Python installation, installed packages and wfbench's own packages
-_NOT_USER = tuple(
-    {str(Path(sysconfig.get_paths()[k]).resolve()) + os.sep for k in ("stdlib", "platstdlib", "purelib", "platlib")}
-    | {str(_WFBENCH_ROOT / pkg) + os.sep for pkg in ("wfbench", "policies", "solvers", "leaderboard")}
-)
 
 
 def _sha(path: str | Path) -> str:
@@ -162,7 +162,7 @@ def policy_fingerprint(spec: str, policy: Any = None) -> tuple[str, dict[str, An
             if not isinstance(f, str) or not os.path.isfile(f):
                 continue
             mine = mod_name == top or mod_name.startswith(top + ".")
-            if mine or not str(Path(f).resolve()).startswith(_NOT_USER):
+            if mine or not str(Path(f).resolve()).startswith(NOT_USER):
                 files[mod_name] = _file_digest(spec, f)
         detail = {"kind": "entry-point", "entry": spec, "files": files}
         params = getattr(policy, "params", None)

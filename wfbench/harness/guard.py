@@ -56,9 +56,10 @@ DEFAULT_ACT_TIMEOUT_S = 10.0
 # the file name that cloudpickle (3.1.3, which joblib 1.6 uses) gives the code it sends by value (__main__'s)
 DYNAMIC_CODE = "<dynamic-code>"
 
-# frames in these folders are not the user's: the innermost frame outside them is "where"
+# files in these folders are not the user's (the Python installation, installed packages, wfbench's own folders):
+# the innermost frame outside them is "where", and the leaderboard's fingerprint leaves them out
 _ROOT = Path(__file__).resolve().parents[2]  # the checkout (or site-packages) that holds wfbench/
-_NOT_USER = tuple(  # folder prefixes with their separator: /repo/wfbench_runs/ is the user's
+NOT_USER = tuple(  # folder prefixes with their separator: /repo/wfbench_runs/ is the user's
     {str(Path(sysconfig.get_paths()[k]).resolve()) + os.sep for k in ("stdlib", "platstdlib", "purelib", "platlib")}
     | {str(_ROOT / pkg) + os.sep for pkg in ("wfbench", "policies", "solvers", "leaderboard")}
 )
@@ -225,7 +226,7 @@ def _is_user_file(filename: str) -> bool:
         path = str(Path(filename).resolve())
     except OSError:
         return True
-    return not path.startswith(_NOT_USER)
+    return not path.startswith(NOT_USER)
 
 
 def _defined_at(fn: Callable[..., Any]) -> str:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from wfbench.harness.evaluation import evaluate
-from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S
+from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.scenarios.score import REFERENCE_SEEDS, normalize
 from wfbench.scenarios.suites import Suite, SuiteScenario, get_suite
 
@@ -49,9 +49,6 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
         ValueError: an unknown suite, split or scenario, or a bad seed list or backend.
     """
     import pandas as pd
-
-    from wfbench.harness.evaluation import evaluate
-    from wfbench.harness.guard import load_policy
 
     s = get_suite(suite)
     ids = s.ids(split)  # an unknown split fails here
