@@ -88,3 +88,62 @@ def pytest_runtest_setup(item):
 def browser() -> str:
     """The path of a headless browser (see :func:`browser_or_skip`)."""
     return browser_or_skip()
+
+
+# -- the hosted leaderboard's services (issue #34): a PostgreSQL server and bubblewrap ---------------------------
+# Like the browser: without one the tests that need it skip and say why; .ci/run installs both and sets
+# WFBENCH_REQUIRE_POSTGRES=1 and WFBENCH_REQUIRE_BWRAP=1, under which a missing one fails those tests instead.
+POSTGRES_URL = "WFBENCH_TEST_POSTGRES_URL"
+REQUIRE_POSTGRES = "WFBENCH_REQUIRE_POSTGRES"
+REQUIRE_BWRAP = "WFBENCH_REQUIRE_BWRAP"
+
+
+def _skip_or_fail(reason: str, require: str) -> None:
+    if os.environ.get(require, "") not in ("", "0"):
+        pytest.fail(f"{reason}; {require}={os.environ[require]} requires it", pytrace=False)
+    pytest.skip(reason)
+
+
+@pytest.fixture
+def postgres_url():
+    """The URL of a fresh, empty PostgreSQL database for this test, dropped after it.
+
+    The server is the one ``$WFBENCH_TEST_POSTGRES_URL`` names (a ``postgresql+psycopg://`` URL whose role may
+    create databases; .ci/run starts Debian's cluster and sets it). Each test gets its own database, so tests
+    run side by side under xdist.
+    """
+    import uuid
+
+    import sqlalchemy as sa
+
+    base = os.environ.get(POSTGRES_URL, "")
+    if not base:
+        _skip_or_fail(f"no PostgreSQL server: set {POSTGRES_URL}=postgresql+psycopg://USER:PASSWORD@127.0.0.1/DB "
+                      "(a role that may CREATE DATABASE; .ci/run starts Debian's postgresql and sets it)",
+                      REQUIRE_POSTGRES)
+    url = sa.engine.make_url(base)
+    name = f"wfbench_test_{uuid.uuid4().hex[:12]}"
+    admin = sa.create_engine(url, isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as conn:
+            conn.execute(sa.text(f'CREATE DATABASE "{name}"'))
+    except sa.exc.OperationalError as e:
+        admin.dispose()
+        _skip_or_fail(f"the PostgreSQL server at {url.render_as_string(hide_password=True)} does not answer: "
+                      f"{str(e).splitlines()[0]}", REQUIRE_POSTGRES)
+    try:
+        yield url.set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as conn:
+            conn.execute(sa.text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        admin.dispose()
+
+
+@pytest.fixture
+def bwrap() -> str:
+    """The path of bubblewrap, which runs submitted policies (:mod:`wfbench.harness.sandbox`)."""
+    path = shutil.which("bwrap")
+    if not path:
+        _skip_or_fail("bubblewrap is not installed: on Debian/Ubuntu `apt-get install bubblewrap` "
+                      "(.ci/run installs it)", REQUIRE_BWRAP)
+    return path
