@@ -30,6 +30,10 @@ def add_parser(sub) -> None:
     e.add_argument("--out", default=None, help="also write the per-seed rows (per scenario and seed with "
                    "--suite) to this CSV file")
     e.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    e.add_argument("--sandbox", action="store_true", help="run the policy as a hosted board does: packed, in a "
+                   "bubblewrap sandbox, seeing opaque keys instead of seeds; --policy is then a package folder (with "
+                   "wfbench-policy.json), a .zip or .whl package, or module:attr (packed from the current folder); "
+                   "one batch in this process (--backend does not apply)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -40,16 +44,21 @@ def run(args: argparse.Namespace) -> int:
     from wfbench.harness.guard import PolicyLoadError
 
     if args.suite is not None or args.split is not None:
+        if args.sandbox:
+            raise UsageError("--sandbox evaluates one scenario; it does not go with --suite or --split")
         return run_suite(args)
     config = resolve_scenario(args.scenario or "paper-64")
     check_backend_args(args)
     out = check_writable(args.out, "--out") if args.out else None
     seeds = seed_list(args)
-    try:  # evaluate loads the policy once; a spec that names none is a usage error
-        df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers, address=args.address,
-                      progress=not args.no_progress, act_timeout_s=args.act_timeout)
-    except PolicyLoadError as exc:
-        raise UsageError(str(exc)) from None
+    if args.sandbox:
+        df = run_sandboxed(args.policy, config, seeds, args.act_timeout)
+    else:
+        try:  # evaluate loads the policy once; a spec that names none is a usage error
+            df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers,
+                          address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout)
+        except PolicyLoadError as exc:
+            raise UsageError(str(exc)) from None
     if out:
         df.to_csv(out, index=False)
     summary = summarize(df)
@@ -67,6 +76,57 @@ def run(args: argparse.Namespace) -> int:
               "episode means; NSW higher is better.")
     return 0
 
+
+def package_bytes(spec: str) -> bytes:
+    """The package ``--policy`` names with --sandbox: a folder with a manifest, a .zip/.whl, or module:attr."""
+    from pathlib import Path
+
+    from wfbench.harness import package
+
+    path = Path(spec)
+    try:
+        if path.is_dir():
+            return package.pack_folder(path)
+        if path.suffix in (".zip", ".whl"):
+            if not path.is_file():
+                raise UsageError(f"--policy: package {spec} does not exist")
+            return path.read_bytes()
+        if ":" in spec:
+            return package.pack(spec, ".")
+    except package.PackageError as exc:
+        raise UsageError(f"--policy: {exc}") from None
+    raise UsageError(f"--policy {spec!r} with --sandbox: allowed: a package folder (holding "
+                     f"{package.MANIFEST}), a .zip or .whl package, or module:attr (packed from the current folder)")
+
+
+def run_sandboxed(spec: str, config, seeds: list[int], act_timeout: float | None):
+    """The rows of ``spec`` run as a hosted board runs it: packed, unpacked, in the sandbox, with opaque keys.
+
+    The keys come from the public :data:`~wfbench.harness.sandbox.LOCAL_KEY_SECRET`: a local run
+    has no seed to hide, and the same command gives the same keys.
+    """
+    import tempfile
+    from pathlib import Path
+
+    from wfbench.harness import package, sandbox
+
+    data = package_bytes(spec)
+    limits = sandbox.Limits(act_timeout_s=act_timeout or sandbox.Limits.wall_time_s)
+    try:
+        sandbox.check_sandbox()
+        with tempfile.TemporaryDirectory(prefix="wfbench-package-") as tmp:
+            manifest = package.unpack(data, Path(tmp) / "package")
+            df = sandbox.evaluate_sandboxed(Path(tmp) / "package", manifest.entry, config, seeds, limits,
+                                            sandbox.LOCAL_KEY_SECRET, sandbox.LOCAL_KEY_CONTEXT)
+    except sandbox.SandboxUnavailable as exc:
+        raise UsageError(str(exc)) from None
+    except package.PackageError as exc:
+        raise UsageError(f"--policy: {exc}") from None
+    except sandbox.SandboxError as exc:
+        sys.stderr.write(exc.log)  # what the policy printed before it failed
+        raise
+    sys.stderr.write(df.attrs.get("log", ""))
+    return df
 
 
 def run_suite(args: argparse.Namespace) -> int:

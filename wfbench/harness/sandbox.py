@@ -1,0 +1,585 @@
+"""Running someone else's policy package in a bubblewrap sandbox, as an ordinary policy of the evaluator.
+
+A hosted leaderboard runs code that strangers upload. :class:`SandboxPolicy` starts the
+package in a separate process, ``python -m wfbench.harness.sandbox_child``, inside
+bubblewrap, and speaks to it over two pipes (:mod:`wfbench.harness.wire`: named arrays,
+never pickle). The simulator stays in the evaluator: the policy sees observations and
+opaque keys, never the scenario, the seeds or anything else of the host.
+
+What the sandbox allows:
+
+- **Files**: read-only, only what Python needs (the Python installation, the virtual
+  environment, the folders the ``wfbench`` packages are imported from, ``/usr`` and the
+  ``/lib`` folders, the dynamic linker's cache), the package read-only at ``/policy`` and
+  a size-capped tmpfs at ``/tmp`` (``HOME``). Nothing else: no database, no data folder
+  of a server, no home directory.
+- **Namespaces**: its own network (loopback only: no connection leaves it, no name
+  resolves), PID (it sees only its own processes, and they all die with it), IPC, UTS
+  and cgroup namespaces; a new session (no terminal to inject into); the environment
+  cleared. Run as root, bubblewrap sets the sandbox up privileged and the policy runs as
+  an unprivileged user of its own (a uid drawn from :data:`SANDBOX_UIDS`, via ``setpriv``,
+  with every capability dropped), so that the process limit means something and the
+  host's root owns nothing it can touch; run as
+  another user, bubblewrap makes an unprivileged user namespace (``--unshare-all``).
+- **Resources**: address space, CPU seconds, processes, file size, open files, no core
+  files (rlimits the child sets on itself before the package's code runs); the tmpfs
+  size; the bytes it may write to stdout and stderr (kept in :attr:`SandboxPolicy.log`).
+- **Time**, enforced from outside: each ``reset`` and ``act`` has ``act_timeout_s`` (the
+  clock stops while numba compiles, as in :class:`~wfbench.harness.guard.Guard`) and a
+  batch of episodes ``wall_time_s`` of the policy's time; past either, the evaluator
+  kills bubblewrap's process group and the PID namespace takes every process with it.
+
+Every failure is a :class:`SandboxError` (a :class:`~wfbench.harness.guard.PolicyError`,
+the policy's failure) with a one-line ``reason``. :func:`evaluate_sandboxed` runs
+:func:`wfbench.harness.runner.run_batch` with a SandboxPolicy, so its rows are those of
+:func:`wfbench.harness.evaluation.evaluate` for the same policy, bit for bit, when the
+policy's decisions do not depend on its seeds.
+
+The opaque keys: ``reset`` gets, for each seed, the first 8 bytes of
+``HMAC-SHA256(key_secret, f"{key_context}:{seed}")`` (:func:`opaque_keys`) instead of the
+seed. A policy seeds its randomness from them as from seeds; it cannot tell which seed
+it plays (a hidden test seed stays hidden), and the same secret, context and seed give
+the same key, so a run is reproducible.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import json
+import math
+import os
+import secrets
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import weakref
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
+from functools import cache
+from importlib.util import find_spec
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from wfbench.core.actions import ActionError
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import Simulator
+from wfbench.harness.guard import Guard, LoadedPolicy, PolicyError
+from wfbench.harness.wire import Decoder, Kind, Message, WireError, WireLimits, array_text, encode
+
+# the policy's user when the evaluator runs as root: one drawn per sandbox from a range no account uses, so that
+# the process limit (counted per user) is each sandbox's own and sandboxes cannot signal one another
+SANDBOX_UIDS = range(1_000_000, 2_000_000)
+PACKAGES = ("wfbench", "wfbench.policies", "wfbench.solvers", "wfbench.leaderboard")  # imported from their folders
+INSTALL_HINT = "install it with `apt-get install bubblewrap` (Debian/Ubuntu; `dnf install bubblewrap` on Fedora)"
+# the key secret of local runs (``wfbench evaluate --sandbox``), public on purpose: a local run hides no seed, and
+# anyone can reproduce its keys; a hosted board keeps its own secret in its database
+LOCAL_KEY_SECRET = b"wfbench-local-sandbox-v1"
+LOCAL_KEY_CONTEXT = "local"
+_FROM_CHILD = WireLimits(max_bytes=64 << 20)  # an action is a few arrays of (B, M)
+_READ = 1 << 16
+
+
+class SandboxUnavailable(RuntimeError):
+    """This machine cannot run the sandbox (no bubblewrap, or no namespaces); ``str()`` says how to fix it."""
+
+
+class SandboxError(PolicyError):
+    """The sandboxed policy failed or broke a limit: ``reason`` is one line, ``log`` its captured output."""
+
+    def __init__(self, reason: str, trace: str = "", log: str = ""):
+        super().__init__(reason, trace)
+        self.log = log
+
+    @property
+    def reason(self) -> str:
+        return self.message
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a sandboxed policy may use; the defaults are a hosted board's."""
+
+    memory_mb: int = 4096  # address space of the policy's process (RLIMIT_AS)
+    cpu_s: int = 3600  # CPU seconds of the process over its life (RLIMIT_CPU)
+    processes: int = 64  # processes and threads of the sandbox's user (RLIMIT_NPROC)
+    file_mb: int = 16  # the largest file it may write (RLIMIT_FSIZE)
+    tmp_mb: int = 64  # the size of its /tmp (a tmpfs)
+    act_timeout_s: float = 10.0  # each reset and act call
+    wall_time_s: float = 1800.0  # the policy's time over one batch of episodes (reset and every act)
+    log_bytes: int = 1 << 20  # what it may write to stdout and stderr together
+    open_files: int = 256  # open file descriptors (RLIMIT_NOFILE)
+    start_timeout_s: float = 60.0  # starting Python and loading the package
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or value <= 0:
+                raise ValueError(f"sandbox limit {f.name} = {value!r} is not allowed; allowed: a number > 0")
+
+    def rlimits(self) -> dict[str, int]:
+        """The resource limits the child sets on itself (``resource.RLIMIT_<name>``)."""
+        return {"CORE": 0, "AS": int(self.memory_mb) << 20, "CPU": math.ceil(self.cpu_s),
+                "NPROC": int(self.processes), "FSIZE": int(self.file_mb) << 20, "NOFILE": int(self.open_files)}
+
+
+def opaque_keys(seeds: Sequence[int], key_secret: bytes, key_context: str) -> np.ndarray:
+    """The key of each seed: the first 8 bytes of HMAC-SHA256(secret, "context:seed"), as an int64 >= 0."""
+    keys = [int.from_bytes(hmac.new(key_secret, f"{key_context}:{int(s)}".encode(), hashlib.sha256).digest()[:8],
+                           "big") & (2**63 - 1) for s in seeds]
+    return np.array(keys, dtype=np.int64)
+
+
+# -- is there a sandbox here ---------------------------------------------------------------------------------------
+
+
+def check_sandbox() -> None:
+    """Raise :class:`SandboxUnavailable`, saying how to fix it, unless a sandbox starts on this machine."""
+    if not shutil.which("bwrap"):
+        raise SandboxUnavailable(f"bubblewrap (bwrap) is not installed; the sandbox needs it to run submitted "
+                                 f"policies: {INSTALL_HINT}")
+    if os.geteuid() == 0 and not shutil.which("setpriv"):
+        raise SandboxUnavailable("setpriv is not installed (it drops the sandbox to an unprivileged user when run "
+                                 "as root): install util-linux")
+    if os.geteuid() != 0:
+        for knob, fix in (("/proc/sys/kernel/unprivileged_userns_clone",
+                           "sysctl -w kernel.unprivileged_userns_clone=1"),
+                          ("/proc/sys/user/max_user_namespaces", "sysctl -w user.max_user_namespaces=10000")):
+            try:
+                disabled = Path(knob).read_text().strip() == "0"
+            except OSError:
+                continue
+            if disabled:
+                raise SandboxUnavailable(f"user namespaces are disabled ({knob} is 0); bubblewrap needs them to "
+                                         f"sandbox policies without root: `{fix}` as root, or run as root")
+    _trial()
+
+
+@cache
+def _trial() -> None:
+    """Start an empty sandbox once per process: AppArmor or a container may forbid what the kernel allows."""
+    cmd = [shutil.which("bwrap") or "bwrap", *_namespaces(), *_system_binds(), "--", "true"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=30)
+    if r.returncode != 0:
+        line = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+        raise SandboxUnavailable(f"bubblewrap cannot create a sandbox here ({line}); user namespaces may be "
+                                 "disabled or forbidden (AppArmor, a container without them)")
+
+
+# -- the bubblewrap command ---------------------------------------------------------------------------------------
+
+
+def _namespaces() -> list[str]:
+    if os.geteuid() == 0:  # privileged bwrap; a user namespace would map the sandbox to the host's root
+        return ["--unshare-ipc", "--unshare-pid", "--unshare-net", "--unshare-uts", "--unshare-cgroup-try"]
+    return ["--unshare-all"]
+
+
+def _system_binds() -> list[str]:
+    """/usr, the /bin and /lib folders (symlinks into /usr on merged systems) and the linker's configuration."""
+    out = ["--ro-bind", "/usr", "/usr"]
+    for top in ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32"):
+        p = Path(top)
+        if p.is_symlink():
+            out += ["--symlink", os.readlink(p), top]
+        elif p.is_dir():
+            out += ["--ro-bind", top, top]
+    for etc in ("/etc/ld.so.cache", "/etc/ld.so.conf", "/etc/ld.so.conf.d", "/etc/alternatives"):
+        if Path(etc).exists():
+            out += ["--ro-bind", etc, etc]
+    return out
+
+
+def python_folders() -> list[Path]:
+    """The folders the child's Python needs, read-only: the installation, the venv, the wfbench packages.
+
+    The packages' folders come from where they are imported from (an editable install
+    maps ``wfbench.policies`` to the checkout's ``policies/``), never the checkout itself:
+    it may hold results, the leaderboard's database or credentials. A folder inside
+    another one is covered by it.
+    """
+    found = [Path(sys.base_prefix), Path(sys.prefix), Path(sys.executable).resolve().parent.parent]
+    for name in PACKAGES:
+        spec = find_spec(name)
+        found += [Path(p) for p in ((spec and spec.submodule_search_locations) or [])]
+    resolved = sorted({p.resolve() for p in found if p.is_dir()})
+    return [p for p in resolved if not any(q != p and p.is_relative_to(q) for q in resolved)]
+
+
+def _ancestors(paths: Sequence[Path]) -> list[str]:
+    """Every parent folder of the bind targets, created world-traversable (privileged bwrap makes them 0700)."""
+    out = sorted({str(a) for p in paths for a in p.parents if str(a) != "/"}, key=lambda s: (s.count("/"), s))
+    return [arg for a in out for arg in ("--perms", "0755", "--dir", a)]
+
+
+def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, uid: int) -> list[str]:
+    """The bubblewrap command line that runs the child on ``package_dir`` with ``config``."""
+    folders = python_folders()
+    env = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": "/tmp", "PYTHONPATH": "/policy",
+           "NUMBA_CACHE_DIR": "/tmp/numba", "MPLCONFIGDIR": "/tmp", "PYTHONDONTWRITEBYTECODE": "1",
+           "PYTHONUNBUFFERED": "1", "PYTHONNOUSERSITE": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+           "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
+    cmd = [shutil.which("bwrap") or "bwrap", *_namespaces(), "--die-with-parent", "--new-session", "--clearenv"]
+    for k, v in env.items():
+        cmd += ["--setenv", k, v]
+    cmd += _ancestors([*folders, Path("/policy")])
+    cmd += _system_binds()
+    for f in folders:
+        cmd += ["--ro-bind", str(f), str(f)]
+    cmd += ["--ro-bind", str(package_dir), "/policy", "--proc", "/proc", "--dev", "/dev",
+            "--perms", "1777", "--size", str(int(limits.tmp_mb) << 20), "--tmpfs", "/tmp", "--chdir", "/policy"]
+    if os.geteuid() == 0:  # the child drops to ``uid``, with no capability left in any set
+        cmd += ["--cap-add", "CAP_SETUID", "--cap-add", "CAP_SETGID", "--cap-add", "CAP_SETPCAP", "--",
+                "setpriv", "--reuid", str(uid), "--regid", str(uid), "--clear-groups",
+                "--inh-caps=-all", "--bounding-set=-all"]
+    cmd += ["--", sys.executable, "-m", "wfbench.harness.sandbox_child", json.dumps(config)]
+    return cmd
+
+
+def _check_readable(package_dir: Path) -> None:
+    """As root the policy runs as a user of its own, who must be able to read the package (``unpack`` sees to it)."""
+    if os.geteuid() != 0:
+        return
+    for p in [package_dir, *package_dir.rglob("*")]:
+        need = 0o005 if p.is_dir() else 0o004
+        if p.stat().st_mode & need != need:
+            raise ValueError(f"the package folder {package_dir} is not readable by the sandbox's user: {p} has "
+                             f"mode {oct(p.stat().st_mode & 0o777)}; allowed: readable by "
+                             f"all (chmod -R a+rX {package_dir})")
+
+
+# -- the sandboxed policy ------------------------------------------------------------------------------------------
+
+
+def _kill(proc: subprocess.Popen, fds: list[int]) -> None:
+    """Kill bubblewrap and its child, the PID namespace's init (every process inside dies with it); close our pipes.
+
+    The init is in a session of its own (``--new-session``), so it is killed by pid as well
+    as by ``--die-with-parent``: at once rather than when bubblewrap's death reaches it.
+    """
+    try:
+        inner = [int(p) for p in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
+    except OSError:
+        inner = []
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    for pid in inner:  # bubblewrap's children only, while it is unreaped: the pids cannot have been reused
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        pass
+    for fd in fds:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+    fds.clear()
+
+
+def _size(n: int) -> str:
+    return f"{n >> 20} MiB" if n % (1 << 20) == 0 else f"{n} bytes"
+
+
+class SandboxPolicy:
+    """A policy package run in a bubblewrap sandbox, behind the policy protocol (``decisions``, ``reset``, ``act``).
+
+    Starting it starts the sandbox and loads the package (its HELLO); :meth:`close` (or
+    the end of a ``with`` block) ends it. After a failure every call raises the same
+    :class:`SandboxError`.
+
+    Args:
+        package_dir: the unpacked package (mounted read-only at ``/policy``, on the import path).
+        entry: the ``module:attr`` entry point inside it.
+        limits: the sandbox's limits (``None``: the defaults).
+        key_secret: the secret of the opaque keys (:func:`opaque_keys`).
+        key_context: what the keys are for (a track and phase), so keys differ between boards.
+    """
+
+    reads_trace = False
+
+    def __init__(self, package_dir: str | Path, entry: str, limits: Limits | None, key_secret: bytes,
+                 key_context: str):
+        check_sandbox()
+        self.package_dir = Path(package_dir).resolve()
+        if not self.package_dir.is_dir():
+            raise ValueError(f"package folder {package_dir} does not exist")
+        _check_readable(self.package_dir)
+        self.entry = entry
+        self.limits = limits or Limits()
+        self.key_secret, self.key_context = bytes(key_secret), key_context
+        self.uid = SANDBOX_UIDS[secrets.randbelow(len(SANDBOX_UIDS))] if os.geteuid() == 0 else os.geteuid()
+        self.decisions: tuple[str, ...] = ()
+        self.name = entry
+        self.failure: SandboxError | None = None
+        self._log = bytearray()
+        self._logged = 0
+        self._decoder = Decoder(_FROM_CHILD)
+        self._inbox: deque[Message] = deque()
+        self._episode_left = self.limits.wall_time_s
+        to_child_r, self._to_child = os.pipe()
+        self._from_child, from_child_w = os.pipe()
+        self._log_r, log_w = os.pipe()
+        config = {"in": to_child_r, "out": from_child_w, "entry": entry, "rlimits": self.limits.rlimits(),
+                  "memory_mb": self.limits.memory_mb}
+        try:
+            self.proc = subprocess.Popen(sandbox_command(self.package_dir, config, self.limits, self.uid),
+                                         stdin=subprocess.DEVNULL, stdout=log_w, stderr=log_w,
+                                         pass_fds=(to_child_r, from_child_w), start_new_session=True)
+        finally:
+            for fd in (to_child_r, from_child_w, log_w):
+                os.close(fd)
+        for fd in (self._to_child, self._from_child, self._log_r):
+            os.set_blocking(fd, False)
+        self._fds = [self._to_child, self._from_child, self._log_r]
+        self._finalizer = weakref.finalize(self, _kill, self.proc, self._fds)
+        hello = self._exchange(b"", "loading the policy", Kind.HELLO, self.limits.start_timeout_s, "start time limit")
+        self.decisions = tuple(d for d in array_text(hello.arrays.get("decisions")).split(",") if d)
+        self.name = array_text(hello.arrays.get("name")) or entry
+
+    # the policy protocol
+
+    def reset(self, seeds: Sequence[int]) -> None:
+        """Hand the policy the opaque keys of ``seeds`` (one per environment) for a new batch of episodes."""
+        self._episode_left = self.limits.wall_time_s
+        keys = opaque_keys(np.asarray(seeds).tolist(), self.key_secret, self.key_context)
+        self._exchange(encode(Kind.RESET, {"keys": keys}), "reset", Kind.READY, self.limits.act_timeout_s)
+
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The policy's batched action for ``obs``."""
+        try:
+            frame = encode(Kind.ACT, obs)
+        except WireError as exc:  # our observation, not the policy's fault
+            raise ValueError(f"cannot send the observation to the sandbox: {exc}") from None
+        return self._exchange(frame, "act", Kind.ACTION, self.limits.act_timeout_s).arrays
+
+    # life cycle
+
+    @property
+    def log(self) -> str:
+        """What the policy wrote to stdout and stderr (the first ``limits.log_bytes`` bytes)."""
+        return self._log.decode("utf-8", "replace")
+
+    @property
+    def pid(self) -> int:
+        """The process id of bubblewrap (the leader of the sandbox's process group)."""
+        return self.proc.pid
+
+    def close(self) -> None:
+        """End the sandbox: BYE, a moment to exit, then kill what is left. Idempotent."""
+        if not self._fds:
+            return
+        if self.failure is None and self.proc.poll() is None:
+            try:
+                os.write(self._to_child, encode(Kind.BYE))
+                self.proc.wait(timeout=2)
+            except (OSError, subprocess.TimeoutExpired):
+                pass
+        self._drain_log()
+        self._finalizer()
+
+    def __enter__(self) -> SandboxPolicy:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    # the exchange
+
+    def _exchange(self, frame: bytes, what: str, expect: Kind, timeout_s: float,
+                  limit: str = "act time limit") -> Message:
+        """Send ``frame``, then wait for the ``expect`` reply within the limits; any failure kills the sandbox."""
+        if self.failure is not None:
+            raise self.failure
+        if not self._fds:
+            raise SandboxError(f"the sandbox of {self.entry!r} is closed")
+        start = time.monotonic()
+        act_deadline = start + timeout_s
+        wall_deadline = start + self._episode_left if expect != Kind.HELLO else math.inf
+        paused_left: float | None = None  # act time left while numba compiles
+        out = memoryview(frame)
+        poller = select.poll()
+        poller.register(self._from_child, select.POLLIN)
+        poller.register(self._log_r, select.POLLIN)
+        if out:
+            poller.register(self._to_child, select.POLLOUT)
+        try:
+            while True:
+                while self._inbox:
+                    msg = self._inbox.popleft()
+                    if msg.kind == Kind.PAUSE and paused_left is None:
+                        paused_left = act_deadline - time.monotonic()
+                    elif msg.kind == Kind.RESUME and paused_left is not None:
+                        act_deadline, paused_left = time.monotonic() + paused_left, None
+                    elif msg.kind == Kind.ERROR:
+                        reason = array_text(msg.arrays.get("reason")).strip().splitlines()
+                        self._fail(reason[0][:500] if reason else f"the policy failed in {what}",
+                                   array_text(msg.arrays.get("trace")))
+                    elif msg.kind == expect and not out:
+                        return msg
+                    elif msg.kind not in (Kind.PAUSE, Kind.RESUME):
+                        self._fail(f"the policy's process broke the protocol: it sent {msg.kind.name} during {what} "
+                                   f"(expected {expect.name})")
+                now = time.monotonic()
+                if now >= wall_deadline:
+                    self._fail(f"the policy took longer than {self.limits.wall_time_s:g} s over one batch of "
+                               "episodes (the wall time limit)")
+                if paused_left is None and now >= act_deadline:
+                    self._fail(f"{what} took longer than {timeout_s:g} s (the {limit})")
+                deadline = min(wall_deadline, act_deadline if paused_left is None else math.inf)
+                for fd, _ in poller.poll(max(0, min(deadline - now, 3600)) * 1000 + 1):
+                    if fd == self._to_child:
+                        out = self._write(out, what)
+                        if not out:
+                            poller.unregister(self._to_child)
+                    elif fd == self._log_r:
+                        self._drain_log()
+                    elif fd == self._from_child:
+                        self._read(what)
+        finally:
+            self._episode_left -= time.monotonic() - start
+
+    def _write(self, out: memoryview, what: str) -> memoryview:
+        try:
+            return out[os.write(self._to_child, out[:_READ]):]
+        except BlockingIOError:
+            return out
+        except BrokenPipeError:
+            self._died(what)
+            raise AssertionError("unreachable") from None
+
+    def _read(self, what: str) -> None:
+        try:
+            data = os.read(self._from_child, 1 << 20)
+        except BlockingIOError:
+            return
+        if not data:
+            self._died(what)
+        try:
+            self._inbox.extend(self._decoder.feed(data))
+        except WireError as exc:
+            self._fail(f"the policy's process broke the protocol during {what}: {exc}")
+
+    def _drain_log(self) -> None:
+        while self._fds:
+            try:
+                data = os.read(self._log_r, _READ)
+            except BlockingIOError:
+                return
+            if not data:
+                return
+            self._logged += len(data)
+            self._log += data[: max(0, self.limits.log_bytes - len(self._log))]
+            if self._logged > self.limits.log_bytes and self.failure is None:
+                self._fail(f"wrote more than {_size(self.limits.log_bytes)} to stdout/stderr (the log limit)")
+
+    def _died(self, what: str) -> None:
+        """The child closed its end: wait for the exit status and say what ended it."""
+        try:
+            rc = self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            rc = None
+        self._drain_log()
+        last = (self.log.strip().splitlines() or [""])[-1]
+        if rc is None:
+            reason = f"the policy's process closed its pipe during {what}"
+        elif last.startswith("bwrap:"):
+            reason = f"the sandbox could not start: {last}"
+        elif rc > 128 or rc < 0:
+            reason = f"the policy's process ended with {_signal(abs(rc) - 128 if rc > 128 else -rc, self.limits)} " \
+                     f"during {what}"
+        else:
+            reason = f"the policy's process exited with code {rc} during {what}" + (f" ({last[:200]})" if last else "")
+        self._fail(reason)
+
+    def _fail(self, reason: str, trace: str = "") -> None:
+        """Kill the sandbox and raise (from now on, on every call) a SandboxError with ``reason``."""
+        if self.failure is None:
+            if self._fds and self._logged <= self.limits.log_bytes:
+                self._drain_log()
+            self.failure = SandboxError(reason, trace, self.log)
+            self._finalizer()
+        raise self.failure
+
+
+def _signal(sig: int, limits: Limits) -> str:
+    """``signal 9 (SIGKILL: memory limit 4096 MB?)``: the signal and the limit that likely sent it."""
+    try:
+        name = signal.Signals(sig).name
+    except ValueError:
+        return f"signal {sig}"
+    hint = {signal.SIGKILL: f"memory limit {limits.memory_mb} MB?", signal.SIGXCPU: f"CPU limit {limits.cpu_s} s",
+            signal.SIGXFSZ: f"file size limit {limits.file_mb} MB"}.get(signal.Signals(sig), "")
+    return f"signal {sig} ({name}{': ' + hint if hint else ''})"
+
+
+# -- evaluating a package --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _SandboxGuard(Guard):
+    """The runner's guard for a :class:`SandboxPolicy`: its limits are enforced from outside, its errors are its own."""
+
+    def call(self, what: str, fn: Any, *args: Any) -> Any:
+        return fn(*args)
+
+    def step(self, sim: Simulator, actions: Any, act: Any) -> None:
+        try:
+            sim.step(actions)
+        except (ActionError, TypeError, ValueError) as exc:
+            lines = str(exc).strip().splitlines()
+            raise SandboxError(f"the policy returned a malformed action at step {sim.t}: "
+                               f"{type(exc).__name__}: {lines[0] if lines else ''}") from exc
+
+
+def evaluate_sandboxed(package_dir: str | Path, entry: str, config: ScenarioConfig | str, seeds: Sequence[int],
+                       limits: Limits | None, key_secret: bytes, key_context: str,
+                       chunk_size: int | None = None) -> pd.DataFrame:
+    """Evaluate a policy package in a sandbox: the rows :func:`~wfbench.harness.evaluation.evaluate` gives.
+
+    One sandbox serves every chunk (``chunk_size`` seeds per batch; ``None``: one batch).
+    The KPI and counter columns equal ``evaluate``'s for the same policy bit for bit
+    when its decisions do not depend on its seeds (it sees opaque keys here); the budget
+    columns are measured in this process, the policy's time over the pipes included.
+
+    Returns:
+        One row per seed, in seed order; ``attrs``: ``scenario``, ``policy`` (``entry``),
+        ``log`` (what the policy printed, capped) and ``budget``.
+
+    Raises:
+        SandboxError: the policy failed, broke a limit or returned a malformed action
+            (``reason``, and ``log``).
+        SandboxUnavailable: no sandbox on this machine.
+    """
+    from wfbench.harness.budget import machine
+    from wfbench.harness.runner import results_frame, run_batch
+    from wfbench.scenarios.resolve import resolve_scenario
+
+    config = resolve_scenario(config)
+    seed_list = [int(s) for s in seeds]
+    if chunk_size is not None and (isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1):
+        raise ValueError(f"chunk_size = {chunk_size!r} is not allowed; allowed: an integer >= 1, or None")
+    size = chunk_size or max(1, len(seed_list))
+    with SandboxPolicy(package_dir, entry, limits, key_secret, key_context) as policy:
+        loaded = LoadedPolicy(policy, entry, _SandboxGuard(entry, None))
+        results = [run_batch(loaded, config, seed_list[i:i + size]) for i in range(0, len(seed_list), size)]
+        log = policy.log
+    df = results_frame(results, config, entry)
+    df.attrs.update(scenario=config.name, policy=entry, log=log,
+                    budget={"backend": "sandbox", "workers": 1, "threads": None,
+                            "timing": results[0].timing if results else "", "chunks": len(results),
+                            "policy": {"kind": "sandboxed"}, "machine": machine()})
+    return df

@@ -1,0 +1,206 @@
+"""The process inside the sandbox: loads a policy package and answers the evaluator over two pipes.
+
+Run as ``python -m wfbench.harness.sandbox_child CONFIG`` by :mod:`wfbench.harness.sandbox`
+inside bubblewrap; ``CONFIG`` is JSON: the file descriptors of the two protocol pipes
+(``in``, ``out``), the ``entry`` point, the resource limits (``rlimits``: name -> value)
+and ``memory_mb`` for the messages. It sets the limits on itself before any of the
+package's code runs, loads the entry point, sends HELLO, then serves RESET, ACT and BYE
+(:mod:`wfbench.harness.wire`) until BYE or the end of its input. A failure of the policy
+(an exception while loading, in ``reset`` or in ``act``, or an action that cannot be
+sent) is answered with ERROR, a one-line reason naming the file and line inside the
+package, and the process exits.
+
+It imports only what it needs (numpy and the wire format; numba is loaded anyway by the
+``wfbench`` package, and its compile events become PAUSE/RESUME so the evaluator's act
+clock stops while numba compiles, as :class:`wfbench.harness.guard.Guard`'s does): the
+evaluator waits for it on every evaluation.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import resource
+import sys
+import threading
+import traceback
+from collections import deque
+from typing import Any
+
+import numpy as np
+from numba.core import event as numba_event
+
+from wfbench.harness.wire import Decoder, Kind, Message, WireError, encode, text_array, wire_dtype
+
+PACKAGE_ROOT = "/policy/"  # where the sandbox mounts the package; frames under it are the user's
+
+
+class Channel:
+    """The child's end of the protocol: blocking reads and writes of whole messages."""
+
+    def __init__(self, fd_in: int, fd_out: int):
+        self.fd_in, self.fd_out = fd_in, fd_out
+        self.decoder = Decoder()
+        self.inbox: deque[Message] = deque()
+
+    def send(self, kind: Kind, arrays: dict[str, np.ndarray] | None = None) -> None:
+        view = memoryview(encode(kind, arrays))
+        while view:
+            view = view[os.write(self.fd_out, view):]
+
+    def receive(self) -> Message | None:
+        """The next message, or None when the evaluator closed its end."""
+        while not self.inbox:
+            data = os.read(self.fd_in, 1 << 20)
+            if not data:
+                return None
+            self.inbox.extend(self.decoder.feed(data))
+        return self.inbox.popleft()
+
+    def error(self, reason: str, trace: str = "") -> None:
+        self.send(Kind.ERROR, {"reason": text_array(reason), "trace": text_array(trace)})
+
+
+class CompileNotice(numba_event.Listener):
+    """Tells the evaluator when numba starts and stops compiling inside a policy call (PAUSE / RESUME)."""
+
+    def __init__(self, channel: Channel):
+        self.channel = channel
+        self.armed = False
+        self.depth = 0
+
+    def on_start(self, event: numba_event.Event) -> None:
+        if self.armed and self.depth == 0 and threading.current_thread() is threading.main_thread():
+            self.channel.send(Kind.PAUSE)
+        self.depth += 1
+
+    def on_end(self, event: numba_event.Event) -> None:
+        self.depth -= 1
+        if self.armed and self.depth == 0 and threading.current_thread() is threading.main_thread():
+            self.channel.send(Kind.RESUME)
+
+
+def set_limits(rlimits: dict[str, int]) -> None:
+    """Soft and hard limits both, so the policy cannot raise them again (CPU: hard one second later, SIGKILL)."""
+    for name, value in rlimits.items():
+        which = getattr(resource, f"RLIMIT_{name}")
+        resource.setrlimit(which, (value, value + 1 if name == "CPU" else value))
+
+
+def load(entry: str) -> Any:
+    """The policy of ``module:attr``: an object, or a class or factory called with no arguments.
+
+    The rules of :func:`wfbench.policies.registry.get` for an entry point, without the
+    registry (whose other spellings, ``ppo:PATH`` and the like, mean files outside the package).
+    """
+    module_name, _, attr = entry.partition(":")
+    obj: Any = importlib.import_module(module_name)
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise AttributeError(f"module {module_name!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    if isinstance(obj, type) or (not (hasattr(obj, "act") and hasattr(obj, "reset")) and callable(obj)):
+        obj = obj()
+    if not (hasattr(obj, "act") and hasattr(obj, "reset")):
+        raise TypeError(f"entry point {entry!r} is not a policy: it needs reset(seeds) and act(obs)")
+    return obj
+
+
+def where(tb: Any) -> str:
+    """`` at pkg/file.py:LINE``: the innermost frame inside the package (else the innermost frame)."""
+    frames = traceback.extract_tb(tb)
+    for fr in reversed(frames):
+        if fr.filename.startswith(PACKAGE_ROOT):
+            return f" at {fr.filename[len(PACKAGE_ROOT):]}:{fr.lineno}"
+    return f" at {frames[-1].filename}:{frames[-1].lineno}" if frames else ""
+
+
+def what(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
+
+
+def failure(exc: BaseException, call: str, memory_mb: int) -> str:
+    """The one-line reason for an exception the policy raised in ``call``."""
+    if isinstance(exc, MemoryError):
+        return f"{what(exc)} in {call}{where(exc.__traceback__)} (memory limit {memory_mb} MB)"
+    if call == "loading":
+        return f"the policy could not be loaded: {what(exc)}{where(exc.__traceback__)}"
+    return f"the policy raised {what(exc)} in {call}{where(exc.__traceback__)}"
+
+
+def action_arrays(action: Any) -> dict[str, np.ndarray]:
+    """The policy's action as arrays the wire carries; integers widen to int64, other floats to float64."""
+    if not isinstance(action, dict):
+        raise TypeError(f"act returned {type(action).__name__}; allowed: a dict of arrays")
+    out = {}
+    for name, value in action.items():
+        a = np.asarray(value)
+        try:
+            wire_dtype(a)
+        except WireError:
+            if a.dtype.kind in "iu":
+                a = a.astype(np.int64)
+            elif a.dtype.kind == "f":
+                a = a.astype(np.float64)
+            else:
+                raise TypeError(f"act returned {name!r} of dtype {a.dtype}; allowed: numbers") from None
+        out[str(name)] = a
+    return out
+
+
+def serve(channel: Channel, policy: Any, notice: CompileNotice, memory_mb: int) -> int:
+    """Answer RESET and ACT until BYE (0) or a failure (1)."""
+    while True:
+        msg = channel.receive()
+        if msg is None or msg.kind == Kind.BYE:
+            return 0
+        if msg.kind not in (Kind.RESET, Kind.ACT):
+            channel.error(f"the sandbox got a {msg.kind.name} message; allowed: RESET, ACT, BYE")
+            return 1
+        call = "reset" if msg.kind == Kind.RESET else "act"
+        notice.armed = True
+        try:
+            if msg.kind == Kind.RESET:
+                policy.reset(msg.arrays["keys"].astype(np.int64))
+                reply: tuple[Kind, dict[str, np.ndarray]] = (Kind.READY, {})
+            else:
+                reply = (Kind.ACTION, action_arrays(policy.act(msg.arrays)))
+            notice.armed = False
+            channel.send(*reply)
+        except Exception as exc:  # noqa: BLE001 - anything the policy raises is its failure, reported in one line
+            notice.armed = False
+            channel.error(failure(exc, call, memory_mb), "".join(traceback.format_exception(exc)))
+            return 1
+
+
+def main(argv: list[str]) -> int:
+    config = json.loads(argv[0])
+    set_limits(config["rlimits"])
+    channel = Channel(config["in"], config["out"])
+    memory_mb = int(config["memory_mb"])
+    notice = CompileNotice(channel)
+    numba_event.register("numba:compiler_lock", notice)
+    notice.armed = True
+    try:
+        policy = load(config["entry"])
+    except Exception as exc:  # noqa: BLE001 - the package's import or constructor failed
+        channel.error(failure(exc, "loading", memory_mb), "".join(traceback.format_exception(exc)))
+        return 1
+    finally:
+        notice.armed = False
+    if getattr(policy, "reads_trace", False):
+        channel.error("the policy declares reads_trace (it reads the scenario's future, like a hindsight oracle); "
+                      "a sandboxed policy sees observations only")
+        return 1
+    decisions = getattr(policy, "decisions", ())
+    name = getattr(policy, "name", None) or type(policy).__qualname__
+    channel.send(Kind.HELLO, {"decisions": text_array(",".join(map(str, decisions))),
+                              "name": text_array(str(name))})
+    return serve(channel, policy, notice, memory_mb)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
+
