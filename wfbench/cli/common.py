@@ -44,6 +44,18 @@ def int_at_least(lo: int):
 
 
 positive = int_at_least(1)
+
+
+def seconds(text: str) -> float:
+    """An argparse type: a number of seconds > 0, with a one-line message otherwise."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text} is not allowed; allowed: a number of seconds > 0")
+    return v
+
 nonneg = int_at_least(0)
 
 

@@ -1,0 +1,651 @@
+"""The hosted leaderboard's database: accounts, packages, submissions, the job queue and the result rows.
+
+One schema (SQLAlchemy Core) for SQLite, the default (a file, nothing to start), and
+PostgreSQL, for workers on more than one host (:func:`connect`). On SQLite every
+transaction starts with ``BEGIN IMMEDIATE`` (SQLAlchemy's documented pysqlite recipe): the
+file has a single writer at a time, which is what makes the queue's claim and fencing
+safe there (:mod:`wfbench.leaderboard.hosted.queue`), with WAL and a busy timeout so that
+writers wait for each other instead of failing. On PostgreSQL the queue locks rows
+(``FOR UPDATE SKIP LOCKED``) and a submission locks its account's row, so that two
+uploads of one account cannot both pass its quota.
+
+What the tables hold and why:
+
+- ``accounts``: a name and the sha256 of its token (the token itself is shown once, by
+  :meth:`Board.add_account`, and never stored).
+- ``packages``: policy packages by content hash (``sha256:<hex>``): the same bytes are
+  stored once.
+- ``submissions``: one per (package, entry, track, phase): submitting the same again
+  returns the first one, which is neither evaluated nor counted again. Its ``state``
+  (queued, running, done, failed) is always true and a failed one has a one-line
+  ``reason``. A test-phase submission records the hidden seed list's version.
+- ``jobs``: the queue, one per submission, with the lease and the fence
+  (:mod:`~wfbench.leaderboard.hosted.queue`).
+- ``rows``: one per (submission, scenario, seed index), with the KPIs, counters and
+  budget columns of :mod:`wfbench.leaderboard.store` and the real seed, which no method
+  returns for a test-phase submission.
+- ``hidden_seeds``: each track's hidden test seed lists (:mod:`~wfbench.leaderboard.hosted.hidden`).
+- ``secrets``: the board's key secret, from which the opaque per-episode keys handed to
+  policies are derived.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import secrets as _secrets
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import sqlalchemy as sa
+from sqlalchemy.engine import Connection, Engine
+from wfbench.leaderboard import store as local_store
+from wfbench.leaderboard.hosted import hidden
+from wfbench.leaderboard.store import BUDGET_ROW_COLUMNS, KPI_COLUMNS, ROW_COLUMNS
+from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, Track
+
+from wfbench import __version__
+from wfbench.harness.budget import BUDGET_COLUMNS
+
+DEFAULT_DAILY_QUOTA = 5  # test-phase submissions per account per 24 h
+QUOTA_WINDOW_S = 24 * 3600.0
+LOG_BYTES = 64 * 1024  # what is kept of a submission's log (its end)
+STATES = ("queued", "running", "done", "failed")
+KEY_SECRET = "key_secret"
+URL_FORMS = ("a file path or sqlite:///PATH (SQLite), or postgresql+psycopg://USER:PASSWORD@HOST[:PORT]/DB "
+             "(PostgreSQL)")
+
+
+class BoardError(Exception):
+    """A request the board cannot carry out (unknown track, bad name, unknown package): one line for the user."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
+class QuotaExceeded(BoardError):
+    """A test-phase submission over the account's quota (one job at a time, so many a day): the server's 429."""
+
+
+# -- the schema -----------------------------------------------------------------------------------------------
+
+metadata = sa.MetaData()
+
+accounts = sa.Table(
+    "accounts", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("name", sa.String(100), nullable=False, unique=True),
+    sa.Column("token_hash", sa.String(64), nullable=False, unique=True),  # sha256 hex of the token
+    sa.Column("admin", sa.Boolean, nullable=False, default=False),
+    sa.Column("created", sa.Double, nullable=False),  # epoch seconds, as every time in this schema
+)
+
+packages = sa.Table(
+    "packages", metadata,
+    sa.Column("sha256", sa.String(71), primary_key=True),  # "sha256:<hex>"
+    sa.Column("bytes", sa.LargeBinary, nullable=False),
+    sa.Column("size", sa.BigInteger, nullable=False),
+    sa.Column("created", sa.Double, nullable=False),
+)
+
+hidden_seeds = sa.Table(
+    "hidden_seeds", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("track", sa.String(100), nullable=False),
+    sa.Column("track_hash", sa.String(64), nullable=False),
+    sa.Column("version", sa.Integer, nullable=False),
+    sa.Column("seeds", sa.Text, nullable=False),  # JSON list of ints
+    sa.Column("salt", sa.String(64), nullable=False),
+    sa.Column("commitment", sa.String(71), nullable=False),  # published from the start
+    sa.Column("created", sa.Double, nullable=False),
+    sa.UniqueConstraint("track", "version"),
+)
+
+secrets_table = sa.Table(
+    "secrets", metadata,
+    sa.Column("name", sa.String(100), primary_key=True),
+    sa.Column("value", sa.String(200), nullable=False),
+)
+
+submissions = sa.Table(
+    "submissions", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("account_id", sa.Integer, sa.ForeignKey("accounts.id"), nullable=False),
+    sa.Column("track", sa.String(100), nullable=False),
+    sa.Column("track_hash", sa.String(64), nullable=False),
+    sa.Column("phase", sa.String(8), nullable=False),
+    sa.Column("package_sha", sa.String(71), sa.ForeignKey("packages.sha256"), nullable=False),
+    sa.Column("entry", sa.String(300), nullable=False),
+    sa.Column("name", sa.String(100), nullable=False),
+    sa.Column("state", sa.String(8), nullable=False),
+    sa.Column("reason", sa.Text, nullable=False, default=""),
+    sa.Column("created", sa.Double, nullable=False),
+    sa.Column("updated", sa.Double, nullable=False),
+    sa.Column("attempts", sa.Integer, nullable=False, default=0),
+    sa.Column("hidden_version", sa.Integer, nullable=True),  # the test phase's hidden seed list
+    sa.Column("log", sa.Text, nullable=False, default=""),
+    sa.Column("result", sa.Text, nullable=True),  # JSON aggregate, once done
+    sa.CheckConstraint("phase IN ('dev', 'test')", name="phase_known"),
+    sa.CheckConstraint("state IN ('queued', 'running', 'done', 'failed')", name="state_known"),
+    sa.UniqueConstraint("package_sha", "entry", "track", "phase", name="same_package_once"),
+)
+sa.Index("submissions_account", submissions.c.account_id, submissions.c.phase, submissions.c.created)
+
+jobs = sa.Table(
+    "jobs", metadata,
+    sa.Column("submission_id", sa.Integer, sa.ForeignKey("submissions.id"), primary_key=True),
+    sa.Column("state", sa.String(8), nullable=False),
+    sa.Column("lease_owner", sa.String(200), nullable=True),
+    sa.Column("lease_until", sa.Double, nullable=True),
+    sa.Column("fence", sa.BigInteger, nullable=False, default=0),  # +1 at every claim
+    sa.Column("heartbeat_at", sa.Double, nullable=True),
+    sa.CheckConstraint("state IN ('queued', 'running', 'done', 'failed')", name="job_state_known"),
+)
+sa.Index("jobs_state", jobs.c.state, jobs.c.lease_until)
+
+_COUNTS = ("episode_length", "invalid_actions")
+rows = sa.Table(
+    "rows", metadata,
+    sa.Column("submission_id", sa.Integer, sa.ForeignKey("submissions.id"), nullable=False),
+    sa.Column("scenario", sa.String(100), nullable=False),  # "" on a one-scenario track
+    sa.Column("seed_index", sa.Integer, nullable=False),
+    sa.Column("seed", sa.BigInteger, nullable=False),  # the real seed: never served for a test-phase submission
+    *(sa.Column(c, sa.Double, nullable=False) for c in KPI_COLUMNS),
+    *(sa.Column(c, sa.Integer, nullable=False) for c in _COUNTS),
+    *(sa.Column(c, sa.Double, nullable=True) for c in BUDGET_COLUMNS),
+    sa.Column("machine", sa.Text, nullable=True),
+    sa.Column("finished", sa.Double, nullable=False),
+    sa.UniqueConstraint("submission_id", "scenario", "seed_index", name="one_row_per_unit"),
+)
+ROW_FIELDS = ("scenario", "seed_index", "seed", *ROW_COLUMNS, *BUDGET_ROW_COLUMNS)
+"""The keys of a row as :func:`wfbench.leaderboard.hosted.queue.write_rows` takes it."""
+
+
+# -- connecting -----------------------------------------------------------------------------------------------
+
+
+def connect(url: str | Path) -> Engine:
+    """An engine for a board database.
+
+    Args:
+        url: a file path or ``sqlite:///PATH`` (SQLite: WAL, a 30 s busy timeout,
+            foreign keys on, every transaction ``BEGIN IMMEDIATE``), or
+            ``postgresql+psycopg://USER:PASSWORD@HOST[:PORT]/DB`` (used as it is).
+
+    Raises:
+        BoardError: any other form (the message names the allowed ones), or an
+            in-memory SQLite database (each connection would see another, empty one).
+    """
+    text = str(url)
+    if "://" not in text:
+        if not text or text == ":memory:":
+            raise BoardError(f"database {text!r} is not allowed; allowed: {URL_FORMS}")
+        return _sqlite(Path(text))
+    try:
+        parsed = sa.engine.make_url(text)
+    except sa.exc.ArgumentError:
+        raise BoardError(f"database URL {text!r} cannot be read; allowed: {URL_FORMS}") from None
+    shown = parsed.render_as_string(hide_password=True)
+    if parsed.drivername in ("sqlite", "sqlite+pysqlite"):
+        if not parsed.database or parsed.database == ":memory:":
+            raise BoardError(f"database {shown!r} is not allowed (in memory, or no file); allowed: {URL_FORMS}")
+        return _sqlite(Path(parsed.database))
+    if parsed.drivername == "postgresql+psycopg":
+        return sa.create_engine(parsed, pool_pre_ping=True)
+    raise BoardError(f"database {shown!r} is not allowed; allowed: {URL_FORMS}")
+
+
+def _sqlite(path: Path) -> Engine:
+    if path.is_dir():
+        raise BoardError(f"database {str(path)!r} is a folder; allowed: {URL_FORMS}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    engine = sa.create_engine(f"sqlite:///{path}", connect_args={"timeout": 30.0})
+
+    @sa.event.listens_for(engine, "connect")
+    def _on_connect(dbapi_connection: Any, record: Any) -> None:
+        dbapi_connection.isolation_level = None  # SQLAlchemy emits BEGIN itself (below), not the sqlite3 module
+        cur = dbapi_connection.cursor()
+        for pragma in ("journal_mode=WAL", "busy_timeout=30000", "foreign_keys=ON", "synchronous=FULL"):
+            cur.execute(f"PRAGMA {pragma}")
+        cur.close()
+
+    @sa.event.listens_for(engine, "begin")
+    def _on_begin(conn: Connection) -> None:
+        conn.exec_driver_sql("BEGIN IMMEDIATE")  # the write lock from the start: one writer, no upgrade deadlock
+
+    return engine
+
+
+def is_sqlite(engine: Engine) -> bool:
+    return engine.dialect.name == "sqlite"
+
+
+# -- records --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Account:
+    id: int
+    name: str
+    admin: bool
+    created: float
+
+
+@dataclass(frozen=True)
+class Submission:
+    """A hosted submission as stored; ``log`` is for the dev phase's page only, ``result`` the aggregate."""
+
+    id: int
+    account_id: int
+    account: str  # the account's name
+    track: str
+    track_hash: str
+    phase: str
+    package_sha: str
+    entry: str
+    name: str
+    state: str  # queued | running | done | failed
+    reason: str  # one line; "" unless failed
+    created: float
+    updated: float
+    attempts: int
+    hidden_version: int | None
+    log: str
+    result: dict[str, Any] | None
+
+
+def token_hash(token: str) -> str:
+    return hashlib.sha256(token.encode()).hexdigest()
+
+
+def package_sha(data: bytes) -> str:
+    """The content hash of a package, ``sha256:<hex>`` (as :func:`wfbench.harness.package.content_hash`)."""
+    return "sha256:" + hashlib.sha256(data).hexdigest()
+
+
+def cap_log(text: str, limit: int = LOG_BYTES) -> str:
+    """The end of ``text`` within ``limit`` bytes of UTF-8, saying how much was cut."""
+    data = text.encode("utf-8", "replace")
+    if len(data) <= limit:
+        return text
+    return f"[... {len(data) - limit} bytes cut ...]\n" + data[-limit:].decode("utf-8", "ignore")
+
+
+def _check_line(what: str, value: str, limit: int) -> str:
+    if not isinstance(value, str) or not value.strip() or len(value) > limit or any(c in value for c in "\n\r\t\0"):
+        raise BoardError(f"{what} {value!r} is not allowed; allowed: 1-{limit} characters on one line")
+    return value
+
+
+def _sub(r: Mapping[str, Any]) -> Submission:
+    return Submission(r["id"], r["account_id"], r["account"], r["track"], r["track_hash"], r["phase"],
+                      r["package_sha"], r["entry"], r["name"], r["state"], r["reason"], r["created"], r["updated"],
+                      r["attempts"], r["hidden_version"], r["log"], json.loads(r["result"]) if r["result"] else None)
+
+
+_SUBMISSION_QUERY = sa.select(submissions, accounts.c.name.label("account")).join(
+    accounts, accounts.c.id == submissions.c.account_id)
+
+
+def _hidden(r: Mapping[str, Any]) -> hidden.HiddenSeeds:
+    return hidden.HiddenSeeds(r["track"], r["track_hash"], r["version"], tuple(json.loads(r["seeds"])), r["salt"],
+                              r["commitment"], r["created"])
+
+
+# -- the board ------------------------------------------------------------------------------------------------
+
+
+class Board:
+    """A hosted leaderboard's database.
+
+    Args:
+        url: the database (:func:`connect`).
+        tracks: the tracks submissions may name (default: every track of
+            :data:`wfbench.leaderboard.tracks.TRACKS`), by name.
+        daily_quota: test-phase submissions per account per 24 h.
+    """
+
+    def __init__(self, url: str | Path, tracks: Mapping[str, Track | SuiteTrack] | None = None,
+                 daily_quota: int = DEFAULT_DAILY_QUOTA):
+        self.url = str(url)
+        self.engine = connect(url)
+        self.tracks: dict[str, Track | SuiteTrack] = dict(TRACKS if tracks is None else tracks)
+        if daily_quota < 1:
+            raise BoardError(f"daily quota {daily_quota} is not allowed; allowed: 1 or more")
+        self.daily_quota = daily_quota
+
+    def close(self) -> None:
+        """Close the database connections."""
+        self.engine.dispose()
+
+    def create(self) -> None:
+        """Create the tables and the key secret where they do not exist yet (safe to call on every start)."""
+        try:
+            metadata.create_all(self.engine)
+        except sa.exc.DBAPIError:  # another process (the server, a worker) created them at the same moment
+            metadata.create_all(self.engine)
+        try:
+            with self.engine.begin() as conn:
+                if conn.execute(sa.select(secrets_table.c.name).where(secrets_table.c.name == KEY_SECRET)).first() \
+                        is None:
+                    conn.execute(secrets_table.insert().values(name=KEY_SECRET, value=_secrets.token_hex(32)))
+        except sa.exc.IntegrityError:  # another process made it at the same time
+            pass
+
+    def track(self, name: str) -> Track | SuiteTrack:
+        """The track ``name``, or BoardError naming those there are."""
+        if name not in self.tracks:
+            raise BoardError(f"unknown track {name!r}; available: {', '.join(self.tracks)}")
+        return self.tracks[name]
+
+    # -- accounts ---------------------------------------------------------------------------------------------
+    def add_account(self, name: str, admin: bool = False) -> str:
+        """Make an account and return its token: shown this once, stored only as its sha256."""
+        _check_line("account name", name, 100)
+        token = _secrets.token_urlsafe(32)
+        try:
+            with self.engine.begin() as conn:
+                conn.execute(accounts.insert().values(name=name, token_hash=token_hash(token), admin=bool(admin),
+                                                      created=time.time()))
+        except sa.exc.IntegrityError:
+            raise BoardError(f"account name {name!r} is taken; choose another") from None
+        return token
+
+    def account(self, token: str) -> Account | None:
+        """The account whose token this is, or None (a wrong or empty token)."""
+        if not token:
+            return None
+        with self.engine.begin() as conn:
+            r = conn.execute(sa.select(accounts).where(accounts.c.token_hash == token_hash(token))).mappings().first()
+        return Account(r["id"], r["name"], bool(r["admin"]), r["created"]) if r else None
+
+    # -- packages ---------------------------------------------------------------------------------------------
+    def put_package(self, data: bytes) -> str:
+        """Store a package's bytes once per content hash and return the hash (``sha256:<hex>``)."""
+        sha = package_sha(data)
+        try:
+            with self.engine.begin() as conn:
+                if conn.execute(sa.select(packages.c.sha256).where(packages.c.sha256 == sha)).first() is None:
+                    conn.execute(packages.insert().values(sha256=sha, bytes=data, size=len(data), created=time.time()))
+        except sa.exc.IntegrityError:  # the same bytes stored at the same time by another upload
+            pass
+        return sha
+
+    def package(self, sha: str) -> bytes | None:
+        """A stored package's bytes, or None."""
+        with self.engine.begin() as conn:
+            return conn.execute(sa.select(packages.c.bytes).where(packages.c.sha256 == sha)).scalar()
+
+    # -- submissions ------------------------------------------------------------------------------------------
+    def submit(self, account: Account, track: str, phase: str, package_sha: str, entry: str,
+               name: str) -> tuple[Submission, bool]:
+        """Queue a package's evaluation, or return the submission of the same package already made.
+
+        The same (package, entry, track, phase) returns the existing submission with
+        ``created`` False: it is not evaluated twice and not counted against a quota. A
+        new test-phase submission needs the account to have no test job queued or
+        running and fewer than :attr:`daily_quota` test submissions in the last 24 h.
+
+        Raises:
+            BoardError: unknown track or phase, a bad name or entry, an unknown package.
+            QuotaExceeded: over the test phase's quota (the reason says which and until when).
+        """
+        tr = self.track(track)
+        try:
+            hidden.check_phase(phase)
+        except ValueError as exc:
+            raise BoardError(str(exc)) from None
+        _check_line("submission name", name, 100)
+        _check_line("entry point", entry, 300)
+        version = self.ensure_hidden_seeds(track).version if phase == "test" else None
+        key = ((submissions.c.package_sha == package_sha) & (submissions.c.entry == entry)
+               & (submissions.c.track == track) & (submissions.c.phase == phase))
+        try:
+            with self.engine.begin() as conn:
+                # one submission at a time per account (PostgreSQL; SQLite's BEGIN IMMEDIATE already serializes)
+                conn.execute(sa.select(accounts.c.id).where(accounts.c.id == account.id).with_for_update())
+                existing = conn.execute(_SUBMISSION_QUERY.where(key)).mappings().first()
+                if existing is not None:
+                    return _sub(existing), False
+                if conn.execute(sa.select(packages.c.size).where(packages.c.sha256 == package_sha)).first() is None:
+                    raise BoardError(f"no package {package_sha!r} on this board; upload the package first")
+                now = time.time()
+                if phase == "test":
+                    self._check_quota(conn, account, now)
+                sub_id = conn.execute(submissions.insert().values(
+                    account_id=account.id, track=track, track_hash=tr.hash, phase=phase, package_sha=package_sha,
+                    entry=entry, name=name, state="queued", reason="", created=now, updated=now, attempts=0,
+                    hidden_version=version, log="", result=None)).inserted_primary_key[0]
+                conn.execute(jobs.insert().values(submission_id=sub_id, state="queued", fence=0))
+        except sa.exc.IntegrityError:  # the same package submitted at the same moment by another account
+            with self.engine.begin() as conn:
+                existing = conn.execute(_SUBMISSION_QUERY.where(key)).mappings().first()
+            if existing is None:
+                raise
+            return _sub(existing), False
+        return self.submission(sub_id), True  # type: ignore[return-value]
+
+    def _check_quota(self, conn: Connection, account: Account, now: float) -> None:
+        test = (submissions.c.account_id == account.id) & (submissions.c.phase == "test")
+        busy = conn.execute(sa.select(submissions.c.id, submissions.c.state).where(
+            test & submissions.c.state.in_(("queued", "running"))).limit(1)).first()
+        if busy is not None:
+            raise QuotaExceeded(f"one test-phase job at a time per account: submission {busy.id} is still "
+                                f"{busy.state}; submit again once it is done or failed")
+        recent = conn.execute(sa.select(submissions.c.created).where(
+            test & (submissions.c.created > now - QUOTA_WINDOW_S)).order_by(submissions.c.created)).scalars().all()
+        if len(recent) >= self.daily_quota:
+            wait = recent[0] + QUOTA_WINDOW_S - now
+            raise QuotaExceeded(f"daily quota reached: {len(recent)} test-phase submissions in the last 24 h "
+                                f"(allowed: {self.daily_quota}); the next one is allowed in "
+                                f"{max(1, math.ceil(wait / 60))} min")
+
+    def submission(self, submission_id: int) -> Submission | None:
+        """The submission ``submission_id``, or None."""
+        with self.engine.begin() as conn:
+            r = conn.execute(_SUBMISSION_QUERY.where(submissions.c.id == submission_id)).mappings().first()
+        return _sub(r) if r else None
+
+    def submissions(self, track: str | None = None, phase: str | None = None) -> list[Submission]:
+        """The submissions of a track and phase (``None``: any), oldest first."""
+        q = _SUBMISSION_QUERY
+        if track is not None:
+            q = q.where(submissions.c.track == track)
+        if phase is not None:
+            q = q.where(submissions.c.phase == phase)
+        with self.engine.begin() as conn:
+            return [_sub(r) for r in conn.execute(q.order_by(submissions.c.id)).mappings()]
+
+    def rows(self, submission_id: int) -> pd.DataFrame:
+        """A submission's stored rows, by scenario and seed index.
+
+        Columns: ``scenario``, ``seed_index``, ``seed`` (only for a dev-phase submission: a
+        test-phase one never shows its hidden seeds), the KPIs, ``episode_length``,
+        ``invalid_actions``, the budget columns and ``machine``.
+        """
+        with self.engine.begin() as conn:
+            phase = conn.execute(sa.select(submissions.c.phase).where(submissions.c.id == submission_id)).scalar()
+            df = pd.read_sql_query(sa.select(*(rows.c[c] for c in ROW_FIELDS))
+                                   .where(rows.c.submission_id == submission_id)
+                                   .order_by(rows.c.scenario, rows.c.seed_index), conn)
+        if phase != "dev":
+            df = df.drop(columns="seed")
+        return df.astype({c: float for c in BUDGET_COLUMNS})
+
+    def done_units(self, submission_id: int) -> set[tuple[str, int]]:
+        """The (scenario, seed index) pairs a submission has rows for (what a resumed job skips)."""
+        with self.engine.begin() as conn:
+            return {(r.scenario, r.seed_index) for r in conn.execute(
+                sa.select(rows.c.scenario, rows.c.seed_index).where(rows.c.submission_id == submission_id))}
+
+    def units(self, sub: Submission) -> list[tuple[str, int, int]]:
+        """(scenario, seed index, seed) a submission runs, real seeds included: for the worker, never to be served.
+
+        Raises:
+            BoardError: the track is not on this board any more, its definition changed
+                since the submission, or the hidden seed list it recorded is gone.
+        """
+        tr = self.track(sub.track)
+        if tr.hash != sub.track_hash:
+            raise BoardError(f"track {sub.track} changed since the submission (hash {sub.track_hash}, now {tr.hash}); "
+                             "submit again to run on the current definition")
+        h = None
+        if sub.phase == "test":
+            with self.engine.begin() as conn:
+                r = conn.execute(sa.select(hidden_seeds).where((hidden_seeds.c.track == sub.track)
+                                                               & (hidden_seeds.c.version == sub.hidden_version)
+                                                               )).mappings().first()
+            if r is None:
+                raise BoardError(f"hidden seed list version {sub.hidden_version} of track {sub.track} is missing")
+            h = _hidden(r)
+        return hidden.units(tr, hidden.phase_seeds(tr, sub.phase, h))
+
+    # -- hidden seeds and keys --------------------------------------------------------------------------------
+    def ensure_hidden_seeds(self, track: str, n: int = hidden.DEFAULT_COUNT) -> hidden.HiddenSeeds:
+        """The current hidden seed list of ``track`` (its latest version made on the track's current hash).
+
+        The first call, and the first after the track's definition changed, draws a new list
+        (the next version); later calls return it as stored, whatever ``n``.
+        """
+        tr = self.track(track)
+        for _ in range(3):
+            with self.engine.begin() as conn:
+                latest = conn.execute(sa.select(hidden_seeds).where(hidden_seeds.c.track == track)
+                                      .order_by(hidden_seeds.c.version.desc()).limit(1)).mappings().first()
+                if latest is not None and latest["track_hash"] == tr.hash:
+                    return _hidden(latest)
+            made = hidden.make(tr, (latest["version"] if latest else 0) + 1, n, time.time())
+            try:
+                with self.engine.begin() as conn:
+                    conn.execute(hidden_seeds.insert().values(
+                        track=made.track, track_hash=made.track_hash, version=made.version,
+                        seeds=json.dumps(list(made.seeds)), salt=made.salt, commitment=made.commitment,
+                        created=made.created))
+                return made
+            except sa.exc.IntegrityError:  # another server process drew that version first: read it
+                continue
+        raise BoardError(f"could not store a hidden seed list for track {track}: too many concurrent attempts")
+
+    def hidden_commitment(self, track: str) -> hidden.Commitment | None:
+        """What is published of the track's current hidden seed list (no seeds, no salt), or None before any."""
+        tr = self.track(track)
+        with self.engine.begin() as conn:
+            r = conn.execute(sa.select(hidden_seeds).where((hidden_seeds.c.track == track)
+                                                           & (hidden_seeds.c.track_hash == tr.hash))
+                             .order_by(hidden_seeds.c.version.desc()).limit(1)).mappings().first()
+        return hidden.public(_hidden(r)) if r else None
+
+    def key_secret(self) -> bytes:
+        """The board's secret for the opaque per-episode keys (:func:`wfbench.harness.sandbox.evaluate_sandboxed`)."""
+        with self.engine.begin() as conn:
+            value = conn.execute(sa.select(secrets_table.c.value).where(secrets_table.c.name == KEY_SECRET)).scalar()
+        if value is None:
+            raise BoardError("the board has no key secret: run Board.create() (wfbench serve does) first")
+        return bytes.fromhex(value)
+
+    # -- the board as the local reports read it ---------------------------------------------------------------
+    def store_view(self, track: str, phase: str) -> BoardView:
+        """A snapshot of a phase of a track that :func:`wfbench.leaderboard.report.ranking` reads like a Store.
+
+        Rank it with its own :attr:`BoardView.track`, e.g. ``ranking(view, view.track)``
+        (:func:`wfbench.leaderboard.suite_report.ranking` for a suite track). On the test
+        board the rows' ``seed`` is the seed's index in the hidden list and the track's
+        ``test_seeds`` are those indices (:func:`~wfbench.leaderboard.hosted.hidden.board_track`):
+        no hidden seed reaches a report.
+        """
+        tr = self.track(track)
+        try:
+            hidden.check_phase(phase)
+        except ValueError as exc:
+            raise BoardError(str(exc)) from None
+        h = self.hidden_commitment(track) if phase == "test" else None
+        note = (f"test phase on {h.count} hidden seeds (version {h.version}, commitment {h.commitment}), shown by "
+                "index" if h else "test phase on hidden seeds, none drawn yet") if phase == "test" \
+            else "development phase on the public seeds"
+        view_track = hidden.board_track(tr, phase, h.count if h else 0, note)
+        with self.engine.begin() as conn:
+            subs = [_sub(r) for r in conn.execute(_SUBMISSION_QUERY.where(
+                (submissions.c.track == track) & (submissions.c.phase == phase)).order_by(submissions.c.id)).mappings()]
+            frame = pd.read_sql_query(sa.select(rows).join(submissions, submissions.c.id == rows.c.submission_id)
+                                      .where((submissions.c.track == track) & (submissions.c.phase == phase))
+                                      .order_by(rows.c.submission_id, rows.c.scenario, rows.c.seed_index), conn)
+        return BoardView(view_track, tr.hash, phase, h.version if h else None, subs, frame)
+
+
+def entry_names(subs: list[Submission]) -> dict[int, str]:
+    """The name each submission has on a board: its own, or ``NAME #ID`` where several share it."""
+    count: dict[str, int] = {}
+    for s in subs:
+        count[s.name] = count.get(s.name, 0) + 1
+    return {s.id: s.name if count[s.name] == 1 else f"{s.name} #{s.id}" for s in subs}
+
+
+_STATUS = {"queued": "running", "running": "running", "done": "complete", "failed": "failed"}
+
+
+class BoardView:
+    """A phase of a hosted track as :class:`wfbench.leaderboard.store.Store` shows a local track to the reports.
+
+    Each submission is an entry named by :func:`entry_names`, whose policy is its entry
+    point, submitter its account, fingerprint the first 16 hex digits of its package's
+    hash; queued and running ones show as ``running`` (not ranked yet). A submission made
+    on another version of the track, or (test phase) on another hidden seed list, stays
+    off the board with a line in the refused messages.
+    """
+
+    def __init__(self, track: Track | SuiteTrack, track_hash: str, phase: str, hidden_version: int | None,
+                 subs: list[Submission], frame: pd.DataFrame):
+        self.track = track  # what to rank with (hidden.board_track)
+        self.phase = phase
+        self.refused: list[str] = []
+        names = entry_names(subs)
+        keep = []
+        for s in subs:
+            if s.track_hash != track_hash:
+                self.refused.append(f"submission {s.id} ({names[s.id]!r}) was made on another version of track "
+                                    f"{s.track} (hash {s.track_hash}, current {track_hash}); refused")
+            elif phase == "test" and s.hidden_version != hidden_version:
+                self.refused.append(f"submission {s.id} ({names[s.id]!r}) ran on hidden seed list version "
+                                    f"{s.hidden_version}, not the current {hidden_version}; refused")
+            else:
+                keep.append(s)
+        self._subs = [local_store.Submission(
+            s.id, s.track, names[s.id], s.entry, s.account, track.hash, _STATUS[s.state], s.reason, False,
+            s.package_sha.removeprefix("sha256:")[:16], json.dumps({"package": s.package_sha, "entry": s.entry}),
+            "") for s in keep]
+        by_id = {s.id: s for s in self._subs}
+        frame = frame[frame["submission_id"].isin(list(by_id))].copy()
+        if phase == "test":
+            frame["seed"] = frame["seed_index"]  # the index, never the hidden seed
+        frame = frame.drop(columns="seed_index")
+        self._rows = pd.DataFrame({
+            "name": [by_id[i].name for i in frame["submission_id"]],
+            "status": [by_id[i].status for i in frame["submission_id"]],
+            "builtin": False,
+            "submission_id": frame["submission_id"].to_numpy(),
+            "seed": frame["seed"].to_numpy(dtype=int),
+            "track": track.name, "track_hash": track.hash,
+            "policy": [by_id[i].policy for i in frame["submission_id"]],
+            "submitter": [by_id[i].submitter for i in frame["submission_id"]],
+            "wfbench_version": __version__, "finished_at": frame["finished"].to_numpy(),
+            **{c: frame[c].to_numpy() for c in ROW_COLUMNS},
+            "digest": "",
+            "fingerprint": [by_id[i].fingerprint for i in frame["submission_id"]],
+            **{c: frame[c].to_numpy(dtype=float) for c in BUDGET_COLUMNS},
+            "machine": frame["machine"].to_numpy(),
+            "scenario": frame["scenario"].to_numpy(),
+        }, index=pd.RangeIndex(len(frame)))
+
+    def submissions(self, track: str | None = None) -> list[local_store.Submission]:
+        """The entries of this phase (``track``: accepted for Store's signature; the view holds one track)."""
+        return list(self._subs)
+
+    def results(self, track: Track | SuiteTrack | None = None) -> tuple[pd.DataFrame, list[str]]:
+        """The entries' rows, in Store.results' columns, and the refused messages."""
+        return self._rows.copy(), list(self.refused)

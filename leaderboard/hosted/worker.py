@@ -1,0 +1,345 @@
+"""``wfbench worker --server DBURL``: evaluate queued submissions in the sandbox and store their rows, fenced.
+
+The loop: :func:`~wfbench.leaderboard.hosted.queue.claim` a job, unpack its package
+(:func:`wfbench.harness.package.unpack`, which re-checks it) into a temporary folder,
+run the units the submission still misses chunk by chunk through the evaluator
+(:func:`wfbench.harness.sandbox.evaluate_sandboxed`: the policy in bubblewrap, seeing
+observations and opaque keys only), store each chunk with
+:func:`~wfbench.leaderboard.hosted.queue.write_rows` and end the job with
+:func:`~wfbench.leaderboard.hosted.queue.finish`: ``done`` with the aggregate, or
+``failed`` with the sandbox's one-line reason. A thread renews the lease every third of
+it. Only the worker holds seeds; the database URL is all it needs, so any number of
+workers on any hosts that reach the database can run side by side.
+
+When the lease is lost (this worker was paused or cut off past it and another took the
+job), its next write is refused and it drops the job without touching it. On SIGTERM it
+stops at once, the sandbox with it: the lease runs out and another worker resumes with
+the units still missing. Without bubblewrap the worker refuses to start and says how to
+install it: it never runs a submission outside the sandbox.
+
+The evaluator is a parameter (default :func:`sandbox_evaluator`) with the signature of
+``evaluate_sandboxed``, so the queue's behaviour can be tested with a deterministic
+in-process evaluator; nothing outside the tests passes another.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import sys
+import tempfile
+import threading
+import time
+import traceback
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import sqlalchemy as sa
+from wfbench.leaderboard.hosted import hidden
+from wfbench.leaderboard.hosted.db import Board, BoardError, Submission
+from wfbench.leaderboard.hosted.queue import DEFAULT_LEASE_S, Claim, LeaseLost, claim, finish, heartbeat, write_rows
+from wfbench.leaderboard.store import KPI_COLUMNS, ROW_COLUMNS
+
+from wfbench.core.config import ScenarioConfig
+from wfbench.harness.budget import BUDGET_COLUMNS, machine, machine_line
+from wfbench.harness.evaluation import summarize
+from wfbench.harness.guard import PolicyError
+
+DEFAULT_CHUNK = 5  # seeds per evaluator call and per stored transaction
+Evaluator = Callable[..., pd.DataFrame]
+"""``(package_dir, entry, config, seeds, limits, key_secret, key_context, chunk_size=None) -> rows``."""
+Unpacker = Callable[[bytes, Path], Any]
+
+
+def sandbox_evaluator(package_dir: str | Path, entry: str, config: ScenarioConfig, seeds: Sequence[int],
+                      limits: Any, key_secret: bytes, key_context: str, chunk_size: int | None = None) -> pd.DataFrame:
+    """The production evaluator: :func:`wfbench.harness.sandbox.evaluate_sandboxed` (default limits if None)."""
+    from wfbench.harness import sandbox
+
+    return sandbox.evaluate_sandboxed(package_dir, entry, config, seeds, limits or sandbox.Limits(), key_secret,
+                                      key_context, chunk_size=chunk_size)
+
+
+def package_unpacker(data: bytes, dest: Path) -> Any:
+    """The production unpacker: :func:`wfbench.harness.package.unpack` (re-checks the archive while writing)."""
+    from wfbench.harness.package import unpack
+
+    return unpack(data, dest)
+
+
+def check_sandbox() -> None:
+    """Raise :class:`wfbench.harness.sandbox.SandboxUnavailable` (saying how to install it) without bubblewrap."""
+    from wfbench.harness import sandbox
+
+    sandbox.check_sandbox()
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+def failure_reason(exc: BaseException) -> str:
+    """The one line a failed submission shows: the sandbox's ``reason``, a PolicyError's message, or the error."""
+    reason = getattr(exc, "reason", None)
+    if isinstance(reason, str) and reason:
+        return reason
+    if isinstance(exc, PolicyError):
+        return exc.message.splitlines()[0] if exc.message else _one_line(exc)
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def aggregate(frame: pd.DataFrame) -> dict[str, Any]:
+    """A finished submission's result: the episode count and each KPI's mean, 25% and 75% quantile.
+
+    Over every row, and per scenario on a suite track (one entry per scenario).
+    """
+    def kpis(df: pd.DataFrame) -> dict[str, dict[str, float]]:
+        return {k: {"mean": m, "q25": lo, "q75": hi} for k, (m, lo, hi) in summarize(df, KPI_COLUMNS).items()}
+
+    out: dict[str, Any] = {"episodes": len(frame), "kpis": kpis(frame)}
+    scenarios = [s for s in frame["scenario"].unique() if s]
+    if scenarios:
+        out["scenarios"] = {s: {"episodes": int((frame["scenario"] == s).sum()),
+                                "kpis": kpis(frame[frame["scenario"] == s])} for s in scenarios}
+    return out
+
+
+class _Heartbeat(threading.Thread):
+    """Renews a claim's lease every ``every`` seconds until stopped; sets :attr:`lost` when it is refused."""
+
+    def __init__(self, c: Claim, every: float):
+        super().__init__(name=f"heartbeat-{c.submission_id}", daemon=True)
+        self.claim, self.every = c, every
+        self.lost = threading.Event()
+        self.done = threading.Event()
+
+    def run(self) -> None:
+        while not self.done.wait(self.every):
+            try:
+                ok = heartbeat(self.claim)
+            except sa.exc.SQLAlchemyError:  # the database did not answer this time: the lease covers a few misses
+                continue
+            if not ok:
+                self.lost.set()
+                return
+
+    def stop(self) -> None:
+        self.done.set()
+        self.join(5)
+
+
+class Worker:
+    """Claims and evaluates jobs of one board.
+
+    Args:
+        board: the board (its database).
+        worker_id: the name stored as the lease's owner (default ``host:pid``).
+        lease_s: the lease in seconds; renewed every third of it.
+        chunk_size: seeds per evaluator call and per stored transaction.
+        limits: the sandbox's limits (:class:`wfbench.harness.sandbox.Limits`; None: its defaults).
+        evaluator: what runs a chunk (default :func:`sandbox_evaluator`).
+        unpack: what unpacks a package into a folder (default :func:`package_unpacker`).
+        say: where progress lines go (default: stderr).
+    """
+
+    def __init__(self, board: Board, worker_id: str | None = None, lease_s: float = DEFAULT_LEASE_S,
+                 chunk_size: int = DEFAULT_CHUNK, limits: Any = None, evaluator: Evaluator = sandbox_evaluator,
+                 unpack: Unpacker = package_unpacker, say: Callable[[str], None] | None = None):
+        if not lease_s > 0:
+            raise ValueError(f"lease {lease_s:g} s is not allowed; allowed: seconds > 0")
+        if chunk_size < 1:
+            raise ValueError(f"chunk size {chunk_size} is not allowed; allowed: 1 or more")
+        self.board = board
+        self.worker_id = worker_id or f"{socket.gethostname()}:{os.getpid()}"
+        self.lease_s, self.chunk_size, self.limits = float(lease_s), chunk_size, limits
+        self.evaluator, self.unpack = evaluator, unpack
+        self.say = say or (lambda line: print(f"wfbench worker {self.worker_id}: {line}", file=sys.stderr,
+                                              flush=True))
+
+    def run(self, once: bool = False, poll_s: float = 2.0, stop: threading.Event | None = None) -> int:
+        """Claim and evaluate jobs until ``stop`` is set (``once``: until the queue is empty); returns jobs handled."""
+        handled = 0
+        while stop is None or not stop.is_set():
+            try:
+                state = self.run_one()
+            except sa.exc.OperationalError as exc:  # the database went away for a while: its job's lease expires
+                self.say(f"database error: {_one_line(exc.orig or exc)}; trying again in {poll_s:g} s")
+                state = None
+            if state is None:
+                if once:
+                    break
+                if stop is not None:
+                    stop.wait(poll_s)
+                else:
+                    time.sleep(poll_s)
+            else:
+                handled += 1
+        return handled
+
+    def run_one(self) -> str | None:
+        """Claim one job and evaluate it: its final state (``done``, ``failed``, ``lost``); None when none is queued."""
+        c = claim(self.board.engine, self.worker_id, self.lease_s)
+        if c is None:
+            return None
+        self.say(f"claimed submission {c.submission_id} (attempt {c.attempt}, fence {c.fence})")
+        beat = _Heartbeat(c, self.lease_s / 3)
+        beat.start()
+        try:
+            state = self.process(c, beat.lost)
+        finally:
+            beat.stop()
+        self.say(f"submission {c.submission_id}: {state}")
+        return state
+
+    def process(self, c: Claim, lost: threading.Event | None = None) -> str:
+        """Evaluate a claimed job's missing units and finish it; ``lost`` (set by the heartbeat) stops it early."""
+        sub = self.board.submission(c.submission_id)
+        assert sub is not None, f"claimed submission {c.submission_id} does not exist"
+        log: list[str] = []
+        try:
+            try:
+                self._evaluate(c, sub, lost, log)
+                frame = self.board.rows(sub.id)
+                finish(c, "done", "", aggregate(frame), log="".join(log))
+                return "done"
+            except LeaseLost:
+                raise
+            except (PolicyError, BoardError, ValueError) as exc:  # the submission's failure: its reason is shown
+                return self._fail(c, failure_reason(exc), log, exc)
+            except Exception as exc:  # noqa: BLE001 - a package the unpacker refuses, or this worker's own failure
+                if _is_unavailable(exc) or isinstance(exc, sa.exc.SQLAlchemyError):
+                    raise  # not the submission's fault: the lease expires and another worker (or a retry) takes it
+                return self._fail(c, failure_reason(exc), log, exc)
+        except LeaseLost as exc:
+            self.say(str(exc))
+            return "lost"
+
+    def _fail(self, c: Claim, reason: str, log: list[str], exc: BaseException) -> str:
+        extra = getattr(exc, "log", "")
+        finish(c, "failed", reason, None, log="".join(log) + (extra if isinstance(extra, str) else ""))
+        self.say(f"submission {c.submission_id} failed: {reason}")
+        if not isinstance(exc, PolicyError | BoardError | ValueError) and "PackageError" not in type(exc).__name__:
+            self.say("".join(traceback.format_exception(exc)).rstrip())
+        return "failed"
+
+    def _evaluate(self, c: Claim, sub: Submission, lost: threading.Event | None, log: list[str]) -> None:
+        tr = self.board.track(sub.track)
+        configs = tr.configs()
+        done = self.board.done_units(sub.id)
+        missing = [u for u in self.board.units(sub) if (u[0], u[1]) not in done]
+        if not missing:
+            return
+        data = self.board.package(sub.package_sha)
+        if data is None:
+            raise BoardError(f"package {sub.package_sha} is missing from the board")
+        secret, context = self.board.key_secret(), hidden.key_context(sub.track, sub.phase)
+        with tempfile.TemporaryDirectory(prefix="wfbench-worker-") as tmp:
+            package_dir = Path(tmp) / "policy"
+            package_dir.mkdir()
+            self.unpack(data, package_dir)
+            for scenario, chunk in _chunks(missing, self.chunk_size):
+                if lost is not None and lost.is_set():
+                    raise LeaseLost(f"submission {c.submission_id}: worker {c.worker_id} lost its lease (a "
+                                    "heartbeat was refused: another worker claimed the job); nothing more was written")
+                index = {seed: i for _, i, seed in chunk}
+                frame = self.evaluator(package_dir, sub.entry, configs[scenario], [s for _, _, s in chunk],
+                                       self.limits, secret, context)
+                text = frame.attrs.get("log")
+                if isinstance(text, str) and text:
+                    log.append(text)
+                write_rows(c, _rows(frame, scenario, index))
+
+
+def _chunks(units: list[tuple[str, int, int]], size: int) -> list[tuple[str, list[tuple[str, int, int]]]]:
+    """The units grouped by scenario (in order), each group cut into chunks of ``size``."""
+    out: list[tuple[str, list[tuple[str, int, int]]]] = []
+    for u in units:
+        if out and out[-1][0] == u[0] and len(out[-1][1]) < size:
+            out[-1][1].append(u)
+        else:
+            out.append((u[0], [u]))
+    return out
+
+
+def _rows(frame: pd.DataFrame, scenario: str, index: dict[int, int]) -> list[dict[str, Any]]:
+    """The evaluator's rows as the queue stores them (seed index, scenario and the machine's line added)."""
+    if set(frame["seed"].astype(int)) != set(index):
+        raise ValueError(f"the evaluation returned seeds other than those asked ({len(frame)} rows for "
+                         f"{len(index)} seeds)")
+    budget = frame.attrs.get("budget", {})
+    where = machine_line({**(budget.get("machine") or machine()), "backend": "sandbox", "workers": 1})
+    out = []
+    for r in frame.to_dict("records"):
+        row = {c: r[c] for c in ROW_COLUMNS}
+        row.update({c: r.get(c, math.nan) for c in BUDGET_COLUMNS})
+        row.update(scenario=scenario, seed=int(r["seed"]), seed_index=index[int(r["seed"])], machine=where)
+        out.append(row)
+    return out
+
+
+# -- the command ----------------------------------------------------------------------------------------------
+
+
+def _is_unavailable(exc: BaseException) -> bool:
+    return any(k.__name__ == "SandboxUnavailable" for k in type(exc).__mro__)
+
+
+class _Stopped(BaseException):
+    """SIGTERM: leave at once (the sandbox and the temporary folder are cleaned up on the way out)."""
+
+
+def _on_term(signum: int, frame: Any) -> None:
+    raise _Stopped()
+
+
+def run_worker(server: str, worker_id: str | None = None, lease_s: float = DEFAULT_LEASE_S, once: bool = False,
+               poll_s: float = 2.0, chunk_size: int = DEFAULT_CHUNK, tracks: Mapping[str, Any] | None = None,
+               evaluator: Evaluator | None = None, unpack: Unpacker | None = None, limits: Any = None) -> int:
+    """What ``wfbench worker`` runs; its exit status.
+
+    Refuses to start (status 2, one line) without the sandbox, a bad database URL or
+    lease; stops on SIGTERM (status 143) leaving the job to the lease's expiry.
+    ``tracks``: the board's tracks (default: every track, as ``wfbench serve``'s).
+    ``limits``: the sandbox's :class:`~wfbench.harness.sandbox.Limits` (None: its defaults).
+    ``evaluator`` and ``unpack``: for the tests only (the sandbox is checked only when
+    the evaluator is the sandbox's).
+    """
+    try:
+        if evaluator is None:
+            check_sandbox()
+        board = Board(server, tracks=tracks)
+        board.create()
+        worker = Worker(board, worker_id, lease_s, chunk_size, limits=limits, evaluator=evaluator or sandbox_evaluator,
+                        unpack=unpack or package_unpacker)
+    except (BoardError, ValueError) as exc:
+        print(f"wfbench worker: error: {failure_reason(exc)}", file=sys.stderr)
+        return 2
+    except Exception as exc:
+        if _is_unavailable(exc):
+            print(f"wfbench worker: error: {exc}; the worker never runs a submission outside the sandbox",
+                  file=sys.stderr)
+            return 2
+        raise
+    previous = signal.signal(signal.SIGTERM, _on_term)
+    try:
+        worker.say(f"serving {board.engine.url.render_as_string(hide_password=True)} (lease {lease_s:g} s)")
+        worker.run(once=once, poll_s=poll_s)
+        return 0
+    except Exception as exc:
+        if not _is_unavailable(exc):
+            raise
+        print(f"wfbench worker: error: {exc}; the job's lease will expire and another worker resumes it",
+              file=sys.stderr)
+        return 2
+    except _Stopped:
+        worker.say("stopped by SIGTERM; the job's lease will expire and another worker resumes it")
+        return 143
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        board.close()
