@@ -30,16 +30,18 @@ import wfbench.cli.leaderboard as leaderboard
 import wfbench.cli.policies as policies
 import wfbench.cli.reproduce as reproduce
 import wfbench.cli.scenarios as scenarios
+import wfbench.cli.serve as serve
 import wfbench.cli.simulate as simulate
 import wfbench.cli.suite as suite
 import wfbench.cli.train as train
 import wfbench.cli.tune as tune
+import wfbench.cli.worker as worker
 from wfbench.cli.common import EXIT_POLICY_FAILED, EXIT_USAGE, Parser, UsageError
 
 # the commands in the order --help lists them
 COMMANDS = {"evaluate": evaluate, "compare": compare, "leaderboard": leaderboard, "reproduce": reproduce,
             "tune": tune, "scenarios": scenarios, "suite": suite, "policies": policies, "simulate": simulate,
-            "bench": bench, "train": train}
+            "bench": bench, "train": train, "serve": serve, "worker": worker}
 
 __all__ = ["COMMANDS", "EXIT_POLICY_FAILED", "EXIT_USAGE", "UsageError", "build_parser", "main"]
 

@@ -1,9 +1,14 @@
-"""``wfbench leaderboard``: submit policies to tracks, seed the built-in entries, withdraw one, show the rankings."""
+"""``wfbench leaderboard``: submit policies to tracks, seed the built-in entries, withdraw one, show the rankings.
+
+``upload`` sends a policy package to a hosted board (``wfbench serve``) instead, where it is
+evaluated in a sandbox (:mod:`wfbench.leaderboard.hosted.client`).
+"""
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 
 from wfbench.cli.common import (
@@ -16,6 +21,8 @@ from wfbench.cli.common import (
     check_writable,
     positive,
 )
+
+TOKEN_ENV = "WFBENCH_TOKEN"  # where 'upload' reads the token when --token is not given (a command line is visible)
 
 
 def budget_limit(text: str) -> float:
@@ -67,9 +74,42 @@ def add_parser(sub) -> None:
     lx.add_argument("--track", default="paper-64")
     lx.add_argument("--reason", default="", help="why, kept in the audit tables")
     lx.add_argument("--db", default=None, help="store file (default: $WFBENCH_DB or the user data folder)")
+    lu = lsub.add_parser("upload", help="upload a policy package to a hosted board and follow its evaluation")
+    lu.add_argument("--server", required=True, help="the hosted board's URL, e.g. http://127.0.0.1:8000")
+    lu.add_argument("--token", default=None, help=f"your account's token (default: ${TOKEN_ENV})")
+    lu.add_argument("--policy", required=True,
+                    help="a module:attr entry point (packed from the current folder), a folder with "
+                         "wfbench-policy.json, or a .zip/.whl policy package")
+    lu.add_argument("--track", default="paper-64", help="track name (see 'wfbench leaderboard tracks')")
+    lu.add_argument("--phase", default="dev", help="dev (the public seeds, log shown) or test (hidden seeds, "
+                                                   "aggregate only, quota per account)")
+    lu.add_argument("--name", default=None, help="the entry's name on the board (default: the entry point)")
+    lu.add_argument("--entry", default=None, help="the entry point in the package (default: the manifest's)")
+    lu.add_argument("--no-wait", action="store_true", help="print the submission's page and return at once")
+    lu.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def upload(args: argparse.Namespace) -> int:
+    """Pack, upload and follow a submission to a hosted board; its refusal or failure is one line, status 1."""
+    from wfbench.leaderboard.hosted.client import UploadError, result_lines
+    from wfbench.leaderboard.hosted.client import upload as send
+
+    token = args.token or os.environ.get(TOKEN_ENV, "")
+    if not token:
+        raise UsageError(f"no token: pass --token or set ${TOKEN_ENV} (the board's admin makes one)")
+    try:
+        sub = send(args.server, token, args.policy, args.track, phase=args.phase, name=args.name, entry=args.entry,
+                   wait=not args.no_wait, progress=not args.no_progress)
+    except UploadError as exc:
+        print(f"wfbench: error: {exc}", file=sys.stderr)
+        return EXIT_POLICY_FAILED
+    print("\n".join(result_lines(sub)))
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.lb_command == "upload":  # before the imports below: the client needs none of them
+        return upload(args)
     # the report is imported here: it loads scipy.stats, which slows every start of the command line
     from wfbench.leaderboard.report import check_format
     from wfbench.leaderboard.store import Store, StoreError
