@@ -17,6 +17,12 @@ stops at once, the sandbox with it: the lease runs out and another worker resume
 the units still missing. Without bubblewrap the worker refuses to start and says how to
 install it: it never runs a submission outside the sandbox.
 
+Before its first sandboxed evaluation the worker compiles (or, on a warm cache, loads)
+the built-ins' kernels in its own process (:func:`warm_builtins`): each sandbox copies
+the entries it needs from the worker's numba cache, mounted read-only, so a package
+that calls wfbench's compiled code starts warm instead of compiling for a minute in
+every chunk's sandbox.
+
 The evaluator is a parameter (default :func:`sandbox_evaluator`) with the signature of
 ``evaluate_sandboxed``, so the queue's behaviour can be tested with a deterministic
 in-process evaluator; nothing outside the tests passes another.
@@ -34,6 +40,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -55,11 +62,39 @@ Evaluator = Callable[..., pd.DataFrame]
 Unpacker = Callable[[bytes, Path], Any]
 
 
+@cache
+def warm_builtins() -> None:
+    """Compile the kernels of the leaderboard's built-ins into this process's numba cache, once per process.
+
+    The sandboxes copy from that cache (:class:`wfbench.harness.sandbox_child.CacheCopies`):
+    the seeded built-ins (:mod:`wfbench.leaderboard.hosted.seed`) and any package wrapping
+    one then start warm. The shapes do not matter (numba compiles per type), so the
+    small preset serves every track. A built-in that reads the trace is skipped: the
+    sandbox refuses it.
+    """
+    from wfbench.policies import registry
+
+    from wfbench.harness.sandbox import warm_cache
+
+    for name in registry.LINEUPS["leaderboard"]:
+        try:
+            policy = registry.get(name)
+            if not getattr(policy, "reads_trace", False):
+                warm_cache(policy, ScenarioConfig.preset("small"))
+        except Exception as exc:  # noqa: BLE001 - a cold start for that one's sandboxes, not a dead worker
+            print(f"wfbench worker: cannot warm the numba cache for {name!r}: {_one_line(exc)}; its sandboxes "
+                  "compile it", file=sys.stderr, flush=True)
+
+
 def sandbox_evaluator(package_dir: str | Path, entry: str, config: ScenarioConfig, seeds: Sequence[int],
                       limits: Any, key_secret: bytes, key_context: str, chunk_size: int | None = None) -> pd.DataFrame:
-    """The production evaluator: :func:`wfbench.harness.sandbox.evaluate_sandboxed` (default limits if None)."""
+    """The production evaluator: :func:`wfbench.harness.sandbox.evaluate_sandboxed` (default limits if None).
+
+    The first call of a process warms its numba cache first (:func:`warm_builtins`).
+    """
     from wfbench.harness import sandbox
 
+    warm_builtins()
     return sandbox.evaluate_sandboxed(package_dir, entry, config, seeds, limits or sandbox.Limits(), key_secret,
                                       key_context, chunk_size=chunk_size)
 

@@ -16,9 +16,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from wfbench.policies import get
 
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.simulator import Simulator
 from wfbench.harness.budget import results_only
 from wfbench.harness.evaluation import evaluate
 from wfbench.harness.package import pack, unpack
@@ -30,6 +32,8 @@ from wfbench.harness.sandbox import (
     check_sandbox,
     evaluate_sandboxed,
     opaque_keys,
+    shared_caches,
+    warm_cache,
 )
 
 SHORT = ScenarioConfig.preset("small").replace(horizon=20)
@@ -414,3 +418,98 @@ def test_cli_sandbox_refuses_a_bad_policy_spec(tmp_path, monkeypatch, capsys):
     assert main(["evaluate", "--sandbox", "--policy", "random", "--scenario", "small", "--seeds", "1"]) == 2
     assert "with --sandbox: allowed: a package folder" in capsys.readouterr().err
 
+
+
+# -- numba's cache: a sandbox starts warm from the evaluator's cache, read-only ---------------------------------
+
+WRAPPED = '''
+from wfbench.policies import get
+
+
+def Policy():
+    return get("heuristic")
+'''
+
+# the wrapped heuristic, counting numba's compilations in its process, then spoiling every cache file it can reach
+SPOILER = '''
+import os
+
+from numba.core import event
+
+from wfbench.policies import get
+
+
+class Count(event.Listener):
+    n = 0
+
+    def on_start(self, ev):
+        Count.n += 1
+
+    def on_end(self, ev):
+        pass
+
+
+class Policy:
+    def __init__(self):
+        self.inner = get("heuristic")
+        self.decisions = self.inner.decisions
+        event.register("numba:compile", Count())
+
+    def reset(self, keys):
+        self.inner.reset(keys)
+
+    def act(self, obs):
+        action = self.inner.act(obs)
+        spoiled, refused = 0, 0
+        for top in ("/tmp/numba", "/wfbench-numba", {host!r}):
+            for folder, _, names in os.walk(top):
+                for name in names:
+                    try:
+                        with open(os.path.join(folder, name), "wb") as f:
+                            f.write(b"spoiled")
+                        spoiled += top == "/tmp/numba"
+                    except OSError:
+                        refused += 1
+        print(f"compiled {{Count.n}} spoiled {{spoiled}} refused {{refused}}", flush=True)
+        return action
+'''
+
+
+def _digests(folders) -> dict[str, str]:
+    import hashlib
+
+    return {str(f): hashlib.sha256(f.read_bytes()).hexdigest() for d in folders for f in sorted(Path(d).iterdir())
+            if f.suffix in (".nbi", ".nbc")}
+
+
+@pytest.mark.slow
+def test_a_wrapped_builtin_scores_bit_for_bit_as_evaluate(bwrap, tmp_path):
+    warm_cache(get("heuristic"), SHORT)
+    direct = evaluate("heuristic", SHORT, [5, 3], backend="serial")
+    sandboxed = evaluate_sandboxed(_package(tmp_path, WRAPPED), "pol:Policy", SHORT, [5, 3], None, SECRET, CONTEXT,
+                                   chunk_size=1)
+    pd.testing.assert_frame_equal(results_only(sandboxed), results_only(direct), check_exact=True)
+    assert "compiling" not in sandboxed.attrs["log"]  # wfbench's notice of a cold compile
+
+
+@pytest.mark.slow
+def test_the_sandbox_starts_warm_and_its_spoiled_copies_stay_in_it(bwrap, tmp_path):
+    warm_cache(get("heuristic"), SHORT)
+    shared = [folder for _, folder in shared_caches()]
+    host = next(f for f in shared if "policies" in str(f))  # the evaluator's cache of the policies' kernels
+    before = _digests(shared)
+    package = _package(tmp_path, SPOILER.format(host=str(host)))
+    obs = Simulator(SHORT, [0]).reset()
+    for _ in range(2):  # the second sandbox loads clean copies: what the first spoiled died with it
+        with SandboxPolicy(package, "pol:Policy", Limits(act_timeout_s=5), SECRET, CONTEXT) as sp:
+            sp.reset([0])
+            started = time.monotonic()
+            sp.act(obs)
+            took = time.monotonic() - started
+            sp.close()
+            compiled, spoiled, refused = map(int, re.fullmatch(r"compiled (\d+) spoiled (\d+) refused (\d+)\n",
+                                                               sp.log).groups())
+        assert compiled == 0 and took < 5, f"the first act compiled {compiled} functions in {took:.1f} s"
+        assert spoiled > 0 and refused > len(before) > 0  # its own copies; every file of the mounts and the host's
+    assert _digests(shared) == before, "no sandbox writes the evaluator's cache"
+    warm_cache(get("heuristic"), SHORT)  # and the evaluator still loads it

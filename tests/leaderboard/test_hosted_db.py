@@ -152,6 +152,10 @@ def test_bad_submissions_say_what_is_allowed(board):
         board.submit(alice, "tiny", "dev", "sha256:ff", "p:P", "x")
     with pytest.raises(BoardError, match="submission name '' is not allowed"):
         board.submit(alice, "tiny", "dev", sha, "p:P", "")
+    # a namesake of a built-in would hide the baseline the reports compare with
+    with pytest.raises(BoardError, match=r"^the name 'heuristic' is kept for the built-in entry of that policy; "
+                                         r"allowed: any other name \(--name\)$"):
+        board.submit(alice, "tiny", "dev", sha, "p:P", "heuristic")
 
 
 def test_test_phase_allows_one_job_at_a_time_per_account(board):

@@ -1,4 +1,4 @@
-"""``wfbench serve``: run the hosted leaderboard's web server; ``wfbench serve account add NAME``: make an account.
+"""``wfbench serve``: the hosted leaderboard's web server; ``account add NAME``: an account; ``seed``: the built-ins.
 
 The server stores uploads and queues them; ``wfbench worker`` evaluates them. Both read
 the same database: a SQLite file (the default, nothing else to start) or a PostgreSQL
@@ -39,6 +39,13 @@ def add_parser(sub) -> None:
     add.add_argument("name", help="the account's name")
     add.add_argument("--admin", action="store_true", help="an admin account")
     add.add_argument("--db", default=argparse.SUPPRESS, help=DB_HELP)  # after the subcommand too
+    seed = ssub.add_parser("seed", help="enter the built-in policies (the baselines the reports compare with) as "
+                                        "submissions of the admin account 'wfbench'; seeding again adds nothing")
+    seed.add_argument("--tracks", default=argparse.SUPPRESS,
+                      help="comma-separated tracks to enter them on (default: all the board's)")
+    seed.add_argument("--phase", choices=("dev", "test", "both"), default="both",
+                      help="the phase(s) to enter them in (default both)")
+    seed.add_argument("--db", default=argparse.SUPPRESS, help=DB_HELP)
 
 
 def default_db() -> str:
@@ -80,6 +87,24 @@ def open_board(db: str | None, tracks: dict | None):
     return board
 
 
+def seed(board, phase: str) -> int:
+    """``wfbench serve seed``: one line per built-in, track and phase; what to start next."""
+    from wfbench.leaderboard.hosted.db import BoardError
+    from wfbench.leaderboard.hosted.seed import ACCOUNT, PHASES
+    from wfbench.leaderboard.hosted.seed import seed as seed_builtins
+
+    try:
+        done = seed_builtins(board, phases=PHASES[phase])
+    except BoardError as exc:
+        raise UsageError(str(exc)) from None
+    for s in done:
+        print(s.line())
+    new = sum(s.created for s in done)
+    print(f"{new} new submission{'s' if new != 1 else ''} of account {ACCOUNT!r}; start 'wfbench worker --server "
+          "DBURL' to evaluate them")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     board = open_board(args.db, track_names(args.tracks))
     if args.serve_command == "account":
@@ -92,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"account {args.name!r}{' (admin)' if args.admin else ''} made; its token, shown only now:")
         print(token)
         return 0
+    if args.serve_command == "seed":
+        return seed(board, args.phase)
     import uvicorn
 
     from wfbench.leaderboard.hosted.server import create_app

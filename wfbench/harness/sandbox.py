@@ -72,6 +72,7 @@ from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.harness.guard import Guard, LoadedPolicy, PolicyError
+from wfbench.harness.sandbox_child import cache_folder
 from wfbench.harness.wire import Decoder, Kind, Message, WireError, WireLimits, array_text, encode
 
 # the policy's user when the evaluator runs as root: one drawn per sandbox from a range no account uses, so that
@@ -83,6 +84,7 @@ INSTALL_HINT = "install it with `apt-get install bubblewrap` (Debian/Ubuntu; `dn
 # anyone can reproduce its keys; a hosted board keeps its own secret in its database
 LOCAL_KEY_SECRET = b"wfbench-local-sandbox-v1"
 LOCAL_KEY_CONTEXT = "local"
+CACHE_MOUNT = "/wfbench-numba"  # the evaluator's numba cache of each wfbench folder, read-only, at CACHE_MOUNT/<i>
 _FROM_CHILD = WireLimits(max_bytes=64 << 20)  # an action is a few arrays of (B, M)
 _READ = 1 << 16
 
@@ -111,7 +113,8 @@ class Limits:
     cpu_s: int = 3600  # CPU seconds of the process over its life (RLIMIT_CPU)
     processes: int = 64  # processes and threads of the sandbox's user (RLIMIT_NPROC)
     file_mb: int = 16  # the largest file it may write (RLIMIT_FSIZE)
-    tmp_mb: int = 64  # the size of its /tmp (a tmpfs)
+    tmp_mb: int = 64  # the policy's room in its /tmp (a tmpfs)
+    numba_cache_mb: int = 64  # more room in /tmp for the copies of the evaluator's compiled wfbench kernels
     act_timeout_s: float = 10.0  # each reset and act call
     wall_time_s: float = 1800.0  # the policy's time over one batch of episodes (reset and every act)
     log_bytes: int = 1 << 20  # what it may write to stdout and stderr together
@@ -220,9 +223,51 @@ def _ancestors(paths: Sequence[Path]) -> list[str]:
     return [arg for a in out for arg in ("--perms", "0755", "--dir", a)]
 
 
-def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, uid: int) -> list[str]:
-    """The bubblewrap command line that runs the child on ``package_dir`` with ``config``."""
+@cache
+def _compiled_sources() -> tuple[str, ...]:
+    """One source file per folder of the wfbench packages with functions numba caches (``cache=True``)."""
+    found: dict[Path, str] = {}
+    for name in PACKAGES:
+        spec = find_spec(name)
+        for top in (spec and spec.submodule_search_locations) or []:
+            for py in sorted(Path(top).resolve().rglob("*.py")):
+                if py.parent not in found and b"cache=True" in py.read_bytes():
+                    found[py.parent] = str(py)
+    return tuple(found.values())
+
+
+_host_cache_folder = cache(cache_folder)
+
+
+def shared_caches() -> list[tuple[str, Path]]:
+    """(a source file, the folder this process's numba caches its folder in) where that folder holds entries.
+
+    What a sandbox mounts read-only for its child to copy from (:class:`wfbench.harness.sandbox_child.CacheCopies`):
+    this process's own cache, which only this process (or another trusted run of wfbench on the
+    machine) writes, never a sandbox.
+    """
+    out = []
+    for py_file in _compiled_sources():
+        try:
+            folder = _host_cache_folder(py_file)
+            if folder is not None and any(n.endswith(".nbi") for n in os.listdir(folder)):
+                out.append((py_file, Path(folder)))
+        except OSError:
+            continue
+    return out
+
+
+def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, uid: int,
+                    caches: Sequence[tuple[str, Path]] = ()) -> list[str]:
+    """The bubblewrap command line that runs the child on ``package_dir`` with ``config``.
+
+    ``caches``: (a source file, a numba cache folder) to mount read-only for the child to
+    copy from (:func:`shared_caches`); ``config`` gets where each one is.
+    """
     folders = python_folders()
+    mounts = [f"{CACHE_MOUNT}/{i}" for i in range(len(caches))]
+    config = {**config, "numba_cache": [[py_file, m] for (py_file, _), m in zip(caches, mounts, strict=True)],
+              "numba_cache_bytes": int(limits.numba_cache_mb) << 20}
     env = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": "/tmp", "PYTHONPATH": "/policy",
            "NUMBA_CACHE_DIR": "/tmp/numba", "MPLCONFIGDIR": "/tmp", "PYTHONDONTWRITEBYTECODE": "1",
            "PYTHONUNBUFFERED": "1", "PYTHONNOUSERSITE": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -230,12 +275,15 @@ def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, u
     cmd = [shutil.which("bwrap") or "bwrap", *_namespaces(), "--die-with-parent", "--new-session", "--clearenv"]
     for k, v in env.items():
         cmd += ["--setenv", k, v]
-    cmd += _ancestors([*folders, Path("/policy")])
+    cmd += _ancestors([*folders, Path("/policy"), *map(Path, mounts)])
     cmd += _system_binds()
     for f in folders:
         cmd += ["--ro-bind", str(f), str(f)]
+    for (_, folder), m in zip(caches, mounts, strict=True):
+        cmd += ["--ro-bind", str(folder), m]
+    tmp_bytes = (int(limits.tmp_mb) + int(limits.numba_cache_mb)) << 20
     cmd += ["--ro-bind", str(package_dir), "/policy", "--proc", "/proc", "--dev", "/dev",
-            "--perms", "1777", "--size", str(int(limits.tmp_mb) << 20), "--tmpfs", "/tmp", "--chdir", "/policy"]
+            "--perms", "1777", "--size", str(tmp_bytes), "--tmpfs", "/tmp", "--chdir", "/policy"]
     if os.geteuid() == 0:  # the child drops to ``uid``, with no capability left in any set
         cmd += ["--cap-add", "CAP_SETUID", "--cap-add", "CAP_SETGID", "--cap-add", "CAP_SETPCAP", "--",
                 "setpriv", "--reuid", str(uid), "--regid", str(uid), "--clear-groups",
@@ -336,7 +384,8 @@ class SandboxPolicy:
         config = {"in": to_child_r, "out": from_child_w, "entry": entry, "rlimits": self.limits.rlimits(),
                   "memory_mb": self.limits.memory_mb}
         try:
-            self.proc = subprocess.Popen(sandbox_command(self.package_dir, config, self.limits, self.uid),
+            self.proc = subprocess.Popen(sandbox_command(self.package_dir, config, self.limits, self.uid,
+                                                         shared_caches()),
                                          stdin=subprocess.DEVNULL, stdout=log_w, stderr=log_w,
                                          pass_fds=(to_child_r, from_child_w), start_new_session=True)
         finally:
@@ -524,6 +573,29 @@ def _signal(sig: int, limits: Limits) -> str:
     hint = {signal.SIGKILL: f"memory limit {limits.memory_mb} MB?", signal.SIGXCPU: f"CPU limit {limits.cpu_s} s",
             signal.SIGXFSZ: f"file size limit {limits.file_mb} MB"}.get(signal.Signals(sig), "")
     return f"signal {sig} ({name}{': ' + hint if hint else ''})"
+
+
+# -- a warm cache for the sandboxes ---------------------------------------------------------------------------------
+
+
+def warm_cache(policy: Any, config: ScenarioConfig, steps: int = 4) -> None:
+    """Compile here, into this process's numba cache (which sandboxes copy from), what a sandbox of ``policy`` loads.
+
+    ``policy`` is trusted: its code runs here (a built-in). It plays ``steps`` steps as
+    the sandbox's child plays them: keys as an int64 array, observations through the
+    wire format, since numba compiles one version per argument type and a direct call
+    could cache versions the child never asks for. On a warm cache it only loads
+    (about 0.1 s a policy); on a cold one it compiles, once per machine and version of
+    the code.
+    """
+    sim = Simulator(config.replace(horizon=steps), [0])
+    obs = sim.reset()
+    policy.reset(opaque_keys([0], LOCAL_KEY_SECRET, "warm"))
+    decoder = Decoder()
+    while not sim.done:
+        (msg,) = decoder.feed(encode(Kind.ACT, obs))
+        sim.step(policy.act(msg.arrays))
+        obs = sim.observe()
 
 
 # -- evaluating a package --------------------------------------------------------------------------------------------

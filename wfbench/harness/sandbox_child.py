@@ -14,6 +14,12 @@ It imports only what it needs (numpy and the wire format; numba is loaded anyway
 ``wfbench`` package, and its compile events become PAUSE/RESUME so the evaluator's act
 clock stops while numba compiles, as :class:`wfbench.harness.guard.Guard`'s does): the
 evaluator waits for it on every evaluation.
+
+numba's cache starts warm (:class:`CacheCopies`): the evaluator mounts its own cache of
+the ``wfbench`` packages' compiled kernels read-only, and the child copies an entry into
+its own cache (``NUMBA_CACHE_DIR=/tmp/numba``, on the sandbox's tmpfs) when numba first
+reads it. The policy may spoil its copies; the evaluator never loads anything from the
+sandbox, and the next sandbox copies afresh.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import importlib
 import json
 import os
 import resource
+import stat
 import sys
 import threading
 import traceback
@@ -29,6 +36,7 @@ from collections import deque
 from typing import Any
 
 import numpy as np
+from numba.core import caching
 from numba.core import event as numba_event
 
 from wfbench.harness.wire import Decoder, Kind, Message, WireError, encode, text_array, wire_dtype
@@ -79,6 +87,112 @@ class CompileNotice(numba_event.Listener):
         self.depth -= 1
         if self.armed and self.depth == 0 and threading.current_thread() is threading.main_thread():
             self.channel.send(Kind.RESUME)
+
+
+def _probe() -> None:
+    """A stand-in function: numba's cache locators are asked about a source file through a function in it."""
+
+
+def cache_folder(py_file: str) -> str | None:
+    """The folder this process's numba caches the compiled functions of ``py_file`` in (None: not cached).
+
+    The first of numba's locator classes that takes the file, as numba's own choice
+    (``numba.core.caching._CacheImpl``); wfbench's :class:`~wfbench.core.jit.DigestLocator`
+    comes first among them. The folder depends only on where the file is, so any
+    function stands in for the file's.
+    """
+    for locator_class in caching.CacheImpl._locator_classes:
+        locator = locator_class.from_function(_probe, py_file)
+        if locator is not None:
+            return os.path.normpath(locator.get_cache_path())
+    return None
+
+
+class CacheCopies:
+    """The evaluator's compiled kernels, copied into this process's own numba cache as numba first reads each.
+
+    numba refuses a cache folder it cannot write, so the evaluator's (trusted) cache is
+    mounted read-only and each entry (an index, ``*.nbi``, and its data files, ``*.nbc``)
+    is copied into the folder where this process's numba looks (:func:`cache_folder`:
+    ``/tmp/numba/...``) just before numba reads the index. Only what the policy calls is
+    copied, at most ``budget`` bytes in all (past it numba compiles, as on a cold cache);
+    a file larger than the file size limit is left out rather than killing the process
+    (SIGXFSZ). A failed copy costs a compilation, never the policy's run.
+
+    Args:
+        sources: source file -> the read-only folder holding the evaluator's cache of its folder.
+        budget: bytes it may copy.
+        max_file: the largest file it may write (RLIMIT_FSIZE).
+    """
+
+    def __init__(self, sources: dict[str, str], budget: int, max_file: int):
+        self.folders: dict[str, str] = {}  # this process's cache folder -> the evaluator's, read-only
+        for py_file, mounted in sources.items():
+            mine = cache_folder(py_file)
+            if mine is not None:
+                self.folders[mine] = mounted
+        self.left, self.max_file = int(budget), int(max_file)
+        self.copied: list[str] = []
+        self._seen: set[tuple[str, str]] = set()
+        self._listings: dict[str, list[str]] = {}
+
+    def install(self) -> None:
+        """Copy each entry just before numba first loads its index (``IndexDataCacheFile._load_index``)."""
+        load_index = caching.IndexDataCacheFile._load_index
+        copies = self
+
+        def _load_index(cache_file: caching.IndexDataCacheFile) -> dict:
+            copies.fetch(cache_file._cache_path, cache_file._index_name)
+            return load_index(cache_file)
+
+        caching.IndexDataCacheFile._load_index = _load_index
+
+    def fetch(self, cache_path: str, index_name: str) -> None:
+        """Copy the evaluator's ``index_name`` and its data files into ``cache_path``, once."""
+        target = os.path.normpath(cache_path)
+        source = self.folders.get(target)
+        if source is None or not index_name.endswith(".nbi") or (target, index_name) in self._seen:
+            return
+        self._seen.add((target, index_name))
+        if index_name not in self._listing(source):
+            return
+        stem = index_name[: -len(".nbi")] + "."
+        names = [n for n in self._listing(source) if n.startswith(stem) and n.endswith(".nbc")]
+        for name in [*sorted(names), index_name]:  # the index last: without it numba reads none of the data
+            if not self._copy(os.path.join(source, name), os.path.join(target, name)):
+                return
+
+    def _listing(self, folder: str) -> list[str]:
+        if folder not in self._listings:
+            try:
+                self._listings[folder] = os.listdir(folder)
+            except OSError:
+                self._listings[folder] = []
+        return self._listings[folder]
+
+    def _copy(self, src: str, dest: str) -> bool:
+        """One regular file within the budget, written beside ``dest`` and renamed over it (whatever ``dest`` was)."""
+        tmp = f"{dest}.copy.{os.getpid()}"
+        try:
+            st = os.lstat(src)
+            if not stat.S_ISREG(st.st_mode) or st.st_size > min(self.left, self.max_file):
+                return False
+            with open(src, "rb") as f:
+                data = f.read(st.st_size + 1)
+            if len(data) != st.st_size:  # rewritten while we read it (the evaluator compiling): leave it
+                return False
+            with open(tmp, "wb") as f:
+                f.write(data)
+            os.replace(tmp, dest)
+        except OSError:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            return False
+        self.left -= st.st_size
+        self.copied.append(dest)
+        return True
 
 
 def set_limits(rlimits: dict[str, int]) -> None:
@@ -182,6 +296,8 @@ def main(argv: list[str]) -> int:
     memory_mb = int(config["memory_mb"])
     notice = CompileNotice(channel)
     numba_event.register("numba:compiler_lock", notice)
+    if config.get("numba_cache"):
+        CacheCopies(dict(config["numba_cache"]), config["numba_cache_bytes"], config["rlimits"]["FSIZE"]).install()
     notice.armed = True
     try:
         policy = load(config["entry"])
