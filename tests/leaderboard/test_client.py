@@ -136,7 +136,8 @@ def test_cli_serve__runs_uvicorn_on_the_address_asked_without_printing_a_passwor
     assert "/api/submissions" in {route.path for route in seen["app"].routes}
     assert seen["app"].state.board.tracks.keys() == {"paper-64"}
     assert capsys.readouterr().out == (f"wfbench leaderboard on http://127.0.0.1:8123 (database sqlite:///{tmp_path}/"
-                                       "b.sqlite); start 'wfbench worker --server DBURL' to evaluate the submissions\n")
+                                       f"b.sqlite); start 'wfbench worker --server {tmp_path}/b.sqlite' to evaluate "
+                                       "the submissions\n")
     assert main(["serve", "--port", "70000"]) == 2
     assert capsys.readouterr().err == ("wfbench: error: argument --port: 70000 is not allowed; allowed: a port "
                                        "1..65535\n")

@@ -66,8 +66,7 @@ def test_the_cli_seeds_a_track_and_says_what_it_did(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[1] == "heuristic on paper-64 (dev): submission 2 queued"
     assert f"oracle on paper-64 (dev): left out: {ORACLE_LEFT_OUT}" in out
-    assert out[-1] == ("9 new submissions of account 'wfbench'; start 'wfbench worker --server DBURL' to evaluate "
-                       "them")
+    assert out[-1] == f"9 new submissions of account 'wfbench'; start 'wfbench worker --server {db}' to evaluate them"
     assert main(["serve", "seed", "--db", db, "--tracks", "paper-64", "--phase", "dev"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[1] == "heuristic on paper-64 (dev): already there, submission 2 (queued)" and out[-1].startswith("0 new")

@@ -87,6 +87,13 @@ def open_board(db: str | None, tracks: dict | None):
     return board
 
 
+def worker_command(board) -> str:
+    """The command that starts a worker on ``board``'s database (a PostgreSQL password shown as ***)."""
+    url = board.engine.url
+    where = url.database if url.get_backend_name() == "sqlite" else url.render_as_string(hide_password=True)
+    return f"wfbench worker --server {where}"
+
+
 def seed(board, phase: str) -> int:
     """``wfbench serve seed``: one line per built-in, track and phase; what to start next."""
     from wfbench.leaderboard.hosted.db import BoardError
@@ -100,8 +107,8 @@ def seed(board, phase: str) -> int:
     for s in done:
         print(s.line())
     new = sum(s.created for s in done)
-    print(f"{new} new submission{'s' if new != 1 else ''} of account {ACCOUNT!r}; start 'wfbench worker --server "
-          "DBURL' to evaluate them")
+    print(f"{new} new submission{'s' if new != 1 else ''} of account {ACCOUNT!r}; start '{worker_command(board)}' "
+          "to evaluate them")
     return 0
 
 
@@ -124,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     from wfbench.leaderboard.hosted.server import create_app
 
     where = board.engine.url.render_as_string(hide_password=True)
-    print(f"wfbench leaderboard on http://{args.host}:{args.port} (database {where}); start 'wfbench worker "
-          "--server DBURL' to evaluate the submissions", flush=True)
+    print(f"wfbench leaderboard on http://{args.host}:{args.port} (database {where}); start '{worker_command(board)}' "
+          "to evaluate the submissions", flush=True)
     uvicorn.run(create_app(board), host=args.host, port=args.port, log_level="info")
     return 0
