@@ -36,9 +36,12 @@ class Patient:
 
     def reset(self, seeds):
         log = os.environ.get(RESETS)
-        if log:  # one line per chunk started, wherever it runs
+        if log:  # one line per chunk started: the node it runs on, then its seeds
+            import ray
+
+            node = ray.get_runtime_context().get_node_id() if ray.is_initialized() else "driver"
             with open(log, "a") as f:
-                f.write(" ".join(str(int(s)) for s in seeds) + "\n")
+                f.write(f"{node} " + " ".join(str(int(s)) for s in seeds) + "\n")
 
     def act(self, obs):
         time.sleep(0.02)
@@ -88,7 +91,10 @@ def test_a_node_lost_mid_run_is_retried_and_changes_nothing(cluster):
     removed = {}
 
     def kill_second_node():
-        time.sleep(2.0)  # the first chunks (over a second each) are running on both nodes
+        # as soon as a chunk starts on the second node (each lasts over a second), however slow its start was
+        deadline = time.monotonic() + 120
+        while node.node_id not in resets.read_text() and time.monotonic() < deadline:
+            time.sleep(0.05)
         c.remove_node(node, allow_graceful=False)
         removed["at"] = time.monotonic()
 
