@@ -293,6 +293,18 @@ def _check_line(what: str, value: str, limit: int) -> str:
     return value
 
 
+LOST = "lost its worker"  # how the queue's reason for a job it gave up on starts (queue.claim)
+
+
+def _lost(r: Mapping[str, Any]) -> bool:
+    """A submission that failed because its workers were lost, not because of its policy.
+
+    Submitting it again queues it again: the rows already stored are kept, and the next
+    worker runs only the missing ones.
+    """
+    return r["state"] == "failed" and str(r["reason"]).startswith(LOST)
+
+
 def _sub(r: Mapping[str, Any]) -> Submission:
     return Submission(r["id"], r["account_id"], r["account"], r["track"], r["track_hash"], r["phase"],
                       r["package_sha"], r["entry"], r["name"], r["state"], r["reason"], r["created"], r["updated"],
@@ -398,7 +410,9 @@ class Board:
         """Queue a package's evaluation, or return the submission of the same package already made.
 
         The same (package, entry, track, phase) returns the existing submission with
-        ``created`` False: it is not evaluated twice and not counted against a quota. A
+        ``created`` False: it is not evaluated twice and not counted against a quota. One
+        exception: a submission the board gave up on (its workers lost, "lost its worker
+        N times") is queued again, keeping its rows, with ``created`` True. A
         new test-phase submission needs the account to have no test job queued or
         running and fewer than :attr:`daily_quota` test submissions in the last 24 h;
         ``quota=False`` skips that check (the operator's built-ins, :mod:`.seed`, never
@@ -427,8 +441,18 @@ class Board:
                 # one submission at a time per account (PostgreSQL; SQLite's BEGIN IMMEDIATE already serializes)
                 conn.execute(sa.select(accounts.c.id).where(accounts.c.id == account.id).with_for_update())
                 existing = conn.execute(_SUBMISSION_QUERY.where(key)).mappings().first()
-                if existing is not None:
+                if existing is not None and not _lost(existing):
                     return _sub(existing), False
+                if existing is not None:  # failed by the board, not by the policy: queued again, rows kept
+                    now = time.time()
+                    if phase == "test" and quota:
+                        self._check_quota(conn, account, now)
+                    conn.execute(submissions.update().where(submissions.c.id == existing["id"]).values(
+                        state="queued", reason="", attempts=0, updated=now))
+                    conn.execute(jobs.update().where(jobs.c.submission_id == existing["id"]).values(
+                        state="queued", lease_owner=None, lease_until=None))
+                    again = conn.execute(_SUBMISSION_QUERY.where(submissions.c.id == existing["id"])).mappings().one()
+                    return _sub(again), True
                 if conn.execute(sa.select(packages.c.size).where(packages.c.sha256 == package_sha)).first() is None:
                     raise BoardError(f"no package {package_sha!r} on this board; upload the package first")
                 now = time.time()

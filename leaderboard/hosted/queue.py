@@ -40,7 +40,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import Connection, Engine
-from wfbench.leaderboard.hosted.db import ROW_FIELDS, cap_log, is_sqlite, jobs, rows, submissions
+from wfbench.leaderboard.hosted.db import LOST, ROW_FIELDS, cap_log, is_sqlite, jobs, rows, submissions
 from wfbench.leaderboard.store import KPI_COLUMNS
 
 DEFAULT_LEASE_S = 60.0
@@ -92,7 +92,8 @@ def claim(engine: Engine, worker_id: str, lease_s: float = DEFAULT_LEASE_S,
             attempts = conn.execute(sa.select(submissions.c.attempts)
                                     .where(submissions.c.id == job.submission_id)).scalar_one()
             if job.state == "running" and attempts >= max_attempts:
-                reason = f"lost its worker {attempts} times (the worker died or stalled past its lease each time)"
+                reason = (f"{LOST} {attempts} times (the worker died or stalled past its lease each time); submit "
+                          "the same package again to queue it again")
                 conn.execute(jobs.update().where(jobs.c.submission_id == job.submission_id)
                              .values(state="failed", lease_until=None))
                 conn.execute(submissions.update().where(submissions.c.id == job.submission_id)

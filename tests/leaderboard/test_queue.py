@@ -101,8 +101,29 @@ def test_a_job_that_loses_its_worker_three_times_fails_with_the_reason(board):
     assert claim(board.engine, "w4", 30) is None
     s = board.submission(sub.id)
     assert s.state == "failed" and s.attempts == 3
-    assert s.reason == "lost its worker 3 times (the worker died or stalled past its lease each time)"
+    assert s.reason == ("lost its worker 3 times (the worker died or stalled past its lease each time); submit the "
+                        "same package again to queue it again")
     assert job(board, sub.id)["state"] == "failed"
+
+
+def test_a_job_lost_by_its_workers_is_queued_again_when_submitted_again_and_keeps_its_rows(board):
+    alice = board.account(board.add_account("alice"))
+    sub, _ = board.submit(alice, "tiny", "dev", board.put_package(b"pkg"), "p:P", "s")
+    c = claim(board.engine, "w1", 30)
+    write_rows(c, fake_rows(board.units(sub)[:1], 0.5))  # one unit stored before the workers were lost
+    with board.engine.begin() as conn:  # as after three lost leases (the test above)
+        conn.execute(sa.text("UPDATE jobs SET lease_until = 0"))
+        conn.execute(sa.text("UPDATE submissions SET attempts = 3"))
+    assert claim(board.engine, "w4", 30) is None and board.submission(sub.id).state == "failed"
+    again, created = board.submit(alice, "tiny", "dev", sub.package_sha, sub.entry, sub.name)
+    assert created and again.id == sub.id and (again.state, again.reason, again.attempts) == ("queued", "", 0)
+    c = claim(board.engine, "w5", 30)
+    assert c.submission_id == sub.id and c.attempt == 1 and c.fence > 1  # the old holders stay fenced out
+    assert count_rows(board, sub.id) == 1, "the rows stored before are kept"
+    # a policy's own failure is not queued again: the same bytes would fail the same way
+    finish(c, "failed", "the policy raised ValueError")
+    assert board.submit(alice, "tiny", "dev", sub.package_sha, sub.entry, sub.name)[1] is False
+
 
 
 def test_rows_are_checked_and_stored_once(board):
