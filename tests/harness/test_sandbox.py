@@ -163,6 +163,18 @@ def test_clean_package_scores_bit_for_bit_as_evaluate(bwrap, tmp_path, monkeypat
     assert (sandboxed["cpu_s"] > 0).all() and (sandboxed["decision_ms_p50"] > 0).all()
 
 
+def test_a_row_counts_the_cpu_the_sandboxed_policy_used(bwrap, tmp_path):
+    """The budget's CPU seconds per episode include the sandbox's processes, not only the evaluator's waiting."""
+    busy = RULE.replace("class Rule", "class Policy").replace(
+        "    def act(self, obs):\n", "    def act(self, obs):\n        import time\n        t0 = time.process_time()\n"
+        "        while time.process_time() - t0 < 0.02:\n            pass\n", 1)
+    assert "process_time" in busy
+    rows = evaluate_sandboxed(_package(tmp_path, busy), "pol:Policy", SHORT, [1, 2], None, SECRET, CONTEXT)
+    burned = SHORT.horizon * 0.02 / 2  # 20 ms of CPU every step of the batch, over its 2 episodes
+    assert (rows["cpu_s"] >= burned).all(), (rows["cpu_s"].tolist(), burned)
+    assert (rows["cpu_s"] < burned + 5).all()
+
+
 def test_policy_sees_opaque_keys_not_seeds(bwrap, tmp_path):
     package = _hostile(tmp_path, 'raise RuntimeError(f"keys {self.keys} uid {os.getuid()}")')
     with SandboxPolicy(package, "pol:Policy", TIGHT, SECRET, CONTEXT) as sp:

@@ -59,7 +59,7 @@ import time
 import weakref
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from functools import cache
 from importlib.util import find_spec
 from pathlib import Path
@@ -427,6 +427,29 @@ class SandboxPolicy:
         """The process id of bubblewrap (the leader of the sandbox's process group)."""
         return self.proc.pid
 
+    def cpu_s(self) -> float:
+        """CPU seconds the sandbox's processes have used so far: bubblewrap and every process under it.
+
+        Each live process's user and system time, plus what its ended children used
+        (``cutime``/``cstime``: the kernel adds a child's time to its parent when it is
+        reaped), read from ``/proc``; 0 for processes already gone.
+        """
+        tick = os.sysconf("SC_CLK_TCK")
+        total, todo, seen = 0, [self.proc.pid], set()
+        while todo:
+            pid = todo.pop()
+            if pid in seen:
+                continue
+            seen.add(pid)
+            try:
+                fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+                total += sum(int(f) for f in fields[11:15])  # utime, stime, cutime, cstime
+                for task in os.listdir(f"/proc/{pid}/task"):
+                    todo += [int(c) for c in Path(f"/proc/{pid}/task/{task}/children").read_text().split()]
+            except (OSError, ValueError, IndexError):
+                continue
+        return total / tick
+
     def close(self) -> None:
         """End the sandbox: BYE, a moment to exit, then kill what is left. Idempotent."""
         if not self._fds:
@@ -624,8 +647,10 @@ def evaluate_sandboxed(package_dir: str | Path, entry: str, config: ScenarioConf
 
     One sandbox serves every chunk (``chunk_size`` seeds per batch; ``None``: one batch).
     The KPI and counter columns equal ``evaluate``'s for the same policy bit for bit
-    when its decisions do not depend on its seeds (it sees opaque keys here); the budget
-    columns are measured in this process, the policy's time over the pipes included.
+    when its decisions do not depend on its seeds (it sees opaque keys here). The budget
+    columns are measured in this process: the milliseconds per decision include the
+    policy's time over the pipes, and the CPU seconds per episode add the sandbox's
+    processes' to this process's.
 
     Returns:
         One row per seed, in seed order; ``attrs``: ``scenario``, ``policy`` (``entry``),
@@ -647,7 +672,13 @@ def evaluate_sandboxed(package_dir: str | Path, entry: str, config: ScenarioConf
     size = chunk_size or max(1, len(seed_list))
     with SandboxPolicy(package_dir, entry, limits, key_secret, key_context) as policy:
         loaded = LoadedPolicy(policy, entry, _SandboxGuard(entry, None))
-        results = [run_batch(loaded, config, seed_list[i:i + size]) for i in range(0, len(seed_list), size)]
+        results = []
+        for i in range(0, len(seed_list), size):
+            chunk = seed_list[i:i + size]
+            before = policy.cpu_s()
+            r = run_batch(loaded, config, chunk)
+            # the row's CPU seconds per episode are the evaluator's and the sandboxed policy's together
+            results.append(replace(r, cpu_s=r.cpu_s + max(0.0, policy.cpu_s() - before) / len(chunk)))
         log = policy.log
     df = results_frame(results, config, entry)
     df.attrs.update(scenario=config.name, policy=entry, log=log,
