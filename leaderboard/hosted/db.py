@@ -268,6 +268,7 @@ class Submission:
     hidden_version: int | None
     log: str
     result: dict[str, Any] | None
+    note: str = ""  # one line while it waits for a worker after losing one; "" otherwise
 
 
 def token_hash(token: str) -> str:
@@ -306,13 +307,30 @@ def _lost(r: Mapping[str, Any]) -> bool:
 
 
 def _sub(r: Mapping[str, Any]) -> Submission:
+    """The submission of a row of :data:`_SUBMISSION_QUERY`, its state as true as the lease says.
+
+    A job whose worker stopped renewing its lease is not running any more: until another
+    worker claims it (:func:`~wfbench.leaderboard.hosted.queue.claim`), it is shown as
+    queued, with a note saying which worker was lost and when.
+    """
+    state, note = r["state"], ""
+    lease_until = r.get("lease_until")
+    if state == "running" and lease_until is not None and lease_until < time.time():
+        when = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(lease_until))
+        state = "queued"
+        note = (f"its worker {r.get('lease_owner') or '?'} stopped answering (lease ended {when}); the next worker "
+                f"resumes it with the episodes still missing (attempt {r['attempts'] + 1} of at most {MAX_CLAIMS})")
     return Submission(r["id"], r["account_id"], r["account"], r["track"], r["track_hash"], r["phase"],
-                      r["package_sha"], r["entry"], r["name"], r["state"], r["reason"], r["created"], r["updated"],
-                      r["attempts"], r["hidden_version"], r["log"], json.loads(r["result"]) if r["result"] else None)
+                      r["package_sha"], r["entry"], r["name"], state, r["reason"], r["created"], r["updated"],
+                      r["attempts"], r["hidden_version"], r["log"], json.loads(r["result"]) if r["result"] else None,
+                      note)
 
 
-_SUBMISSION_QUERY = sa.select(submissions, accounts.c.name.label("account")).join(
-    accounts, accounts.c.id == submissions.c.account_id)
+MAX_CLAIMS = 3  # claims of one job before the queue gives up on it (queue.MAX_ATTEMPTS)
+
+_SUBMISSION_QUERY = (sa.select(submissions, accounts.c.name.label("account"), jobs.c.lease_until, jobs.c.lease_owner)
+                     .join(accounts, accounts.c.id == submissions.c.account_id)
+                     .outerjoin(jobs, jobs.c.submission_id == submissions.c.id))
 
 
 def _hidden(r: Mapping[str, Any]) -> hidden.HiddenSeeds:

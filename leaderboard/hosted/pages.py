@@ -198,6 +198,7 @@ def submission_page(sub: dict[str, Any]) -> str:
              f"<p>State: <span id='state' class='state' data-state='{esc(sub['state'])}'>{esc(sub['state'])}</span>"
              f" (<span id='progress'>{progress['done']}/{progress['total']}</span> episodes)"
              + (f"; reason: <span id='reason'>{esc(sub['reason'])}</span>" if sub.get("reason") else "")
+             + (f"; <span id='note'>{esc(sub['note'])}</span>" if sub.get("note") else "")
              + ("" if final else f"; this page reloads every {REFRESH_S} s") + "</p>"]
     if sub.get("result"):
         parts += [f"<h2>Result over {sub['result'].get('episodes', '?')} episodes</h2>",

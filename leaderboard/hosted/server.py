@@ -205,7 +205,7 @@ def submission_json(board: Board, sub: Submission, base: str) -> dict[str, Any]:
     """
     rows = board.rows(sub.id)
     out = {"id": sub.id, "track": sub.track, "phase": sub.phase, "name": sub.name, "account": sub.account,
-           "entry": sub.entry, "package": sub.package_sha, "state": sub.state, "reason": sub.reason,
+           "entry": sub.entry, "package": sub.package_sha, "state": sub.state, "reason": sub.reason, "note": sub.note,
            "attempts": sub.attempts, "created": _when(sub.created), "updated": _when(sub.updated),
            "progress": {"done": len(rows), "total": _total(board, sub)},
            "result": _clean(sub.result) if sub.result else None, "url": f"{base}/submissions/{sub.id}"}
