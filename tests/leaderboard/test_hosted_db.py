@@ -27,11 +27,8 @@ TINY = Track(name="tiny", config=ScenarioConfig.preset("small").replace(name="ti
 
 
 @pytest.fixture
-def board(db_url):
-    b = Board(db_url, tracks={"tiny": TINY}, daily_quota=2)
-    b.create()
-    yield b
-    b.close()
+def board(open_board):
+    return open_board({"tiny": TINY}, daily_quota=2)
 
 
 def fake_rows(units, nsw):

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from wfbench.leaderboard.hosted import pages
-from wfbench.leaderboard.hosted.db import Board, BoardError
+from wfbench.leaderboard.hosted.db import BoardError
 from wfbench.leaderboard.hosted.seed import ACCOUNT, ENTRY, seed
 from wfbench.leaderboard.hosted.worker import run_worker
 from wfbench.leaderboard.store import ROW_COLUMNS
@@ -27,11 +27,8 @@ ORACLE_LEFT_OUT = "it reads the trace (a hindsight oracle); a sandboxed policy s
 
 
 @pytest.fixture
-def board(db_url):
-    b = Board(db_url, tracks={"tiny": TINY})
-    b.create()
-    yield b
-    b.close()
+def board(open_board):
+    return open_board({"tiny": TINY})
 
 
 def test_seeding_enters_each_builtin_once_in_both_phases(board):

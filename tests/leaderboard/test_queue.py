@@ -16,7 +16,6 @@ from pathlib import Path
 import pytest
 import sqlalchemy as sa
 from wfbench.leaderboard.hosted import queue
-from wfbench.leaderboard.hosted.db import Board
 from wfbench.leaderboard.hosted.queue import LeaseLost, claim, finish, heartbeat, write_rows
 
 from tests.leaderboard.test_hosted_db import TINY, fake_rows
@@ -25,11 +24,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
-def board(db_url):
-    b = Board(db_url, tracks={"tiny": TINY})
-    b.create()
-    yield b
-    b.close()
+def board(open_board):
+    return open_board({"tiny": TINY})
 
 
 def queued(board, n=1):

@@ -21,7 +21,6 @@ import pandas as pd
 import pytest
 import sqlalchemy as sa
 from wfbench.leaderboard.hosted import worker as worker_mod
-from wfbench.leaderboard.hosted.db import Board
 from wfbench.leaderboard.hosted.worker import Worker, run_worker
 from wfbench.leaderboard.store import ROW_COLUMNS
 from wfbench.leaderboard.tracks import Track
@@ -53,11 +52,8 @@ def blob_unpack(data, dest):
 
 
 @pytest.fixture
-def board(db_url):
-    b = Board(db_url, tracks={"tiny": TINY})
-    b.create()
-    yield b
-    b.close()
+def board(open_board):
+    return open_board({"tiny": TINY})
 
 
 def submit(board, phase="dev", data=b"package bytes"):
