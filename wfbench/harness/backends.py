@@ -232,8 +232,10 @@ def _run_ray(loaded: LoadedPolicy, config: ScenarioConfig, chunks: list[list[int
             # the local cluster we start here: Ray's notice that it turned token authentication on for it is noise
             # on a one-line failure (issue #26); a cluster the user joins (address) keeps all of Ray's messages
             logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
-            ray.init(num_cpus=os.cpu_count() or 1, include_dashboard=False, ignore_reinit_error=True,
-                     log_to_driver=False, configure_logging=False)
+            # address="local": a new instance of our own, never a cluster that happens to run on this machine
+            # (without it ray.init joins the last one started here, and refuses num_cpus for it)
+            ray.init(address="local", num_cpus=os.cpu_count() or 1, include_dashboard=False,
+                     ignore_reinit_error=True, log_to_driver=False, configure_logging=False)
     task = ray.remote(num_cpus=1)(run_batch)
     pending = [task.remote(loaded, config, c, keep_series, 1) for c in chunks]
     try:
