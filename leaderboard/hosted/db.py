@@ -319,14 +319,14 @@ def _sub(r: Mapping[str, Any]) -> Submission:
         when = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(lease_until))
         state = "queued"
         note = (f"its worker {r.get('lease_owner') or '?'} stopped answering (lease ended {when}); the next worker "
-                f"resumes it with the episodes still missing (attempt {r['attempts'] + 1} of at most {MAX_CLAIMS})")
+                f"resumes it with the episodes still missing (attempt {r['attempts'] + 1} of at most {MAX_ATTEMPTS})")
     return Submission(r["id"], r["account_id"], r["account"], r["track"], r["track_hash"], r["phase"],
                       r["package_sha"], r["entry"], r["name"], state, r["reason"], r["created"], r["updated"],
                       r["attempts"], r["hidden_version"], r["log"], json.loads(r["result"]) if r["result"] else None,
                       note)
 
 
-MAX_CLAIMS = 3  # claims of one job before the queue gives up on it (queue.MAX_ATTEMPTS)
+MAX_ATTEMPTS = 3  # claims of one job before the queue gives up on it (queue.claim)
 
 _SUBMISSION_QUERY = (sa.select(submissions, accounts.c.name.label("account"), jobs.c.lease_until, jobs.c.lease_owner)
                      .join(accounts, accounts.c.id == submissions.c.account_id)

@@ -40,11 +40,10 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import Connection, Engine
-from wfbench.leaderboard.hosted.db import LOST, MAX_CLAIMS, ROW_FIELDS, cap_log, is_sqlite, jobs, rows, submissions
+from wfbench.leaderboard.hosted.db import LOST, MAX_ATTEMPTS, ROW_FIELDS, cap_log, is_sqlite, jobs, rows, submissions
 from wfbench.leaderboard.store import KPI_COLUMNS
 
 DEFAULT_LEASE_S = 60.0
-MAX_ATTEMPTS = MAX_CLAIMS
 FINAL_STATES = ("done", "failed")
 
 
