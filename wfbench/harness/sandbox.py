@@ -307,16 +307,22 @@ def _check_readable(package_dir: Path) -> None:
 # -- the sandboxed policy ------------------------------------------------------------------------------------------
 
 
+def _children(pid: int) -> list[int]:
+    """The pids of ``pid``'s children (of every thread of it), from ``/proc``; [] once it is gone."""
+    try:
+        return [int(c) for task in os.listdir(f"/proc/{pid}/task")
+                for c in Path(f"/proc/{pid}/task/{task}/children").read_text().split()]
+    except OSError:
+        return []
+
+
 def _kill(proc: subprocess.Popen, fds: list[int]) -> None:
     """Kill bubblewrap and its child, the PID namespace's init (every process inside dies with it); close our pipes.
 
     The init is in a session of its own (``--new-session``), so it is killed by pid as well
     as by ``--die-with-parent``: at once rather than when bubblewrap's death reaches it.
     """
-    try:
-        inner = [int(p) for p in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
-    except OSError:
-        inner = []
+    inner = _children(proc.pid)
     try:
         os.killpg(proc.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
@@ -444,10 +450,9 @@ class SandboxPolicy:
             try:
                 fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
                 total += sum(int(f) for f in fields[11:15])  # utime, stime, cutime, cstime
-                for task in os.listdir(f"/proc/{pid}/task"):
-                    todo += [int(c) for c in Path(f"/proc/{pid}/task/{task}/children").read_text().split()]
             except (OSError, ValueError, IndexError):
                 continue
+            todo += _children(pid)
         return total / tick
 
     def close(self) -> None:
