@@ -46,6 +46,53 @@ def noise_shapes(B: int, M: int, N: int) -> dict[str, tuple[int, ...]]:
     return {"dispatch": (B, M, N + 1), "workforce": (B, 7), "positioning": (B, 2, M)}
 
 
+def choosing(x: dict) -> torch.Tensor:
+    """(B, M) bool: the facilities with a real dispatch choice, an open request and someone free to send."""
+    mask = x["dispatch_mask"]
+    return x["requesting"] & mask[..., :mask.shape[-1] - 1].any(-1)
+
+
+def pick_in_slot_order(logits: torch.Tensor, allowed: torch.Tensor, valid: torch.Tensor, cand: torch.Tensor,
+                       rows: torch.Tensor, R: int, N: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The dispatch picks of C choosing facilities, each in turn excluding the people taken before it.
+
+    ``logits`` (C, K + 1), noise added, of the facilities in slot order within each
+    environment (``rows`` (C,), its environment among ``R``); ``cand`` (C, K) the person
+    of each of the K columns, ``valid`` (C, K) which may be sent; column K is the no-op.
+    ``allowed`` (C, K + 1), no-op column set, is filled with the mask each pick was made
+    under. The rule is sequential, computed without a loop over facilities: every facility
+    picks at once, and the picks up to the first repeated person of each environment
+    stand; the rest pick again without the people taken (as many rounds as repeats,
+    usually one). Masking a person that is not the argmax does not move the argmax, so
+    the picks are those of the facility-by-facility rule.
+    Returns the picks as column (C,) and as person (C,), N for nobody.
+    """
+    C, K = cand.shape
+    dev = cand.device
+    pick = torch.full((C,), K, dtype=torch.long, device=dev)
+    person = torch.full((C,), N, dtype=torch.long, device=dev)
+    taken = torch.zeros((R, N + 1), dtype=torch.bool, device=dev)
+    todo = torch.ones(C, dtype=torch.bool, device=dev)
+    while bool(todo.any()):
+        e = todo.nonzero(as_tuple=True)[0]
+        re = rows[e]
+        allowed[e, :K] = valid[e] & ~taken[re[:, None], cand[e]]
+        j = _masked(logits[e], allowed[e]).argmax(-1)
+        p = torch.where(j < K, cand[e].gather(-1, j.clamp_max(K - 1)[:, None]).squeeze(-1), torch.full_like(j, N))
+        firstpick = torch.full((R * (N + 1),), C, dtype=torch.long, device=dev)
+        key = re * (N + 1) + p
+        firstpick.scatter_reduce_(0, key, e, reduce="amin")
+        dup = (p < N) & (firstpick[key] < e)  # an earlier facility of the environment picked the same person
+        stop = torch.full((R,), C, dtype=torch.long, device=dev)
+        stop.scatter_reduce_(0, re[dup], e[dup], reduce="amin")
+        ok = e < stop[re]
+        acc = e[ok]
+        pick[acc], person[acc] = j[ok], p[ok]
+        taken[re[ok], p[ok]] = True
+        todo[acc] = False
+    return pick, person
+
+
 @torch.no_grad()
 def sample(out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
     """Actions from the head outputs: dispatch (B, M) int64, workforce (B,), positioning index (B, 2).
@@ -54,29 +101,20 @@ def sample(out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
     """
     acts: dict[str, torch.Tensor] = {}
     if "dispatch" in out:
-        logits = out["dispatch"].float()
-        if noise is not None:
-            logits = logits + noise["dispatch"]
+        logits = out["dispatch"].float()  # the noise is added to the choosing facilities' rows alone
         mask = x["dispatch_mask"]
         B, M, N1 = logits.shape
         N = N1 - 1
         act = torch.full((B, M), N, dtype=torch.long, device=logits.device)
-        req = x["requesting"] & mask[..., :N].any(-1)  # a real choice only where someone is free
-        count = req.sum(-1)
-        if int(count.max()) > 0:
-            # facility slots of the requesting ones first, in slot order
-            order = torch.argsort((~req).to(torch.int8) * M + torch.arange(M, device=req.device), dim=-1)
-            taken = torch.zeros(B, N1, dtype=torch.bool, device=logits.device)
-            rows = torch.arange(B, device=logits.device)
-            for r in range(int(count.max())):
-                f = order[:, r]
-                active = r < count
-                allowed = mask[rows, f] & ~taken
-                allowed[:, N] = True
-                choice = _masked(logits[rows, f], allowed).argmax(-1)
-                choice = torch.where(active, choice, torch.full_like(choice, N))
-                act[rows, f] = torch.where(active, choice, act[rows, f])
-                taken[rows, choice] |= choice < N
+        rows, facs = choosing(x).nonzero(as_tuple=True)  # row-major: slot order within an environment
+        if rows.numel():
+            lg = logits[rows, facs]
+            if noise is not None:
+                lg = lg + noise["dispatch"][rows, facs]
+            allowed = torch.zeros_like(lg, dtype=torch.bool)
+            allowed[:, N] = True
+            everyone = torch.arange(N, device=lg.device).expand(rows.numel(), N)
+            act[rows, facs] = pick_in_slot_order(lg, allowed, mask[rows, facs, :N], everyone, rows, B, N)[1]
         acts["dispatch"] = act
     if "workforce" in out:
         logits = out["workforce"].float()

@@ -33,6 +33,7 @@ head from its own network.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -91,6 +92,9 @@ class NetworkPolicy:
         # the scenario of its checkpoint: evaluated on another one, the evaluator warns once
         # (wfbench.policies.registry.warn_if_trained_elsewhere)
         self.trained_on = trained_on
+        # the sha256 of the checkpoint file it was loaded from (from_checkpoint), which with the mode, seed and
+        # threads decides its actions on a batch: the oracle's totals cache keys its episodes by it
+        self.checkpoint_sha256: str | None = None
         self._state = None
 
     def reset(self, seeds: int | Sequence[int]) -> None:
@@ -99,17 +103,31 @@ class NetworkPolicy:
         self._state = self.model.initial_state(len(seeds), self.device)
         self._starts = torch.ones(1, len(seeds), device=self.device)
 
-    def _noise(self, B: int, M: int, N: int) -> dict[str, torch.Tensor]:
+    def _noise(self, B: int, M: int, N: int, rows: np.ndarray) -> dict[str, torch.Tensor]:
+        """Gumbel noise of every head, (B, ...) per :func:`scalefree.noise_shapes`, from each environment's generator.
+
+        ``rows`` (B, M) bool: the facilities whose dispatch row the sampler reads (those
+        with a real choice). Each generator's stream is laid out as always (the whole
+        dispatch block, then the other heads), but the rows nobody reads are skipped with
+        ``advance`` and left 0: on ``city`` that is about 97% of a (1,000, 1,001) block per
+        environment and step. What is drawn has the same bits as drawing everything (one
+        64-bit draw per double, and the transform is elementwise); a test compares.
+        """
         sizes = {k: s[1:] for k, s in scalefree.noise_shapes(self.model, B, M, N).items()}
-        total = sum(int(np.prod(s)) for s in sizes.values())
-        u = np.stack([rng.random(total) for rng in self._rngs]).clip(1e-10, 1.0 - 1e-7)
-        g = torch.from_numpy(-np.log(-np.log(u))).float().to(self.device)
-        out, at = {}, 0
-        for k, s in sizes.items():
-            n = int(np.prod(s))
-            out[k] = g[:, at:at + n].reshape(B, *s)
-            at += n
-        return out
+        out = {k: np.zeros((B, int(np.prod(s)))) for k, s in sizes.items()}
+        for b, rng in enumerate(self._rngs):
+            for k, s in sizes.items():
+                dst = out[k][b]
+                if k != "dispatch":
+                    dst[:] = _gumbel(rng.random(dst.size))
+                    continue
+                width, at = s[-1], 0
+                for f in np.flatnonzero(rows[b]):
+                    rng.bit_generator.advance(int(f) * width - at)
+                    dst[f * width:(f + 1) * width] = _gumbel(rng.random(width))
+                    at = (int(f) + 1) * width
+                rng.bit_generator.advance(dst.size - at)
+        return {k: torch.from_numpy(out[k]).float().to(self.device).reshape(B, *s) for k, s in sizes.items()}
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         if self._state is None:
@@ -132,10 +150,16 @@ class NetworkPolicy:
         self._starts = torch.zeros_like(self._starts)
         noise = None
         if self.mode != "greedy":
-            noise = self._noise(B, M, N)
-            if self.mode == "greedy-dispatch":
-                noise["dispatch"] = torch.zeros_like(noise["dispatch"])
+            # greedy-dispatch reads no dispatch noise, but its stream is drawn past all the same
+            read = self.mode == "sample" and "dispatch" in self.decisions
+            rows = scalefree.dispatch_rows(self.model, x) if read else torch.zeros(B, M, dtype=torch.bool)
+            noise = self._noise(B, M, N, rows.cpu().numpy())
         return env_action(scalefree.sample(self.model, out, x, noise), M)
+
+
+def _gumbel(u: np.ndarray) -> np.ndarray:
+    """-log(-log(u)) of uniforms, clipped away from 0 and 1 as the trainer's :func:`dist.gumbel` is."""
+    return -np.log(-np.log(u.clip(1e-10, 1.0 - 1e-7)))
 
 
 PPOPolicy = NetworkPolicy  # the name before every algorithm's checkpoints loaded by their own
@@ -162,6 +186,7 @@ def from_checkpoint(path: str | Path, mode: str = "sample", device: str = "cpu",
     # a run across worlds records them (wfbench.train.worlds): evaluated on one of them, the network is at home
     trained_on = tuple(ckpt["worlds"]) if ckpt.get("worlds") else ckpt.get("scenario")
     net = NetworkPolicy(model, mode=mode, device=device, name=name, trained_on=trained_on)
+    net.checkpoint_sha256 = hashlib.sha256(Path(path).read_bytes()).hexdigest()
     if set(net.decisions) == {"dispatch", "workforce", "positioning"}:
         return net
     parts = {d: (net if d in net.decisions else default)

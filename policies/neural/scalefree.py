@@ -156,6 +156,13 @@ def noise_shapes(model: nn.Module, B: int, M: int, N: int) -> dict[str, tuple[in
     return dist.noise_shapes(B, M, N)
 
 
+def dispatch_rows(model: nn.Module, x: dict) -> torch.Tensor:
+    """(rows, M) bool: the facilities whose dispatch noise :func:`sample` reads (a real choice to make)."""
+    if obs_version(model) == 2:
+        return x["choose"]
+    return dist.choosing(x)
+
+
 def sample(model: nn.Module, out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
     """The actions of ``model``'s head outputs (``noise`` None: greedy), by its distributions."""
     if obs_version(model) == 2:
@@ -345,11 +352,8 @@ class ScaleFreeNet(nn.Module):
         The rule is sequential (a facility may not take a person an earlier facility of its
         environment took), computed without a loop over facilities. With ``persons`` (C,)
         given (the stored actions): who took each person first is one table lookup. With
-        ``logits`` (C, k + 1, noise added) the picks are made here: every facility picks at
-        once, and the picks up to the first repeated person of each environment stand;
-        the rest pick again without the people taken (as many rounds as repeats, usually
-        one). Masking a person that is not the argmax does not move the argmax, so the
-        picks are those of the facility-by-facility rule.
+        ``logits`` (C, k + 1, noise added) the picks are made here, by
+        :func:`dist.pick_in_slot_order` (the rule of every network's dispatch).
         Returns (allowed (C, k + 1), the picks as candidate index (C,), as person (C,)).
         """
         cand, valid = x["cand"][rows, facs], x["cand_valid"][rows, facs]
@@ -367,29 +371,9 @@ class ScaleFreeNet(nn.Module):
             match = (cand == persons[:, None]) & valid
             pick = torch.where(match.any(-1), match.float().argmax(-1), torch.full_like(idx, kk))
             return allowed, pick, persons
-        pick = torch.full((C,), kk, dtype=torch.long, device=dev)
-        person = torch.full((C,), N, dtype=torch.long, device=dev)
-        taken = torch.zeros((R, N + 1), dtype=torch.bool, device=dev)
-        todo = torch.ones(C, dtype=torch.bool, device=dev)
-        while bool(todo.any()):
-            e = todo.nonzero(as_tuple=True)[0]
-            re = rows[e]
-            allowed[e, :kk] = valid[e] & ~taken[re[:, None], cand[e]]
-            j = _masked(logits[e], allowed[e]).argmax(-1)
-            p = torch.where(j < kk, cand[e].gather(-1, j.clamp_max(kk - 1)[:, None]).squeeze(-1),
-                            torch.full_like(j, N))
-            firstpick = torch.full((R * (N + 1),), C, dtype=torch.long, device=dev)
-            key = re * (N + 1) + p
-            firstpick.scatter_reduce_(0, key, e, reduce="amin")
-            dup = (p < N) & (firstpick[key] < e)  # an earlier facility of the environment picked the same person
-            stop = torch.full((R,), C, dtype=torch.long, device=dev)
-            stop.scatter_reduce_(0, re[dup], e[dup], reduce="amin")
-            ok = e < stop[re]
-            acc = e[ok]
-            pick[acc], person[acc] = j[ok], p[ok]
-            taken[re[ok], p[ok]] = True
-            todo[acc] = False
+        pick, person = dist.pick_in_slot_order(logits, allowed, valid, cand, rows, R, N)
         return allowed, pick, person
+
     @torch.no_grad()
     def sample(self, out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
         """Actions: dispatch (rows, M) people (N: nobody), workforce (rows,), positioning index (rows, 2)."""
