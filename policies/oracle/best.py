@@ -24,14 +24,18 @@ candidate's episode again:
   row and every row of a no-op step are never read). ``act`` returns the recorded
   actions. A network's sampled actions can change with the batch's size in the last
   float bit (batched matrix products), so replaying what it did, not asking it again,
-  is what makes the replay exact.
+  is what makes the replay exact. For the same reason a shipped network's totals are
+  cached per seed *and batch*: when the runner (or an earlier oracle) played it on this
+  very batch, its totals come from the cache, and it is played only if it turns out
+  the best on some seed, for the actions to replay.
 
 A candidate played through ``act`` stops early once it cannot win on any seed: its
 partial sum of ``NSW_t`` plus one per remaining step (``NSW_t`` lies in [0, 1]) is below
 the best episode total found so far on every seed of the batch. That is exact
 pruning, never a change of the choice. ``scores`` holds every candidate's episode NSW
-per seed (NaN where it was stopped), ``choice`` the candidate each seed replays and
-``timing`` the seconds each candidate took (``docs/hindsight.md``, "The oracle").
+per seed (NaN where it was stopped; a total from the cache is never stopped),
+``choice`` the candidate each seed replays and ``timing`` the seconds each candidate
+took (``docs/hindsight.md``, "The oracle").
 
 It reads the trace (``reads_trace = True``): not deployable, refused on the
 leaderboard's deployable tracks like every oracle.
@@ -121,7 +125,7 @@ class BestInHindsight:
         self.scores: np.ndarray | None = None  # (B, candidates) episode NSW, NaN where stopped early
         self.choice: list[str] = []
         self.timing: dict[str, float] = {}
-        self.cached: dict[str, int] = {}  # compiled candidate -> seeds whose total came from the totals cache
+        self.cached: dict[str, int] = {}  # candidate -> seeds whose total came from the totals cache
 
     def __repr__(self) -> str:
         return f"BestInHindsight({self.name!r}, {len(self.candidates)} candidates)"
@@ -148,11 +152,19 @@ class BestInHindsight:
         for k, name in enumerate(self.candidates):
             start = time.perf_counter()
             policy = self.resolve(name)
-            if getattr(policy, "compiled", False):
+            compiled = getattr(policy, "compiled", False)
+            played = None if compiled else totals_cache.played_key(c, policy)
+            hit = totals_cache.lookup(played, seeds, totals_cache.batch_keys(seeds)) if played else (None, None)
+            if compiled:
                 (total, self.cached[name]), how = self._play_compiled(policy, seeds), ("live", policy)
+            elif hit[1] is not None and hit[1].all():
+                # played on this very batch before: its actions are needed only if it is the best somewhere (below)
+                total, self.cached[name], how = hit[0], B, ("pending", policy)
             else:
                 total, rec = self._play_recorded(policy, seeds, best_total)
-                how = ("recorded", rec)
+                how, self.cached[name] = ("recorded", rec), 0
+                if played is not None and not np.isnan(total).any():
+                    totals_cache.store(played, seeds, totals_cache.batch_keys(seeds), total)
             self.timing[name] = time.perf_counter() - start
             done = ~np.isnan(total)
             self.scores[done, k] = total[done] / T
@@ -166,6 +178,14 @@ class BestInHindsight:
         self._groups = []
         for j, (kind, obj) in kept.items():
             rows = np.flatnonzero(best == j)
+            if kind == "pending":  # a cached network is the best on some seeds: play it for its actions
+                start = time.perf_counter()
+                total, obj = self._play_recorded(obj, seeds, np.full(B, -np.inf))
+                self.timing[self.candidates[j]] += time.perf_counter() - start
+                if not np.array_equal(total[rows], best_total[rows]):
+                    raise RuntimeError(f"the oracle's totals cache ({totals_cache.directory()}) disagrees with a "
+                                       f"replay of {self.candidates[j]!r}: delete that folder")
+                kind = "recorded"
             if kind == "live":
                 obj = self.resolve(self.candidates[j])  # fresh: the played copy holds the end-of-episode state
                 obj.reset(seeds[rows])

@@ -1,4 +1,4 @@
-"""Episode totals of compiled composites, shared by the evaluation runner and the ``oracle``.
+"""Episode totals of compiled composites and shipped networks, shared by the evaluation runner and the ``oracle``.
 
 A composite of built-in kernels (``policy.compiled``) plays the same episode on a seed
 whatever batch it runs in: its randomness is keyed by the seed and its state is per row.
@@ -24,6 +24,14 @@ what it plays (a registry name's compiled rollout), the oracle looks up its comp
 candidates and stores what it had to play (``docs/hindsight.md``, "Episodes played
 once").
 
+A checkpoint's network (alone or beside built-in kernels, :func:`played_key`) is
+played through ``act``, and its sampled actions on a seed can change with the batch in
+the last float bit (batched matrix products): its totals are keyed by the seed *and*
+the batch's seeds in order (:func:`batch_keys`), so a hit is a total played on exactly
+that batch. The runner stores the batches it plays; the oracle looks its network
+candidates up on its own batch, and plays one only when it misses or when the network
+is the best on some seed (the replay needs its actions).
+
 Where: in this process's memory, and on disk in ``$WFBENCH_ORACLE_CACHE`` (a folder),
 else ``$WFBENCH_CACHE_DIR/oracle-totals``, else ``platformdirs.user_cache_dir("wfbench")
 /oracle-totals``, shared by the process backend's workers and later runs.
@@ -38,8 +46,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -170,10 +180,60 @@ def store(key: str, seeds: np.ndarray, keys: np.ndarray, totals: np.ndarray) -> 
             os.unlink(tmp)
 
 
+# -- episodes played through act: a checkpoint's network ------------------------------------------------
+# the network's sampling and the composite around it: (package, file), each with what it imports
+PLAYED_CODE_FILES = (("wfbench.policies", "neural/policy.py"),)
+
+
+def _part_identity(part: Any) -> bytes | None:
+    """What decides one part's actions, or None when this module cannot tell (then nothing is cached)."""
+    digest = getattr(part, "checkpoint_sha256", None)
+    if digest is not None:  # a checkpoint's network (wfbench.policies.neural.policy.from_checkpoint)
+        return f"network:{digest}:{part.mode}:{part.seed}:{part.threads}".encode()
+    if type(part).__name__ == "BuiltinDecision":  # a built-in kernel: its code, hyper-parameters and seed
+        return f"kernel:{part.code}:{part.seed}:".encode() + np.ascontiguousarray(part.hp, dtype=np.float64).tobytes()
+    return None
+
+
+def played_key(config: ScenarioConfig, policy: Any) -> str | None:
+    """The key of the totals of a checkpoint's network (alone, or in a composite beside built-in kernels).
+
+    Such a policy plays the same episode on a seed given the same batch, but the batch
+    can move its sampled actions in the last float bit (batched matrix products), so its
+    totals are stored per seed *and batch* (:func:`batch_keys`). The key covers the
+    code (:func:`code_digest` and :data:`PLAYED_CODE_FILES`), torch's version, the
+    scenario, and per decision the checkpoint's sha256, mode, seed and torch threads, or
+    the kernel's code, hyper-parameters and seed. None for any other policy.
+    """
+    parts = getattr(policy, "parts", None) if not hasattr(policy, "checkpoint_sha256") else None
+    parts = parts if isinstance(parts, dict) else {"all": policy}
+    ids = []
+    for decision, part in sorted(parts.items()):
+        ident = _part_identity(part)
+        if ident is None:
+            return None
+        ids.append(decision.encode() + b"=" + ident)
+    if not any(i.startswith(b"network:", i.index(b"=") + 1) for i in ids):
+        return None  # kernels alone run compiled, keyed by policy_key
+    torch = sys.modules.get("torch")  # a checkpoint's policy has imported it
+    h = hashlib.sha256()
+    code = [source_digest(PACKAGES[package] / rel).encode() for package, rel in PLAYED_CODE_FILES]
+    for part in (code_digest().encode(), *code, str(getattr(torch, "__version__", "")).encode(),
+                 scenario_hash(config).encode(), *ids):
+        h.update(len(part).to_bytes(8, "little") + part)
+    return "played-" + h.hexdigest()[:40]
+
+
+def batch_keys(seeds: np.ndarray) -> np.ndarray:
+    """(B, 4) uint64: each row the sha256 of the whole batch's seeds, in order (the per-seed keys of a played total)."""
+    digest = hashlib.sha256(np.ascontiguousarray(seeds, dtype=np.int64).tobytes()).digest()
+    return np.tile(np.frombuffer(digest, dtype=np.uint64), (len(seeds), 1))
+
+
 def clear_memory() -> None:
     """Forget what this process holds in memory (the disk is left as it is)."""
     _MEMORY.clear()
 
 
-__all__ = ["ENV", "clear_memory", "code_digest", "directory", "enabled", "lookup", "policy_key", "scenario_hash",
-           "store"]
+__all__ = ["ENV", "batch_keys", "clear_memory", "code_digest", "directory", "enabled", "lookup", "played_key",
+           "policy_key", "scenario_hash", "store"]

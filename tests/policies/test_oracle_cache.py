@@ -10,6 +10,7 @@ from wfbench.policies.oracle.best import BestInHindsight
 
 import wfbench
 from wfbench import ScenarioConfig, policies
+from wfbench.core.simulator import Simulator
 from wfbench.harness.budget import results_only
 from wfbench.harness.guard import load_policy
 from wfbench.harness.runner import run_batch
@@ -139,6 +140,68 @@ def test_an_unreadable_file_is_a_miss(store, plays):
     assert plays == [2, 2] and o.cached == {"heuristic": 0}
 
 
+@pytest.fixture
+def recorded(monkeypatch):
+    """The names of the candidates the oracle played through act, in order."""
+    names = []
+    real = BestInHindsight._play_recorded
+
+    def counted(self, policy, seeds, best_total):
+        names.append(policy.name)
+        return real(self, policy, seeds, best_total)
+
+    monkeypatch.setattr(BestInHindsight, "_play_recorded", counted)
+    return names
+
+
+def test_a_network_the_runner_played_on_the_same_batch_is_played_again_only_to_be_replayed(store, recorded):
+    seeds = [0, 1, 2]
+    wfbench.evaluate("ppo-joint", SHORT, seeds=seeds, backend="serial")
+    alone = _oracle(["ppo-joint"], SHORT, seeds)  # the best everywhere: played once, for its actions
+    assert recorded == ["ppo-joint"] and alone.cached == {"ppo-joint": 3}
+    recorded.clear()
+    beaten = _oracle(["heuristic-tuned", "ppo-joint"], SHORT, seeds)
+    assert ("ppo-joint" in beaten.choice) == (recorded == ["ppo-joint"])
+    assert beaten.cached["ppo-joint"] == 3
+    cache.clear_memory()
+    recorded.clear()
+    other = _oracle(["ppo-joint"], SHORT, [0, 1])  # another batch: its totals may differ in the last bit: played
+    assert recorded == ["ppo-joint"] and other.cached == {"ppo-joint": 0}
+
+
+def test_a_network_is_keyed_by_its_checkpoint_mode_and_parts(store):
+    keys = {name: cache.played_key(SHORT, policies.get(name))
+            for name in ("ppo-joint", "ppo-joint@greedy", "ppo-dispatch", "impala-joint")}
+    assert None not in keys.values() and len(set(keys.values())) == 4
+    assert cache.played_key(SHORT, policies.get("ppo-joint")) == keys["ppo-joint"]  # a fresh load: the same key
+    assert cache.played_key(SHORT.replace(horizon=119), policies.get("ppo-joint")) != keys["ppo-joint"]
+    assert cache.played_key(SHORT, policies.get("oracle-planner")) is None  # not a checkpoint's network
+    assert cache.played_key(SHORT, policies.get("heuristic")) is None  # compiled: keyed by policy_key instead
+
+
+def test_the_oracles_rows_are_bit_identical_with_a_networks_totals_from_the_runner(store, monkeypatch, recorded):
+    seeds = [0, 1, 2]
+    candidates = ["heuristic", "solver", "ppo-joint", "hindsight-joint"]
+    monkeypatch.setenv(cache.ENV, "off")
+    off = _oracle(candidates, SHORT, seeds)
+    monkeypatch.setenv(cache.ENV, str(store))
+    for name in ("ppo-joint", "hindsight-joint"):
+        wfbench.evaluate(name, SHORT, seeds=seeds, backend="serial")
+    recorded.clear()
+    on = _oracle(candidates, SHORT, seeds)
+    assert on.choice == off.choice
+    assert set(recorded) == set(on.choice) & {"ppo-joint", "hindsight-joint"}  # only a winner is played
+    done = ~np.isnan(off.scores)  # a pruned candidate's score is NaN without the cache, its total with it
+    assert on.scores[done].tobytes() == off.scores[done].tobytes()
+    sim_off, sim_on = (Simulator(SHORT, seeds, keep_series=False) for _ in range(2))
+    for sim, o in ((sim_off, off), (sim_on, on)):
+        obs = sim.reset()
+        while not sim.done:
+            sim.step(o.act(obs))
+            obs = sim.observe()
+    assert sim_on.state.totals.tobytes() == sim_off.state.totals.tobytes()
+
+
 def _rows(config, seeds, monkeypatch, store, warm_with=()):
     """The oracle's per-seed rows without the cache, then with a cache filled by the runner on ``warm_with``."""
     monkeypatch.setenv(cache.ENV, "off")
@@ -157,7 +220,8 @@ def test_the_oracles_rows_are_bit_identical_with_the_cache_on_small(store, monke
     seeds = [0, 1, 2]
     # some candidates' seeds come from the runner, the rest are played: mixed batches
     off, cold, warm = _rows(SMALL, seeds, monkeypatch, store,
-                            warm_with=[("solver-tuned", [1]), ("heuristic", [0, 2]), ("random", seeds)])
+                            warm_with=[("solver-tuned", [1]), ("heuristic", [0, 2]), ("random", seeds),
+                                       ("ppo-joint", seeds), ("hindsight-general", [0, 1])])
     for df in (cold, warm):
         assert results_only(df).equals(results_only(off))
         assert df["nsw"].to_numpy().tobytes() == off["nsw"].to_numpy().tobytes()

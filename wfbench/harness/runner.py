@@ -150,9 +150,12 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
             q = np.percentile(per_step, [50, 99]) if per_step else (float("nan"), float("nan"))
             decision_ms, timing = (float(q[0]), float(q[1])), "act"
         cpu_s = max(0.0, time.process_time() - cpu0 - compiling.cpu) / max(1, len(seeds))
-    if timing == "rollout" and guard is None:  # a registry name: the oracle plays it as a candidate and reuses these
-        totals_cache.store(totals_cache.policy_key(sim.config, codes, hp), np.asarray(seeds), keys,
-                           sim.state.totals[:, K_NSW].astype(np.float64))
+    if guard is None:  # a registry name: the oracle plays it as a candidate and reuses these
+        totals = sim.state.totals[:, K_NSW].astype(np.float64)
+        if timing == "rollout":
+            totals_cache.store(totals_cache.policy_key(sim.config, codes, hp), np.asarray(seeds), keys, totals)
+        elif (key := totals_cache.played_key(sim.config, policy)) is not None:  # a shipped network, on this batch
+            totals_cache.store(key, np.asarray(seeds), totals_cache.batch_keys(np.asarray(seeds)), totals)
     return BatchResult(
         seeds=list(seeds), means=sim.episode_means(), counters=sim.counters(), steps=sim.state.t.copy(),
         series=sim.state.series.copy() if keep_series else None, decision_ms=decision_ms, cpu_s=cpu_s,
