@@ -31,7 +31,8 @@ from pathlib import Path
 POLICIES = ["random", "heuristic", "heuristic-stochastic", "random-dispatch", "random-positioning",
             "fixed-workforce", "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle-planner",
             "oracle-dispatch", "heuristic-tuned", "solver-tuned", "ppo-joint", "ppo-dispatch", "impala-joint",
-            "hindsight-joint", "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general", "scalefree-general"]
+            "hindsight-joint", "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general",
+            "scalefree-general"]
 SCENARIOS = ["paper-64", "small", "nonstationary"]
 SLOW = {"oracle-planner", "oracle-dispatch"}  # fewer seeds: the planners look over the whole future
 

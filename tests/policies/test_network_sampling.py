@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from wfbench.policies.neural import dist, scalefree
+from wfbench.policies.neural.policy import POLICY_SEED
 
 from wfbench import policies
 from wfbench.core.simulator import Simulator
-from wfbench.policies.neural import dist, scalefree
-from wfbench.policies.neural.policy import POLICY_SEED
 
 
 def loop_picks(logits, valid, cand, rows, R, N):
