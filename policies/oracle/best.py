@@ -147,24 +147,25 @@ class BestInHindsight:
         self.scores = np.full((B, len(self.candidates)), np.nan)
         best_total = np.full(B, -np.inf)
         best = np.full(B, -1, dtype=np.int64)
-        kept: dict[int, tuple[str, Any]] = {}  # candidate -> ("live", policy) or ("recorded", _Recording)
+        kept: dict[int, tuple[str, Any]] = {}  # candidate -> ("live" or "pending", policy) or ("recorded", _Recording)
+        batch = totals_cache.batch_keys(seeds)  # a network's totals are keyed by the whole batch (cache.played_key)
         self.timing, self.cached = {}, {}
         for k, name in enumerate(self.candidates):
             start = time.perf_counter()
             policy = self.resolve(name)
             compiled = getattr(policy, "compiled", False)
             played = None if compiled else totals_cache.played_key(c, policy)
-            hit = totals_cache.lookup(played, seeds, totals_cache.batch_keys(seeds)) if played else (None, None)
+            total, found = totals_cache.lookup(played, seeds, batch) if played else (None, None)
             if compiled:
                 (total, self.cached[name]), how = self._play_compiled(policy, seeds), ("live", policy)
-            elif hit[1] is not None and hit[1].all():
+            elif found is not None and found.all():
                 # played on this very batch before: its actions are needed only if it is the best somewhere (below)
-                total, self.cached[name], how = hit[0], B, ("pending", policy)
+                self.cached[name], how = B, ("pending", policy)
             else:
                 total, rec = self._play_recorded(policy, seeds, best_total)
                 how, self.cached[name] = ("recorded", rec), 0
                 if played is not None and not np.isnan(total).any():
-                    totals_cache.store(played, seeds, totals_cache.batch_keys(seeds), total)
+                    totals_cache.store(played, seeds, batch, total)
             self.timing[name] = time.perf_counter() - start
             done = ~np.isnan(total)
             self.scores[done, k] = total[done] / T

@@ -52,6 +52,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from wfbench.policies.builtin import BuiltinDecision
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.jit import ENV_CACHE_DIR, PACKAGES, source_digest
@@ -190,7 +191,7 @@ def _part_identity(part: Any) -> bytes | None:
     digest = getattr(part, "checkpoint_sha256", None)
     if digest is not None:  # a checkpoint's network (wfbench.policies.neural.policy.from_checkpoint)
         return f"network:{digest}:{part.mode}:{part.seed}:{part.threads}".encode()
-    if type(part).__name__ == "BuiltinDecision":  # a built-in kernel: its code, hyper-parameters and seed
+    if isinstance(part, BuiltinDecision):  # a built-in kernel: its code, hyper-parameters and seed
         return f"kernel:{part.code}:{part.seed}:".encode() + np.ascontiguousarray(part.hp, dtype=np.float64).tobytes()
     return None
 
@@ -205,16 +206,16 @@ def played_key(config: ScenarioConfig, policy: Any) -> str | None:
     scenario, and per decision the checkpoint's sha256, mode, seed and torch threads, or
     the kernel's code, hyper-parameters and seed. None for any other policy.
     """
-    parts = getattr(policy, "parts", None) if not hasattr(policy, "checkpoint_sha256") else None
-    parts = parts if isinstance(parts, dict) else {"all": policy}
+    parts = getattr(policy, "parts", None)
+    parts = parts if isinstance(parts, dict) else {"all": policy}  # a composite's, or the policy alone
+    if all(getattr(p, "checkpoint_sha256", None) is None for p in parts.values()):
+        return None  # no network: kernels alone run compiled, keyed by policy_key
     ids = []
     for decision, part in sorted(parts.items()):
         ident = _part_identity(part)
         if ident is None:
             return None
         ids.append(decision.encode() + b"=" + ident)
-    if not any(i.startswith(b"network:", i.index(b"=") + 1) for i in ids):
-        return None  # kernels alone run compiled, keyed by policy_key
     torch = sys.modules.get("torch")  # a checkpoint's policy has imported it
     h = hashlib.sha256()
     code = [source_digest(PACKAGES[package] / rel).encode() for package, rel in PLAYED_CODE_FILES]
