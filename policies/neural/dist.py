@@ -94,23 +94,27 @@ def pick_in_slot_order(logits: torch.Tensor, allowed: torch.Tensor, valid: torch
 
 
 @torch.no_grad()
-def sample(out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
+def sample(out: dict, x: dict, noise: dict | None, at: tuple[torch.Tensor, torch.Tensor] | None = None
+           ) -> dict[str, torch.Tensor]:
     """Actions from the head outputs: dispatch (B, M) int64, workforce (B,), positioning index (B, 2).
 
     ``noise``: Gumbel noise per head (shapes of :func:`noise_shapes`); ``None`` is greedy.
+    ``at``: None, or the choosing facilities ``choosing(x).nonzero(as_tuple=True)`` when
+    the dispatch logits and noise hold only their rows, (C, N + 1) (``WorkforceNet.heads``).
     """
     acts: dict[str, torch.Tensor] = {}
     if "dispatch" in out:
         logits = out["dispatch"].float()  # the noise is added to the choosing facilities' rows alone
         mask = x["dispatch_mask"]
-        B, M, N1 = logits.shape
-        N = N1 - 1
+        B, M = mask.shape[:2]
+        N = mask.shape[-1] - 1
         act = torch.full((B, M), N, dtype=torch.long, device=logits.device)
-        rows, facs = choosing(x).nonzero(as_tuple=True)  # row-major: slot order within an environment
+        # row-major: slot order within an environment
+        rows, facs = choosing(x).nonzero(as_tuple=True) if at is None else at
         if rows.numel():
-            lg = logits[rows, facs]
+            lg = logits[rows, facs] if at is None else logits
             if noise is not None:
-                lg = lg + noise["dispatch"][rows, facs]
+                lg = lg + (noise["dispatch"][rows, facs] if at is None else noise["dispatch"])
             allowed = torch.zeros_like(lg, dtype=torch.bool)
             allowed[:, N] = True
             everyone = torch.arange(N, device=lg.device).expand(rows.numel(), N)

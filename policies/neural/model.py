@@ -100,13 +100,29 @@ def obs_to_torch(obs: dict, device: torch.device | str = "cpu") -> dict[str, tor
     return {k: torch.from_numpy(np.array(obs[k], copy=True)).to(device, non_blocking=True) for k in OBS_KEYS}
 
 
-def featurize(raw: dict[str, torch.Tensor], coord_scale: float) -> dict[str, torch.Tensor]:
+def manhattan(fac_xy: torch.Tensor, per_xy: torch.Tensor) -> torch.Tensor:
+    """|dx| + |dy| between facilities (..., M, 2) and people (..., N, 2): (..., M, N).
+
+    On the two coordinates apart, not through a (..., M, N, 2) block: the same bits (a sum
+    of two terms is one rounding either way), a third of the memory traffic. Every
+    element is its own two subtractions and one sum, so the rows of a subset of
+    facilities have the bits of the same rows of the whole block.
+    """
+    dist = torch.sub(fac_xy[..., :, None, 0], per_xy[..., None, :, 0]).abs_()
+    dist += torch.sub(fac_xy[..., :, None, 1], per_xy[..., None, :, 1]).abs_()
+    return dist
+
+
+def featurize(raw: dict[str, torch.Tensor], coord_scale: float, dist: bool = True) -> dict[str, torch.Tensor]:
     """Model inputs from the raw observation tensors (any batch shape B; no loop over environments).
 
     Returns facility and personnel feature rows, coordinates scaled by ``coord_scale``,
     the boolean masks (``fac_mask``, ``per_mask``, ``dispatch_mask`` (B, M, N + 1) with
-    the no-op column always allowed, ``workforce_mask``) and the distance between every
-    facility and every person's current position (B, M, N), in the same scale.
+    the no-op column always allowed, ``workforce_mask``) and, unless ``dist`` is False,
+    the distance between every facility and every person's current position (B, M, N),
+    in the same scale. Without it, the network computes the distance rows its dispatch
+    head reads (:meth:`WorkforceNet.heads` with ``at``); a network with attention blocks
+    needs the whole block.
     """
     fac = raw["facilities"].float()
     per = raw["personnel"].float()
@@ -124,17 +140,16 @@ def featurize(raw: dict[str, torch.Tensor], coord_scale: float) -> dict[str, tor
     fac_xy = fac[..., FAC_X:FAC_Y + 1] / coord_scale
     per_xy = per[..., PER_X:PER_Y + 1] / coord_scale
     per_home = per[..., PER_HOME_X:PER_HOME_Y + 1] / coord_scale
-    # |dx| + |dy| (B, M, N) on the two coordinates apart, not through a (B, M, N, 2) block: the same bits
-    # (a sum of two terms is one rounding either way), a third of the memory traffic
-    dist = torch.sub(fac_xy[..., :, None, 0], per_xy[..., None, :, 0]).abs_()
-    dist += torch.sub(fac_xy[..., :, None, 1], per_xy[..., None, :, 1]).abs_()
     *lead, M = requesting.shape
     dispatch_mask = torch.empty((*lead, M, per.shape[-2] + 1), dtype=torch.bool, device=requesting.device)
     torch.logical_and(requesting[..., :, None], dispatchable[..., None, :], out=dispatch_mask[..., :-1])
     dispatch_mask[..., -1] = True  # the no-op, always allowed
-    return dict(fac_in=fac_in, per_in=per_in, fac_xy=fac_xy, per_xy=per_xy, per_home=per_home, dist=dist,
-                glob=raw["globals"].float(), fac_mask=fac_mask, per_mask=per_mask, dispatch_mask=dispatch_mask,
-                workforce_mask=raw["workforce_mask"] > 0, requesting=requesting)
+    x = dict(fac_in=fac_in, per_in=per_in, fac_xy=fac_xy, per_xy=per_xy, per_home=per_home,
+             glob=raw["globals"].float(), fac_mask=fac_mask, per_mask=per_mask, dispatch_mask=dispatch_mask,
+             workforce_mask=raw["workforce_mask"] > 0, requesting=requesting)
+    if dist:
+        x["dist"] = manhattan(fac_xy, per_xy)
+    return x
 
 
 # -- building blocks -------------------------------------------------------------------------
@@ -274,8 +289,16 @@ class WorkforceNet(nn.Module):
             outs.append(o[0])
         return torch.stack(outs), (h, c)
 
-    def heads(self, x: dict[str, torch.Tensor], fac, per, g, mem) -> dict[str, torch.Tensor]:
-        """Fusion of the memory with the entities, then the heads (raw logits, fp32) and the value."""
+    def heads(self, x: dict[str, torch.Tensor], fac, per, g, mem, at=None) -> dict[str, torch.Tensor]:
+        """Fusion of the memory with the entities, then the heads (raw logits, fp32) and the value.
+
+        ``at``: None, or ``(rows, facs)`` index tensors (C,) of the facilities whose
+        dispatch row is read; ``dispatch`` is then those rows alone, (C, N + 1), with the
+        bits of the same rows of the whole (B, M, N + 1) block. The pointer product stays
+        whole (a matrix product of fewer rows may round differently: BLAS picks the
+        kernel by shape, benchmarks/pointer_rows.py); the distance, the prior and the
+        no-op column are elementwise and are computed on the rows read.
+        """
         mem_t = mem.to(fac.dtype)
         fac = self.fuse_fac(torch.cat([fac, mem_t[:, None].expand(-1, fac.shape[1], -1)], -1))
         per = self.fuse_per(torch.cat([per, mem_t[:, None].expand(-1, per.shape[1], -1)], -1))
@@ -289,27 +312,40 @@ class WorkforceNet(nn.Module):
             out["value"] = self.value_head(top).squeeze(-1)
             if hasattr(self, "ptr_q"):
                 q, k = self.ptr_q(fac), self.ptr_k(per)
-                logits = q @ k.transpose(-1, -2) / math.sqrt(q.shape[-1])
+                if at is None:
+                    logits, dist, noop = q @ k.transpose(-1, -2) / math.sqrt(q.shape[-1]), x["dist"], self.ptr_noop(fac)
+                else:
+                    rows, facs = at
+                    logits = (q @ k.transpose(-1, -2))[rows, facs] / math.sqrt(q.shape[-1])
+                    dist = x["dist"][rows, facs] if "dist" in x else \
+                        manhattan(x["fac_xy"][rows, facs][:, None], x["per_xy"][rows])[:, 0]
+                    noop = self.ptr_noop(fac)[rows, facs]
                 # (softplus * 8) * dist, not (softplus * dist) * 8: a power of two scales exactly, so the same
                 # bits forward and backward, with one (B, M, N) product less each way
-                logits = logits - (F.softplus(self.dist_scale) * 8.0) * x["dist"]
-                out["dispatch"] = torch.cat([logits, self.ptr_noop(fac)], -1)  # (B, M, N + 1)
+                logits = logits - (F.softplus(self.dist_scale) * 8.0) * dist
+                out["dispatch"] = torch.cat([logits, noop], -1)  # (B, M, N + 1), or (C, N + 1) with at
             if hasattr(self, "wf_head"):
                 out["workforce"] = self.wf_head(top)
             if hasattr(self, "pos_head"):
                 out["positioning"] = self.pos_head(fac).transpose(-1, -2)  # (B, 2, M)
         return out
 
-    def forward(self, x: dict[str, torch.Tensor], state, starts: torch.Tensor):
+    def forward(self, x: dict[str, torch.Tensor], state, starts: torch.Tensor, at=None):
         """A sequence of T steps of B environments, flattened to T * B rows (time major).
 
         ``state`` is the LSTM state before the first step, ``starts`` (T, B) marks the
-        steps where an episode begins. Returns the head outputs (T * B rows) and the final state.
+        steps where an episode begins, ``at`` the dispatch rows to compute (:meth:`heads`).
+        Returns the head outputs (T * B rows) and the final state.
         """
         T, B = starts.shape
         fac, per, g, z = self.encode(x)
         mem, state = self.memory(z.view(T, B, -1), state, starts)
-        return self.heads(x, fac, per, g, mem.reshape(T * B, -1)), state
+        return self.heads(x, fac, per, g, mem.reshape(T * B, -1), at), state
+
+    @property
+    def reads_whole_distance(self) -> bool:
+        """Whether the encoder's attention reads the (B, M, N) distance (a bias), beyond the dispatch rows."""
+        return len(self.blocks) > 0
 
 
 @dataclass(frozen=True)
@@ -365,19 +401,23 @@ class AgentSet(nn.Module):
         z = torch.zeros(1, B, sum(m.config.lstm for m in self.members.values()), device=device)
         return z, z.clone()
 
-    def forward(self, x: dict[str, torch.Tensor], state, starts: torch.Tensor):
+    def forward(self, x: dict[str, torch.Tensor], state, starts: torch.Tensor, at=None):
         out: dict[str, torch.Tensor] = {}
-        values, hs, cs, at = [], [], [], 0
+        values, hs, cs, lo = [], [], [], 0
         for d, net in self.members.items():
             k = net.config.lstm
-            o, (h, c) = net(x, (state[0][..., at:at + k], state[1][..., at:at + k]), starts)
-            at += k
+            o, (h, c) = net(x, (state[0][..., lo:lo + k], state[1][..., lo:lo + k]), starts, at)
+            lo += k
             out[d] = o[d]
             values.append(o["value"])
             hs.append(h)
             cs.append(c)
         out["value"] = torch.stack(values, -1)
         return out, (torch.cat(hs, -1), torch.cat(cs, -1))
+
+    @property
+    def reads_whole_distance(self) -> bool:
+        return any(net.reads_whole_distance for net in self.members.values())
 
 
 def network_from_config(d: dict) -> WorkforceNet | AgentSet:

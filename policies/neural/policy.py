@@ -103,7 +103,8 @@ class NetworkPolicy:
         self._state = self.model.initial_state(len(seeds), self.device)
         self._starts = torch.ones(1, len(seeds), device=self.device)
 
-    def _noise(self, B: int, M: int, N: int, rows: np.ndarray) -> dict[str, torch.Tensor]:
+    def _noise(self, B: int, M: int, N: int, rows: np.ndarray, compact: np.ndarray | None = None
+               ) -> dict[str, torch.Tensor]:
         """Gumbel noise of every head, (B, ...) per :func:`scalefree.noise_shapes`, from each environment's generator.
 
         ``rows`` (B, M) bool: the facilities whose dispatch row the sampler reads (those
@@ -112,22 +113,37 @@ class NetworkPolicy:
         ``advance`` and left 0: on ``city`` that is about 97% of a (1,000, 1,001) block per
         environment and step. What is drawn has the same bits as drawing everything (one
         64-bit draw per double, and the transform is elementwise); a test compares.
+
+        ``compact`` (B, M) bool, a superset of ``rows``: the dispatch noise is then only
+        those facilities' rows, (C, N + 1) in row-major order, as the network's compact
+        dispatch rows (``WorkforceNet.heads`` with ``at``); the stream is the same.
         """
         sizes = {k: s[1:] for k, s in scalefree.noise_shapes(self.model, B, M, N).items()}
-        out = {k: np.zeros((B, int(np.prod(s)))) for k, s in sizes.items()}
+        out = {k: np.zeros((B, int(np.prod(s)))) for k, s in sizes.items() if k != "dispatch" or compact is None}
+        if compact is not None:
+            width = sizes["dispatch"][-1]
+            out["dispatch"] = np.zeros((int(compact.sum()), width))
+            slot = np.cumsum(compact.ravel()).reshape(B, M) - 1  # the compact row of each (environment, facility)
         for b, rng in enumerate(self._rngs):
             for k, s in sizes.items():
-                dst = out[k][b]
                 if k != "dispatch":
+                    dst = out[k][b]
                     dst[:] = _gumbel(rng.random(dst.size))
                     continue
-                width, at = s[-1], 0
+                width, size, at = s[-1], int(np.prod(s)), 0
                 for f in np.flatnonzero(rows[b]):
                     rng.bit_generator.advance(int(f) * width - at)
-                    dst[f * width:(f + 1) * width] = _gumbel(rng.random(width))
+                    if compact is None:
+                        out[k][b, f * width:(f + 1) * width] = _gumbel(rng.random(width))
+                    else:
+                        out[k][slot[b, f]] = _gumbel(rng.random(width))
                     at = (int(f) + 1) * width
-                rng.bit_generator.advance(dst.size - at)
-        return {k: torch.from_numpy(out[k]).float().to(self.device).reshape(B, *s) for k, s in sizes.items()}
+                rng.bit_generator.advance(size - at)
+        noise = {k: torch.from_numpy(out[k]).float().to(self.device).reshape(B, *s)
+                 for k, s in sizes.items() if k != "dispatch" or compact is None}
+        if compact is not None:
+            noise["dispatch"] = torch.from_numpy(out["dispatch"]).float().to(self.device)
+        return noise
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         if self._state is None:
@@ -145,16 +161,26 @@ class NetworkPolicy:
     def _act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         B, M = obs["requesting"].shape
         N = obs["personnel"].shape[1]
-        x = scalefree.features(self.model, scalefree.raw_tensors(self.model, obs, self.device))
-        out, self._state = self.model(x, self._state, self._starts)
+        # a network before the scale-free one computes only the dispatch rows its sampler reads (the choosing
+        # facilities): the same bits as the rows of the whole block, which on city is about 30 times larger
+        x = scalefree.features(self.model, scalefree.raw_tensors(self.model, obs, self.device), rows_only=True)
+        choose = scalefree.compact_rows(self.model, x)
+        at = None if choose is None else choose.nonzero(as_tuple=True)
+        if at is None:
+            out, self._state = self.model(x, self._state, self._starts)
+        else:
+            out, self._state = self.model(x, self._state, self._starts, at)
         self._starts = torch.zeros_like(self._starts)
         noise = None
         if self.mode != "greedy":
             # greedy-dispatch reads no dispatch noise, but its stream is drawn past all the same
             read = self.mode == "sample" and "dispatch" in self.decisions
-            rows = scalefree.dispatch_rows(self.model, x) if read else torch.zeros(B, M, dtype=torch.bool)
-            noise = self._noise(B, M, N, rows.cpu().numpy())
-        return env_action(scalefree.sample(self.model, out, x, noise), M)
+            if not read:
+                rows = torch.zeros(B, M, dtype=torch.bool)
+            else:  # for a version-1 network the rows read are the choosing facilities
+                rows = scalefree.dispatch_rows(self.model, x) if choose is None else choose
+            noise = self._noise(B, M, N, rows.cpu().numpy(), None if choose is None else choose.cpu().numpy())
+        return env_action(scalefree.sample(self.model, out, x, noise, at), M)
 
 
 def _gumbel(u: np.ndarray) -> np.ndarray:

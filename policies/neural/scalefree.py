@@ -142,11 +142,29 @@ def raw_tensors(model: nn.Module, obs: dict, device: torch.device | str = "cpu")
     return obs_to_torch_v1(obs, device)
 
 
-def features(model: nn.Module, raw: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-    """The network's inputs of :func:`raw_tensors` (any leading axes)."""
+def features(model: nn.Module, raw: dict[str, torch.Tensor], rows_only: bool = False) -> dict[str, torch.Tensor]:
+    """The network's inputs of :func:`raw_tensors` (any leading axes).
+
+    ``rows_only``: a version-1 network that will compute only the dispatch rows it reads
+    (:func:`compact_rows`) and whose encoder does not read the facility-person distance
+    gets no (B, M, N) distance block; it computes the rows it reads.
+    """
     if obs_version(model) == 2:
         return model.featurize(raw)
-    return featurize_v1(raw, model.config.coord_scale)
+    return featurize_v1(raw, model.config.coord_scale, dist=not rows_only or model.reads_whole_distance)
+
+
+def compact_rows(model: nn.Module, x: dict) -> torch.Tensor | None:
+    """(B, M) bool: the choosing facilities, whose dispatch rows alone a version-1 network computes.
+
+    ``mask.nonzero(as_tuple=True)`` is the ``at`` of ``WorkforceNet.heads`` and of
+    :func:`sample`: row-major, so in slot order within each environment, the order the
+    sampler picks in. None for the scale-free network (it works on the choosing facilities
+    already) and for a network without a dispatch head.
+    """
+    if obs_version(model) == 2 or "dispatch" not in model.config.decisions:
+        return None
+    return dist.choosing(x)
 
 
 def noise_shapes(model: nn.Module, B: int, M: int, N: int) -> dict[str, tuple[int, ...]]:
@@ -163,11 +181,14 @@ def dispatch_rows(model: nn.Module, x: dict) -> torch.Tensor:
     return dist.choosing(x)
 
 
-def sample(model: nn.Module, out: dict, x: dict, noise: dict | None) -> dict[str, torch.Tensor]:
-    """The actions of ``model``'s head outputs (``noise`` None: greedy), by its distributions."""
+def sample(model: nn.Module, out: dict, x: dict, noise: dict | None, at=None) -> dict[str, torch.Tensor]:
+    """The actions of ``model``'s head outputs (``noise`` None: greedy), by its distributions.
+
+    ``at``: the dispatch rows a version-1 network computed alone (:func:`compact_rows`).
+    """
     if obs_version(model) == 2:
         return model.sample(out, x, noise)
-    return dist.sample(out, x, noise)
+    return dist.sample(out, x, noise, at)
 
 
 def head_log_probs(model: nn.Module, out: dict, x: dict, acts: dict) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
