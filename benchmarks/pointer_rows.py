@@ -34,6 +34,7 @@ import math
 import time
 
 import torch
+from wfbench.policies.neural.model import manhattan
 from wfbench.policies.registry import get
 
 from wfbench.core.config import ScenarioConfig
@@ -82,10 +83,7 @@ def main() -> None:
     fac_xy, per_xy = torch.rand(B, M, 2, generator=gen) * 9, torch.rand(B, N, 2, generator=gen) * 9
     noop = torch.randn(B, M, 1, generator=gen)
 
-    def distance(f, p):
-        dist = torch.sub(f[..., :, None, 0], p[..., None, :, 0]).abs_()
-        dist += torch.sub(f[..., :, None, 1], p[..., None, :, 1]).abs_()
-        return dist
+    distance = manhattan  # the networks' own
 
     product = q @ k.transpose(-1, -2) / math.sqrt(d)
     dist = distance(fac_xy, per_xy)
