@@ -226,6 +226,8 @@ def _masked_mean(x, mask):
 class WorkforceNet(nn.Module):
     """The joint model of the paper (see the module docstring); ``config.decisions`` picks the heads."""
 
+    computes_dispatch_rows = True  # forward(..., at) computes the dispatch rows at alone (heads)
+
     def __init__(self, config: ModelConfig):
         super().__init__()
         self.config = c = config
@@ -400,6 +402,8 @@ class AgentSet(nn.Module):
     def initial_state(self, B: int, device=None) -> tuple[torch.Tensor, torch.Tensor]:
         z = torch.zeros(1, B, sum(m.config.lstm for m in self.members.values()), device=device)
         return z, z.clone()
+
+    computes_dispatch_rows = True  # forward(..., at): its dispatch member computes the rows at alone
 
     def forward(self, x: dict[str, torch.Tensor], state, starts: torch.Tensor, at=None):
         out: dict[str, torch.Tensor] = {}

@@ -151,7 +151,17 @@ def features(model: nn.Module, raw: dict[str, torch.Tensor], rows_only: bool = F
     """
     if obs_version(model) == 2:
         return model.featurize(raw)
-    return featurize_v1(raw, model.config.coord_scale, dist=not rows_only or model.reads_whole_distance)
+    whole = not (rows_only and _computes_dispatch_rows(model)) or model.reads_whole_distance
+    return featurize_v1(raw, model.config.coord_scale, dist=whole)
+
+
+def _computes_dispatch_rows(model: nn.Module) -> bool:
+    """Whether a version-1 network's ``forward(x, state, starts, at)`` computes the dispatch rows ``at`` alone.
+
+    ``WorkforceNet`` and ``AgentSet`` do (``computes_dispatch_rows``); a model of one's own
+    with the plain ``forward(x, state, starts)`` (docs/rl.md) gets the whole block as before.
+    """
+    return getattr(model, "computes_dispatch_rows", False)
 
 
 def compact_rows(model: nn.Module, x: dict) -> torch.Tensor | None:
@@ -160,9 +170,10 @@ def compact_rows(model: nn.Module, x: dict) -> torch.Tensor | None:
     ``mask.nonzero(as_tuple=True)`` is the ``at`` of ``WorkforceNet.heads`` and of
     :func:`sample`: row-major, so in slot order within each environment, the order the
     sampler picks in. None for the scale-free network (it works on the choosing facilities
-    already) and for a network without a dispatch head.
+    already), for a network without a dispatch head and for a model of one's own that
+    computes the whole block.
     """
-    if obs_version(model) == 2 or "dispatch" not in model.config.decisions:
+    if obs_version(model) == 2 or not _computes_dispatch_rows(model) or "dispatch" not in model.config.decisions:
         return None
     return dist.choosing(x)
 

@@ -121,3 +121,29 @@ def test_the_actions_are_those_of_the_whole_block(name, mode):
                 torch.from_numpy(theirs["positioning"]), obs["requesting"].shape[1]).numpy())
             sent += int((mine["dispatch"] < obs["personnel"].shape[1]).sum())
     assert sent > 0
+
+
+class PlainModel(torch.nn.Module):
+    """A model of one's own with only the documented interface (docs/rl.md): the plain ``forward``, no ``at``."""
+
+    def __init__(self, inner: WorkforceNet):
+        super().__init__()
+        self.inner, self.config = inner, inner.config
+
+    def initial_state(self, B, device=None):
+        return self.inner.initial_state(B, device)
+
+    def forward(self, x, state, starts):
+        assert "dist" in x  # it gets the whole block, as before
+        return self.inner(x, state, starts)
+
+
+def test_a_model_without_compact_rows_gets_the_whole_block_and_the_same_actions():
+    shipped = policies.get("ppo-joint")
+    plain = NetworkPolicy(PlainModel(shipped.model), name="plain")
+    shipped.reset(SEEDS)
+    plain.reset(SEEDS)
+    for obs, _ in driven("large", 12):
+        mine, theirs = plain.act(obs), shipped.act(obs)
+        for key in theirs:
+            assert np.array_equal(mine[key], theirs[key]), key
