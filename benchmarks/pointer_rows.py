@@ -83,14 +83,12 @@ def main() -> None:
     fac_xy, per_xy = torch.rand(B, M, 2, generator=gen) * 9, torch.rand(B, N, 2, generator=gen) * 9
     noop = torch.randn(B, M, 1, generator=gen)
 
-    distance = manhattan  # the networks' own
-
     product = q @ k.transpose(-1, -2) / math.sqrt(d)
-    dist = distance(fac_xy, per_xy)
+    dist = manhattan(fac_xy, per_xy)
     logits = product - 0.75 * dist
     print(f"{args.network} (pointer width {d}) on {config.name}: B={B}, M={M}, N={N}, one torch thread")
     print(f"  pointer product      {ms(lambda: q @ k.transpose(-1, -2) / math.sqrt(d), args.repeat):8.1f} ms")
-    print(f"  distance             {ms(lambda: distance(fac_xy, per_xy), args.repeat):8.1f} ms")
+    print(f"  distance             {ms(lambda: manhattan(fac_xy, per_xy), args.repeat):8.1f} ms")
     print(f"  minus the distance   {ms(lambda: product - 0.75 * dist, args.repeat):8.1f} ms")
     print(f"  no-op column (cat)   {ms(lambda: torch.cat([logits, noop], -1), args.repeat):8.1f} ms")
 
@@ -102,7 +100,7 @@ def main() -> None:
             rows = torch.randperm(M, generator=gen)[:r]
             part = q[b, rows] @ k[b].T / math.sqrt(d)
             same_product += torch.equal(part, product[b, rows])
-            sub = distance(fac_xy[b, rows], per_xy[b])
+            sub = manhattan(fac_xy[b, rows], per_xy[b])
             same_elementwise += torch.equal(product[b, rows] - 0.75 * sub, logits[b, rows])
         print(f"    {r:4d} rows: product equal in {same_product}/{args.trials}, "
               f"distance and subtraction equal in {same_elementwise}/{args.trials}")

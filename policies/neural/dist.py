@@ -109,12 +109,13 @@ def sample(out: dict, x: dict, noise: dict | None, at: tuple[torch.Tensor, torch
         B, M = mask.shape[:2]
         N = mask.shape[-1] - 1
         act = torch.full((B, M), N, dtype=torch.long, device=logits.device)
-        # row-major: slot order within an environment
-        rows, facs = choosing(x).nonzero(as_tuple=True) if at is None else at
+        extra = None if noise is None else noise["dispatch"]
+        if at is None:  # the whole block: take the choosing facilities' rows (row-major: slot order in an environment)
+            at = choosing(x).nonzero(as_tuple=True)
+            logits, extra = logits[at], None if extra is None else extra[at]
+        rows, facs = at
         if rows.numel():
-            lg = logits[rows, facs] if at is None else logits
-            if noise is not None:
-                lg = lg + (noise["dispatch"][rows, facs] if at is None else noise["dispatch"])
+            lg = logits if extra is None else logits + extra
             allowed = torch.zeros_like(lg, dtype=torch.bool)
             allowed[:, N] = True
             everyone = torch.arange(N, device=lg.device).expand(rows.numel(), N)

@@ -120,30 +120,27 @@ class NetworkPolicy:
         """
         sizes = {k: s[1:] for k, s in scalefree.noise_shapes(self.model, B, M, N).items()}
         out = {k: np.zeros((B, int(np.prod(s)))) for k, s in sizes.items() if k != "dispatch" or compact is None}
-        if compact is not None:
-            width = sizes["dispatch"][-1]
-            out["dispatch"] = np.zeros((int(compact.sum()), width))
-            slot = np.cumsum(compact.ravel()).reshape(B, M) - 1  # the compact row of each (environment, facility)
+        # the dispatch noise is written one row per (environment, facility): slot[b, f] is its row
+        if compact is not None:  # the rows of compact alone, in row-major order
+            out["dispatch"] = np.zeros((int(compact.sum()), sizes["dispatch"][-1]))
+            slot = np.cumsum(compact.ravel()).reshape(B, M) - 1
+        else:  # the whole (B, M * width) block seen as (B * M, width), the same memory
+            slot = np.arange(B * M).reshape(B, M)
         for b, rng in enumerate(self._rngs):
             for k, s in sizes.items():
                 if k != "dispatch":
                     dst = out[k][b]
                     dst[:] = _gumbel(rng.random(dst.size))
                     continue
-                width, size, at = s[-1], int(np.prod(s)), 0
+                width, at = s[-1], 0
+                rows_of = out[k].reshape(-1, width)
                 for f in np.flatnonzero(rows[b]):
                     rng.bit_generator.advance(int(f) * width - at)
-                    if compact is None:
-                        out[k][b, f * width:(f + 1) * width] = _gumbel(rng.random(width))
-                    else:
-                        out[k][slot[b, f]] = _gumbel(rng.random(width))
+                    rows_of[slot[b, f]] = _gumbel(rng.random(width))
                     at = (int(f) + 1) * width
-                rng.bit_generator.advance(size - at)
-        noise = {k: torch.from_numpy(out[k]).float().to(self.device).reshape(B, *s)
-                 for k, s in sizes.items() if k != "dispatch" or compact is None}
-        if compact is not None:
-            noise["dispatch"] = torch.from_numpy(out["dispatch"]).float().to(self.device)
-        return noise
+                rng.bit_generator.advance(int(np.prod(s)) - at)
+        noise = {k: torch.from_numpy(out[k]).float().to(self.device) for k in sizes}
+        return {k: v if k == "dispatch" and compact is not None else v.reshape(B, *sizes[k]) for k, v in noise.items()}
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         if self._state is None:
