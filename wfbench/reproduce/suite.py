@@ -56,6 +56,7 @@ from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies.registry import LINEUPS
+from wfbench.reproduce import provenance
 from wfbench.reproduce.common import Output, Progress, write
 from wfbench.scenarios import Suite, SuiteScenario, get_suite, normalize
 
@@ -125,10 +126,13 @@ def _cached(path: Path, scenario: SuiteScenario, seeds: list[int]) -> pd.DataFra
     return df
 
 
-def _store(path: Path, df: pd.DataFrame, scenario: SuiteScenario, seeds: list[int], wall_s: float) -> None:
+def _store(path: Path, df: pd.DataFrame, policy: str, scenario: SuiteScenario, seeds: list[int],
+           wall_s: float) -> None:
+    """Write a piece and its ``.json``: what decides its reuse (hash, seeds) and what made it (the provenance)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     df.to_csv(path, index=False)
-    path.with_suffix(".json").write_text(json.dumps({"hash": scenario.hash, "seeds": seeds, "wall_s": wall_s}))
+    meta = {"hash": scenario.hash, "seeds": seeds, "wall_s": wall_s, "provenance": provenance.current(policy)}
+    path.with_suffix(".json").write_text(json.dumps(meta))
 
 
 def _run(policy: str, scenario: SuiteScenario, seeds: list[int], backend: str, workers: int | None,
@@ -245,7 +249,7 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
                 except Exception as exc:  # noqa: BLE001 - a long run reports a failing pair and goes on
                     failures.append((sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]))
                     continue
-                _store(path, df, sc, seed_list, wall_s)
+                _store(path, df, name, sc, seed_list, wall_s)
                 df.attrs["wall_s"] = wall_s
             if name == "bound":
                 bound[sc.id] = df[SCORE].to_numpy()

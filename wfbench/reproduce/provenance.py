@@ -1,0 +1,146 @@
+"""What made a committed result: the commit, a hash of the code and a hash of the files a policy reads.
+
+Every piece of a suite run (one policy on one scenario, ``cache/POLICY/SCENARIO.csv``)
+has a ``.json`` beside it. Its ``hash`` and ``seeds`` decide whether the piece is reused;
+its ``provenance`` says what computed it:
+
+- ``commit``: the git commit of the checkout (None outside a checkout), and ``dirty``
+  whether files that compute results differed from it;
+- ``code_sha256``: :func:`code_sha256`, a hash of every file that computes results
+  (``wfbench/``, ``policies/`` and ``solvers/``, checkpoints excepted), the same in a
+  checkout and from git's objects of a commit (:func:`code_sha256_at`);
+- ``inputs``: the sha256 of each file whose bytes decide the policy (a network's
+  checkpoint, a tuned file), by its path in the repository.
+
+The provenance does not decide reuse (a new commit would discard every piece): a changed
+behaviour is caught by ``wfbench reproduce verify`` (:mod:`wfbench.reproduce.verify`),
+which recomputes pieces and compares them bit for bit, and by CI's fixed sample of it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+from collections.abc import Iterable
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+# the top-level folders whose files compute results, by their name in the repository
+CODE_ROOTS = ("wfbench", "policies", "solvers")
+_SUFFIXES = (".py", ".json", ".toml", ".csv")
+_SKIP_PARTS = ("__pycache__", "checkpoints")
+
+
+def _roots() -> dict[str, Path]:
+    import wfbench
+    import wfbench.policies
+    import wfbench.solvers
+
+    return {"wfbench": Path(wfbench.__file__).parent, "policies": Path(wfbench.policies.__file__).parent,
+            "solvers": Path(wfbench.solvers.__file__).parent}
+
+
+def _counts(path: str) -> bool:
+    parts = path.split("/")
+    return path.endswith(_SUFFIXES) and parts[0] in CODE_ROOTS and not any(p in _SKIP_PARTS for p in parts)
+
+
+def _digest(files: Iterable[tuple[str, bytes]]) -> str:
+    h = hashlib.sha256()
+    for name, data in sorted(files):
+        h.update(f"{name}\0{hashlib.sha256(data).hexdigest()}\n".encode())
+    return h.hexdigest()
+
+
+@cache
+def code_sha256() -> str:
+    """The hash of the code that computes results, as installed (a checkout, editable or not)."""
+    files = []
+    for top, root in _roots().items():
+        for p in root.rglob("*"):
+            rel = f"{top}/{p.relative_to(root).as_posix()}"
+            if p.is_file() and _counts(rel):
+                files.append((rel, p.read_bytes()))
+    return _digest(files)
+
+
+def _git(repo: Path, *args: str, data: bytes | None = None) -> bytes:
+    return subprocess.run(["git", "-C", str(repo), *args], input=data, capture_output=True, check=True).stdout
+
+
+def code_sha256_at(repo: Path, commit: str) -> str:
+    """:func:`code_sha256` of the tree of ``commit`` in the git repository ``repo``, from git's objects."""
+    listing = _git(repo, "ls-tree", "-r", "--full-tree", commit, "--", *CODE_ROOTS).decode().splitlines()
+    entries = [(line.split("\t", 1)[1], line.split()[2]) for line in listing if line.split()[1] == "blob"]
+    entries = [(path, sha) for path, sha in entries if _counts(path)]
+    out = _git(repo, "cat-file", "--batch", data="".join(f"{sha}\n" for _, sha in entries).encode())
+    files, at = [], 0
+    for path, _ in entries:
+        header_end = out.index(b"\n", at)
+        size = int(out[at:header_end].split()[2])
+        files.append((path, out[header_end + 1:header_end + 1 + size]))
+        at = header_end + 1 + size + 1
+    return _digest(files)
+
+
+@cache
+def repository() -> Path | None:
+    """The git checkout the code runs from, or None (an installed copy)."""
+    root = _roots()["wfbench"].parent
+    try:
+        top = _git(root, "rev-parse", "--show-toplevel").decode().strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return Path(top) if Path(top).resolve() == root.resolve() else None
+
+
+def commit() -> tuple[str | None, bool]:
+    """The checkout's commit and whether the files that compute results differ from it (None, False outside one)."""
+    repo = repository()
+    if repo is None:
+        return None, False
+    head = _git(repo, "rev-parse", "HEAD").decode().strip()
+    dirty = bool(_git(repo, "status", "--porcelain", "--untracked-files=no", "--", *CODE_ROOTS).strip())
+    return head, dirty
+
+
+def file_sha256(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _repo_name(path: Path) -> str:
+    """A file's path in the repository (``policies/neural/checkpoints/x.pt``), or as given outside it."""
+    roots = _roots()
+    p = path.resolve()
+    for top, root in roots.items():
+        if p.is_relative_to(root.resolve()):
+            return f"{top}/{p.relative_to(root.resolve()).as_posix()}"
+    return str(path)
+
+
+def policy_inputs(policy: str) -> dict[str, str]:
+    """The sha256 of each file whose bytes decide ``policy`` (its checkpoint or tuned file), by repository path.
+
+    The hindsight oracle reads its candidates' files: they are listed too. A composite of
+    built-ins reads none.
+    """
+    from wfbench.policies import registry
+
+    if policy == "bound":
+        return {}
+    specs = [policy]
+    if registry.parse_spec(policy).kind == "oracle":
+        specs = registry.oracle_candidates()
+    files: dict[str, str] = {}
+    for spec in specs:
+        f = registry.parse_spec(spec).file
+        if f is not None and f.is_file():
+            files[_repo_name(f)] = file_sha256(f)
+    return dict(sorted(files.items()))
+
+
+def current(policy: str) -> dict[str, Any]:
+    """The provenance of a piece of ``policy`` computed now, by this code."""
+    head, dirty = commit()
+    return {"commit": head, "dirty": dirty, "code_sha256": code_sha256(), "inputs": policy_inputs(policy)}
