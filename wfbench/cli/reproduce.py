@@ -22,19 +22,21 @@ def add_parser(sub) -> None:
     rp = sub.add_parser("reproduce", help="regenerate the paper's table2, table3 or figure3, the oracle gap, or "
                         "the suite")
     rp.add_argument("target", help="table2, table3, figure3, gap (heuristic, solver, oracle and the bound "
-                    "per scenario) or suite (every built-in policy on every scenario of suite-v1, normalized and "
-                    "aggregated; docs/suite.md)")
+                    "per scenario), suite (every built-in policy on every scenario of suite-v1, normalized and "
+                    "aggregated; docs/suite.md) or verify (recompute the pieces of the suite run in --out and "
+                    "compare them bit for bit; exit 1 if one differs)")
     rp.add_argument("--out", default="results", help="output folder (default: ./results)")
-    rp.add_argument("--runs", type=positive, default=50, help="episodes per cell or row (default 50)")
+    rp.add_argument("--runs", type=positive, default=None, help="episodes per cell or row (default 50); verify: "
+                    "the first seeds of each piece to recompute (default 1)")
     rp.add_argument("--methods", default=None, help="figure3 only: comma-separated policies to draw (default: "
                     "the paper's, solver, tuned, learned and oracle ones; the learned where their checkpoint and "
                     "torch are)")
-    rp.add_argument("--seeds", type=seeds_spec, default=None, help="suite only: the seeds (default: test, 0-49; "
-                    "instead of --runs)")
-    rp.add_argument("--policies", default=None, help="suite only: comma-separated policies (default: every built-in "
-                    "policy, the shipped networks and the oracle)")
-    rp.add_argument("--scenarios", default=None, help="suite only: comma-separated scenario ids or presets of the "
-                    "suite (default: all)")
+    rp.add_argument("--seeds", type=seeds_spec, default=None, help="suite and verify only: the seeds (suite default: "
+                    "test, 0-49, instead of --runs; verify default: each piece's first --runs seeds, see --runs)")
+    rp.add_argument("--policies", default=None, help="suite and verify only: comma-separated policies (default: "
+                    "every built-in policy, the shipped networks and the oracle)")
+    rp.add_argument("--scenarios", default=None, help="suite and verify only: comma-separated scenario ids or "
+                    "presets of the suite (default: all)")
     rp.add_argument("--no-networks", action="store_true", help="suite only: leave the shipped networks out")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)
@@ -71,12 +73,15 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
 
     try:
-        result = reproduce(args.target, out, runs=args.runs, backend=args.backend, workers=args.workers,
+        runs = args.runs if args.runs is not None else (1 if args.target == "verify" else 50)
+        result = reproduce(args.target, out, runs=runs, backend=args.backend, workers=args.workers,
                            address=args.address, progress=step, **kwargs)
     finally:
         if bar:
             bar.close()
     print(result.text)
+    if args.target == "verify":
+        return 1 if any(v.differences for v in result.verdicts) else 0
     print(f"\nwrote {', '.join(str(f) for f in result.files)} in {time.perf_counter() - t0:.1f} s")
     return 0
 
@@ -92,19 +97,22 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
     """The suite target's options, checked now (an unknown policy or scenario fails before anything runs)."""
     given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios),
                             ("--no-networks", args.no_networks or None)) if v is not None]
-    if args.target != "suite":
+    if args.target not in ("suite", "verify"):
         if given:
-            raise UsageError(f"{given[0]} applies to suite only, not to {args.target}")
+            raise UsageError(f"{given[0]} applies to suite and verify only, not to {args.target}")
         return {}
+    if args.target == "verify" and args.no_networks:
+        raise UsageError("--no-networks applies to suite only, not to verify (give --policies)")
     from wfbench.scenarios import get_suite
 
-    kwargs: dict = {"networks": not args.no_networks}
+    kwargs: dict = {"networks": not args.no_networks} if args.target == "suite" else {}
     if args.seeds is not None:
         kwargs["seeds"] = args.seeds
     if args.policies is not None:
         kwargs["policies"] = _names(args.policies, "--policies")
         for p in kwargs["policies"]:
-            resolve_policy(p)
+            if not (args.target == "verify" and p == "bound"):  # verify's pieces include the bound's
+                resolve_policy(p)
     if args.scenarios is not None:
         kwargs["scenarios"] = _names(args.scenarios, "--scenarios")
         suite = get_suite("suite-v1")

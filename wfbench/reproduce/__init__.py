@@ -21,16 +21,18 @@ import wfbench.reproduce.gap as gap
 import wfbench.reproduce.suite as suite
 import wfbench.reproduce.table2 as table2
 import wfbench.reproduce.table3 as table3
+import wfbench.reproduce.verify as verify
 from wfbench.reproduce.common import Output, Progress
 
 TARGETS = {"table2": table2.table2, "table3": table3.table3, "figure3": figure3.figure3, "gap": gap.gap,
-           "suite": suite.suite}
+           "suite": suite.suite, "verify": verify.verify}
 """``wfbench reproduce TARGET``: each called as ``target(out, runs=, backend=, workers=, address=, progress=)``."""
 
-SIZES = {"table2": table2.size, "table3": table3.size, "figure3": figure3.size, "gap": gap.size, "suite": suite.size}
+SIZES = {"table2": table2.size, "table3": table3.size, "figure3": figure3.size, "gap": gap.size, "suite": suite.size,
+         "verify": lambda **_: None}  # verify: as many as the folder has pieces (a bar without a total)
 
 
-def target_size(name: str, **kwargs) -> int:
+def target_size(name: str, **kwargs) -> int | None:
     """How many evaluations target ``name`` runs with these keyword arguments (for a progress bar)."""
     return SIZES[name](**kwargs)
 

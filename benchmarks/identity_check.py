@@ -4,37 +4,78 @@ A refactor that moves code must not move a number. This script records, through 
 public interfaces only (``wfbench.evaluate``, the ``wfbench`` command line), so that it
 runs unchanged on the code before and after:
 
-- the per-seed rows (every KPI, utility and counter) of the built-in policies, the
-  tuned files and the shipped networks on ``paper-64``, ``small`` and ``nonstationary``;
+- the per-seed rows (every KPI, utility and counter) of every registered policy (the
+  composites, the oracles, the tuned files and the shipped networks) on every scenario
+  of suite-v1: ``--seeds`` seeds each (default 10), ``city`` 1 seed, the planners
+  and the hindsight oracle at most 4 (they look over the whole future);
 - the reproduced tables (``wfbench reproduce table3|table2|gap``, CSV files);
 - short training runs of each trainer (PPO joint, dispatch and independent agents,
   IMPALA, hindsight learning): the weights of ``latest.pt`` and ``best.pt``, the
   history of public scores, and ``config.json`` less the git commit.
 
-Usage (run the capture of the old code from a checkout of it, e.g. a git worktree)::
+Usage (the capture of the old code from a checkout of it, e.g. a git worktree)::
 
-    PYTHONPATH=/path/to/old/checkout python tools/identity_check.py capture /tmp/before
-    python tools/identity_check.py capture /tmp/after
-    python tools/identity_check.py compare /tmp/before /tmp/after
+    git worktree add /tmp/old HEAD~1
+    python benchmarks/identity_check.py capture /tmp/before --checkout /tmp/old
+    python benchmarks/identity_check.py capture /tmp/after
+    python benchmarks/identity_check.py compare /tmp/before /tmp/after
 
-``compare`` prints every difference and exits 1 if there is one.
+``--checkout`` imports ``wfbench`` and the folders it installs as ``wfbench.policies``,
+``wfbench.solvers`` and ``wfbench.leaderboard`` from that checkout (a ``PYTHONPATH``
+alone does not: an editable install maps those three to its own checkout, so a
+change under ``policies/`` was compared with itself), and the capture fails if they do
+not come from there. ``--scenarios`` narrows a capture while working; the check a
+commit quotes covers them all (about an hour on the 2-core VM). ``compare`` prints every
+difference and exits 1 if there is one.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
 
-POLICIES = ["random", "heuristic", "heuristic-stochastic", "random-dispatch", "random-positioning",
-            "fixed-workforce", "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle-planner",
-            "oracle-dispatch", "heuristic-tuned", "solver-tuned", "ppo-joint", "ppo-dispatch", "impala-joint",
-            "hindsight-joint", "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general",
-            "scalefree-general"]
-SCENARIOS = ["paper-64", "small", "nonstationary"]
-SLOW = {"oracle-planner", "oracle-dispatch"}  # fewer seeds: the planners look over the whole future
+SLOW = {"oracle-planner", "oracle-dispatch", "oracle"}  # fewer seeds: they look over the whole future
+SLOW_SEEDS = 4
+ONE_SEED = {"city-v1"}  # 1,000 facilities and people: a seed of a network is minutes here
+MAPPED = {"wfbench": "wfbench", "wfbench.policies": "policies", "wfbench.solvers": "solvers",
+          "wfbench.leaderboard": "leaderboard"}
+
+
+def use_checkout(root: Path) -> None:
+    """Import wfbench and its three mapped packages from the checkout ``root`` (before anything imports them)."""
+    import importlib.util
+
+    if any(name in sys.modules for name in MAPPED):
+        raise RuntimeError("use_checkout must run before wfbench is imported")
+
+    class Finder:
+        @staticmethod
+        def find_spec(fullname, path=None, target=None):
+            if fullname not in MAPPED:
+                return None
+            folder = root / MAPPED[fullname]
+            return importlib.util.spec_from_file_location(fullname, folder / "__init__.py",
+                                                          submodule_search_locations=[str(folder)])
+
+    sys.meta_path.insert(0, Finder)
+    os.environ["PYTHONPATH"] = os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+
+
+def policies() -> list[str]:
+    """Every registered policy of the code being captured (its registry's names)."""
+    from wfbench.policies.registry import names
+
+    return names()
+
+
+def scenarios() -> list[str]:
+    from wfbench.scenarios import get_suite
+
+    return [s.id for s in get_suite("suite-v1").scenarios]
 
 TRAIN = {  # short runs of every trainer: a few updates, two public evaluations
     "ppo-joint": ["--algo", "ppo", "--variant", "joint", "--steps", "1536", "--num-envs", "8", "--num-steps", "64",
@@ -54,19 +95,22 @@ TRAIN = {  # short runs of every trainer: a few updates, two public evaluations
 }
 
 
-def capture(out: Path, seeds: int, only: set[str] | None) -> None:
+def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | None = None) -> None:
     import pandas as pd
+    import wfbench.policies
+    import wfbench.solvers
 
     import wfbench
     from wfbench.cli import main as cli
 
     out.mkdir(parents=True, exist_ok=True)
-    print(f"wfbench from {Path(wfbench.__file__).parent}", flush=True)
+    for mod in (wfbench, wfbench.policies, wfbench.solvers):
+        print(f"{mod.__name__} from {Path(mod.__file__).parent}", flush=True)
     if only is None or "evaluate" in only:
-        for scenario in SCENARIOS:
-            for name in POLICIES:
+        for scenario in chosen or scenarios():
+            for name in policies():
                 t0 = time.perf_counter()
-                n = min(seeds, 4) if name in SLOW else seeds
+                n = 1 if scenario in ONE_SEED else min(seeds, SLOW_SEEDS) if name in SLOW else seeds
                 df = wfbench.evaluate(name, scenario, list(range(n)), backend="serial", progress=False)
                 # the budget columns are measurements that differ run to run (an older wfbench has none)
                 df = df.drop(columns=["decision_ms_p50", "decision_ms_p99", "cpu_s"], errors="ignore")
@@ -158,12 +202,24 @@ def main() -> int:
     c.add_argument("out", type=Path)
     c.add_argument("--seeds", type=int, default=10, help="test seeds 0..N-1 per policy and scenario (default 10)")
     c.add_argument("--only", default=None, help="comma-separated parts: evaluate, reproduce, train")
+    c.add_argument("--scenarios", default=None, help="comma-separated suite-v1 ids (default: every scenario)")
+    c.add_argument("--checkout", type=Path, default=None, help="capture the code of this checkout (a git worktree "
+                   "of the commit before), not the installed one")
     d = sub.add_parser("compare")
     d.add_argument("a", type=Path)
     d.add_argument("b", type=Path)
     args = p.parse_args()
     if args.cmd == "capture":
-        capture(args.out, args.seeds, set(args.only.split(",")) if args.only else None)
+        if args.checkout is not None:
+            use_checkout(args.checkout.resolve())
+            import wfbench.policies
+
+            if not Path(wfbench.policies.__file__).resolve().is_relative_to(args.checkout.resolve()):
+                print(f"identity_check: wfbench.policies imports from {wfbench.policies.__file__}, not from "
+                      f"{args.checkout}", file=sys.stderr)
+                return 2
+        chosen = [x.strip() for x in args.scenarios.split(",")] if args.scenarios else None
+        capture(args.out, args.seeds, set(args.only.split(",")) if args.only else None, chosen)
         return 0
     return compare(args.a, args.b)
 

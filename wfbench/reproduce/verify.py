@@ -1,0 +1,211 @@
+"""Committed results against what the code computes now: recompute pieces of a suite run and compare bit for bit.
+
+A suite run's folder (``docs/results/suite-v1-50``) keeps each (policy, scenario) piece in
+``cache/``. :func:`verify` plays chosen seeds of chosen pieces again with the code that
+imports it and compares every result column (the KPIs, utilities and counters; not the
+budget columns, which are measurements) to the bit. One differing number fails the piece.
+
+``wfbench reproduce verify --out FOLDER`` checks every piece on its first seed;
+``--policies``, ``--scenarios`` and ``--seeds`` narrow or widen it. :data:`CI_SAMPLE` is
+the fixed sample CI recomputes (tests/reproduce/test_committed_results.py): every policy
+family, every scenario of the suite but ``city`` (minutes a seed for the networks), a
+seed each, the seeds spread over the two halves of a 50-seed run.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wfbench.core.kpis import SCORE
+from wfbench.core.seeds import resolve_seeds
+from wfbench.harness.budget import results_only
+from wfbench.reproduce.common import Output, Progress
+from wfbench.scenarios import SuiteScenario, get_suite
+
+# (policy, scenario id, test seed): one piece of each scenario but city, every family more than once
+CI_SAMPLE: tuple[tuple[str, str, int], ...] = (
+    ("random", "small-v1", 3),
+    ("heuristic", "paper-64-v1", 17),
+    ("heuristic-stochastic", "surge-64-v1", 41),
+    ("solver", "nonstationary-v1", 8),
+    ("heuristic-tuned", "clustered-64-v1", 29),
+    ("solver-tuned", "real-benelux-v1", 36),
+    ("solver-tuned-train", "table2-g128-f50-s25-v1", 12),
+    ("ppo-general", "large-v1", 0),
+    ("hindsight-general#seed4", "table2-g32-f100-s25-v1", 9),
+    ("ppo-independent", "table2-g32-f25-s10-v1", 26),
+    ("impala-joint", "slow-64-v1", 44),
+    ("scalefree-general", "table2-g256-f25-s5-v1", 5),
+    ("scalefree-general#seed2", "churn-64-v1", 33),
+    ("hindsight-joint", "novice-64-v1", 21),
+    ("oracle", "real-nyc-v1", 2),
+    ("bound", "large-v1", 30),
+)
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One committed piece: ``policy`` on ``scenario``, its rows in ``path``."""
+
+    policy: str
+    scenario: SuiteScenario
+    path: Path
+
+    def rows(self) -> pd.DataFrame:
+        return pd.read_csv(self.path, float_precision="round_trip")  # the same bits as the run that wrote it
+
+    def meta(self) -> dict:
+        return json.loads(self.path.with_suffix(".json").read_text())
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
+
+
+def _known_policies() -> list[str]:
+    from wfbench.reproduce.suite import default_policies, with_members
+
+    return [*with_members(default_policies())[0], "bound"]
+
+
+def pieces(folder: Path, policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None,
+           suite_name: str = "suite-v1") -> list[Piece]:
+    """The committed pieces under ``folder/cache`` (of these policies and scenarios, default all), in order.
+
+    A piece's folder is its policy's name made path-safe (``ppo-general#seed0`` in
+    ``ppo-general_seed0``); it is read back against the suite's policies and the names given.
+    """
+    suite = get_suite(suite_name)
+    chosen = [suite.scenario(x) for x in scenarios] if scenarios else list(suite.scenarios)
+    by_dir = {_safe(p): p for p in [*_known_policies(), *(policies or [])]}
+    wanted = set(policies) if policies else None
+    out = []
+    for d in sorted(p for p in (folder / "cache").iterdir() if p.is_dir()) if (folder / "cache").is_dir() else []:
+        policy = by_dir.get(d.name)
+        if policy is None or (wanted is not None and policy not in wanted):
+            continue
+        for sc in chosen:
+            path = d / f"{sc.id}.csv"
+            if path.exists() and path.with_suffix(".json").exists():
+                out.append(Piece(policy, sc, path))
+    return out
+
+
+def recompute(policy: str, scenario: SuiteScenario, seeds: Sequence[int], backend: str = "serial",
+              workers: int | None = None) -> pd.DataFrame:
+    """The rows ``policy`` gives now on ``seeds`` of ``scenario`` (the bound: its score column alone)."""
+    from wfbench.harness.evaluation import evaluate
+    from wfbench.policies.registry import ScenarioMismatchWarning
+
+    if policy == "bound":
+        from wfbench.core.bound import score_upper_bound
+
+        return pd.DataFrame({"seed": list(seeds), SCORE: score_upper_bound(scenario.config, list(seeds))})
+    with warnings.catch_warnings():  # the networks run zero-shot on purpose, as in the suite run
+        warnings.simplefilter("ignore", ScenarioMismatchWarning)
+        return evaluate(policy, scenario.config, list(seeds), backend=backend, workers=workers, progress=False)
+
+
+def differences(committed: pd.DataFrame, now: pd.DataFrame) -> list[str]:
+    """Each result column and seed where ``now`` differs from ``committed`` by any bit: ``column seed S: a -> b``."""
+    old = results_only(committed).set_index("seed")
+    new = results_only(now).set_index("seed")
+    out = []
+    missing = sorted(set(old.columns) ^ set(new.columns))
+    if missing:
+        out.append(f"columns differ: {missing}")
+    for seed in new.index:
+        if seed not in old.index:
+            out.append(f"seed {seed}: not in the committed piece")
+            continue
+        for col in sorted(set(old.columns) & set(new.columns)):
+            a, b = old.at[seed, col], new.at[seed, col]
+            same = (a == b) or (isinstance(a, float) and isinstance(b, float) and np.isnan(a) and np.isnan(b))
+            if not same:
+                out.append(f"{col} seed {seed}: {a!r} -> {b!r}")
+    return out
+
+
+@dataclass
+class Verdict:
+    """One piece checked: its policy, scenario id, the seeds played, the differences (empty: identical)."""
+
+    policy: str
+    scenario: str
+    seeds: list[int]
+    differences: list[str]
+    seconds: float
+    provenance: dict | None
+
+
+def verify(out: Path, runs: int = 1, backend: str = "serial", workers: int | None = None,
+           address: str | None = None, progress: Progress = None, seeds: Sequence[int] | None = None,
+           policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None,
+           suite_name: str = "suite-v1", sample: Sequence[tuple[str, str, int]] | None = None,
+           **_: object) -> Output:
+    """Recompute pieces of the suite run in ``out`` and compare them bit for bit; the text lists each piece.
+
+    Args:
+        out: the suite run's folder (its ``cache/``); nothing is written into it.
+        runs: without ``seeds``, the first ``runs`` seeds of each piece.
+        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluate`); results do not depend on it.
+        workers: processes or Ray tasks.
+        address: unused (the Ray address of the other targets' signature).
+        progress: called with the name of each piece as it starts.
+        seeds: the seeds to play again (a set name or a list; each must be in the piece).
+        policies: narrow the pieces to these policies (default: all of the folder).
+        scenarios: narrow the pieces to these scenario ids (default: all).
+        suite_name: the suite the folder's scenarios belong to.
+        sample: (policy, scenario id, seed) triples instead of the above (e.g. :data:`CI_SAMPLE`).
+
+    Returns:
+        The :class:`Output` (``files`` empty) with ``verdicts`` (a list of :class:`Verdict`) set.
+    """
+    del address
+    suite = get_suite(suite_name)
+    if sample is not None:
+        todo = []
+        for policy, sc_id, seed in sample:
+            found = pieces(out, [policy], [sc_id], suite_name)
+            if not found:
+                raise ValueError(f"no committed piece of {policy!r} on {sc_id!r} in {out / 'cache'}")
+            todo.append((found[0], [seed]))
+    else:
+        todo = []
+        for piece in pieces(out, policies, scenarios, suite_name):
+            have = piece.rows()["seed"].tolist()
+            chosen = list(resolve_seeds(seeds)) if seeds is not None else have[:runs]
+            absent = [s for s in chosen if s not in have]
+            if absent:
+                raise ValueError(f"seeds {absent} are not in the piece {piece.path} (it has {len(have)} seeds)")
+            todo.append((piece, chosen))
+    verdicts, lines = [], []
+    for piece, chosen in todo:
+        if progress:
+            progress(f"{piece.scenario.id}: {piece.policy}")
+        t0 = time.perf_counter()
+        now = recompute(piece.policy, piece.scenario, chosen, backend=backend, workers=workers)
+        committed = piece.rows()
+        diffs = differences(committed[committed["seed"].isin(chosen)], now)
+        v = Verdict(piece.policy, piece.scenario.id, chosen, diffs, time.perf_counter() - t0,
+                    piece.meta().get("provenance"))
+        verdicts.append(v)
+        made = (v.provenance or {}).get("commit") or "unrecorded"
+        state = "same bits" if not diffs else f"{len(diffs)} differences, first: {diffs[0]}"
+        lines.append(f"{v.scenario:24s} {v.policy:26s} seeds {','.join(map(str, chosen))}: {state} "
+                     f"(made by {made[:12]}, {v.seconds:.1f} s)")
+    bad = sum(1 for v in verdicts if v.differences)
+    lines.append(f"{len(verdicts)} pieces of {suite.name} recomputed from {out}: {bad} differ from the committed "
+                 "results")
+    result = Output("\n".join(lines), [])
+    result.verdicts = verdicts  # type: ignore[attr-defined]
+    return result
