@@ -105,3 +105,25 @@ def test_the_noise_read_is_the_noise_of_a_full_draw(name):
     probe = full_noise(pol, seeds, sim.B, sim.M, sim.N, 2 * steps + 1)[-1]
     nxt = pol._noise(sim.B, sim.M, sim.N, np.zeros((sim.B, sim.M), dtype=bool))
     assert torch.equal(nxt["workforce"], probe["workforce"])
+
+
+@pytest.mark.parametrize("M", [50, 200, 1000])  # 200 is large-v1 and table2-g32-f100-s25; 1000 is city
+def test_every_choosing_facility_picks_in_slot_order_at_any_size(M):
+    """Issue #42: before e4684f9 the slot order was an int8 key, ``(~requesting) * M + slot``, which wraps at
+    M >= 128 and put idle facilities first, so that most requesting ones never picked (large-v1: 879 visits
+    where the rule gives 1,965). The order must be the slots' for any M, as the trainer's log-probability reads it."""
+    gen = torch.Generator().manual_seed(M)
+    B, N = 2, 40
+    requesting = torch.rand(B, M, generator=gen) < 0.3
+    mask = torch.rand(B, M, N + 1, generator=gen) < 0.5
+    mask[..., N] = True
+    logits = torch.randn(B, M, N + 1, generator=gen)
+    logits[..., N] = -10.0  # the no-op last: a facility sends someone while anyone it may send is free
+    acts = dist.sample({"dispatch": logits}, {"dispatch_mask": mask, "requesting": requesting}, None)["dispatch"]
+    for b in range(B):
+        rows_b = torch.nonzero(requesting[b] & mask[b, :, :N].any(-1)).squeeze(-1)
+        expected = loop_picks(logits[b, rows_b], mask[b, rows_b, :N], torch.arange(N).expand(len(rows_b), N),
+                              torch.zeros(len(rows_b), dtype=torch.long), 1, N)
+        assert acts[b, rows_b].tolist() == expected
+        assert (acts[b, ~requesting[b]] == N).all()
+        assert (acts[b] < N).sum() >= min(N, len(rows_b)) - 5  # nearly everyone free is sent somewhere
