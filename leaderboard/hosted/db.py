@@ -15,10 +15,14 @@ What the tables hold and why:
   :meth:`Board.add_account`, and never stored).
 - ``packages``: policy packages by content hash (``sha256:<hex>``): the same bytes are
   stored once.
-- ``submissions``: one per (package, entry, track, phase): submitting the same again
-  returns the first one, which is neither evaluated nor counted again. Its ``state``
-  (queued, running, done, failed) is always true and a failed one has a one-line
-  ``reason``. A test-phase submission records the hidden seed list's version.
+- ``submissions``: one per (account, package, entry, track, phase): an account submitting
+  the same again gets its first one back, neither evaluated nor counted again; another
+  account's identical bytes are that account's own entry (so nobody can squat the
+  built-ins). Its ``state`` (queued, running, done, failed) is always true; a failed one
+  has a one-line ``reason``, whose ``fault`` (the policy's or the board's) and ``kind``
+  (a word of :data:`FAILURE_KINDS`, all a test-phase reader sees) are stored beside it.
+  ``spent_s`` is the worker time it used, ``withdrawn`` when its owner took it off the
+  board. A test-phase submission records the hidden seed list's version.
 - ``jobs``: the queue, one per submission, with the lease and the fence
   (:mod:`~wfbench.leaderboard.hosted.queue`).
 - ``rows``: one per (submission, scenario, seed index), with the KPIs, counters and
@@ -27,6 +31,10 @@ What the tables hold and why:
 - ``hidden_seeds``: each track's hidden test seed lists (:mod:`~wfbench.leaderboard.hosted.hidden`).
 - ``secrets``: the board's key secret, from which the opaque per-episode keys handed to
   policies are derived.
+- ``board_meta``: the schema's version and when each track's test phase ended.
+
+A database made before a schema change is migrated in place by :meth:`Board.create`
+(:data:`SCHEMA_VERSION`; see :meth:`Board._migrate`).
 """
 
 from __future__ import annotations
@@ -34,10 +42,11 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 import secrets as _secrets
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +62,9 @@ from wfbench import __version__
 from wfbench.harness.budget import BUDGET_COLUMNS
 
 DEFAULT_DAILY_QUOTA = 5  # test-phase submissions per account per 24 h
+DEV_DAILY_QUOTA = 10  # dev-phase submissions per account per 24 h
+DEV_CONCURRENT = 2  # dev-phase jobs queued or running at once per account (the test phase: 1)
+SCHEMA_VERSION = 2  # 1: dedupe without the account, no fault/kind/spent_s/withdrawn (before issue #42)
 QUOTA_WINDOW_S = 24 * 3600.0
 LOG_BYTES = 64 * 1024  # what is kept of a submission's log (its end)
 STATES = ("queued", "running", "done", "failed")
@@ -71,6 +83,37 @@ def _reserved_names() -> frozenset[str]:
     return frozenset(names())
 
 
+FAILURE_KINDS = ("raised", "timed out", "out of memory", "bad action", "package refused", "board fault")
+"""What a test-phase failure shows until the phase ends: one of these words, never the policy's own text."""
+BOARD_FAULT = "board fault"
+FAULTS = ("policy", "board")  # whose failure it is: the policy's is final, the board's is queued again
+
+
+def kind_of_reason(reason: str) -> str:
+    """The word of :data:`FAILURE_KINDS` for a policy's one-line failure ``reason``.
+
+    The sandbox's and the guard's own phrasings decide: a time limit, memory, a
+    malformed action; anything else the policy did is "raised". The policy can word its
+    own exception to pick another of these words, but never to say anything else.
+    """
+    text = reason.lower()
+    if "took longer than" in text or "act timeout" in text or "time budget" in text or "cpu limit" in text:
+        return "timed out"
+    if "memoryerror" in text or "memory limit" in text or "out of memory" in text:
+        return "out of memory"
+    if "malformed action" in text:
+        return "bad action"
+    return "raised"
+
+
+def failure_kind(exc: BaseException) -> str:
+    """The word of :data:`FAILURE_KINDS` for an exception that failed a submission (the policy's or its package's)."""
+    if any(k.__name__ == "PackageError" for k in type(exc).__mro__):
+        return "package refused"
+    reason = getattr(exc, "reason", None) or getattr(exc, "message", None) or str(exc)
+    return kind_of_reason(str(reason))
+
+
 class BoardError(Exception):
     """A request the board cannot carry out (unknown track, bad name, unknown package): one line for the user."""
 
@@ -80,7 +123,15 @@ class BoardError(Exception):
 
 
 class QuotaExceeded(BoardError):
-    """A test-phase submission over the account's quota (one job at a time, so many a day): the server's 429."""
+    """A submission over the account's quota of its phase (jobs at once, so many a day): the server's 429."""
+
+
+class NotFound(BoardError):
+    """No submission of that id: the server's 404."""
+
+
+class NotYours(BoardError):
+    """Another account's submission: the server's 403."""
 
 
 # -- the schema -----------------------------------------------------------------------------------------------
@@ -123,6 +174,12 @@ secrets_table = sa.Table(
     sa.Column("value", sa.String(200), nullable=False),
 )
 
+board_meta = sa.Table(
+    "board_meta", metadata,
+    sa.Column("name", sa.String(100), primary_key=True),  # schema_version, test_ended:TRACK
+    sa.Column("value", sa.String(200), nullable=False),
+)
+
 submissions = sa.Table(
     "submissions", metadata,
     sa.Column("id", sa.Integer, primary_key=True),
@@ -141,9 +198,14 @@ submissions = sa.Table(
     sa.Column("hidden_version", sa.Integer, nullable=True),  # the test phase's hidden seed list
     sa.Column("log", sa.Text, nullable=False, default=""),
     sa.Column("result", sa.Text, nullable=True),  # JSON aggregate, once done
+    # issue #42 (schema version 2): whose failure, its word, the worker time used, the owner's withdrawal
+    sa.Column("fault", sa.String(8), nullable=False, default="", server_default=""),  # "", policy, board
+    sa.Column("kind", sa.String(20), nullable=False, default="", server_default=""),  # a FAILURE_KINDS word
+    sa.Column("spent_s", sa.Double, nullable=False, default=0.0, server_default="0"),
+    sa.Column("withdrawn", sa.Double, nullable=True),  # when its owner withdrew it; NULL: on the board
     sa.CheckConstraint("phase IN ('dev', 'test')", name="phase_known"),
     sa.CheckConstraint("state IN ('queued', 'running', 'done', 'failed')", name="state_known"),
-    sa.UniqueConstraint("package_sha", "entry", "track", "phase", name="same_package_once"),
+    sa.UniqueConstraint("account_id", "package_sha", "entry", "track", "phase", name="same_package_per_account"),
 )
 sa.Index("submissions_account", submissions.c.account_id, submissions.c.phase, submissions.c.created)
 
@@ -268,7 +330,11 @@ class Submission:
     hidden_version: int | None
     log: str
     result: dict[str, Any] | None
-    note: str = ""  # one line while it waits for a worker after losing one; "" otherwise
+    note: str = ""  # one line while it waits for a worker after losing one or a board fault; "" otherwise
+    fault: str = ""  # "policy" or "board" for a failure (or a board fault it is queued again after); "" otherwise
+    kind: str = ""  # the failure's word of FAILURE_KINDS; "" otherwise
+    spent_s: float = 0.0  # worker seconds it used, over every attempt
+    withdrawn: float | None = None  # when its owner withdrew it (state "withdrawn")
 
 
 def token_hash(token: str) -> str:
@@ -297,13 +363,17 @@ def _check_line(what: str, value: str, limit: int) -> str:
 LOST = "lost its worker"  # how the queue's reason for a job it gave up on starts (queue.claim)
 
 
-def _lost(r: Mapping[str, Any]) -> bool:
-    """A submission that failed because its workers were lost, not because of its policy.
+def _runs_again(r: Mapping[str, Any]) -> bool:
+    """A submission that runs again when its owner submits the same bytes: withdrawn, or failed by the board.
 
-    Submitting it again queues it again: the rows already stored are kept, and the next
-    worker runs only the missing ones.
+    A board's failure (the sandbox did not start, a full disk, workers lost past the
+    attempt limit) says nothing about the policy; the rows already stored are kept and
+    the next worker runs only the missing ones. A database made before issue #42 marks
+    a lost job by its reason only.
     """
-    return r["state"] == "failed" and str(r["reason"]).startswith(LOST)
+    if r["withdrawn"] is not None:
+        return True
+    return r["state"] == "failed" and (r["fault"] == "board" or str(r["reason"]).startswith(LOST))
 
 
 def _sub(r: Mapping[str, Any]) -> Submission:
@@ -311,7 +381,8 @@ def _sub(r: Mapping[str, Any]) -> Submission:
 
     A job whose worker stopped renewing its lease is not running any more: until another
     worker claims it (:func:`~wfbench.leaderboard.hosted.queue.claim`), it is shown as
-    queued, with a note saying which worker was lost and when.
+    queued, with a note saying which worker was lost and when. A job put back after a
+    board fault says so too. A withdrawn submission's state is ``withdrawn``.
     """
     state, note = r["state"], ""
     lease_until = r.get("lease_until")
@@ -320,10 +391,15 @@ def _sub(r: Mapping[str, Any]) -> Submission:
         state = "queued"
         note = (f"its worker {r.get('lease_owner') or '?'} stopped answering (lease ended {when}); the next worker "
                 f"resumes it with the episodes still missing (attempt {r['attempts'] + 1} of at most {MAX_ATTEMPTS})")
+    elif state == "queued" and r["fault"] == "board":
+        note = (f"attempt {r['attempts']} of at most {MAX_ATTEMPTS} stopped on a board fault, not the policy's; the "
+                "next worker resumes it with the episodes still missing")
+    if r["withdrawn"] is not None:
+        state, note = "withdrawn", ""
     return Submission(r["id"], r["account_id"], r["account"], r["track"], r["track_hash"], r["phase"],
                       r["package_sha"], r["entry"], r["name"], state, r["reason"], r["created"], r["updated"],
                       r["attempts"], r["hidden_version"], r["log"], json.loads(r["result"]) if r["result"] else None,
-                      note)
+                      note, r["fault"], r["kind"], float(r["spent_s"] or 0.0), r["withdrawn"])
 
 
 MAX_ATTEMPTS = 3  # claims of one job before the queue gives up on it (queue.claim)
@@ -348,28 +424,48 @@ class Board:
         url: the database (:func:`connect`).
         tracks: the tracks submissions may name (default: every track of
             :data:`wfbench.leaderboard.tracks.TRACKS`), by name.
-        daily_quota: test-phase submissions per account per 24 h.
+        daily_quota: test-phase submissions per account per 24 h (one queued or running at a time).
+        dev_daily_quota: development-phase submissions per account per 24 h.
+        dev_concurrent: development-phase jobs queued or running at once per account.
     """
 
     def __init__(self, url: str | Path, tracks: Mapping[str, Track | SuiteTrack] | None = None,
-                 daily_quota: int = DEFAULT_DAILY_QUOTA):
+                 daily_quota: int = DEFAULT_DAILY_QUOTA, dev_daily_quota: int = DEV_DAILY_QUOTA,
+                 dev_concurrent: int = DEV_CONCURRENT):
+        for what, value in (("daily quota", daily_quota), ("dev-phase quota", dev_daily_quota),
+                            ("dev-phase jobs at once", dev_concurrent)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise BoardError(f"{what} {value!r} is not allowed; allowed: 1 or more")
         self.url = str(url)
         self.engine = connect(url)
         self.tracks: dict[str, Track | SuiteTrack] = dict(TRACKS if tracks is None else tracks)
-        if daily_quota < 1:
-            raise BoardError(f"daily quota {daily_quota} is not allowed; allowed: 1 or more")
         self.daily_quota = daily_quota
+        # phase -> (jobs queued or running at once, submissions per 24 h)
+        self.quotas = {"test": (1, daily_quota), "dev": (dev_concurrent, dev_daily_quota)}
 
     def close(self) -> None:
         """Close the database connections."""
         self.engine.dispose()
 
     def create(self) -> None:
-        """Create the tables and the key secret where they do not exist yet (safe to call on every start)."""
+        """Create the tables and the key secret where they do not exist yet (safe to call on every start).
+
+        A database made by an earlier wfbench is migrated to :data:`SCHEMA_VERSION` first
+        (:meth:`_migrate`), in one transaction, whoever starts first (server or worker).
+        """
+        if sa.inspect(self.engine).has_table("submissions"):
+            self._migrate()
         try:
             metadata.create_all(self.engine)
         except sa.exc.DBAPIError:  # another process (the server, a worker) created them at the same moment
             metadata.create_all(self.engine)
+        try:
+            with self.engine.begin() as conn:
+                if conn.execute(sa.select(board_meta.c.name).where(board_meta.c.name == "schema_version")).first() \
+                        is None:
+                    conn.execute(board_meta.insert().values(name="schema_version", value=str(SCHEMA_VERSION)))
+        except sa.exc.IntegrityError:  # another process wrote it at the same time
+            pass
         try:
             with self.engine.begin() as conn:
                 if conn.execute(sa.select(secrets_table.c.name).where(secrets_table.c.name == KEY_SECRET)).first() \
@@ -377,6 +473,83 @@ class Board:
                     conn.execute(secrets_table.insert().values(name=KEY_SECRET, value=_secrets.token_hex(32)))
         except sa.exc.IntegrityError:  # another process made it at the same time
             pass
+
+
+    # -- migrations -------------------------------------------------------------------------------------------
+    def _migrate(self) -> None:
+        """Bring a database of schema version 1 (before issue #42) to version 2, keeping every row.
+
+        Version 2 adds the submissions' ``fault``, ``kind``, ``spent_s`` and ``withdrawn``
+        columns and replaces the dedupe key (package, entry, track, phase) by one with the
+        account. PostgreSQL alters the table in place, under an exclusive lock. SQLite
+        cannot drop a constraint, so the table is rebuilt the way SQLite documents
+        (foreign keys off, a new table, copy, drop, rename, ``foreign_key_check``), in one
+        ``BEGIN IMMEDIATE`` transaction. Old failures are classified from their reason:
+        "lost its worker" is the board's, anything else the policy's.
+        """
+        if is_sqlite(self.engine):
+            self._migrate_sqlite()
+        else:
+            self._migrate_postgres()
+
+    def _migrate_sqlite(self) -> None:
+        from sqlalchemy.schema import CreateIndex, CreateTable
+
+        raw = self.engine.raw_connection()
+        try:
+            cur = raw.cursor()
+            cur.execute("PRAGMA foreign_keys=OFF")  # not inside a transaction: SQLite ignores it there
+            cur.execute("BEGIN IMMEDIATE")
+            try:
+                old = [r[1] for r in cur.execute("PRAGMA table_info(submissions)").fetchall()]
+                if "fault" not in old:
+                    ddl = str(CreateTable(submissions).compile(dialect=self.engine.dialect))
+                    cur.execute(re.sub(r"CREATE TABLE submissions\b", "CREATE TABLE submissions_v2", ddl, count=1))
+                    cols = ", ".join(old)
+                    cur.execute(f"INSERT INTO submissions_v2 ({cols}) SELECT {cols} FROM submissions")
+                    cur.execute("DROP TABLE submissions")
+                    cur.execute("ALTER TABLE submissions_v2 RENAME TO submissions")
+                    for index in submissions.indexes:
+                        cur.execute(str(CreateIndex(index).compile(dialect=self.engine.dialect)))
+                    broken = cur.execute("PRAGMA foreign_key_check").fetchall()
+                    if broken:
+                        raise BoardError(f"migrating the board's database broke {len(broken)} foreign keys; nothing "
+                                         "was changed")
+                    self._classify_old(cur.execute("SELECT id, reason FROM submissions WHERE state = 'failed'")
+                                       .fetchall(), lambda sql, p: cur.execute(sql, p), "?")
+                cur.execute("COMMIT")
+            except BaseException:
+                cur.execute("ROLLBACK")
+                raise
+            finally:
+                cur.execute("PRAGMA foreign_keys=ON")
+        finally:
+            raw.close()
+
+    def _migrate_postgres(self) -> None:
+        with self.engine.begin() as conn:
+            conn.execute(sa.text("LOCK TABLE submissions IN ACCESS EXCLUSIVE MODE"))
+            cols = set(conn.execute(sa.text("SELECT column_name FROM information_schema.columns WHERE table_name = "
+                                            "'submissions' AND table_schema = current_schema()")).scalars())
+            if "fault" in cols:
+                return
+            for ddl in ("ADD COLUMN fault VARCHAR(8) NOT NULL DEFAULT ''",
+                        "ADD COLUMN kind VARCHAR(20) NOT NULL DEFAULT ''",
+                        "ADD COLUMN spent_s DOUBLE PRECISION NOT NULL DEFAULT 0",
+                        "ADD COLUMN withdrawn DOUBLE PRECISION",
+                        "DROP CONSTRAINT IF EXISTS same_package_once",
+                        "ADD CONSTRAINT same_package_per_account UNIQUE (account_id, package_sha, entry, track, "
+                        "phase)"):
+                conn.execute(sa.text(f"ALTER TABLE submissions {ddl}"))
+            failed = conn.execute(sa.text("SELECT id, reason FROM submissions WHERE state = 'failed'")).all()
+            self._classify_old(failed, lambda sql, p: conn.exec_driver_sql(sql, p), "%s")
+
+    @staticmethod
+    def _classify_old(failed: Any, execute: Any, mark: str) -> None:
+        for sub_id, reason in failed:
+            board = str(reason).startswith(LOST)
+            execute(f"UPDATE submissions SET fault = {mark}, kind = {mark} WHERE id = {mark}",
+                    ("board" if board else "policy", BOARD_FAULT if board else kind_of_reason(str(reason)), sub_id))
 
     def track(self, name: str) -> Track | SuiteTrack:
         """The track ``name``, or BoardError naming those there are."""
@@ -405,6 +578,12 @@ class Board:
             r = conn.execute(sa.select(accounts).where(accounts.c.token_hash == token_hash(token))).mappings().first()
         return Account(r["id"], r["name"], bool(r["admin"]), r["created"]) if r else None
 
+    def account_by_name(self, name: str) -> Account | None:
+        """The account called ``name``, or None."""
+        with self.engine.begin() as conn:
+            r = conn.execute(sa.select(accounts).where(accounts.c.name == name)).mappings().first()
+        return Account(r["id"], r["name"], bool(r["admin"]), r["created"]) if r else None
+
     # -- packages ---------------------------------------------------------------------------------------------
     def put_package(self, data: bytes) -> str:
         """Store a package's bytes once per content hash and return the hash (``sha256:<hex>``)."""
@@ -425,20 +604,23 @@ class Board:
     # -- submissions ------------------------------------------------------------------------------------------
     def submit(self, account: Account, track: str, phase: str, package_sha: str, entry: str,
                name: str, quota: bool = True) -> tuple[Submission, bool]:
-        """Queue a package's evaluation, or return the submission of the same package already made.
+        """Queue a package's evaluation, or return the account's submission of the same package already made.
 
-        The same (package, entry, track, phase) returns the existing submission with
-        ``created`` False: it is not evaluated twice and not counted against a quota. One
-        exception: a submission the board gave up on (its workers lost, "lost its worker
-        N times") is queued again, keeping its rows, with ``created`` True. A
-        new test-phase submission needs the account to have no test job queued or
-        running and fewer than :attr:`daily_quota` test submissions in the last 24 h;
-        ``quota=False`` skips that check (the operator's built-ins, :mod:`.seed`, never
-        reachable from the web server).
+        The same (account, package, entry, track, phase) returns the existing submission
+        with ``created`` False: it is not evaluated twice and not counted against a quota.
+        Another account's identical bytes are that account's own submission. Two
+        exceptions run again (``created`` True, the rows already stored kept): a
+        submission the board failed (:data:`FAULTS` "board": the sandbox did not start, a
+        full disk, its workers lost past the attempt limit) and a withdrawn one. A new
+        submission needs the account within its phase's quota (:attr:`quotas`: jobs
+        queued or running at once, submissions per 24 h); ``quota=False`` skips that
+        check (the operator's built-ins, :mod:`.seed`, never reachable from the web
+        server). No test-phase submission is taken once the track's test phase ended.
 
         Raises:
-            BoardError: unknown track or phase, a bad name or entry, an unknown package.
-            QuotaExceeded: over the test phase's quota (the reason says which and until when).
+            BoardError: unknown track or phase, a bad name or entry, an unknown package,
+                a test phase that ended.
+            QuotaExceeded: over the phase's quota (the reason says which and until when).
         """
         tr = self.track(track)
         try:
@@ -452,36 +634,36 @@ class Board:
                              f"name (--name)")
         _check_line("entry point", entry, 300)
         version = self.ensure_hidden_seeds(track).version if phase == "test" else None
-        key = ((submissions.c.package_sha == package_sha) & (submissions.c.entry == entry)
-               & (submissions.c.track == track) & (submissions.c.phase == phase))
+        key = ((submissions.c.account_id == account.id) & (submissions.c.package_sha == package_sha)
+               & (submissions.c.entry == entry) & (submissions.c.track == track) & (submissions.c.phase == phase))
         try:
             with self.engine.begin() as conn:
                 # one submission at a time per account (PostgreSQL; SQLite's BEGIN IMMEDIATE already serializes)
                 conn.execute(sa.select(accounts.c.id).where(accounts.c.id == account.id).with_for_update())
                 existing = conn.execute(_SUBMISSION_QUERY.where(key)).mappings().first()
-                if existing is not None and not _lost(existing):
+                if existing is not None and not _runs_again(existing):
                     return _sub(existing), False
-                if existing is not None:  # failed by the board, not by the policy: queued again, rows kept
-                    now = time.time()
-                    if phase == "test" and quota:
-                        self._check_quota(conn, account, now)
+                if phase == "test":
+                    self._check_open(conn, track)
+                now = time.time()
+                if quota:
+                    self._check_quota(conn, account, phase, now)
+                if existing is not None:  # failed by the board or withdrawn, not failed by the policy: run again
                     conn.execute(submissions.update().where(submissions.c.id == existing["id"]).values(
-                        state="queued", reason="", attempts=0, updated=now))
+                        state="queued", reason="", fault="", kind="", attempts=0, withdrawn=None, updated=now))
                     conn.execute(jobs.update().where(jobs.c.submission_id == existing["id"]).values(
-                        state="queued", lease_owner=None, lease_until=None))
+                        state="queued", lease_owner=None, lease_until=None, fence=jobs.c.fence + 1))
                     again = conn.execute(_SUBMISSION_QUERY.where(submissions.c.id == existing["id"])).mappings().one()
                     return _sub(again), True
                 if conn.execute(sa.select(packages.c.size).where(packages.c.sha256 == package_sha)).first() is None:
                     raise BoardError(f"no package {package_sha!r} on this board; upload the package first")
-                now = time.time()
-                if phase == "test" and quota:
-                    self._check_quota(conn, account, now)
                 sub_id = conn.execute(submissions.insert().values(
                     account_id=account.id, track=track, track_hash=tr.hash, phase=phase, package_sha=package_sha,
                     entry=entry, name=name, state="queued", reason="", created=now, updated=now, attempts=0,
-                    hidden_version=version, log="", result=None)).inserted_primary_key[0]
+                    hidden_version=version, log="", result=None, fault="", kind="", spent_s=0.0,
+                    withdrawn=None)).inserted_primary_key[0]
                 conn.execute(jobs.insert().values(submission_id=sub_id, state="queued", fence=0))
-        except sa.exc.IntegrityError:  # the same package submitted at the same moment by another account
+        except sa.exc.IntegrityError:  # the same package submitted by the same account at the same moment
             with self.engine.begin() as conn:
                 existing = conn.execute(_SUBMISSION_QUERY.where(key)).mappings().first()
             if existing is None:
@@ -489,20 +671,106 @@ class Board:
             return _sub(existing), False
         return self.submission(sub_id), True  # type: ignore[return-value]
 
-    def _check_quota(self, conn: Connection, account: Account, now: float) -> None:
-        test = (submissions.c.account_id == account.id) & (submissions.c.phase == "test")
+    def _check_quota(self, conn: Connection, account: Account, phase: str, now: float) -> None:
+        at_once, daily = self.quotas[phase]
+        mine = (submissions.c.account_id == account.id) & (submissions.c.phase == phase)
         busy = conn.execute(sa.select(submissions.c.id, submissions.c.state).where(
-            test & submissions.c.state.in_(("queued", "running"))).limit(1)).first()
-        if busy is not None:
-            raise QuotaExceeded(f"one test-phase job at a time per account: submission {busy.id} is still "
-                                f"{busy.state}; submit again once it is done or failed")
+            mine & submissions.c.state.in_(("queued", "running")) & submissions.c.withdrawn.is_(None))
+            .order_by(submissions.c.id).limit(at_once)).all()
+        if len(busy) >= at_once:
+            if at_once == 1:
+                raise QuotaExceeded(f"one {phase}-phase job at a time per account: submission {busy[0].id} is "
+                                    f"still {busy[0].state}; submit again once it is done or failed")
+            states = sorted({b.state for b in busy})
+            raise QuotaExceeded(f"at most {at_once} {phase}-phase jobs queued or running at a time per account: "
+                                f"submissions {', '.join(str(b.id) for b in busy)} are still "
+                                f"{' or '.join(states)}; submit again once one is done or failed")
         recent = conn.execute(sa.select(submissions.c.created).where(
-            test & (submissions.c.created > now - QUOTA_WINDOW_S)).order_by(submissions.c.created)).scalars().all()
-        if len(recent) >= self.daily_quota:
-            wait = recent[0] + QUOTA_WINDOW_S - now
-            raise QuotaExceeded(f"daily quota reached: {len(recent)} test-phase submissions in the last 24 h "
-                                f"(allowed: {self.daily_quota}); the next one is allowed in "
-                                f"{max(1, math.ceil(wait / 60))} min")
+            mine & (submissions.c.created > now - QUOTA_WINDOW_S)).order_by(submissions.c.created)).scalars().all()
+        if len(recent) >= daily:
+            frees = recent[len(recent) - daily] + QUOTA_WINDOW_S
+            at = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(frees))
+            raise QuotaExceeded(f"daily quota reached: {len(recent)} {phase}-phase submissions in the last 24 h "
+                                f"(allowed: {daily}); the next one is allowed in "
+                                f"{max(1, math.ceil((frees - now) / 60))} min (at {at})")
+
+    # -- the test phase's end -----------------------------------------------------------------------------------
+    def end_test_phase(self, track: str) -> float:
+        """End ``track``'s test phase (the board's administrator); when it ended (the first call's time).
+
+        From then on no test submission is taken, and every reader sees the test-phase
+        failures' whole reasons.
+        """
+        self.track(track)
+        try:
+            with self.engine.begin() as conn:
+                conn.execute(board_meta.insert().values(name=f"test_ended:{track}", value=repr(time.time())))
+        except sa.exc.IntegrityError:  # ended before
+            pass
+        ended = self.test_phase_ended(track)
+        assert ended is not None
+        return ended
+
+    def test_phase_ended(self, track: str) -> float | None:
+        """When ``track``'s test phase ended, or None while it runs."""
+        with self.engine.begin() as conn:
+            value = conn.execute(sa.select(board_meta.c.value).where(board_meta.c.name == f"test_ended:{track}")
+                                 ).scalar()
+        return float(value) if value is not None else None
+
+    def _check_open(self, conn: Connection, track: str) -> None:
+        value = conn.execute(sa.select(board_meta.c.value).where(board_meta.c.name == f"test_ended:{track}")).scalar()
+        if value is not None:
+            when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(float(value)))
+            raise BoardError(f"the test phase of track {track} ended at {when}; allowed: the dev phase")
+
+    def shown_reason(self, sub: Submission, admin: bool = False) -> str:
+        """What a reader is shown of a failure's reason: the whole line, except in a running test phase.
+
+        There, a reader other than the board's administrator sees only its word of
+        :data:`FAILURE_KINDS` (:attr:`Submission.kind`): a policy must not pass anything
+        it observed on the hidden seeds out through its exception's text.
+        """
+        if not sub.reason or sub.phase != "test" or admin or self.test_phase_ended(sub.track) is not None:
+            return sub.reason
+        return sub.kind or "raised"
+
+    # -- an owner's submissions ---------------------------------------------------------------------------------
+    def account_submissions(self, account: Account) -> list[Submission]:
+        """``account``'s submissions, withdrawn ones included, oldest first."""
+        with self.engine.begin() as conn:
+            return [_sub(r) for r in conn.execute(_SUBMISSION_QUERY.where(submissions.c.account_id == account.id)
+                                                  .order_by(submissions.c.id)).mappings()]
+
+    def withdraw(self, account: Account, submission_id: int) -> Submission:
+        """Take ``account``'s submission off the board and cancel its job (an admin may withdraw any).
+
+        Its rows stay in the database; a worker running it has its next write refused
+        (the job's fence moves on) and drops it. Withdrawing again changes nothing;
+        submitting the same bytes again puts it back and runs what is missing.
+
+        Raises:
+            NotFound: no such submission.
+            NotYours: another account's.
+        """
+        with self.engine.begin() as conn:
+            r = conn.execute(_SUBMISSION_QUERY.where(submissions.c.id == submission_id)).mappings().first()
+            if r is None:
+                raise NotFound(f"no submission {submission_id}")
+            if r["account_id"] != account.id and not account.admin:
+                raise NotYours(f"submission {submission_id} is not yours; allowed: withdrawing your own submissions "
+                               "(GET /api/submissions lists them)")
+            if r["withdrawn"] is None:
+                now = time.time()
+                values: dict[str, Any] = {"withdrawn": now, "updated": now}
+                if r["state"] in ("queued", "running"):
+                    values.update(state="failed", reason="withdrawn by its owner", fault="", kind="")
+                conn.execute(submissions.update().where(submissions.c.id == submission_id).values(**values))
+                conn.execute(jobs.update().where((jobs.c.submission_id == submission_id)
+                                                 & jobs.c.state.in_(("queued", "running"))).values(
+                    state="failed", lease_owner=None, lease_until=None, fence=jobs.c.fence + 1))
+            r = conn.execute(_SUBMISSION_QUERY.where(submissions.c.id == submission_id)).mappings().one()
+        return _sub(r)
 
     def submission(self, submission_id: int) -> Submission | None:
         """The submission ``submission_id``, or None."""
@@ -611,8 +879,10 @@ class Board:
     def store_view(self, track: str, phase: str) -> BoardView:
         """A snapshot of a phase of a track that :func:`wfbench.leaderboard.report.ranking` reads like a Store.
 
-        Rank it with its own :attr:`BoardView.track`, e.g. ``ranking(view, view.track)``
-        (:func:`wfbench.leaderboard.suite_report.ranking` for a suite track). On the test
+        Withdrawn submissions are left out; in a running test phase a failure's reason is
+        its word only (:meth:`shown_reason`). Rank it with its own :attr:`BoardView.track`,
+        e.g. ``ranking(view, view.track)`` (:func:`wfbench.leaderboard.suite_report.ranking`
+        for a suite track). On the test
         board the rows' ``seed`` is the seed's index in the hidden list and the track's
         ``test_seeds`` are those indices (:func:`~wfbench.leaderboard.hosted.hidden.board_track`):
         no hidden seed reaches a report.
@@ -629,10 +899,12 @@ class Board:
         view_track = hidden.board_track(tr, phase, h.count if h else 0, note)
         with self.engine.begin() as conn:
             subs = [_sub(r) for r in conn.execute(_SUBMISSION_QUERY.where(
-                (submissions.c.track == track) & (submissions.c.phase == phase)).order_by(submissions.c.id)).mappings()]
+                (submissions.c.track == track) & (submissions.c.phase == phase)
+                & submissions.c.withdrawn.is_(None)).order_by(submissions.c.id)).mappings()]
             frame = pd.read_sql_query(sa.select(rows).join(submissions, submissions.c.id == rows.c.submission_id)
                                       .where((submissions.c.track == track) & (submissions.c.phase == phase))
                                       .order_by(rows.c.submission_id, rows.c.scenario, rows.c.seed_index), conn)
+        subs = [replace(s, reason=self.shown_reason(s)) for s in subs]  # a running test phase: the word only
         return BoardView(view_track, tr.hash, phase, h.version if h else None, subs, frame)
 
 

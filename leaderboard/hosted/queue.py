@@ -26,6 +26,16 @@ Leases are measured on the database's clock where there is one (PostgreSQL's
 ends. A job whose lease expired after ``max_attempts`` claims is not claimed again: it
 is failed with the reason "lost its worker 3 times" (a policy that kills its worker
 every time must not keep the queue busy forever).
+
+Whose fault a failure is (issue #42): :func:`finish` stores the policy's own failures,
+which are final. A worker that hits a fault of the board's (the sandbox did not start, a
+full disk) hands the job back at once with :func:`release`: queued again, or, at its
+``max_attempts``-th claim, failed as the board's fault. A lost worker is the board's fault
+too. A board's failure runs again when its owner submits the same bytes
+(:meth:`wfbench.leaderboard.hosted.db.Board.submit`).
+
+Each write may also record the worker seconds the submission has used (``spent_s``,
+over every attempt): the worker's time budget per upload reads it back at the next claim.
 """
 
 from __future__ import annotations
@@ -40,7 +50,19 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import Connection, Engine
-from wfbench.leaderboard.hosted.db import LOST, MAX_ATTEMPTS, ROW_FIELDS, cap_log, is_sqlite, jobs, rows, submissions
+from wfbench.leaderboard.hosted.db import (
+    BOARD_FAULT,
+    FAILURE_KINDS,
+    LOST,
+    MAX_ATTEMPTS,
+    ROW_FIELDS,
+    cap_log,
+    is_sqlite,
+    jobs,
+    kind_of_reason,
+    rows,
+    submissions,
+)
 from wfbench.leaderboard.store import KPI_COLUMNS
 
 DEFAULT_LEASE_S = 60.0
@@ -61,6 +83,8 @@ class Claim:
     lease_s: float
     attempt: int  # this claim's number among the submission's attempts, from 1
     engine: Engine = field(repr=False, compare=False)
+    spent_s: float = 0.0  # the worker seconds the submission had used before this claim
+    max_attempts: int = MAX_ATTEMPTS
 
 
 def db_now(conn: Connection) -> float:
@@ -88,47 +112,81 @@ def claim(engine: Engine, worker_id: str, lease_s: float = DEFAULT_LEASE_S,
                 .order_by(jobs.c.submission_id).limit(1).with_for_update(skip_locked=True)).first()
             if job is None:
                 return None
-            attempts = conn.execute(sa.select(submissions.c.attempts)
-                                    .where(submissions.c.id == job.submission_id)).scalar_one()
+            attempts, spent = conn.execute(sa.select(submissions.c.attempts, submissions.c.spent_s)
+                                           .where(submissions.c.id == job.submission_id)).one()
             if job.state == "running" and attempts >= max_attempts:
                 reason = (f"{LOST} {attempts} times (the worker died or stalled past its lease each time); submit "
                           "the same package again to queue it again")
                 conn.execute(jobs.update().where(jobs.c.submission_id == job.submission_id)
                              .values(state="failed", lease_until=None))
                 conn.execute(submissions.update().where(submissions.c.id == job.submission_id)
-                             .values(state="failed", reason=reason, updated=now))
+                             .values(state="failed", reason=reason, fault="board", kind=BOARD_FAULT, updated=now))
                 continue
             conn.execute(jobs.update().where(jobs.c.submission_id == job.submission_id).values(
                 state="running", lease_owner=worker_id, lease_until=now + lease_s, fence=job.fence + 1,
                 heartbeat_at=now))
             conn.execute(submissions.update().where(submissions.c.id == job.submission_id).values(
                 state="running", attempts=attempts + 1, updated=now))
-            return Claim(job.submission_id, worker_id, job.fence + 1, float(lease_s), attempts + 1, engine)
+            return Claim(job.submission_id, worker_id, job.fence + 1, float(lease_s), attempts + 1, engine,
+                         float(spent or 0.0), max_attempts)
 
 
-def _fenced(conn: Connection, c: Claim) -> float:
-    """Extend the claim's lease if its fence is still current (inside the caller's transaction); else LeaseLost."""
+def _fenced(conn: Connection, c: Claim, spent_s: float | None = None) -> float:
+    """Extend the claim's lease if its fence is still current (inside the caller's transaction); else LeaseLost.
+
+    ``spent_s``: the worker seconds the submission has used so far, stored with it.
+    """
     now = db_now(conn)
     n = conn.execute(jobs.update().where((jobs.c.submission_id == c.submission_id) & (jobs.c.fence == c.fence)
                                          & (jobs.c.state == "running"))
                      .values(heartbeat_at=now, lease_until=now + c.lease_s)).rowcount
     if n != 1:
         raise LeaseLost(f"submission {c.submission_id}: worker {c.worker_id} lost its lease (fence {c.fence} is "
-                        "stale: another worker claimed the job); nothing was written")
+                        "stale: another worker claimed the job, or its owner withdrew it); nothing was written")
+    if spent_s is not None:
+        conn.execute(submissions.update().where(submissions.c.id == c.submission_id).values(spent_s=float(spent_s)))
     return now
 
 
-def heartbeat(c: Claim) -> bool:
-    """Extend the lease by ``lease_s`` from now; False when the lease was lost (another worker holds the job)."""
+def heartbeat(c: Claim, spent_s: float | None = None) -> bool:
+    """Extend the lease by ``lease_s`` from now (and store ``spent_s``); False when the lease was lost."""
     try:
         with c.engine.begin() as conn:
-            _fenced(conn, c)
+            _fenced(conn, c, spent_s)
         return True
     except LeaseLost:
         return False
 
 
-def write_rows(c: Claim, new_rows: Iterable[Mapping[str, Any]]) -> int:
+def release(c: Claim, reason: str, spent_s: float | None = None) -> str:
+    """Hand a job back after a fault of the board's (not the policy's): ``queued`` again, or ``failed``.
+
+    The job is queued at once for the next worker, with the rows stored so far kept and
+    ``reason`` kept beside it (the submission shows a note). At the claim's
+    ``max_attempts``-th attempt it fails instead, as the board's fault ("board fault N
+    times: ..."), which runs again when its owner submits the same bytes.
+
+    Raises:
+        LeaseLost: the fence is stale; nothing was changed.
+    """
+    line = " ".join(reason.split())
+    with c.engine.begin() as conn:
+        now = _fenced(conn, c, spent_s)
+        if c.attempt >= c.max_attempts:
+            conn.execute(jobs.update().where(jobs.c.submission_id == c.submission_id)
+                         .values(state="failed", lease_until=None))
+            conn.execute(submissions.update().where(submissions.c.id == c.submission_id).values(
+                state="failed", fault="board", kind=BOARD_FAULT, updated=now,
+                reason=f"{BOARD_FAULT} {c.attempt} times: {line}; submit the same package again to queue it again"))
+            return "failed"
+        conn.execute(jobs.update().where(jobs.c.submission_id == c.submission_id)
+                     .values(state="queued", lease_owner=None, lease_until=None))
+        conn.execute(submissions.update().where(submissions.c.id == c.submission_id).values(
+            state="queued", fault="board", kind=BOARD_FAULT, reason=line, updated=now))
+        return "requeued"
+
+
+def write_rows(c: Claim, new_rows: Iterable[Mapping[str, Any]], spent_s: float | None = None) -> int:
     """Store finished units in one transaction, after checking the fence; returns how many rows were new.
 
     Each row has the keys of :data:`wfbench.leaderboard.hosted.db.ROW_FIELDS`; a missing or
@@ -141,7 +199,7 @@ def write_rows(c: Claim, new_rows: Iterable[Mapping[str, Any]]) -> int:
     values = [_row(c.submission_id, r) for r in new_rows]
     dialect = postgresql if c.engine.dialect.name == "postgresql" else sqlite
     with c.engine.begin() as conn:
-        now = _fenced(conn, c)
+        now = _fenced(conn, c, spent_s)
         if not values:
             return 0
         for v in values:
@@ -172,8 +230,12 @@ def _row(submission_id: int, r: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def finish(c: Claim, state: str, reason: str = "", result: Mapping[str, Any] | None = None,
-           log: str | None = None) -> None:
+           log: str | None = None, kind: str = "", spent_s: float | None = None) -> None:
     """End the job as ``done`` or ``failed`` (with a one-line ``reason``), storing the aggregate and the log.
+
+    A failure ended here is the policy's own, final: ``kind`` is its word of
+    :data:`~wfbench.leaderboard.hosted.db.FAILURE_KINDS` (default: read from the reason).
+    A fault of the board's goes through :func:`release` instead.
 
     Raises:
         LeaseLost: the fence is stale; nothing was changed.
@@ -181,12 +243,17 @@ def finish(c: Claim, state: str, reason: str = "", result: Mapping[str, Any] | N
     if state not in FINAL_STATES:
         raise ValueError(f"final state {state!r} is not allowed; allowed: {', '.join(FINAL_STATES)}")
     line = " ".join(reason.split()) if state == "failed" else ""
+    if state == "failed":
+        kind = kind or kind_of_reason(line)
+        if kind not in FAILURE_KINDS:
+            raise ValueError(f"failure kind {kind!r} is not allowed; allowed: {', '.join(FAILURE_KINDS)}")
     values: dict[str, Any] = {"state": state, "reason": line,
-                              "result": json.dumps(result, sort_keys=True) if result is not None else None}
+                              "result": json.dumps(result, sort_keys=True) if result is not None else None,
+                              "fault": "policy" if state == "failed" else "", "kind": kind if state == "failed" else ""}
     if log is not None:
         values["log"] = cap_log(log)
     with c.engine.begin() as conn:
-        now = _fenced(conn, c)
+        now = _fenced(conn, c, spent_s)
         conn.execute(jobs.update().where(jobs.c.submission_id == c.submission_id)
                      .values(state=state, lease_until=None))
         conn.execute(submissions.update().where(submissions.c.id == c.submission_id).values(updated=now, **values))

@@ -23,6 +23,25 @@ the entries it needs from the worker's numba cache, mounted read-only, so a pack
 that calls wfbench's compiled code starts warm instead of compiling for a minute in
 every chunk's sandbox.
 
+Whose fault a failure is (issue #42): the policy's own failures (it raised, ran past a
+time limit or its time budget, ran out of memory, returned a malformed action, or its
+package was refused) end the submission for good, with the reason and its word of
+:data:`~wfbench.leaderboard.hosted.db.FAILURE_KINDS`. A fault of the board's (the sandbox
+did not start, :class:`wfbench.harness.sandbox.SandboxUnavailable`; a full disk; any
+other error of the worker's own) hands the job back at once
+(:func:`~wfbench.leaderboard.hosted.queue.release`), up to the attempt limit; after a
+SandboxUnavailable the worker stops, since it cannot run any job.
+
+One upload holds a worker for at most its time budget: ``job_time_s`` (default
+:data:`JOB_TIME_S`) per scenario of its track, counted over every attempt (the seconds
+used are stored with each heartbeat and each chunk). Each chunk's sandbox gets as wall
+limit what is left of it, at most the sandbox's own ``wall_time_s``; a submission that
+has used it all fails "timed out". docs/leaderboard.md states the bound this gives.
+
+Each job is unpacked into a folder named after the worker's process (its pid and start
+time, :func:`unpack_prefix`); a worker removes, when it starts, the folders whose process
+is gone (:func:`stale_unpack_dirs`): what a SIGKILLed worker left.
+
 The evaluator is a parameter (default :func:`sandbox_evaluator`) with the signature of
 ``evaluate_sandboxed``, so the queue's behaviour can be tested with a deterministic
 in-process evaluator; nothing outside the tests passes another.
@@ -30,8 +49,12 @@ in-process evaluator; nothing outside the tests passes another.
 
 from __future__ import annotations
 
+import dataclasses
+import errno
 import math
 import os
+import re
+import shutil
 import signal
 import socket
 import sys
@@ -47,8 +70,17 @@ from typing import Any
 import pandas as pd
 import sqlalchemy as sa
 from wfbench.leaderboard.hosted import hidden
-from wfbench.leaderboard.hosted.db import Board, BoardError, Submission
-from wfbench.leaderboard.hosted.queue import DEFAULT_LEASE_S, Claim, LeaseLost, claim, finish, heartbeat, write_rows
+from wfbench.leaderboard.hosted.db import Board, BoardError, Submission, failure_kind
+from wfbench.leaderboard.hosted.queue import (
+    DEFAULT_LEASE_S,
+    Claim,
+    LeaseLost,
+    claim,
+    finish,
+    heartbeat,
+    release,
+    write_rows,
+)
 from wfbench.leaderboard.store import KPI_COLUMNS, ROW_COLUMNS
 
 from wfbench.core.config import ScenarioConfig
@@ -57,6 +89,10 @@ from wfbench.harness.evaluation import summarize
 from wfbench.harness.guard import PolicyError
 
 DEFAULT_CHUNK = 5  # seeds per evaluator call and per stored transaction
+JOB_TIME_S = 3600.0  # worker seconds one upload may use, per scenario of its track, over every attempt
+UNPACK_PREFIX = "wfbench-worker-"
+_UNPACK_DIR = re.compile(r"^wfbench-worker-(\d+)-(\d+)-")
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 Evaluator = Callable[..., pd.DataFrame]
 """``(package_dir, entry, config, seeds, limits, key_secret, key_context, chunk_size=None) -> rows``."""
 Unpacker = Callable[[bytes, Path], Any]
@@ -118,6 +154,56 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
+def _start_time(pid: int) -> int | None:
+    """The start time of process ``pid`` (clock ticks since boot, /proc), 0 where /proc has none; None: no process."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return None
+    except OSError:
+        stat = ""
+    if not stat:  # no /proc (not Linux): whether the pid exists at all
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return None
+        except PermissionError:
+            pass
+        return 0
+    return int(stat.rpartition(")")[2].split()[19])
+
+
+def unpack_prefix() -> str:
+    """The prefix of this process's unpack folders: ``wfbench-worker-PID-START-`` (START: the process's start time).
+
+    The start time tells a folder whose process is gone from one whose pid was reused.
+    """
+    return f"{UNPACK_PREFIX}{os.getpid()}-{_start_time(os.getpid()) or 0}-"
+
+
+def stale_unpack_dirs(root: str | Path) -> list[Path]:
+    """The unpack folders under ``root`` (this user's) whose worker process is gone: what a killed worker left."""
+    out = []
+    try:
+        entries = list(Path(root).iterdir())
+    except OSError:
+        return []
+    for path in entries:
+        m = _UNPACK_DIR.match(path.name)
+        if m is None or path.is_symlink() or not path.is_dir():
+            continue
+        try:
+            if path.stat().st_uid != os.getuid():
+                continue
+        except OSError:
+            continue
+        pid, start = int(m.group(1)), int(m.group(2))
+        now = _start_time(pid)
+        if now is None or (start and now and now != start):
+            out.append(path)
+    return sorted(out)
+
+
 def failure_reason(exc: BaseException) -> str:
     """The one line a failed submission shows: the sandbox's ``reason``, a PolicyError's message, or the error."""
     reason = getattr(exc, "reason", None)
@@ -145,19 +231,26 @@ def aggregate(frame: pd.DataFrame) -> dict[str, Any]:
     return out
 
 
-class _Heartbeat(threading.Thread):
-    """Renews a claim's lease every ``every`` seconds until stopped; sets :attr:`lost` when it is refused."""
+class OverBudget(Exception):
+    """The submission used its whole time budget (:attr:`Worker.job_time_s`): the policy's failure, "timed out"."""
 
-    def __init__(self, c: Claim, every: float):
+
+class _Heartbeat(threading.Thread):
+    """Renews a claim's lease every ``every`` seconds until stopped; sets :attr:`lost` when it is refused.
+
+    Each renewal stores the seconds ``spent()`` so far with the submission.
+    """
+
+    def __init__(self, c: Claim, every: float, spent: Callable[[], float] | None = None):
         super().__init__(name=f"heartbeat-{c.submission_id}", daemon=True)
-        self.claim, self.every = c, every
+        self.claim, self.every, self.spent = c, every, spent
         self.lost = threading.Event()
         self.done = threading.Event()
 
     def run(self) -> None:
         while not self.done.wait(self.every):
             try:
-                ok = heartbeat(self.claim)
+                ok = heartbeat(self.claim, self.spent() if self.spent else None)
             except sa.exc.SQLAlchemyError:  # the database did not answer this time: the lease covers a few misses
                 continue
             if not ok:
@@ -181,15 +274,23 @@ class Worker:
         evaluator: what runs a chunk (default :func:`sandbox_evaluator`).
         unpack: what unpacks a package into a folder (default :func:`package_unpacker`).
         say: where progress lines go (default: stderr).
+        job_time_s: worker seconds one upload may use per scenario of its track, over
+            every attempt (:data:`JOB_TIME_S`).
+        work_dir: where packages are unpacked (default: the temporary folder).
     """
 
     def __init__(self, board: Board, worker_id: str | None = None, lease_s: float = DEFAULT_LEASE_S,
                  chunk_size: int = DEFAULT_CHUNK, limits: Any = None, evaluator: Evaluator = sandbox_evaluator,
-                 unpack: Unpacker = package_unpacker, say: Callable[[str], None] | None = None):
+                 unpack: Unpacker = package_unpacker, say: Callable[[str], None] | None = None,
+                 job_time_s: float = JOB_TIME_S, work_dir: str | Path | None = None):
         if not lease_s > 0:
             raise ValueError(f"lease {lease_s:g} s is not allowed; allowed: seconds > 0")
         if chunk_size < 1:
             raise ValueError(f"chunk size {chunk_size} is not allowed; allowed: 1 or more")
+        if not (isinstance(job_time_s, int | float) and math.isfinite(job_time_s) and job_time_s > 0):
+            raise ValueError(f"job time {job_time_s!r} s is not allowed; allowed: seconds > 0")
+        self.job_time_s = float(job_time_s)
+        self.work_dir = Path(work_dir) if work_dir is not None else Path(tempfile.gettempdir())
         self.board = board
         self.worker_id = worker_id or f"{socket.gethostname()}:{os.getpid()}"
         self.lease_s, self.chunk_size, self.limits = float(lease_s), chunk_size, limits
@@ -198,7 +299,11 @@ class Worker:
                                               flush=True))
 
     def run(self, once: bool = False, poll_s: float = 2.0, stop: threading.Event | None = None) -> int:
-        """Claim and evaluate jobs until ``stop`` is set (``once``: until the queue is empty); returns jobs handled."""
+        """Claim and evaluate jobs until ``stop`` is set (``once``: until the queue is empty); returns jobs handled.
+
+        It first removes the unpack folders killed workers left (:meth:`clean_stale`).
+        """
+        self.clean_stale()
         handled = 0
         while stop is None or not stop.is_set():
             try:
@@ -206,6 +311,13 @@ class Worker:
             except sa.exc.OperationalError as exc:  # the database went away for a while: its job's lease expires
                 self.say(f"database error: {_one_line(exc.orig or exc)}; trying again in {poll_s:g} s")
                 state = None
+            if state == "requeued":  # a fault of this machine's: give it a moment before the next claim
+                handled += 1
+                if stop is not None:
+                    stop.wait(poll_s)
+                else:
+                    time.sleep(poll_s)
+                continue
             if state is None:
                 if once:
                     break
@@ -217,53 +329,109 @@ class Worker:
                 handled += 1
         return handled
 
+    def clean_stale(self) -> list[Path]:
+        """Remove the unpack folders under :attr:`work_dir` whose worker process is gone; the folders removed."""
+        gone = stale_unpack_dirs(self.work_dir)
+        for path in gone:
+            shutil.rmtree(path, ignore_errors=True)
+        if gone:
+            self.say(f"removed {len(gone)} unpack folder{'s' if len(gone) != 1 else ''} left by workers that are "
+                     f"gone: {', '.join(p.name for p in gone)}")
+        return gone
+
     def run_one(self) -> str | None:
-        """Claim one job and evaluate it: its final state (``done``, ``failed``, ``lost``); None when none is queued."""
+        """Claim one job and evaluate it: ``done``, ``failed``, ``requeued`` (a board fault) or ``lost``; None if none.
+
+        After a :class:`~wfbench.harness.sandbox.SandboxUnavailable` the job is handed back
+        and the error raised: this worker cannot run any job.
+        """
         c = claim(self.board.engine, self.worker_id, self.lease_s)
         if c is None:
             return None
         self.say(f"claimed submission {c.submission_id} (attempt {c.attempt}, fence {c.fence})")
-        beat = _Heartbeat(c, self.lease_s / 3)
+        started = time.monotonic()
+
+        def spent() -> float:
+            return c.spent_s + (time.monotonic() - started)
+
+        beat = _Heartbeat(c, self.lease_s / 3, spent)
         beat.start()
         try:
-            state = self.process(c, beat.lost)
+            state = self.process(c, beat.lost, spent)
         finally:
             beat.stop()
         self.say(f"submission {c.submission_id}: {state}")
         return state
 
-    def process(self, c: Claim, lost: threading.Event | None = None) -> str:
-        """Evaluate a claimed job's missing units and finish it; ``lost`` (set by the heartbeat) stops it early."""
+    def process(self, c: Claim, lost: threading.Event | None = None,
+                spent: Callable[[], float] | None = None) -> str:
+        """Evaluate a claimed job's missing units and finish it; ``lost`` (set by the heartbeat) stops it early.
+
+        ``spent()``: the worker seconds the submission has used so far (default: as at the claim).
+        """
         sub = self.board.submission(c.submission_id)
         assert sub is not None, f"claimed submission {c.submission_id} does not exist"
+        spent = spent or (lambda: c.spent_s)
         log: list[str] = []
         try:
             try:
-                self._evaluate(c, sub, lost, log)
+                self._evaluate(c, sub, lost, log, spent)
                 frame = self.board.rows(sub.id)
-                finish(c, "done", "", aggregate(frame), log="".join(log))
+                finish(c, "done", "", aggregate(frame), log="".join(log), spent_s=spent())
                 return "done"
             except LeaseLost:
                 raise
-            except (PolicyError, BoardError, ValueError) as exc:  # the submission's failure: its reason is shown
-                return self._fail(c, failure_reason(exc), log, exc)
-            except Exception as exc:  # noqa: BLE001 - a package the unpacker refuses, or this worker's own failure
-                if _is_unavailable(exc) or isinstance(exc, sa.exc.SQLAlchemyError):
-                    raise  # not the submission's fault: the lease expires and another worker (or a retry) takes it
-                return self._fail(c, failure_reason(exc), log, exc)
+            except OverBudget as exc:
+                return self._fail(c, str(exc), log, exc, "timed out", spent())
+            except (PolicyError, ValueError) as exc:  # the policy's (or its package's) failure: final, with its reason
+                return self._fail(c, failure_reason(exc), log, exc, failure_kind(exc), spent())
+            except sa.exc.SQLAlchemyError:
+                raise  # the database: the lease expires and another worker (or a retry) takes it
+            except Exception as exc:  # noqa: BLE001 - the board's: no sandbox, a full disk, this worker's own error
+                state = self._release(c, exc, spent())
+                if _is_unavailable(exc):
+                    raise
+                return state
         except LeaseLost as exc:
             self.say(str(exc))
             return "lost"
 
-    def _fail(self, c: Claim, reason: str, log: list[str], exc: BaseException) -> str:
-        extra = getattr(exc, "log", "")
-        finish(c, "failed", reason, None, log="".join(log) + (extra if isinstance(extra, str) else ""))
-        self.say(f"submission {c.submission_id} failed: {reason}")
-        if not isinstance(exc, PolicyError | BoardError | ValueError) and "PackageError" not in type(exc).__name__:
+    def _release(self, c: Claim, exc: BaseException, spent_s: float) -> str:
+        what = "disk full" if isinstance(exc, OSError) and exc.errno in DISK_FULL else \
+            "the sandbox did not start" if _is_unavailable(exc) else "the worker failed"
+        reason = f"{what}: {failure_reason(exc)}"
+        state = release(c, reason, spent_s)
+        self.say(f"submission {c.submission_id}: a board fault, not the policy's ({reason}); "
+                 + ("queued again" if state == "requeued" else f"failed after {c.attempt} attempts"))
+        if not isinstance(exc, OSError | BoardError) and not _is_unavailable(exc):
             self.say("".join(traceback.format_exception(exc)).rstrip())
+        return state
+
+    def _fail(self, c: Claim, reason: str, log: list[str], exc: BaseException, kind: str, spent_s: float) -> str:
+        extra = getattr(exc, "log", "")
+        finish(c, "failed", reason, None, log="".join(log) + (extra if isinstance(extra, str) else ""), kind=kind,
+               spent_s=spent_s)
+        self.say(f"submission {c.submission_id} failed: {reason}")
         return "failed"
 
-    def _evaluate(self, c: Claim, sub: Submission, lost: threading.Event | None, log: list[str]) -> None:
+    def budget(self, sub: Submission) -> float:
+        """The worker seconds ``sub`` may use over every attempt: :attr:`job_time_s` per scenario of its track."""
+        return self.job_time_s * len(self.board.track(sub.track).configs())
+
+    def _chunk_limits(self, sub: Submission, spent_s: float, done: int, total: int) -> Any:
+        """The sandbox's limits for the next chunk: its wall limit is what is left of the budget (OverBudget: none)."""
+        budget = self.budget(sub)
+        left = budget - spent_s
+        if left <= 0:
+            raise OverBudget(f"used its time budget of {budget:g} s of worker time per upload ({self.job_time_s:g} s "
+                             f"per scenario of its track) with {done} of {total} episodes done")
+        from wfbench.harness.sandbox import Limits
+
+        limits = self.limits if self.limits is not None else Limits()
+        return dataclasses.replace(limits, wall_time_s=min(limits.wall_time_s, left))
+
+    def _evaluate(self, c: Claim, sub: Submission, lost: threading.Event | None, log: list[str],
+                  spent: Callable[[], float]) -> None:
         tr = self.board.track(sub.track)
         configs = tr.configs()
         done = self.board.done_units(sub.id)
@@ -274,21 +442,25 @@ class Worker:
         if data is None:
             raise BoardError(f"package {sub.package_sha} is missing from the board")
         secret, context = self.board.key_secret(), hidden.key_context(sub.track, sub.phase)
-        with tempfile.TemporaryDirectory(prefix="wfbench-worker-") as tmp:
+        total, n_done = len(missing) + len(done), len(done)
+        self.work_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=unpack_prefix(), dir=self.work_dir) as tmp:
             package_dir = Path(tmp) / "policy"
             package_dir.mkdir()
             self.unpack(data, package_dir)
             for scenario, chunk in _chunks(missing, self.chunk_size):
                 if lost is not None and lost.is_set():
                     raise LeaseLost(f"submission {c.submission_id}: worker {c.worker_id} lost its lease (a "
-                                    "heartbeat was refused: another worker claimed the job); nothing more was written")
+                                    "heartbeat was refused: another worker claimed the job, or its owner withdrew "
+                                    "it); nothing more was written")
+                limits = self._chunk_limits(sub, spent(), n_done, total)
                 index = {seed: i for _, i, seed in chunk}
                 frame = self.evaluator(package_dir, sub.entry, configs[scenario], [s for _, _, s in chunk],
-                                       self.limits, secret, context)
+                                       limits, secret, context)
                 text = frame.attrs.get("log")
                 if isinstance(text, str) and text:
                     log.append(text)
-                write_rows(c, _rows(frame, scenario, index))
+                n_done += write_rows(c, _rows(frame, scenario, index), spent_s=spent())
 
 
 def _chunks(units: list[tuple[str, int, int]], size: int) -> list[tuple[str, list[tuple[str, int, int]]]]:
@@ -335,13 +507,15 @@ def _on_term(signum: int, frame: Any) -> None:
 
 def run_worker(server: str, worker_id: str | None = None, lease_s: float = DEFAULT_LEASE_S, once: bool = False,
                poll_s: float = 2.0, chunk_size: int = DEFAULT_CHUNK, tracks: Mapping[str, Any] | None = None,
-               evaluator: Evaluator | None = None, unpack: Unpacker | None = None, limits: Any = None) -> int:
+               evaluator: Evaluator | None = None, unpack: Unpacker | None = None, limits: Any = None,
+               job_time_s: float = JOB_TIME_S) -> int:
     """What ``wfbench worker`` runs; its exit status.
 
     Refuses to start (status 2, one line) without the sandbox, a bad database URL or
     lease; stops on SIGTERM (status 143) leaving the job to the lease's expiry.
     ``tracks``: the board's tracks (default: every track, as ``wfbench serve``'s).
     ``limits``: the sandbox's :class:`~wfbench.harness.sandbox.Limits` (None: its defaults).
+    ``job_time_s``: the time budget per upload, per scenario of its track (:class:`Worker`).
     ``evaluator`` and ``unpack``: for the tests only (the sandbox is checked only when
     the evaluator is the sandbox's).
     """
@@ -351,7 +525,7 @@ def run_worker(server: str, worker_id: str | None = None, lease_s: float = DEFAU
         board = Board(server, tracks=tracks)
         board.create()
         worker = Worker(board, worker_id, lease_s, chunk_size, limits=limits, evaluator=evaluator or sandbox_evaluator,
-                        unpack=unpack or package_unpacker)
+                        unpack=unpack or package_unpacker, job_time_s=job_time_s)
     except (BoardError, ValueError) as exc:
         print(f"wfbench worker: error: {failure_reason(exc)}", file=sys.stderr)
         return 2
@@ -369,8 +543,8 @@ def run_worker(server: str, worker_id: str | None = None, lease_s: float = DEFAU
     except Exception as exc:
         if not _is_unavailable(exc):
             raise
-        print(f"wfbench worker: error: {exc}; the job's lease will expire and another worker resumes it",
-              file=sys.stderr)
+        print(f"wfbench worker: error: {exc}; the job is back in the queue for another worker (a board fault, not "
+              "the policy's)", file=sys.stderr)
         return 2
     except _Stopped:
         worker.say("stopped by SIGTERM; the job's lease will expire and another worker resumes it")

@@ -104,21 +104,23 @@ def test_packages_are_stored_once_by_content_hash(board):
 # -- submissions --------------------------------------------------------------------------------------------
 
 
-def test_the_same_package_entry_track_and_phase_is_submitted_once(board):
+def test_the_same_package_entry_track_and_phase_is_submitted_once_per_account(board):
     alice, bob = (board.account(board.add_account(n)) for n in ("alice", "bob"))
     sha = board.put_package(b"pkg")
     first, created = board.submit(alice, "tiny", "dev", sha, "mypkg:Policy", "mine")
     assert created and first.state == "queued" and first.reason == "" and first.account == "alice"
-    again, created = board.submit(bob, "tiny", "dev", sha, "mypkg:Policy", "another name")
+    again, created = board.submit(alice, "tiny", "dev", sha, "mypkg:Policy", "another name")
     assert not created and again.id == first.id and again.name == "mine", "the existing submission, not a new one"
     other, created = board.submit(alice, "tiny", "dev", sha, "mypkg:Other", "mine")
     assert created and other.id != first.id, "another entry point is another submission"
+    theirs, created = board.submit(bob, "tiny", "dev", sha, "mypkg:Policy", "bobs")
+    assert created and theirs.account == "bob", "another account's identical bytes are its own entry (issue #42)"
     with board.engine.begin() as conn:
-        assert conn.execute(sa.text("SELECT count(*) FROM jobs")).scalar() == 2
+        assert conn.execute(sa.text("SELECT count(*) FROM jobs")).scalar() == 3
 
 
-def test_concurrent_submissions_of_one_package_store_one(board):
-    accts = [board.account(board.add_account(f"user{i}")) for i in range(6)]
+def test_concurrent_submissions_of_one_package_store_one_per_account(board):
+    accts = [board.account(board.add_account(f"user{i}")) for i in range(2)]
     sha = board.put_package(b"same bytes")
     got, errors = [], []
 
@@ -128,14 +130,14 @@ def test_concurrent_submissions_of_one_package_store_one(board):
         except Exception as exc:  # noqa: BLE001 - any error fails the test below
             errors.append(exc)
 
-    threads = [threading.Thread(target=go, args=(a,)) for a in accts]
+    threads = [threading.Thread(target=go, args=(accts[i % 2],)) for i in range(6)]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
     assert not errors
-    assert len({s.id for s, _ in got}) == 1 and sum(created for _, created in got) == 1
-    assert len(board.submissions("tiny", "dev")) == 1
+    assert len({s.id for s, _ in got}) == 2 and sum(created for _, created in got) == 2
+    assert sorted(s.account for s in board.submissions("tiny", "dev")) == ["user0", "user1"]
 
 
 def test_bad_submissions_say_what_is_allowed(board):

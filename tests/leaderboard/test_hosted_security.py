@@ -217,7 +217,7 @@ def _post(url: str, token: str, data: bytes, name: str, phase: str = "dev") -> h
 def hosted(tmp_path, bwrap):
     db = tmp_path / "server" / "board.sqlite"
     db.parent.mkdir()
-    board = Board(db, tracks={TRACK.name: TRACK})
+    board = Board(db, tracks={TRACK.name: TRACK}, dev_concurrent=100, dev_daily_quota=100)
     board.create()
     board.ensure_hidden_seeds(TRACK.name, n=3)
     with LiveServer(create_app(board)) as url:

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture
 def board(open_board):
-    return open_board({"tiny": TINY})
+    return open_board({"tiny": TINY}, dev_concurrent=100, dev_daily_quota=100)  # the queue, not the quota
 
 
 def queued(board, n=1):

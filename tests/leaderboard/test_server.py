@@ -98,7 +98,8 @@ def run_jobs(board: Board, nsw: Callable[[str], float] = lambda name: 0.5, fail:
 
 
 def new_board(url) -> Board:
-    board = Board(url, tracks={TRACK.name: TRACK})
+    # the development phase's quota is tested in test_hosted_owners; these tests upload more than it allows
+    board = Board(url, tracks={TRACK.name: TRACK}, dev_concurrent=100, dev_daily_quota=100)
     board.create()
     return board
 
