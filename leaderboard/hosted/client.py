@@ -8,6 +8,10 @@ a second evaluation), a folder holding ``wfbench-policy.json`` is packed as it i
 :func:`~wfbench.harness.package.inspect` before it leaves, so a package the server would
 refuse is refused here with the same one-line reason and nothing is sent.
 
+``wfbench leaderboard mine`` lists an account's submissions (:meth:`Client.mine`,
+:func:`mine_lines`) and ``wfbench leaderboard withdraw --server URL --id ID`` withdraws one
+(:meth:`Client.withdraw`).
+
 Then the client polls the submission's JSON until its state is ``done`` or ``failed``,
 showing the state and the episodes done on a tqdm bar. Every refusal (the server's
 401/413/429/400 answers, a server that cannot be reached, a failed evaluation) is an
@@ -93,7 +97,7 @@ def _detail(response: httpx.Response) -> str:
 
 HINTS = {401: "check --token (an admin makes one with 'wfbench serve account add NAME')",
          413: "make the package smaller (leave out data the policy does not load)",
-         429: "wait for your running test-phase job, or until the daily quota frees up"}
+         429: "wait for your queued or running jobs of that phase, or until the daily quota frees up"}
 
 
 def _check(response: httpx.Response, what: str) -> dict[str, Any]:
@@ -143,6 +147,14 @@ class Client:
     def submission(self, sub_id: int) -> dict[str, Any]:
         return self._request("GET", f"/api/submissions/{sub_id}", f"reading submission {sub_id}")
 
+    def mine(self) -> list[dict[str, Any]]:
+        """The token's account's submissions, oldest first (``GET /api/submissions``)."""
+        return self._request("GET", "/api/submissions", "listing your submissions")["submissions"]
+
+    def withdraw(self, sub_id: int) -> dict[str, Any]:
+        """Withdraw submission ``sub_id`` (``DELETE /api/submissions/ID``): off the board, its queued job cancelled."""
+        return self._request("DELETE", f"/api/submissions/{sub_id}", f"withdrawing submission {sub_id}")
+
     def tracks(self) -> list[dict[str, Any]]:
         return self._request("GET", "/api/tracks", "the track list")["tracks"]
 
@@ -188,6 +200,18 @@ def result_lines(sub: dict[str, Any]) -> list[str]:
     for key, q in (result.get("kpis") or {}).items():
         lines.append(f"  {key}: {_num(q.get('mean'))} (25%-75%: {_num(q.get('q25'))}-{_num(q.get('q75'))})")
     return lines
+
+
+MINE_HEADER = ("id", "track", "phase", "state", "name", "reason")
+
+
+def mine_lines(subs: list[dict[str, Any]]) -> list[str]:
+    """What ``wfbench leaderboard mine`` prints: a header, then one line per submission (its reason, or its note)."""
+    cells = [list(MINE_HEADER)] + [[str(s["id"]), s["track"], s["phase"], s["state"], s["name"],
+                                    s.get("reason") or s.get("note") or ""] for s in subs]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(MINE_HEADER) - 1)]
+    return ["  ".join([*(c.ljust(w) for c, w in zip(row[:-1], widths, strict=True)), row[-1]]).rstrip()
+            for row in cells]
 
 
 def _num(value: Any) -> str:

@@ -114,7 +114,7 @@ def board_page(board, track: str, phase: str) -> str:
     running entry's episode count is brought up to date when its state changes).
     """
     stamp = (tuple((s.id, s.state, s.updated) for s in board.submissions(track, phase)),
-             board.hidden_commitment(track))
+             board.hidden_commitment(track), board.test_phase_ended(track))
     with _RENDER:
         pages = _PAGES.setdefault(board, {})
         cached = pages.get((track, phase))
@@ -161,8 +161,8 @@ def home_page(board, base: str, limit: int) -> str:
 uploads it and follows the evaluation. It runs in a sandbox with no network, sees only observations and gets
 opaque per-episode keys instead of seeds; <code>wfbench evaluate --sandbox</code> runs the same sandbox at home.
 The development phase runs on the public seeds and shows your log; the test phase runs on hidden seeds, shows
-only aggregates, and is limited per account (one running job, a daily quota). The same package submitted
-twice is evaluated once.</p>
+only aggregates, and is limited per account (one running job, a daily quota); the development phase has a
+quota too. The same package submitted twice by one account is evaluated once.</p>
 <h2>Upload a package</h2>
 <form id='upload' method='post' action='/submit' enctype='multipart/form-data'>
 <label>Token <input name='token' type='password' required></label>
@@ -188,7 +188,7 @@ def submission_page(sub: dict[str, Any]) -> str:
     ``sub`` is the submission's JSON (:func:`wfbench.leaderboard.hosted.server.submission_json`),
     which already leaves out what a test-phase submission may not show.
     """
-    final = sub["state"] in ("done", "failed")
+    final = sub["state"] in ("done", "failed", "withdrawn")
     head = "" if final else f"<meta http-equiv='refresh' content='{REFRESH_S}'>"
     progress = sub["progress"]
     parts = [f"<h1>Submission {sub['id']}: {esc(sub['name'])}</h1>",

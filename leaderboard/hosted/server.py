@@ -13,14 +13,20 @@ optionally ``name`` and ``entry``) is answered, in this order:
   chunked upload is cut off at the limit rather than stored first and measured after;
 - 400 with a one-line reason for a bad form or a package :func:`wfbench.harness.package.inspect`
   refuses (zip-slip, zip bomb, no manifest, ...), an unknown track or phase;
-- 429 when the account is over its test-phase quota (one running test job, N a day);
+- 429 when the account is over its phase's quota (jobs at once, N a day);
 - 201 with ``{id, state, url}`` for a new submission, 200 for the same package, entry,
-  track and phase already submitted (it is not evaluated twice).
+  track and phase already submitted by the same account (it is not evaluated twice).
+
+An owner lists their submissions with ``GET /api/submissions`` and withdraws one with
+``DELETE /api/submissions/{id}`` (the same bearer token): it leaves the board and its
+queued job is cancelled.
 
 What a reader sees of a submission depends on its phase: a development-phase submission
 shows its log and its per-seed rows (the seeds are public), a test-phase one only its
 state, reason and aggregate; no answer or page carries a hidden seed or a per-seed row of
-the test phase.
+the test phase. While a track's test phase runs, a test-phase failure's reason is only its
+word of :data:`~wfbench.leaderboard.hosted.db.FAILURE_KINDS` (the policy's own text could
+carry what it saw), except to an admin account's token.
 
 The database calls are synchronous (SQLAlchemy); the handlers that stream a body are
 ``async`` and run those calls in Starlette's thread pool, the others are plain functions,
@@ -45,7 +51,7 @@ from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.formparsers import MultiPartException, MultiPartParser
 from wfbench.leaderboard.hosted import pages
-from wfbench.leaderboard.hosted.db import Board, BoardError, QuotaExceeded, Submission
+from wfbench.leaderboard.hosted.db import Board, BoardError, NotFound, NotYours, QuotaExceeded, Submission
 from wfbench.leaderboard.hosted.hidden import PHASES
 
 from wfbench.harness.package import MAX_PACKAGE_BYTES, PackageError, check_entry, inspect
@@ -196,18 +202,30 @@ def _total(board: Board, sub: Submission) -> int | None:
         return None
 
 
-def submission_json(board: Board, sub: Submission, base: str) -> dict[str, Any]:
+def summary_json(board: Board, sub: Submission, base: str, admin: bool = False) -> dict[str, Any]:
+    """A submission in a list (``GET /api/submissions``): what it is and where it stands, without rows or log.
+
+    ``reason`` is :meth:`Board.shown_reason` (in a running test phase, the word only,
+    unless ``admin``); ``kind`` is that word and ``fault`` whose failure it is.
+    """
+    return {"id": sub.id, "track": sub.track, "phase": sub.phase, "name": sub.name, "account": sub.account,
+            "entry": sub.entry, "package": sub.package_sha, "state": sub.state,
+            "reason": board.shown_reason(sub, admin), "kind": sub.kind, "fault": sub.fault, "note": sub.note,
+            "attempts": sub.attempts, "created": _when(sub.created), "updated": _when(sub.updated),
+            "withdrawn": _when(sub.withdrawn) if sub.withdrawn is not None else None,
+            "url": f"{base}/submissions/{sub.id}"}
+
+
+def submission_json(board: Board, sub: Submission, base: str, admin: bool = False) -> dict[str, Any]:
     """What ``GET /api/submissions/{id}`` answers: the per-seed rows and the log for the development phase only.
 
     A test-phase submission's rows are counted (its progress) and never listed; :meth:`Board.rows`
-    leaves their seed out in any case.
+    leaves their seed out in any case. Its reason is the word only while the test phase
+    runs (:func:`summary_json`).
     """
     rows = board.rows(sub.id)
-    out = {"id": sub.id, "track": sub.track, "phase": sub.phase, "name": sub.name, "account": sub.account,
-           "entry": sub.entry, "package": sub.package_sha, "state": sub.state, "reason": sub.reason, "note": sub.note,
-           "attempts": sub.attempts, "created": _when(sub.created), "updated": _when(sub.updated),
-           "progress": {"done": len(rows), "total": _total(board, sub)},
-           "result": _clean(sub.result) if sub.result else None, "url": f"{base}/submissions/{sub.id}"}
+    out = {**summary_json(board, sub, base, admin), "progress": {"done": len(rows), "total": _total(board, sub)},
+           "result": _clean(sub.result) if sub.result else None}
     if sub.phase == "dev":  # public seeds: the log and every row may be shown
         out["log"] = sub.log or ""
         out["rows"] = _clean(json.loads(rows.to_json(orient="records"))) if len(rows) else []
@@ -285,9 +303,30 @@ def create_app(board: Board, max_package_bytes: int = MAX_PACKAGE_BYTES) -> Fast
         body = {"id": sub.id, "state": sub.state, "created": created, "url": f"{_base(request)}/submissions/{sub.id}"}
         return JSONResponse(body, 201 if created else 200)
 
+    @app.get("/api/submissions")
+    def get_mine(request: Request):
+        """The token's account's submissions, oldest first (withdrawn ones included)."""
+        account = _authenticate(board, _bearer(request))
+        return {"account": account.name, "submissions": [summary_json(board, s, _base(request), account.admin)
+                                                         for s in board.account_submissions(account)]}
+
     @app.get("/api/submissions/{sub_id}")
     def get_submission(sub_id: int, request: Request):
-        return submission_json(board, _get_submission(board, sub_id), _base(request))
+        """A submission; an admin account's token sees a running test phase's whole failure reasons."""
+        admin = bool(_bearer(request)) and _authenticate(board, _bearer(request)).admin
+        return submission_json(board, _get_submission(board, sub_id), _base(request), admin)
+
+    @app.delete("/api/submissions/{sub_id}")
+    def delete_submission(sub_id: int, request: Request):
+        """Withdraw the token's account's submission: off the board, its queued job cancelled (404, 403 else)."""
+        account = _authenticate(board, _bearer(request))
+        try:
+            sub = board.withdraw(account, sub_id)
+        except NotFound as exc:
+            raise HTTPException(404, exc.reason) from None
+        except NotYours as exc:
+            raise HTTPException(403, exc.reason) from None
+        return summary_json(board, sub, _base(request), account.admin)
 
     @app.get("/api/tracks")
     def get_tracks():

@@ -69,8 +69,12 @@ def add_parser(sub) -> None:
     ld.add_argument("--no-progress", action="store_true")
     add_backend_args(ld)
     lsub.add_parser("tracks", help="list the tracks with their hashes and seeds")
-    lx = lsub.add_parser("withdraw", help="take an entry off a track's board (its rows go to the audit tables)")
-    lx.add_argument("--name", required=True, help="the entry's name")
+    lx = lsub.add_parser("withdraw", help="take an entry off a track's board (its rows go to the audit tables); "
+                                          "with --server, your submission ID off a hosted board")
+    lx.add_argument("--name", default=None, help="the entry's name (the local store)")
+    lx.add_argument("--server", default=None, help="a hosted board's URL: withdraw your submission --id there")
+    lx.add_argument("--id", type=int, default=None, help="the hosted submission's id (see 'wfbench leaderboard mine')")
+    lx.add_argument("--token", default=None, help=f"your account's token on the hosted board (default: ${TOKEN_ENV})")
     lx.add_argument("--track", default="paper-64")
     lx.add_argument("--reason", default="", help="why, kept in the audit tables")
     lx.add_argument("--db", default=None, help="store file (default: $WFBENCH_DB or the user data folder)")
@@ -87,6 +91,9 @@ def add_parser(sub) -> None:
     lu.add_argument("--entry", default=None, help="the entry point in the package (default: the manifest's)")
     lu.add_argument("--no-wait", action="store_true", help="print the submission's page and return at once")
     lu.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    lm = lsub.add_parser("mine", help="list your submissions on a hosted board (their state and reason)")
+    lm.add_argument("--server", required=True, help="the hosted board's URL, e.g. http://127.0.0.1:8000")
+    lm.add_argument("--token", default=None, help=f"your account's token (default: ${TOKEN_ENV})")
 
 
 def upload(args: argparse.Namespace) -> int:
@@ -94,9 +101,7 @@ def upload(args: argparse.Namespace) -> int:
     from wfbench.leaderboard.hosted.client import UploadError, result_lines
     from wfbench.leaderboard.hosted.client import upload as send
 
-    token = args.token or os.environ.get(TOKEN_ENV, "")
-    if not token:
-        raise UsageError(f"no token: pass --token or set ${TOKEN_ENV} (the board's admin makes one)")
+    token = _token(args)
     try:
         sub = send(args.server, token, args.policy, args.track, phase=args.phase, name=args.name, entry=args.entry,
                    wait=not args.no_wait, progress=not args.no_progress)
@@ -107,9 +112,45 @@ def upload(args: argparse.Namespace) -> int:
     return 0
 
 
+def _token(args: argparse.Namespace) -> str:
+    token = args.token or os.environ.get(TOKEN_ENV, "")
+    if not token:
+        raise UsageError(f"no token: pass --token or set ${TOKEN_ENV} (the board's admin makes one)")
+    return token
+
+
+def hosted(args: argparse.Namespace) -> int:
+    """``mine`` and ``withdraw --server``: a hosted board's list of your submissions, or one withdrawn.
+
+    The server's refusal is its one line, with status 1.
+    """
+    from wfbench.leaderboard.hosted.client import Client, UploadError, mine_lines
+
+    if args.lb_command == "withdraw" and args.id is None:
+        raise UsageError("--id is needed with --server: the submission to withdraw (see 'wfbench leaderboard mine')")
+    token = _token(args)
+    try:
+        with Client(args.server, token) as client:
+            if args.lb_command == "mine":
+                print("\n".join(mine_lines(client.mine())))
+                return 0
+            sub = client.withdraw(args.id)
+    except UploadError as exc:
+        print(f"wfbench: error: {exc}", file=sys.stderr)
+        return EXIT_POLICY_FAILED
+    print(f"withdrew submission {sub['id']} ({sub['name']} on {sub['track']}, {sub['phase']} phase): it is off the "
+          "board and its queued job is cancelled")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     if args.lb_command == "upload":  # before the imports below: the client needs none of them
         return upload(args)
+    if args.lb_command == "mine" or (args.lb_command == "withdraw" and args.server):
+        return hosted(args)
+    if args.lb_command == "withdraw" and (args.name is None or args.id is not None):
+        raise UsageError("withdraw takes --name (an entry of the local store) or --server and --id (a hosted "
+                         "submission)")
     # the report is imported here: it loads scipy.stats, which slows every start of the command line
     from wfbench.leaderboard.report import check_format
     from wfbench.leaderboard.store import Store, StoreError

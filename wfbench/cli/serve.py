@@ -46,6 +46,10 @@ def add_parser(sub) -> None:
     seed.add_argument("--phase", choices=("dev", "test", "both"), default="both",
                       help="the phase(s) to enter them in (default both)")
     seed.add_argument("--db", default=argparse.SUPPRESS, help=DB_HELP)
+    end = ssub.add_parser("end-test", help="end a track's test phase: no test submission is taken any more, and "
+                                           "everyone sees its failures' whole reasons (until then: one word each)")
+    end.add_argument("track", help="the track whose test phase ends")
+    end.add_argument("--db", default=argparse.SUPPRESS, help=DB_HELP)
 
 
 def default_db() -> str:
@@ -126,6 +130,19 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.serve_command == "seed":
         return seed(board, args.phase)
+    if args.serve_command == "end-test":
+        import time
+
+        from wfbench.leaderboard.hosted.db import BoardError
+
+        try:
+            ended = board.end_test_phase(args.track)
+        except BoardError as exc:
+            raise UsageError(str(exc)) from None
+        print(f"the test phase of track {args.track} ended at "
+              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime(ended))}: no test submission is taken any more, and "
+              "its failures' whole reasons are shown")
+        return 0
     import uvicorn
 
     from wfbench.leaderboard.hosted.server import create_app

@@ -21,6 +21,9 @@ def add_parser(sub) -> None:
                    help="seconds a claim holds without a heartbeat (default 60; "
                         "wfbench.leaderboard.hosted.queue.DEFAULT_LEASE_S)")
     p.add_argument("--once", action="store_true", help="stop when the queue is empty")
+    p.add_argument("--job-time", type=seconds, default=None, metavar="S",
+                   help="worker seconds one upload may use per scenario of its track, over every attempt (default "
+                        "3600; wfbench.leaderboard.hosted.worker.JOB_TIME_S)")
     limits = p.add_argument_group("the sandbox's limits per submission (default: wfbench.harness.sandbox.Limits)")
     limits.add_argument("--memory", type=positive, default=None, metavar="MB",
                         help="address space of the policy's process (default 4096)")
@@ -37,8 +40,8 @@ LIMIT_FLAGS = {"memory": "memory_mb", "act_timeout": "act_timeout_s", "wall_time
 def run(args) -> int:
     from wfbench.harness.sandbox import Limits
     from wfbench.leaderboard.hosted.queue import DEFAULT_LEASE_S
-    from wfbench.leaderboard.hosted.worker import run_worker
+    from wfbench.leaderboard.hosted.worker import JOB_TIME_S, run_worker
 
     chosen = {field: getattr(args, flag) for flag, field in LIMIT_FLAGS.items() if getattr(args, flag) is not None}
     return run_worker(args.server, args.worker_id, args.lease or DEFAULT_LEASE_S, args.once,
-                      limits=Limits(**chosen) if chosen else None)
+                      limits=Limits(**chosen) if chosen else None, job_time_s=args.job_time or JOB_TIME_S)
