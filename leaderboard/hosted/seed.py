@@ -12,9 +12,11 @@ which seeds it with the seeds themselves. A built-in that reads the trace (the h
 oracle) is left out: the sandbox refuses it.
 
 Seeding again does nothing new: a built-in's package is the same bytes every time (its
-registry name and nothing else), and the board returns the submission already made of
-the same package, entry, track and phase. The test phase's quota does not apply to the
-operator's built-ins.
+registry name and nothing else), and the board returns the submission the account
+``wfbench`` already made of the same package, entry, track and phase. Uploads are
+deduplicated per account (issue #42): another account that uploads a built-in's bytes
+gets an entry of its own, under its own name, and seeding still makes the board's. The
+quotas do not apply to the operator's built-ins.
 """
 
 from __future__ import annotations
