@@ -146,4 +146,10 @@ def bwrap() -> str:
     if not path:
         _skip_or_fail("bubblewrap is not installed: on Debian/Ubuntu `apt-get install bubblewrap` "
                       "(.ci/run installs it)", REQUIRE_BWRAP)
+    from wfbench.harness.sandbox import SandboxUnavailable, _seccomp_program
+
+    try:  # the sandbox's seccomp filter needs libseccomp's Python bindings (issue #42)
+        _seccomp_program()
+    except SandboxUnavailable as exc:
+        _skip_or_fail(f"{exc} (.ci/run installs them)", REQUIRE_BWRAP)
     return path

@@ -112,14 +112,20 @@ def run_sandboxed(spec: str, config, seeds: list[int], act_timeout: float | None
 
     data = package_bytes(spec)
     limits = sandbox.Limits(act_timeout_s=act_timeout or sandbox.Limits.wall_time_s)
+    setup = "the sandbox cannot run on this machine (its set-up, not the policy)"
     try:
         sandbox.check_sandbox()
         with tempfile.TemporaryDirectory(prefix="wfbench-package-") as tmp:
-            manifest = package.unpack(data, Path(tmp) / "package")
+            try:
+                manifest = package.unpack(data, Path(tmp) / "package")
+            except OSError as exc:  # a full disk, a temporary folder that cannot be written
+                raise sandbox.SandboxUnavailable(f"the package could not be unpacked into {tmp}: "
+                                                 f"{type(exc).__name__}: {exc}") from None
             df = sandbox.evaluate_sandboxed(Path(tmp) / "package", manifest.entry, config, seeds, limits,
                                             sandbox.LOCAL_KEY_SECRET, sandbox.LOCAL_KEY_CONTEXT)
     except sandbox.SandboxUnavailable as exc:
-        raise UsageError(str(exc)) from None
+        reason = exc.reason.removeprefix("the sandbox could not start (the board's set-up, not the policy): ")
+        raise UsageError(f"{setup}: {reason}") from None
     except package.PackageError as exc:
         raise UsageError(f"--policy: {exc}") from None
     except sandbox.SandboxError as exc:

@@ -24,13 +24,25 @@ What the sandbox allows:
 - **Resources**: address space, CPU seconds, processes, file size, open files, no core
   files (rlimits the child sets on itself before the package's code runs); the tmpfs
   size; the bytes it may write to stdout and stderr (kept in :attr:`SandboxPolicy.log`).
-- **Time**, enforced from outside: each ``reset`` and ``act`` has ``act_timeout_s`` (the
-  clock stops while numba compiles, as in :class:`~wfbench.harness.guard.Guard`) and a
-  batch of episodes ``wall_time_s`` of the policy's time; past either, the evaluator
-  kills bubblewrap's process group and the PID namespace takes every process with it.
+- **System calls**: a seccomp filter compiled by libseccomp's own Python bindings
+  (:func:`_seccomp_program`) and loaded by bubblewrap refuses ptrace, mounting, new
+  namespaces, bpf, perf events, the keyrings, userfaultfd and io_uring.
+- **Time**, enforced and measured from outside: each ``reset`` and ``act`` has
+  ``act_timeout_s``, the first of each ``warmup_s`` (numba compiling the policy's own
+  kernels), and a batch of episodes ``wall_time_s`` of the policy's time; past any, the
+  evaluator kills bubblewrap's process group and the PID namespace takes every process
+  with it. Nothing the child sends stops or extends a clock.
+- **Environment**: bubblewrap starts with :data:`BWRAP_ENV` and the child with
+  :func:`_child_env`, never the evaluator's environment, and the child keeps no descriptor
+  but its pipes and standard streams.
 
-Every failure is a :class:`SandboxError` (a :class:`~wfbench.harness.guard.PolicyError`,
-the policy's failure) with a one-line ``reason``. :func:`evaluate_sandboxed` runs
+Two exceptions, two culprits. :class:`SandboxUnavailable` is the set-up's fault (no
+bubblewrap, no seccomp bindings, Python or wfbench unreachable inside, a sandbox that died
+or hung before the child's STARTED handshake, when none of the package's code had run):
+one-line ``reason``, retry elsewhere. :class:`SandboxError` (a
+:class:`~wfbench.harness.guard.PolicyError`) is the policy's failure after the handshake
+(raised, timed out, out of memory, killed, a bad frame or action) with a one-line
+``reason``. :func:`evaluate_sandboxed` runs
 :func:`wfbench.harness.runner.run_batch` with a SandboxPolicy, so its rows are those of
 :func:`wfbench.harness.evaluation.evaluate` for the same policy, bit for bit, when the
 policy's decisions do not depend on its seeds.
@@ -55,6 +67,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 import weakref
 from collections import deque
@@ -72,7 +85,7 @@ from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.harness.guard import Guard, LoadedPolicy, PolicyError
-from wfbench.harness.sandbox_child import cache_folder
+from wfbench.harness.sandbox_child import PROBE_OK, cache_folder
 from wfbench.harness.wire import Decoder, Kind, Message, WireError, WireLimits, array_text, encode
 
 # the policy's user when the evaluator runs as root: one drawn per sandbox from a range no account uses, so that
@@ -84,13 +97,35 @@ INSTALL_HINT = "install it with `apt-get install bubblewrap` (Debian/Ubuntu; `dn
 # anyone can reproduce its keys; a hosted board keeps its own secret in its database
 LOCAL_KEY_SECRET = b"wfbench-local-sandbox-v1"
 LOCAL_KEY_CONTEXT = "local"
+WARMUP_S = 60.0  # the default warm-up allowance of a sandbox's first reset and first act (Limits.warmup_s)
 CACHE_MOUNT = "/wfbench-numba"  # the evaluator's numba cache of each wfbench folder, read-only, at CACHE_MOUNT/<i>
 _FROM_CHILD = WireLimits(max_bytes=64 << 20)  # an action is a few arrays of (B, M)
+# bubblewrap's own environment: nothing of the evaluator's (a database URL, tokens) reaches it, whoever runs it; in a
+# user namespace bubblewrap is the sandbox's PID 1, whose /proc/1/environ the policy can read
+BWRAP_ENV = {"PATH": "/usr/local/bin:/usr/bin:/bin"}
+# the Pythons that may hold libseccomp's own bindings (Debian's python3-seccomp installs them for /usr/bin/python3)
+SECCOMP_PYTHONS = (sys.executable, "/usr/bin/python3")
+SECCOMP_HINT = "install them with `apt-get install python3-seccomp` (Debian/Ubuntu; `dnf install python3-libseccomp` " \
+               "on Fedora)"
 _READ = 1 << 16
 
 
 class SandboxUnavailable(RuntimeError):
-    """This machine cannot run the sandbox (no bubblewrap, or no namespaces); ``str()`` says how to fix it."""
+    """The board's set-up, not the policy, failed: no sandbox starts here, or this one did not reach its handshake.
+
+    ``reason`` (and ``str()``) is one line naming the cause and, where there is one, the fix:
+    bubblewrap missing or refused, Python or wfbench unreachable inside, no seccomp bindings,
+    a sandbox that exited or hung before the child's handshake (before any of the package's
+    code ran). A worker retries the job elsewhere or later; it is never the policy's result.
+    """
+
+    def __init__(self, reason: str):
+        lines = str(reason).strip().splitlines()
+        super().__init__(lines[0] if lines else "the sandbox is not available")
+
+    @property
+    def reason(self) -> str:
+        return str(self)
 
 
 class SandboxError(PolicyError):
@@ -115,18 +150,28 @@ class Limits:
     file_mb: int = 16  # the largest file it may write (RLIMIT_FSIZE)
     tmp_mb: int = 64  # the policy's room in its /tmp (a tmpfs)
     numba_cache_mb: int = 64  # more room in /tmp for the copies of the evaluator's compiled wfbench kernels
-    act_timeout_s: float = 10.0  # each reset and act call
+    act_timeout_s: float = 10.0  # each reset and act call after the first of each
+    # the first reset and the first act of a sandbox (numba compiling the policy's kernels); None: the larger of
+    # WARMUP_S and act_timeout_s
+    warmup_s: float | None = None
     wall_time_s: float = 1800.0  # the policy's time over one batch of episodes (reset and every act)
     log_bytes: int = 1 << 20  # what it may write to stdout and stderr together
     open_files: int = 256  # open file descriptors (RLIMIT_NOFILE)
     start_timeout_s: float = 60.0  # starting Python and loading the package
 
     def __post_init__(self) -> None:
+        if self.warmup_s is None:
+            act = self.act_timeout_s
+            object.__setattr__(self, "warmup_s", max(WARMUP_S, act) if isinstance(act, (int, float)) else WARMUP_S)
         for f in fields(self):
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                     or value <= 0:
                 raise ValueError(f"sandbox limit {f.name} = {value!r} is not allowed; allowed: a number > 0")
+        if self.warmup_s < self.act_timeout_s:
+            raise ValueError(f"sandbox limit warmup_s = {self.warmup_s!r} is below act_timeout_s = "
+                             f"{self.act_timeout_s!r}; allowed: warmup_s >= act_timeout_s (it is the first call's "
+                             "act timeout)")
 
     def rlimits(self) -> dict[str, int]:
         """The resource limits the child sets on itself (``resource.RLIMIT_<name>``)."""
@@ -145,7 +190,11 @@ def opaque_keys(seeds: Sequence[int], key_secret: bytes, key_context: str) -> np
 
 
 def check_sandbox() -> None:
-    """Raise :class:`SandboxUnavailable`, saying how to fix it, unless a sandbox starts on this machine."""
+    """Raise :class:`SandboxUnavailable` (one line: the cause, and how to fix it) unless a sandbox runs here.
+
+    Beyond bubblewrap and the namespaces it starts a real sandbox once per process, with
+    its seccomp filter, and imports wfbench in its Python (:func:`_trial`).
+    """
     if not shutil.which("bwrap"):
         raise SandboxUnavailable(f"bubblewrap (bwrap) is not installed; the sandbox needs it to run submitted "
                                  f"policies: {INSTALL_HINT}")
@@ -168,13 +217,41 @@ def check_sandbox() -> None:
 
 @cache
 def _trial() -> None:
-    """Start an empty sandbox once per process: AppArmor or a container may forbid what the kernel allows."""
-    cmd = [shutil.which("bwrap") or "bwrap", *_namespaces(), *_system_binds(), "--", "true"]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=30)
-    if r.returncode != 0:
-        line = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+    """Start the real sandbox once per process and import wfbench in its Python (the child's ``probe``).
+
+    It runs what a submission runs (the same mounts, user, limits and seccomp filter) on an
+    empty package, so AppArmor, a container, a Python the mounts miss or a broken install
+    are found here, at start, and not by blaming the first policy.
+    """
+    with tempfile.TemporaryDirectory(prefix="wfbench-probe-") as tmp:
+        package = Path(tmp) / "package"
+        package.mkdir()
+        package.chmod(0o755)
+        filt = _seccomp_fd()
+        try:
+            cmd = sandbox_command(package, {"probe": True, "rlimits": Limits().rlimits()}, Limits(),
+                                  SANDBOX_UIDS[0] if os.geteuid() == 0 else os.geteuid(), (), filt)
+            try:
+                r = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=dict(BWRAP_ENV),
+                                   stdin=subprocess.DEVNULL, pass_fds=(filt,))
+            except subprocess.TimeoutExpired:
+                raise SandboxUnavailable("the sandbox's Python did not start within 120 s (the probe that imports "
+                                         "wfbench inside)") from None
+        finally:
+            os.close(filt)
+    if r.returncode == 0 and PROBE_OK in r.stdout:
+        return
+    lines = [x.strip() for x in (r.stderr + r.stdout).strip().splitlines() if x.strip()]
+    line = lines[-1] if lines else f"exit code {r.returncode}"
+    interpreter = _interpreter()
+    if r.returncode == 127 or "execvp" in line or "failed to execute" in line:
+        raise SandboxUnavailable(f"Python cannot start in the sandbox ({line}): {interpreter} or a library it loads "
+                                 "is not among the sandbox's read-only mounts")
+    if line.startswith("bwrap:"):
         raise SandboxUnavailable(f"bubblewrap cannot create a sandbox here ({line}); user namespaces may be "
                                  "disabled or forbidden (AppArmor, a container without them)")
+    raise SandboxUnavailable(f"the sandbox's Python cannot import wfbench ({line}; exit code {r.returncode}): "
+                             f"{interpreter} inside the sandbox does not see the installation it runs from")
 
 
 # -- the bubblewrap command ---------------------------------------------------------------------------------------
@@ -201,15 +278,50 @@ def _system_binds() -> list[str]:
     return out
 
 
+def _interpreter() -> str:
+    """The Python the sandbox runs: this one, by the path it was started with, its folder's links resolved.
+
+    Not the file the name finally points to: a virtual environment's ``python`` is a link,
+    and Python finds its venv (``pyvenv.cfg``) beside the name it was started by.
+    """
+    exe = Path(sys.executable)
+    return str(exe.parent.resolve() / exe.name)
+
+
+def _libpython() -> Path | None:
+    """The shared libpython this process runs on (None: a static build), from its memory map."""
+    try:
+        for line in Path("/proc/self/maps").read_text().splitlines():
+            path = line.split(maxsplit=5)[-1]
+            if path.startswith("/") and "/libpython" in path:
+                return Path(path)
+    except OSError:
+        pass
+    return None
+
+
 def python_folders() -> list[Path]:
     """The folders the child's Python needs, read-only: the installation, the venv, the wfbench packages.
 
-    The packages' folders come from where they are imported from (an editable install
-    maps ``wfbench.policies`` to the checkout's ``policies/``), never the checkout itself:
-    it may hold results, the leaderboard's database or credentials. A folder inside
-    another one is covered by it.
+    - the interpreter's installation (``sys.base_prefix``), the venv (``sys.prefix``) and the
+      folder the interpreter's file is in;
+    - the folder of the libpython it loads, where that is elsewhere (its run path may name a
+      folder the sandbox does not have: :func:`_child_env` points the loader at this one);
+    - every ``site-packages`` or ``dist-packages`` folder on the import path (the installed
+      dependencies, wherever a ``.pth`` file put them);
+    - the folders the ``wfbench`` packages are imported from (an editable install maps
+      ``wfbench.policies`` to the checkout's ``policies/``), never the checkout itself: it
+      may hold results, the leaderboard's database or credentials.
+
+    A folder inside another one is covered by it. Where they are does not matter: the sandbox
+    mounts its ``/tmp`` before these, so a Python under ``/tmp`` stays visible.
     """
-    found = [Path(sys.base_prefix), Path(sys.prefix), Path(sys.executable).resolve().parent.parent]
+    exe = Path(_interpreter())
+    found = [Path(sys.base_prefix), Path(sys.prefix), exe.parent, exe.resolve().parent.parent]
+    lib = _libpython()
+    if lib is not None:
+        found.append(lib.parent)
+    found += [Path(p) for p in sys.path if p and Path(p).name in ("site-packages", "dist-packages")]
     for name in PACKAGES:
         spec = find_spec(name)
         found += [Path(p) for p in ((spec and spec.submodule_search_locations) or [])]
@@ -217,9 +329,21 @@ def python_folders() -> list[Path]:
     return [p for p in resolved if not any(q != p and p.is_relative_to(q) for q in resolved)]
 
 
+def _child_env() -> dict[str, str]:
+    """The child's whole environment (bubblewrap clears the rest): paths inside the sandbox, one thread each."""
+    env = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": "/tmp", "NUMBA_CACHE_DIR": "/tmp/numba",
+           "MPLCONFIGDIR": "/tmp", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+           "NUMBA_NUM_THREADS": "1", "LANG": "C.UTF-8"}
+    lib = _libpython()
+    if lib is not None:  # a run path that names a folder the sandbox lacks (a relocated Python) is not consulted
+        env["LD_LIBRARY_PATH"] = str(lib.parent.resolve())
+    return env
+
+
 def _ancestors(paths: Sequence[Path]) -> list[str]:
     """Every parent folder of the bind targets, created world-traversable (privileged bwrap makes them 0700)."""
-    out = sorted({str(a) for p in paths for a in p.parents if str(a) != "/"}, key=lambda s: (s.count("/"), s))
+    out = sorted({str(a) for p in paths for a in p.parents if str(a) not in ("/", "/tmp")},
+                 key=lambda s: (s.count("/"), s))
     return [arg for a in out for arg in ("--perms", "0755", "--dir", a)]
 
 
@@ -258,38 +382,113 @@ def shared_caches() -> list[tuple[str, Path]]:
 
 
 def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, uid: int,
-                    caches: Sequence[tuple[str, Path]] = ()) -> list[str]:
+                    caches: Sequence[tuple[str, Path]] = (), seccomp_fd: int | None = None) -> list[str]:
     """The bubblewrap command line that runs the child on ``package_dir`` with ``config``.
 
     ``caches``: (a source file, a numba cache folder) to mount read-only for the child to
-    copy from (:func:`shared_caches`); ``config`` gets where each one is.
+    copy from (:func:`shared_caches`); ``config`` gets where each one is. ``seccomp_fd``: a
+    descriptor bubblewrap reads the compiled seccomp filter from (:func:`_seccomp_fd`), loaded
+    just before it starts the child (it must be passed to bubblewrap with ``pass_fds``).
+
+    The order matters: bubblewrap applies its operations one by one, so the tmpfs at
+    ``/tmp`` comes before every bind, or it would hide those under ``/tmp`` (a venv or a
+    checkout there). The child runs isolated (``-I``: no ``PYTHON*`` variables, no user site,
+    not the current folder on its path): the package joins the path only once the child has
+    imported what it needs and told the evaluator it started.
     """
     folders = python_folders()
     mounts = [f"{CACHE_MOUNT}/{i}" for i in range(len(caches))]
     config = {**config, "numba_cache": [[py_file, m] for (py_file, _), m in zip(caches, mounts, strict=True)],
               "numba_cache_bytes": int(limits.numba_cache_mb) << 20}
-    env = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": "/tmp", "PYTHONPATH": "/policy",
-           "NUMBA_CACHE_DIR": "/tmp/numba", "MPLCONFIGDIR": "/tmp", "PYTHONDONTWRITEBYTECODE": "1",
-           "PYTHONUNBUFFERED": "1", "PYTHONNOUSERSITE": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-           "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
     cmd = [shutil.which("bwrap") or "bwrap", *_namespaces(), "--die-with-parent", "--new-session", "--clearenv"]
-    for k, v in env.items():
+    for k, v in _child_env().items():
         cmd += ["--setenv", k, v]
-    cmd += _ancestors([*folders, Path("/policy"), *map(Path, mounts)])
     cmd += _system_binds()
+    tmp_bytes = (int(limits.tmp_mb) + int(limits.numba_cache_mb)) << 20
+    cmd += ["--perms", "1777", "--size", str(tmp_bytes), "--tmpfs", "/tmp"]
+    cmd += _ancestors([*folders, Path("/policy"), *map(Path, mounts)])
     for f in folders:
         cmd += ["--ro-bind", str(f), str(f)]
     for (_, folder), m in zip(caches, mounts, strict=True):
         cmd += ["--ro-bind", str(folder), m]
-    tmp_bytes = (int(limits.tmp_mb) + int(limits.numba_cache_mb)) << 20
-    cmd += ["--ro-bind", str(package_dir), "/policy", "--proc", "/proc", "--dev", "/dev",
-            "--perms", "1777", "--size", str(tmp_bytes), "--tmpfs", "/tmp", "--chdir", "/policy"]
+    cmd += ["--ro-bind", str(package_dir), "/policy", "--proc", "/proc", "--dev", "/dev", "--chdir", "/policy"]
+    if seccomp_fd is not None:
+        cmd += ["--seccomp", str(seccomp_fd)]
     if os.geteuid() == 0:  # the child drops to ``uid``, with no capability left in any set
         cmd += ["--cap-add", "CAP_SETUID", "--cap-add", "CAP_SETGID", "--cap-add", "CAP_SETPCAP", "--",
                 "setpriv", "--reuid", str(uid), "--regid", str(uid), "--clear-groups",
                 "--inh-caps=-all", "--bounding-set=-all"]
-    cmd += ["--", sys.executable, "-m", "wfbench.harness.sandbox_child", json.dumps(config)]
+    cmd += ["--", _interpreter(), "-I", "-B", "-u", "-m", "wfbench.harness.sandbox_child", json.dumps(config)]
     return cmd
+
+
+# -- the seccomp filter ---------------------------------------------------------------------------------------------
+
+# refused with EPERM: debugging other processes, mounting, namespaces, the kernel's programmable and keyring corners
+SECCOMP_DENY = ("ptrace", "process_vm_readv", "process_vm_writev", "mount", "umount2", "pivot_root",
+                "fsopen", "fsconfig", "fsmount", "fspick", "move_mount", "open_tree", "mount_setattr",
+                "unshare", "setns", "bpf", "perf_event_open", "keyctl", "add_key", "request_key", "userfaultfd",
+                "io_uring_setup", "io_uring_enter", "io_uring_register", "kexec_load", "kexec_file_load",
+                "init_module", "finit_module", "delete_module", "open_by_handle_at")
+# clone with any of these flags (a new namespace) is refused; clone3 passes its flags in memory the filter cannot
+# read, so it answers ENOSYS, on which the C library falls back to clone
+CLONE_NEW_FLAGS = (0x00020000, 0x02000000, 0x04000000, 0x08000000, 0x10000000, 0x20000000, 0x40000000)
+_SECCOMP_SCRIPT = """
+import errno, os, sys
+import seccomp
+deny, flags = sys.argv[1].split(","), [int(x) for x in sys.argv[2].split(",")]
+f = seccomp.SyscallFilter(seccomp.ALLOW)
+for name in deny:
+    f.add_rule(seccomp.ERRNO(errno.EPERM), name)
+for flag in flags:
+    f.add_rule(seccomp.ERRNO(errno.EPERM), "clone", seccomp.Arg(0, seccomp.MASKED_EQ, flag, flag))
+f.add_rule(seccomp.ERRNO(errno.ENOSYS), "clone3")
+with os.fdopen(1, "wb", closefd=False) as out:
+    f.export_bpf(out)
+"""
+
+
+@cache
+def _seccomp_program() -> bytes:
+    """The sandbox's seccomp filter as a BPF program, compiled by libseccomp's own Python bindings, once.
+
+    The bindings are a C extension of one Python build (Debian's ``python3-seccomp`` serves
+    ``/usr/bin/python3``), so the filter is compiled in a separate process by the first of
+    :data:`SECCOMP_PYTHONS` that has them, whatever Python runs wfbench. Without them no
+    sandbox starts: :class:`SandboxUnavailable`, never a sandbox without its filter.
+    """
+    tried = []
+    for python in dict.fromkeys(SECCOMP_PYTHONS):
+        try:
+            r = subprocess.run([python, "-I", "-c", _SECCOMP_SCRIPT, ",".join(SECCOMP_DENY),
+                                ",".join(map(str, CLONE_NEW_FLAGS))], capture_output=True, timeout=60,
+                               env=dict(BWRAP_ENV), stdin=subprocess.DEVNULL)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            tried.append(f"{python}: {type(exc).__name__}")
+            continue
+        if r.returncode == 0 and r.stdout and len(r.stdout) % 8 == 0:
+            return r.stdout
+        last = (r.stderr.decode("utf-8", "replace").strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+        tried.append(f"{python}: {last}")
+    raise SandboxUnavailable(f"libseccomp's Python bindings (the module seccomp) are not available to "
+                             f"{' or '.join(dict.fromkeys(SECCOMP_PYTHONS))} ({'; '.join(tried)}); the sandbox "
+                             f"does not run without its seccomp filter: {SECCOMP_HINT}")
+
+
+def _seccomp_fd() -> int:
+    """A pipe's read end holding the filter (:func:`_seccomp_program`), for bubblewrap's ``--seccomp``; close it."""
+    program = _seccomp_program()
+    r, w = os.pipe()
+    try:
+        view = memoryview(program)
+        while view:  # a few hundred bytes: far below a pipe's buffer
+            view = view[os.write(w, view):]
+    except BaseException:
+        os.close(r)
+        raise
+    finally:
+        os.close(w)
+    return r
 
 
 def _check_readable(package_dir: Path) -> None:
@@ -378,40 +577,60 @@ class SandboxPolicy:
         self.uid = SANDBOX_UIDS[secrets.randbelow(len(SANDBOX_UIDS))] if os.geteuid() == 0 else os.geteuid()
         self.decisions: tuple[str, ...] = ()
         self.name = entry
-        self.failure: SandboxError | None = None
+        self.failure: SandboxError | SandboxUnavailable | None = None
+        self._starting = True  # until the child's handshake (STARTED): a failure is the board's, not the policy's
+        self._calls = {"reset": 0, "act": 0}  # the first of each gets the warm-up allowance
         self._log = bytearray()
         self._logged = 0
         self._decoder = Decoder(_FROM_CHILD)
         self._inbox: deque[Message] = deque()
         self._episode_left = self.limits.wall_time_s
+        filt = _seccomp_fd()
         to_child_r, self._to_child = os.pipe()
         self._from_child, from_child_w = os.pipe()
         self._log_r, log_w = os.pipe()
         config = {"in": to_child_r, "out": from_child_w, "entry": entry, "rlimits": self.limits.rlimits(),
                   "memory_mb": self.limits.memory_mb}
         try:
+            # bubblewrap gets a minimal environment of its own (BWRAP_ENV), never the evaluator's, and only the
+            # descriptors it needs: the two protocol pipes, the log and the filter
             self.proc = subprocess.Popen(sandbox_command(self.package_dir, config, self.limits, self.uid,
-                                                         shared_caches()),
-                                         stdin=subprocess.DEVNULL, stdout=log_w, stderr=log_w,
-                                         pass_fds=(to_child_r, from_child_w), start_new_session=True)
+                                                         shared_caches(), filt),
+                                         stdin=subprocess.DEVNULL, stdout=log_w, stderr=log_w, env=dict(BWRAP_ENV),
+                                         pass_fds=(to_child_r, from_child_w, filt), close_fds=True,
+                                         start_new_session=True)
+        except OSError as exc:
+            for fd in (self._to_child, self._from_child, self._log_r):
+                os.close(fd)
+            raise SandboxUnavailable(f"the sandbox could not start (the board's set-up, not the policy): bubblewrap "
+                                     f"did not run: {type(exc).__name__}: {exc}") from None
         finally:
-            for fd in (to_child_r, from_child_w, log_w):
+            for fd in (to_child_r, from_child_w, log_w, filt):
                 os.close(fd)
         for fd in (self._to_child, self._from_child, self._log_r):
             os.set_blocking(fd, False)
         self._fds = [self._to_child, self._from_child, self._log_r]
         self._finalizer = weakref.finalize(self, _kill, self.proc, self._fds)
+        self._exchange(b"", "starting", Kind.STARTED, self.limits.start_timeout_s, "start time limit")
+        self._starting = False
         hello = self._exchange(b"", "loading the policy", Kind.HELLO, self.limits.start_timeout_s, "start time limit")
         self.decisions = tuple(d for d in array_text(hello.arrays.get("decisions")).split(",") if d)
         self.name = array_text(hello.arrays.get("name")) or entry
 
     # the policy protocol
 
+    def _timeout(self, call: str) -> tuple[float, str]:
+        """The time limit of this ``call``: the warm-up allowance for the first reset and act, else the act timeout."""
+        self._calls[call] += 1
+        if self._calls[call] == 1 and self.limits.warmup_s > self.limits.act_timeout_s:
+            return self.limits.warmup_s, f"warm-up limit of the first {call}"
+        return self.limits.act_timeout_s, "act time limit"
+
     def reset(self, seeds: Sequence[int]) -> None:
         """Hand the policy the opaque keys of ``seeds`` (one per environment) for a new batch of episodes."""
         self._episode_left = self.limits.wall_time_s
         keys = opaque_keys(np.asarray(seeds).tolist(), self.key_secret, self.key_context)
-        self._exchange(encode(Kind.RESET, {"keys": keys}), "reset", Kind.READY, self.limits.act_timeout_s)
+        self._exchange(encode(Kind.RESET, {"keys": keys}), "reset", Kind.READY, *self._timeout("reset"))
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The policy's batched action for ``obs``."""
@@ -419,7 +638,7 @@ class SandboxPolicy:
             frame = encode(Kind.ACT, obs)
         except WireError as exc:  # our observation, not the policy's fault
             raise ValueError(f"cannot send the observation to the sandbox: {exc}") from None
-        return self._exchange(frame, "act", Kind.ACTION, self.limits.act_timeout_s).arrays
+        return self._exchange(frame, "act", Kind.ACTION, *self._timeout("act")).arrays
 
     # life cycle
 
@@ -478,15 +697,18 @@ class SandboxPolicy:
 
     def _exchange(self, frame: bytes, what: str, expect: Kind, timeout_s: float,
                   limit: str = "act time limit") -> Message:
-        """Send ``frame``, then wait for the ``expect`` reply within the limits; any failure kills the sandbox."""
+        """Send ``frame``, then wait for the ``expect`` reply within the limits; any failure kills the sandbox.
+
+        The clocks are this process's alone: nothing the child writes stops, pauses or
+        extends them (a frame other than ``expect`` or ERROR breaks the protocol).
+        """
         if self.failure is not None:
             raise self.failure
         if not self._fds:
             raise SandboxError(f"the sandbox of {self.entry!r} is closed")
         start = time.monotonic()
         act_deadline = start + timeout_s
-        wall_deadline = start + self._episode_left if expect != Kind.HELLO else math.inf
-        paused_left: float | None = None  # act time left while numba compiles
+        wall_deadline = start + self._episode_left if expect not in (Kind.STARTED, Kind.HELLO) else math.inf
         out = memoryview(frame)
         poller = select.poll()
         poller.register(self._from_child, select.POLLIN)
@@ -497,26 +719,22 @@ class SandboxPolicy:
             while True:
                 while self._inbox:
                     msg = self._inbox.popleft()
-                    if msg.kind == Kind.PAUSE and paused_left is None:
-                        paused_left = act_deadline - time.monotonic()
-                    elif msg.kind == Kind.RESUME and paused_left is not None:
-                        act_deadline, paused_left = time.monotonic() + paused_left, None
-                    elif msg.kind == Kind.ERROR:
+                    if msg.kind == Kind.ERROR:
                         reason = array_text(msg.arrays.get("reason")).strip().splitlines()
                         self._fail(reason[0][:500] if reason else f"the policy failed in {what}",
                                    array_text(msg.arrays.get("trace")))
                     elif msg.kind == expect and not out:
                         return msg
-                    elif msg.kind not in (Kind.PAUSE, Kind.RESUME):
+                    else:
                         self._fail(f"the policy's process broke the protocol: it sent {msg.kind.name} during {what} "
                                    f"(expected {expect.name})")
                 now = time.monotonic()
                 if now >= wall_deadline:
                     self._fail(f"the policy took longer than {self.limits.wall_time_s:g} s over one batch of "
                                "episodes (the wall time limit)")
-                if paused_left is None and now >= act_deadline:
+                if now >= act_deadline:
                     self._fail(f"{what} took longer than {timeout_s:g} s (the {limit})")
-                deadline = min(wall_deadline, act_deadline if paused_left is None else math.inf)
+                deadline = min(wall_deadline, act_deadline)
                 for fd, _ in poller.poll(max(0, min(deadline - now, 3600)) * 1000 + 1):
                     if fd == self._to_child:
                         out = self._write(out, what)
@@ -571,7 +789,10 @@ class SandboxPolicy:
             rc = None
         self._drain_log()
         last = (self.log.strip().splitlines() or [""])[-1]
-        if rc is None:
+        if self._starting:  # before the handshake no code of the package has run: the set-up failed
+            status = "did not exit" if rc is None else f"exited with code {rc}" if rc >= 0 else f"got signal {-rc}"
+            reason = f"Python in the sandbox {status} before its handshake" + (f" ({last[:300]})" if last else "")
+        elif rc is None:
             reason = f"the policy's process closed its pipe during {what}"
         elif last.startswith("bwrap:"):
             reason = f"the sandbox could not start: {last}"
@@ -583,11 +804,19 @@ class SandboxPolicy:
         self._fail(reason)
 
     def _fail(self, reason: str, trace: str = "") -> None:
-        """Kill the sandbox and raise (from now on, on every call) a SandboxError with ``reason``."""
+        """Kill the sandbox and raise (from now on, on every call) a SandboxError with ``reason``.
+
+        Before the child's handshake it is a :class:`SandboxUnavailable`: the sandbox or its
+        Python failed before any code of the package ran.
+        """
         if self.failure is None:
             if self._fds and self._logged <= self.limits.log_bytes:
                 self._drain_log()
-            self.failure = SandboxError(reason, trace, self.log)
+            if self._starting:
+                self.failure = SandboxUnavailable(f"the sandbox could not start (the board's set-up, not the "
+                                                  f"policy): {reason}")
+            else:
+                self.failure = SandboxError(reason, trace, self.log)
             self._finalizer()
         raise self.failure
 

@@ -1,25 +1,31 @@
 """The process inside the sandbox: loads a policy package and answers the evaluator over two pipes.
 
-Run as ``python -m wfbench.harness.sandbox_child CONFIG`` by :mod:`wfbench.harness.sandbox`
-inside bubblewrap; ``CONFIG`` is JSON: the file descriptors of the two protocol pipes
-(``in``, ``out``), the ``entry`` point, the resource limits (``rlimits``: name -> value)
-and ``memory_mb`` for the messages. It sets the limits on itself before any of the
-package's code runs, loads the entry point, sends HELLO, then serves RESET, ACT and BYE
-(:mod:`wfbench.harness.wire`) until BYE or the end of its input. A failure of the policy
-(an exception while loading, in ``reset`` or in ``act``, or an action that cannot be
-sent) is answered with ERROR, a one-line reason naming the file and line inside the
-package, and the process exits.
+Run as ``python -I -B -u -m wfbench.harness.sandbox_child CONFIG`` by
+:mod:`wfbench.harness.sandbox` inside bubblewrap; ``CONFIG`` is JSON: the file descriptors
+of the two protocol pipes (``in``, ``out``), the ``entry`` point, the resource limits
+(``rlimits``: name -> value) and ``memory_mb`` for the messages. It closes every other
+descriptor, sets the limits on itself and sends STARTED, all before any of the package's
+code runs (``-I`` keeps the package off the import path until then, so no module of the
+package can shadow one of the child's); then it puts ``/policy`` on the path, loads the
+entry point, sends HELLO and serves RESET, ACT and BYE (:mod:`wfbench.harness.wire`) until
+BYE or the end of its input. A failure of the policy (an exception while loading, in
+``reset`` or in ``act``, or an action that cannot be sent) is answered with ERROR, a
+one-line reason naming the file and line inside the package, and the process exits.
+With ``"probe": true`` it stops after STARTED's work and prints :data:`PROBE_OK`
+(:func:`wfbench.harness.sandbox.check_sandbox`).
 
 It imports only what it needs (numpy and the wire format; numba is loaded anyway by the
-``wfbench`` package, and its compile events become PAUSE/RESUME so the evaluator's act
-clock stops while numba compiles, as :class:`wfbench.harness.guard.Guard`'s does): the
-evaluator waits for it on every evaluation.
+``wfbench`` package): the evaluator waits for it on every evaluation. Time is the
+evaluator's to measure: the child sends nothing about numba's compiling (the first reset
+and act have a warm-up allowance instead, ``Limits.warmup_s``).
 
 numba's cache starts warm (:class:`CacheCopies`): the evaluator mounts its own cache of
 the ``wfbench`` packages' compiled kernels read-only, and the child copies an entry into
 its own cache (``NUMBA_CACHE_DIR=/tmp/numba``, on the sandbox's tmpfs) when numba first
 reads it. The policy may spoil its copies; the evaluator never loads anything from the
-sandbox, and the next sandbox copies afresh.
+sandbox, and the next sandbox copies afresh. What numba compiles here (a kernel the
+evaluator's cache lacks) dies with the sandbox, and wfbench's line about compiling says
+so (:class:`SandboxCompileNotice`).
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import os
 import resource
 import stat
 import sys
-import threading
+import time
 import traceback
 from collections import deque
 from typing import Any
@@ -39,9 +45,11 @@ import numpy as np
 from numba.core import caching
 from numba.core import event as numba_event
 
+from wfbench.core import jit
 from wfbench.harness.wire import Decoder, Kind, Message, WireError, encode, text_array, wire_dtype
 
 PACKAGE_ROOT = "/policy/"  # where the sandbox mounts the package; frames under it are the user's
+PROBE_OK = "wfbench-sandbox-probe-ok"  # what a probe prints once its Python has imported wfbench in the sandbox
 
 
 class Channel:
@@ -70,23 +78,37 @@ class Channel:
         self.send(Kind.ERROR, {"reason": text_array(reason), "trace": text_array(trace)})
 
 
-class CompileNotice(numba_event.Listener):
-    """Tells the evaluator when numba starts and stops compiling inside a policy call (PAUSE / RESUME)."""
+class SandboxCompileNotice(jit._ColdCompileNotice):
+    """wfbench's line before a cold compile, true in the sandbox: the compiled code is thrown away with it.
 
-    def __init__(self, channel: Channel):
-        self.channel = channel
-        self.armed = False
-        self.depth = 0
+    Outside a sandbox wfbench says its kernels compile once and are cached; here the cache
+    is the sandbox's tmpfs, which dies with it, so the next sandbox compiles again unless the
+    evaluator's own cache (which it copies from) holds the kernel.
+    """
 
-    def on_start(self, event: numba_event.Event) -> None:
-        if self.armed and self.depth == 0 and threading.current_thread() is threading.main_thread():
-            self.channel.send(Kind.PAUSE)
+    def on_start(self, ev):
+        ours = self._ours(ev)
+        if ours is None:
+            return
         self.depth += 1
+        if self.depth > 1:
+            return
+        self.started = time.perf_counter()
+        if self.first is None:
+            self.first = ours[0]
+            self.factor = jit.load_factor()
+            print(f"wfbench: compiling {ours[0]} inside the sandbox, {self._estimate()}; the compiled code is thrown "
+                  "away with the sandbox (its cache lives in the sandbox's /tmp), so every sandbox of this policy "
+                  "compiles it again unless the evaluator's own cache holds it", file=sys.stderr, flush=True)
 
-    def on_end(self, event: numba_event.Event) -> None:
-        self.depth -= 1
-        if self.armed and self.depth == 0 and threading.current_thread() is threading.main_thread():
-            self.channel.send(Kind.RESUME)
+    def _record(self) -> None:  # nothing to record: the sandbox's files die with it
+        return
+
+
+def install_notice() -> None:
+    """Put :class:`SandboxCompileNotice` in place of wfbench's own line about compiling."""
+    numba_event.unregister("numba:compile", jit.NOTICE)
+    numba_event.register("numba:compile", SandboxCompileNotice())
 
 
 def _probe() -> None:
@@ -221,6 +243,15 @@ def load(entry: str) -> Any:
     return obj
 
 
+def where_syntax(exc: SyntaxError) -> str | None:
+    """`` (pkg/file.py, line N)``-style text of a SyntaxError in one of the package's files, else None."""
+    filename = exc.filename or ""
+    if not filename.startswith(PACKAGE_ROOT):
+        return None
+    message = exc.msg or "invalid syntax"
+    return f"{type(exc).__name__}: {message} ({filename[len(PACKAGE_ROOT):]}, line {exc.lineno})"
+
+
 def where(tb: Any) -> str:
     """`` at pkg/file.py:LINE``: the innermost frame inside the package (else the innermost frame)."""
     frames = traceback.extract_tb(tb)
@@ -239,6 +270,9 @@ def failure(exc: BaseException, call: str, memory_mb: int) -> str:
     """The one-line reason for an exception the policy raised in ``call``."""
     if isinstance(exc, MemoryError):
         return f"{what(exc)} in {call}{where(exc.__traceback__)} (memory limit {memory_mb} MB)"
+    if isinstance(exc, SyntaxError) and where_syntax(exc):
+        return f"the policy could not be loaded: {where_syntax(exc)}" if call == "loading" else \
+            f"the policy raised {where_syntax(exc)} in {call}"
     if call == "loading":
         return f"the policy could not be loaded: {what(exc)}{where(exc.__traceback__)}"
     return f"the policy raised {what(exc)} in {call}{where(exc.__traceback__)}"
@@ -264,7 +298,7 @@ def action_arrays(action: Any) -> dict[str, np.ndarray]:
     return out
 
 
-def serve(channel: Channel, policy: Any, notice: CompileNotice, memory_mb: int) -> int:
+def serve(channel: Channel, policy: Any, memory_mb: int) -> int:
     """Answer RESET and ACT until BYE (0) or a failure (1)."""
     while True:
         msg = channel.receive()
@@ -274,38 +308,52 @@ def serve(channel: Channel, policy: Any, notice: CompileNotice, memory_mb: int) 
             channel.error(f"the sandbox got a {msg.kind.name} message; allowed: RESET, ACT, BYE")
             return 1
         call = "reset" if msg.kind == Kind.RESET else "act"
-        notice.armed = True
         try:
             if msg.kind == Kind.RESET:
                 policy.reset(msg.arrays["keys"].astype(np.int64))
                 reply: tuple[Kind, dict[str, np.ndarray]] = (Kind.READY, {})
             else:
                 reply = (Kind.ACTION, action_arrays(policy.act(msg.arrays)))
-            notice.armed = False
             channel.send(*reply)
         except Exception as exc:  # noqa: BLE001 - anything the policy raises is its failure, reported in one line
-            notice.armed = False
             channel.error(failure(exc, call, memory_mb), "".join(traceback.format_exception(exc)))
             return 1
 
 
+def close_other_fds(keep: set[int]) -> None:
+    """Close every descriptor but ``keep``: the policy inherits nothing from bubblewrap or the evaluator."""
+    try:
+        fds = [int(fd) for fd in os.listdir("/proc/self/fd")]
+    except OSError:
+        fds = list(range(3, 1024))
+    for fd in fds:
+        if fd not in keep:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+
 def main(argv: list[str]) -> int:
     config = json.loads(argv[0])
+    if config.get("probe"):  # check_sandbox: this Python started in the sandbox and imported wfbench
+        set_limits(config["rlimits"])
+        print(PROBE_OK, flush=True)
+        return 0
+    close_other_fds({0, 1, 2, config["in"], config["out"]})
     set_limits(config["rlimits"])
     channel = Channel(config["in"], config["out"])
     memory_mb = int(config["memory_mb"])
-    notice = CompileNotice(channel)
-    numba_event.register("numba:compiler_lock", notice)
+    install_notice()
     if config.get("numba_cache"):
         CacheCopies(dict(config["numba_cache"]), config["numba_cache_bytes"], config["rlimits"]["FSIZE"]).install()
-    notice.armed = True
+    channel.send(Kind.STARTED)  # nothing of the package has run yet: what fails from here on is the policy's
+    sys.path.insert(0, PACKAGE_ROOT.rstrip("/"))
     try:
         policy = load(config["entry"])
     except Exception as exc:  # noqa: BLE001 - the package's import or constructor failed
         channel.error(failure(exc, "loading", memory_mb), "".join(traceback.format_exception(exc)))
         return 1
-    finally:
-        notice.armed = False
     if getattr(policy, "reads_trace", False):
         channel.error("the policy declares reads_trace (it reads the scenario's future, like a hindsight oracle); "
                       "a sandboxed policy sees observations only")
@@ -314,9 +362,8 @@ def main(argv: list[str]) -> int:
     name = getattr(policy, "name", None) or type(policy).__qualname__
     channel.send(Kind.HELLO, {"decisions": text_array(",".join(map(str, decisions))),
                               "name": text_array(str(name))})
-    return serve(channel, policy, notice, memory_mb)
+    return serve(channel, policy, memory_mb)
 
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[1:]))
-

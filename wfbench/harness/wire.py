@@ -16,10 +16,13 @@ line, on anything else: an unknown kind, a bad name, a shape whose size does not
 its byte count, bytes left over. Text (a reason, a traceback, the decision names) travels
 as a uint8 array of UTF-8 (:func:`text_array`, :func:`array_text`).
 
-Kinds: the child sends HELLO (its decisions and name) once loaded, READY after a reset,
-ACTION after an act, ERROR (a reason and a traceback) when the policy fails, PAUSE and
-RESUME around numba compiling (the act clock stops meanwhile); the parent sends RESET
-(the opaque ``keys``), ACT (the observation) and BYE.
+Kinds: the child sends STARTED once its own Python is up (before any code of the package
+runs: a sandbox that dies before it is the board's fault, not the policy's), HELLO (its
+decisions and name) once loaded, READY after a reset, ACTION after an act and ERROR (a
+reason and a traceback) when the policy fails; the parent sends RESET (the opaque
+``keys``), ACT (the observation) and BYE. Nothing the child sends touches the parent's
+clocks: 8 and 9 (PAUSE and RESUME, which once stopped the act clock while numba compiled)
+are no kind any more, and a frame of either breaks the protocol.
 """
 
 from __future__ import annotations
@@ -54,8 +57,7 @@ class Kind(IntEnum):
     ACTION = 5
     ERROR = 6
     BYE = 7
-    PAUSE = 8
-    RESUME = 9
+    STARTED = 10
 
 
 class WireError(ValueError):
