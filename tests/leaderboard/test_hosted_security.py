@@ -60,7 +60,7 @@ from wfbench.leaderboard.hosted.worker import run_worker
 sys.exit(run_worker(sys.argv[1], worker_id=sys.argv[2], once=True, poll_s=0.1, chunk_size=3,
                     tracks={TRACK.name: TRACK},
                     limits=Limits(act_timeout_s=float(sys.argv[3]), memory_mb=1024, wall_time_s=120, tmp_mb=32,
-                                  start_timeout_s=60)))
+                                  start_timeout_s=60, warmup_s=float(sys.argv[3]))))
 """
 
 RULE = SANDBOX_RULE.replace("class Rule", "class Policy")  # a deterministic rule: its rows do not depend on keys
