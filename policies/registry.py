@@ -75,6 +75,31 @@ TUNED: dict[str, tuple[str, str]] = {
 }
 
 
+# -- deployable lookahead (issue #43) ---------------------------------------------------------------------------------
+# name -> (base, budget preset, description): a rollout of a compiled base on K sampled futures of H steps, one name
+# per budget preset (wfbench.policies.lookahead, docs/policies.md "Lookahead policies"). Asked for by name (get,
+# parse_spec); not yet in names(), deployable_names() or the oracle's candidates: entering those runs them in every
+# table, the identity check and the leaderboard's seeding, which issue #43 does with the frontier
+LOOKAHEAD: dict[str, tuple[str, str, str]] = {
+    "rollout-solver-tuned": ("solver-tuned", "10ms", "rollout of solver-tuned on sampled futures (K=4, H=80, R=20)"),
+    "rollout-solver-tuned-1ms": ("solver-tuned", "1ms", "rollout of solver-tuned, the 1 ms budget (K=2, H=40, R=40)"),
+    "rollout-solver-tuned-100ms": ("solver-tuned", "100ms", "rollout of solver-tuned, the 100 ms budget (K=16, "
+                                   "H=120, R=10)"),
+}
+
+
+def lookahead_names() -> list[str]:
+    """The deployable lookahead policies (:data:`LOOKAHEAD`), asked for by name."""
+    return list(LOOKAHEAD)
+
+
+def _lookahead(name: str) -> Any:
+    from wfbench.policies.lookahead import make
+
+    base, preset, _ = LOOKAHEAD[name]
+    return make(get(base), preset, name=name)
+# -- end of deployable lookahead --------------------------------------------------------------------------------------
+
 # name -> (checkpoint under policies/neural/checkpoints/, description): trained networks (docs/rl.md), each
 # named by the algorithm that trained it (its checkpoint's algo key: no key is ppo); a name is offered only when
 # its file is there, and loading it needs torch (the rl extra)
@@ -263,7 +288,7 @@ def load_learned(path: Any, mode: str = "sample", name: str | None = None, algo:
 
 
 SPEC_KINDS = ("composite", "oracle", "tuned", "learned", "member", "checkpoint", "tuned-file", "parts",
-              "entry-point", "unknown")
+              "entry-point", "unknown", "lookahead")
 
 
 @dataclass(frozen=True)
@@ -321,6 +346,8 @@ def parse_spec(spec: str) -> PolicySpec:
         return PolicySpec(spec, "oracle", name=spec)
     if spec in TUNED:
         return PolicySpec(spec, "tuned", name=spec, path=str(_tuned.TUNED_DIR / TUNED[spec][0]))
+    if spec in LOOKAHEAD:  # issue #43
+        return PolicySpec(spec, "lookahead", name=spec)
     name, at, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
     if name in LEARNED:
         return PolicySpec(spec, "learned", name=name, path=str(CHECKPOINT_DIR / LEARNED[name][0]),
@@ -411,6 +438,8 @@ def get(spec: Any) -> Any:
         return best_in_hindsight(spec)
     if p.kind == "tuned":
         return load_tuned(Path(p.path))
+    if p.kind == "lookahead":  # issue #43
+        return _lookahead(spec)
     if p.kind == "learned" and p.name in learned_names():
         return load_learned(Path(p.path), p.mode or "sample", name=spec)
     if p.kind == "member":  # ppo-general#seed3, ppo-general#seed3@greedy: one training seed
@@ -478,5 +507,8 @@ def parts(name: str) -> tuple[str, str, str]:
         return tuple(f"{p} (tuned)" for p in parts(base))
     if name in LEARNED_PARTS:
         return LEARNED_PARTS[name]
+    if name in LOOKAHEAD:  # issue #43: the base's parts, its workforce rolled out
+        d, w, pos = parts(LOOKAHEAD[name][0])
+        return d, f"{w} + rollout", pos
     registered = [*COMPOSITES, *ORACLES, *TUNED, *LEARNED]
     raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join(registered)}")

@@ -328,3 +328,39 @@ def test_forked_lifetimes_follow_the_public_model_and_a_wrong_mean_is_rejected()
     assert lifetime_pvalue(NONSTATIONARY, NONSTATIONARY) > 1e-3
     # initial_facilities is not in the observation's world: a model that gets it wrong gets the lifetimes wrong
     assert lifetime_pvalue(NONSTATIONARY.replace(initial_facilities=12), NONSTATIONARY) < 1e-6
+
+
+def test_a_rollout_acts_the_same_up_to_T_in_two_episodes_that_differ_after_T():
+    """The lookahead policy itself: the same actions at every step up to T, and the same candidate scores at T."""
+    from wfbench.policies.lookahead import Rollout
+
+    seed, T = 1004, 40  # T: a decision step (T % R == 0)
+    runs = []
+    for swap in (False, True):
+        sim = Simulator(SMALL, [seed])
+        obs = sim.reset()
+        pol = Rollout(policies.get("solver-tuned"), K=2, H=30, R=10, scenario=SMALL)
+        pol.reset([seed])
+        actions = []
+        for t in range(T + 1):
+            if swap and t == T:
+                sim = other_future(sim, 1019)
+                obs = sim.observe()
+            a = pol.act(obs)
+            actions.append({k: v.copy() for k, v in a.items()})
+            if t < T:
+                sim.step(a)
+                obs = sim.observe()
+        runs.append((sim, pol, actions))
+    (sim_a, pol_a, act_a), (sim_b, pol_b, act_b) = runs
+    for t, (x, y) in enumerate(zip(act_a, act_b, strict=True)):
+        for k in x:
+            assert np.array_equal(x[k], y[k]), (t, k)
+    assert np.isfinite(pol_a.last_scores).sum() >= 2  # T was a decision with several candidates
+    assert np.array_equal(pol_a.last_scores, pol_b.last_scores, equal_nan=True)
+    # the episodes do part after T
+    for _ in range(60):
+        a = pol_a.act(sim_a.observe())
+        sim_a.step(a)
+        sim_b.step(a)
+    assert not np.array_equal(sim_a.observe()["facilities"], sim_b.observe()["facilities"])

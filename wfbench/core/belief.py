@@ -74,6 +74,7 @@ from wfbench.core.observe import (
     PER_Y,
 )
 from wfbench.core.rng import STREAM_FAILURE, exponential, key_from_seed, normal, uniform
+from wfbench.core.schedule import RateSchedule
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import (
     EMPTY,
@@ -188,6 +189,50 @@ def check_world(obs: dict, model_config: ScenarioConfig) -> None:
         raise ValueError(f"the observation's world has {name} = {got[0, bad[0]]:g}, the belief's model "
                          f"{model_config.name!r} has {mine[fixed[bad[0]]]:g}: a belief needs the public config of the "
                          "world it observes")
+
+
+def config_from_observation(obs: dict[str, np.ndarray], b: int = 0, name: str = "observed") -> ScenarioConfig:
+    """The public model a policy can build from a step-0 observation alone (its ``world`` key and what it shows).
+
+    Taken from ``world``: grid, speed, heat width, horizon, window, service time, delays,
+    intervals, fix probabilities, salaries, utilization target, slots and the smallest
+    headcount; from the observation: ``initial_facilities`` and ``initial_personnel`` (the
+    active counts at step 0). Not observable, so assumed: the rate schedules hold their
+    step-0 multipliers (a persistence forecast), facilities arrive uniformly on the grid,
+    hires are placed at the heat map's maximum. Exact for a world that is constant, uniform
+    and ``argmax`` (paper-64 and the Table 2 cells); pass the scenario's config otherwise.
+
+    Raises:
+        ValueError: no ``world`` key (observation version 1 carries no parameter of the world),
+            or the observation is not of step 0.
+    """
+    if "world" not in obs:
+        raise ValueError("the observation has no 'world' key (version 1 shows no parameter of the world); pass "
+                         "the scenario's public config")
+    if int(np.asarray(obs["t"]).reshape(-1)[b]) != 0:
+        raise ValueError("config_from_observation needs the observation of step 0 (the initial counts)")
+    w = dict(zip(WORLD_FEATURES, np.asarray(obs["world"], dtype=np.float64)[b].tolist(), strict=True))
+    fix = np.array([w["fix_novice"], w["fix_mid"], w["fix_expert"]])
+    base = float(fix.max()) if fix.max() > 0 else 1.0
+    return ScenarioConfig(
+        name=name, grid_width=int(w["grid_width"]), grid_height=int(w["grid_height"]),
+        max_facilities=int(w["max_facilities"]), max_personnel=int(w["max_personnel"]),
+        initial_facilities=int(np.asarray(obs["facility_mask"])[b].sum()),
+        initial_personnel=int(np.asarray(obs["personnel_mask"])[b].sum()),
+        min_personnel=int(w["min_personnel"]), horizon=int(w["horizon"]), request_interval=w["request_interval"],
+        churn_interval=w["churn_interval"], base_fix_rate=base, level_multipliers=tuple((fix / base).tolist()),
+        level_salaries=(w["salary_novice"], w["salary_mid"], w["salary_expert"]), speed=w["speed"],
+        service_time=int(w["service_time"]), hire_delay=int(w["hire_delay"]), fire_delay=int(w["notice_delay"]),
+        window=int(w["window"]), target_utilization=w["target_utilization"],
+        utilization_tolerance=w["utilization_tolerance"], heat_sigma=w["heat_sigma"],
+        request_schedule=_flat_schedule(w["request_multiplier"]),
+        churn_schedule=_flat_schedule(w["churn_multiplier"]),
+    )
+
+
+def _flat_schedule(multiplier: float) -> RateSchedule:
+    """The schedule that holds ``multiplier`` from step 0 on."""
+    return RateSchedule() if multiplier == 1.0 else RateSchedule(kind="piecewise", times=(0,), values=(multiplier,))
 
 
 # -- the compiled parts --------------------------------------------------------------------------------------------
@@ -593,4 +638,4 @@ class Belief:
         return sim
 
 
-__all__ = ["Belief", "History", "PublicModel", "belief_key", "check_world", "row_key"]
+__all__ = ["Belief", "History", "PublicModel", "belief_key", "check_world", "config_from_observation", "row_key"]
