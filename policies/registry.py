@@ -82,7 +82,8 @@ TUNED: dict[str, tuple[str, str]] = {
 # table, the identity check and the leaderboard's seeding, which issue #43 does with the frontier
 LOOKAHEAD: dict[str, tuple[str, str, str]] = {
     "rollout-solver-tuned": ("solver-tuned", "10ms", "rollout of solver-tuned on sampled futures (K=4, H=80, R=20)"),
-    "rollout-solver-tuned-1ms": ("solver-tuned", "1ms", "rollout of solver-tuned, the 1 ms budget (K=2, H=40, R=40)"),
+    "rollout-solver-tuned-1ms": ("solver-tuned", "1ms", "rollout of solver-tuned, the 1 ms budget (K=2, H=80, "
+                                 "R=80)"),
     "rollout-solver-tuned-100ms": ("solver-tuned", "100ms", "rollout of solver-tuned, the 100 ms budget (K=16, "
                                    "H=120, R=10)"),
 }

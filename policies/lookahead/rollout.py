@@ -41,7 +41,7 @@ from wfbench.core.config import ScenarioConfig
 # budget presets: (K, H, R), named by the decision time they aim at per env-step on paper-64 (one core);
 # docs/policies.md ("Lookahead policies") has the measured cost of each
 BUDGETS: dict[str, tuple[int, int, int]] = {
-    "1ms": (2, 40, 40),
+    "1ms": (2, 80, 80),
     "10ms": (4, 80, 20),
     "100ms": (16, 120, 10),
 }

@@ -35,7 +35,7 @@ def test_the_presets_are_registered_by_budget():
         assert parse_spec(name).kind == "lookahead"
         pol = policies.get(name)
         assert pol.name == name and tuple(pol.settings().values()) == BUDGETS[preset]
-    assert Rollout(policies.get("solver-tuned"), budget="1ms", H=7).settings() == {"K": 2, "H": 7, "R": 40}
+    assert Rollout(policies.get("solver-tuned"), budget="1ms", H=7).settings() == {"K": 2, "H": 7, "R": 80}
 
 
 def play(pol, config, seeds):
