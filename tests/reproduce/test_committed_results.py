@@ -27,7 +27,10 @@ ROOT = Path(__file__).resolve().parents[2]
 RUN = ROOT / "docs" / "results" / "suite-v1-50"
 
 
-def test_the_sample_covers_every_scenario_but_city_and_every_family():
+def test_the_sample_covers_every_scenario_but_city_and_every_policy():
+    from wfbench.reproduce.suite import default_policies, with_members
+
+    assert {p for p, _, _ in CI_SAMPLE} == {*with_members(default_policies())[0], "bound"}
     suite = get_suite("suite-v1")
     assert {sc for _, sc, _ in CI_SAMPLE} == {s.id for s in suite.scenarios} - {"city-v1"}
     families = {family(p) for p, _, _ in CI_SAMPLE if p != "bound"}
