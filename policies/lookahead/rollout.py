@@ -16,10 +16,12 @@ otherwise (a hire the base did not think of). Between decisions it plays the bas
 
 Nothing here reads the trace, the true state or the episode's seed: the belief's keys
 come from the seeds the policy is reset with, under a purpose of their own, as every
-policy keys its draws. The public model is the scenario's config when given
-(``scenario=``, or :meth:`Rollout.attach`); otherwise it is built from the step-0
-observation (:func:`wfbench.core.belief.config_from_observation`: exact for a constant,
-uniform world such as paper-64).
+policy keys its draws. The public model is the scenario's public config: the evaluator
+hands it over with :meth:`Rollout.set_world` before ``reset`` (``wfbench evaluate``, the
+sandbox and the hosted board alike; :func:`wfbench.harness.runner.public_world`), or it is
+given (``scenario=``); without either it is built from the step-0 observation
+(:func:`wfbench.core.belief.config_from_observation`: exact for a constant, uniform world
+such as paper-64).
 """
 
 from __future__ import annotations
@@ -76,7 +78,7 @@ class Rollout:
         K, H, R: the knobs (:data:`KNOBS`), integers >= 1; None takes the ``budget`` preset's.
         budget: a preset of :data:`BUDGETS` for the knobs not given.
         scenario: the public config of the world (a name, a path or a config); None: from
-            :meth:`attach`, else built from the first observation.
+            :meth:`set_world` (the evaluator's), else built from the first observation.
         seed: the policy's own seed, mixed into its belief keys.
         name: the policy's name.
     """
@@ -105,9 +107,15 @@ class Rollout:
     def settings(self) -> dict[str, int]:
         return {"K": self.K, "H": self.H, "R": self.R}
 
-    def attach(self, config: str | ScenarioConfig) -> None:
-        """The public config of the world (optional: without it the model comes from the first observation)."""
+    def set_world(self, config: str | ScenarioConfig) -> None:
+        """The public config of the world (optional: without it the model comes from the first observation).
+
+        The evaluator calls it before ``reset`` with the scenario's public parameters
+        (:func:`wfbench.harness.runner.public_world`); it replaces ``scenario=``.
+        """
         self.config = ScenarioConfig.resolve(config)
+
+    attach = set_world  # the name of before; the runner hands ``attach`` only to policies that read the trace
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         self._seeds = seeds_array(seeds)

@@ -4,7 +4,11 @@
 kernels as one compiled rollout, any other policy through one batched ``reset`` /
 ``act`` / ``step`` loop (a user's policy through its :class:`~wfbench.harness.guard.Guard`).
 A policy that declares ``reads_trace = True`` (a hindsight oracle, docs/hindsight.md) is
-handed the scenario with ``attach(config)`` before ``reset``; no other policy is.
+handed the scenario with ``attach(config)`` before ``reset``; no other policy is. A policy
+that defines ``set_world(config)`` is handed the world's public parameters instead
+(:func:`public_world`: the scenario's config, which holds the laws of the world and no
+seed, key or trace) before ``reset``, in process and, through the sandbox's RESET
+message, in the sandbox; a policy without it is called exactly as before.
 Each environment is independent and all its randomness is indexed by its seed, so a
 seed's numbers do not depend on the batch it ran in. :func:`results_frame` turns
 finished batches into one row per seed. The compiled rollout of a registry name also
@@ -41,6 +45,18 @@ from wfbench.policies.oracle import cache as totals_cache
 from wfbench.policies.rollout import rollout
 
 K_NSW = METRICS.index("nsw")
+
+
+def public_world(config: ScenarioConfig) -> ScenarioConfig:
+    """What ``set_world`` is handed: the world's public parameters, a copy of the scenario's config.
+
+    A :class:`ScenarioConfig` holds the laws of a world (rates and their schedules, the
+    layout's kind and parameters, delays, salaries, slots) and nothing drawn for an episode:
+    the seeds, their keys and the trace (the arrivals, clocks and towns drawn per seed) are
+    not fields of it. The copy goes through the config's own dict, so a policy that changes
+    it changes nothing of the evaluator's.
+    """
+    return ScenarioConfig.from_dict(config.to_dict())
 
 
 @dataclass
@@ -136,6 +152,8 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
             if guard is None:  # a built-in: our own code runs as it is
                 if getattr(policy, "reads_trace", False):  # a hindsight oracle: handed the scenario, so the future
                     policy.attach(sim.config)
+                elif hasattr(policy, "set_world"):  # a deployable policy that asks for the public parameters
+                    policy.set_world(public_world(sim.config))
                 policy.reset(sim.seeds)
                 while not sim.done:
                     sim.step(timed(policy.act, obs))
@@ -143,6 +161,8 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
             else:
                 if getattr(policy, "reads_trace", False):  # declared: the leaderboard keeps it off deployable tracks
                     guard.call("attach", policy.attach, sim.config)
+                elif hasattr(policy, "set_world"):  # a sandbox passes it on with RESET (sandbox_child.serve)
+                    guard.call("set_world", policy.set_world, public_world(sim.config))
                 guard.call("reset", policy.reset, sim.seeds)
                 while not sim.done:
                     guard.step(sim, timed(lambda o: guard.call("act", policy.act, o), obs), policy.act)

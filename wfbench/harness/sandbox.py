@@ -86,7 +86,7 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.harness.guard import Guard, LoadedPolicy, PolicyError
 from wfbench.harness.sandbox_child import PROBE_OK, cache_folder
-from wfbench.harness.wire import Decoder, Kind, Message, WireError, WireLimits, array_text, encode
+from wfbench.harness.wire import Decoder, Kind, Message, WireError, WireLimits, array_text, encode, text_array
 
 # the policy's user when the evaluator runs as root: one drawn per sandbox from a range no account uses, so that
 # the process limit (counted per user) is each sandbox's own and sandboxes cannot signal one another
@@ -626,11 +626,20 @@ class SandboxPolicy:
             return self.limits.warmup_s, f"warm-up limit of the first {call}"
         return self.limits.act_timeout_s, "act time limit"
 
+    def set_world(self, config: ScenarioConfig) -> None:
+        """The world's public parameters (:func:`wfbench.harness.runner.public_world`), sent with the next RESET.
+
+        The child hands them to the policy's own ``set_world`` before its ``reset``, if it has one.
+        """
+        self._world = config.to_json()
+
     def reset(self, seeds: Sequence[int]) -> None:
         """Hand the policy the opaque keys of ``seeds`` (one per environment) for a new batch of episodes."""
         self._episode_left = self.limits.wall_time_s
         keys = opaque_keys(np.asarray(seeds).tolist(), self.key_secret, self.key_context)
-        self._exchange(encode(Kind.RESET, {"keys": keys}), "reset", Kind.READY, *self._timeout("reset"))
+        world = getattr(self, "_world", None)
+        arrays = {"keys": keys} if world is None else {"keys": keys, "world": text_array(world)}
+        self._exchange(encode(Kind.RESET, arrays), "reset", Kind.READY, *self._timeout("reset"))
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The policy's batched action for ``obs``."""

@@ -46,7 +46,7 @@ from numba.core import caching
 from numba.core import event as numba_event
 
 from wfbench.core import jit
-from wfbench.harness.wire import Decoder, Kind, Message, WireError, encode, text_array, wire_dtype
+from wfbench.harness.wire import Decoder, Kind, Message, WireError, array_text, encode, text_array, wire_dtype
 
 PACKAGE_ROOT = "/policy/"  # where the sandbox mounts the package; frames under it are the user's
 PROBE_OK = "wfbench-sandbox-probe-ok"  # what a probe prints once its Python has imported wfbench in the sandbox
@@ -298,6 +298,13 @@ def action_arrays(action: Any) -> dict[str, np.ndarray]:
     return out
 
 
+def world_config(text: str) -> Any:
+    """The :class:`~wfbench.core.config.ScenarioConfig` of a RESET's ``world`` (its JSON), imported when first sent."""
+    from wfbench.core.config import ScenarioConfig
+
+    return ScenarioConfig.from_json(text)
+
+
 def serve(channel: Channel, policy: Any, memory_mb: int) -> int:
     """Answer RESET and ACT until BYE (0) or a failure (1)."""
     while True:
@@ -310,6 +317,10 @@ def serve(channel: Channel, policy: Any, memory_mb: int) -> int:
         call = "reset" if msg.kind == Kind.RESET else "act"
         try:
             if msg.kind == Kind.RESET:
+                if "world" in msg.arrays and hasattr(policy, "set_world"):  # runner.public_world's config
+                    call = "set_world"
+                    policy.set_world(world_config(array_text(msg.arrays["world"])))
+                    call = "reset"
                 policy.reset(msg.arrays["keys"].astype(np.int64))
                 reply: tuple[Kind, dict[str, np.ndarray]] = (Kind.READY, {})
             else:
