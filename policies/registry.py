@@ -89,6 +89,16 @@ LOOKAHEAD: dict[str, tuple[str, str, str]] = {
 }
 
 
+# the rolling-horizon MILP (issue #43): a preset field naming the forecast kind, "mpc:rates" or "mpc:ma"; the base
+# plays dispatch (its assignment), the MILP staffs and positions on the forecast (docs/policies.md, "mpc")
+LOOKAHEAD.update({
+    "mpc-rates": ("solver-tuned-train", "mpc:rates", "rolling-horizon staffing MILP (HiGHS) on the public rates and "
+                  "schedules, H=100, re-solved every R=20 steps; assignment dispatch"),
+    "mpc-ma": ("solver-tuned-train", "mpc:ma", "rolling-horizon staffing MILP (HiGHS) on a 100-step moving average "
+               "of observed requests (no demand model), H=100, R=20; assignment dispatch"),
+})
+
+
 def lookahead_names() -> list[str]:
     """The deployable lookahead policies (:data:`LOOKAHEAD`), asked for by name."""
     return list(LOOKAHEAD)
@@ -98,6 +108,10 @@ def _lookahead(name: str) -> Any:
     from wfbench.policies.lookahead import make
 
     base, preset, _ = LOOKAHEAD[name]
+    if preset.startswith("mpc:"):
+        from wfbench.policies.lookahead import mpc
+
+        return mpc.make(get(base), preset[4:], name=name)
     return make(get(base), preset, name=name)
 # -- end of deployable lookahead --------------------------------------------------------------------------------------
 
@@ -508,8 +522,10 @@ def parts(name: str) -> tuple[str, str, str]:
         return tuple(f"{p} (tuned)" for p in parts(base))
     if name in LEARNED_PARTS:
         return LEARNED_PARTS[name]
-    if name in LOOKAHEAD:  # issue #43: the base's parts, its workforce rolled out
+    if name in LOOKAHEAD:  # issue #43: the base's parts, its workforce rolled out or planned (mpc)
         d, w, pos = parts(LOOKAHEAD[name][0])
+        if LOOKAHEAD[name][1].startswith("mpc:"):
+            return d, f"Staffing MILP on {LOOKAHEAD[name][1][4:]}", f"Forecast demand ({LOOKAHEAD[name][1][4:]})"
         return d, f"{w} + rollout", pos
     registered = [*COMPOSITES, *ORACLES, *TUNED, *LEARNED]
     raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join(registered)}")

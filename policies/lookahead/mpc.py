@@ -1,0 +1,299 @@
+"""Model predictive control: a rolling-horizon staffing MILP on a forecast, re-solved every R steps (issue #43).
+
+Every ``R`` steps, for each environment, :class:`MPC` solves
+:func:`wfbench.solvers.staffing_mpc.plan_staffing` (HiGHS): hires and let-goes per level over
+the next ``H`` steps, with the hire and notice delays as lags, covering the forecast demand
+at the target utilization at the least payroll plus a price on shortfall. It plays the
+plan's actions step by step until the next solve (an action the mask refuses is skipped).
+
+- **Demand** (requests per step) comes from the forecast, named apart:
+  ``rates`` (``mpc-rates``): the public model of the scenario, handed by the evaluator with
+  ``set_world`` (``wfbench.harness.runner.public_world``): the expected active facilities
+  (lifetimes and arrivals under the churn schedule) times the failure rate under the
+  request schedule, from ``t`` on; ``ma`` (``mpc-ma``): the moving average of the new
+  requests observed over the last ``window`` steps, held flat (no model of demand at all).
+- **Capacity** of a productive person of level l (requests per step): ``rho q_l / T``, the
+  target utilization ``rho`` times the fix probability over the person-steps of one visit,
+  ``T = service_time + 2 * travel``, the travel the mean distance from the active facilities
+  to the nearest home over the speed, averaged over the episode's solves so far (read off
+  the present headcount alone it swings the plan: fewer people, longer trips, hire back).
+  These are the operation's own parameters (the observation's ``world`` key), known to
+  both kinds.
+- **Who is productive, and when**: read from the observations (status, notice), the ends of
+  onboarding and notice from when each was seen to start (``hire_delay``, ``notice_delay``).
+- **Positioning on forecast demand**: row 0 (where a hire is based) weights each active
+  facility by its forecast demand over the retained people within reach of it (the heat
+  map's width), so hires go where demand per person is highest; row 1 (whom to let go) the
+  inverse. Under ``rates`` every active facility has the same forecast (failures and
+  lifetimes are memoryless); under ``ma`` a facility's own observed requests over the window.
+- **Dispatch** is the base's assignment (``solver-tuned-train``'s compiled kernels).
+
+Nothing here reads the trace, a seed's generator or the true state.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from wfbench.policies import kernels as K
+from wfbench.policies.protocol import as_obs, seeds_array
+from wfbench.solvers.staffing_mpc import StaffingInstance, plan_staffing
+
+from wfbench.core.actions import AGENTS
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.context import W
+from wfbench.core.observe import FAC_REQUESTING, FAC_X, FAC_Y, PER_HOME_X, PER_HOME_Y, PER_LEVEL
+from wfbench.core.state import EMPTY, ONBOARDING
+
+FORECASTS = ("rates", "ma")
+KNOBS = {"H": "steps of the plan", "R": "steps between two solves",
+         "window": "steps of the moving average of observed requests (mpc-ma)"}
+DEFAULTS = {"H": 100, "R": 20, "window": 100}
+BLOCK = 10  # steps per decision block of the MILP (plan_staffing's block)
+SHORTFALL_COST = 1000.0  # per request per step not covered, salary units: a queue that outgrows its people never drains
+TIME_LIMIT_S = 0.2  # per solve; HiGHS keeps its best plan at the limit
+ACTION_COST = 50.0  # per hire or let-go, salary units: what churn costs beyond the lags (a novice earns 1 a step)
+
+
+def knob(name: str, value: Any) -> int:
+    """``value`` as an MPC knob's integer >= 1; ValueError of one line naming the knob otherwise."""
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    if ok and isinstance(value, (float, np.floating)):
+        ok = math.isfinite(value) and float(value).is_integer()
+    if not ok or int(value) < 1:
+        raise ValueError(f"mpc knob {name} = {value!r} is not allowed; allowed: an integer >= 1 ({KNOBS[name]})")
+    return int(value)
+
+
+class MPC:
+    """A rolling-horizon staffing MILP on a forecast (module docstring).
+
+    Args:
+        base: the compiled composite whose dispatch (and kernel state) is played, e.g.
+            ``policies.get("solver-tuned-train")``.
+        forecast: ``"rates"`` (the public rates and schedules) or ``"ma"`` (a moving average
+            of observed requests).
+        H, R, window: the knobs (:data:`KNOBS`), integers >= 1.
+        scenario: the public config (``rates``); None: from :meth:`set_world` (the evaluator's).
+        shortfall_cost: the MILP's price of a request per step not covered, salary units.
+        time_limit_s: HiGHS's limit per solve.
+        name: the policy's name.
+    """
+
+    decisions = AGENTS
+    reads_trace = False
+
+    def __init__(self, base: Any, forecast: str = "rates", H: int = DEFAULTS["H"], R: int = DEFAULTS["R"],
+                 window: int = DEFAULTS["window"], scenario: str | ScenarioConfig | None = None,
+                 shortfall_cost: float = SHORTFALL_COST, time_limit_s: float = TIME_LIMIT_S, name: str | None = None):
+        if not getattr(base, "compiled", False):
+            raise ValueError(f"mpc base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
+                             "allowed: a compiled composite (a registry composite or tuned file of one)")
+        if forecast not in FORECASTS:
+            raise ValueError(f"mpc forecast {forecast!r} is not allowed; allowed: {', '.join(FORECASTS)}")
+        self.H, self.R, self.window = knob("H", H), knob("R", R), knob("window", window)
+        self.base, self.forecast = base, forecast
+        self.shortfall_cost, self.time_limit_s = float(shortfall_cost), float(time_limit_s)
+        self.name = name or f"mpc-{forecast}"
+        self.config = None if scenario is None else ScenarioConfig.resolve(scenario)
+        self.timing: dict[str, float] = {}
+        self.last: list[Any] = []  # the last solve's SolveResult per environment
+
+    def settings(self) -> dict[str, int]:
+        out = {"H": self.H, "R": self.R}
+        if self.forecast == "ma":
+            out["window"] = self.window
+        return out
+
+    def set_world(self, config: str | ScenarioConfig) -> None:
+        """The world's public parameters (the evaluator calls it before ``reset``); ``rates`` needs them."""
+        self.config = ScenarioConfig.resolve(config)
+
+    def reset(self, seeds: int | Sequence[int]) -> None:
+        self._seeds = seeds_array(seeds)
+        self._started = False
+
+    # -- state from the observations ---------------------------------------------------------------------------
+    def _start(self, obs: dict[str, np.ndarray]) -> None:
+        B, M, N = obs["facilities"].shape[0], obs["facilities"].shape[1], obs["personnel"].shape[1]
+        if len(self._seeds) != B:
+            raise RuntimeError(f"{self.name}: reset with {len(self._seeds)} seed(s), observed {B} environment(s)")
+        if self.forecast == "rates" and self.config is None:
+            raise ValueError(f"{self.name}: the 'rates' forecast needs the world's public config (set_world, as the "
+                             "evaluator calls it, or scenario=); allowed without it: mpc-ma")
+        self.codes, self.hp, self.pstate = self.base.compiled_plan(self._seeds, M, N)
+        self.B, self.M, self.N = B, M, N
+        self.ready_at = np.zeros((B, N), dtype=np.int64)  # step onboarding ends
+        self.leave_at = np.full((B, N), -1, dtype=np.int64)  # step a notice ends
+        self.prev_status = np.full((B, N), EMPTY, dtype=np.int64)
+        self.prev_notice = np.zeros((B, N), dtype=np.int64)
+        self.prev_down = np.zeros((B, M), dtype=bool)
+        self.prev_cell = np.full((B, M, 2), -1, dtype=np.int64)
+        self.onsets = np.zeros((B, self.window), dtype=np.float64)  # new requests per step, a ring
+        self.fac_onsets = np.zeros((B, M, self.window), dtype=np.float64)
+        self.plan = np.zeros((B, self.H), dtype=np.int64)
+        self.travel_mean = np.zeros(B)
+        self.travel_n = np.zeros(B)
+        self.plan_t0 = np.full(B, -(10**9), dtype=np.int64)
+        self.timing = {"steps": 0.0, "act_s": 0.0, "solves": 0.0, "solve_s": 0.0}
+        if self.config is not None:
+            c = self.config
+            self.req_mult = c.request_schedule.multipliers(c.horizon)
+            self.churn_mult = c.churn_schedule.multipliers(c.horizon)
+        self._started = True
+
+    def _observe(self, obs: dict[str, np.ndarray], t: np.ndarray) -> None:
+        status = np.asarray(obs["personnel_status"], dtype=np.int64)
+        notice = np.asarray(obs["under_notice"], dtype=np.int64)
+        world = np.asarray(obs["world"], dtype=np.float64)
+        hd = world[:, W["hire_delay"]].astype(np.int64)
+        nd = world[:, W["notice_delay"]].astype(np.int64)
+        hired = (status != EMPTY) & (self.prev_status == EMPTY) & (t[:, None] > 0)
+        self.ready_at = np.where(hired, (t - 1 + hd)[:, None], self.ready_at)
+        noticed = (notice == 1) & (self.prev_notice == 0)
+        self.leave_at = np.where(noticed, (t - 1 + nd)[:, None], np.where(status == EMPTY, -1, self.leave_at))
+        self.prev_status, self.prev_notice = status, notice
+        fac = obs["facilities"]
+        active = np.asarray(obs["facility_mask"]) == 1
+        down = active & (fac[..., FAC_REQUESTING] > 0.5)
+        cell = np.stack([fac[..., FAC_X], fac[..., FAC_Y]], axis=-1).astype(np.int64)
+        same = active & (cell == self.prev_cell).all(-1)
+        new = down & ~(self.prev_down & same)
+        slot = t % self.window
+        rows = np.arange(self.B)
+        self.onsets[rows, slot] = new.sum(-1)
+        self.fac_onsets[~same] = 0.0  # a new facility in the slot: forget the old one's requests
+        self.fac_onsets[rows, :, slot] = new
+        self.prev_down, self.prev_cell = down, np.where(active[..., None], cell, -1)
+
+    # -- the forecast -------------------------------------------------------------------------------------------
+    def _demand(self, b: int, t: int, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Forecast new requests per step over the next H steps of environment b."""
+        H = self.H
+        if self.forecast == "ma":
+            seen = min(t + 1, self.window)
+            return np.full(H, self.onsets[b].sum() / seen)
+        c = self.config
+        life = max(c.initial_facilities, 1) * c.churn_interval
+        steps = np.minimum(t + np.arange(H), c.horizon)
+        n0 = float(np.asarray(obs["facility_mask"])[b].sum())
+        keep = math.exp(-1.0 / life)
+        arrivals = self.churn_mult[steps] / c.churn_interval
+        active = np.empty(H)
+        n = n0
+        for h in range(H):  # E[active]: survivors plus arrivals (lifetimes memoryless)
+            active[h] = n
+            n = n * keep + arrivals[min(h + 1, H - 1)]
+        down = (obs["facilities"][b, :, FAC_REQUESTING] > 0.5) & (np.asarray(obs["facility_mask"])[b] == 1)
+        up = 1.0 - down.sum() / max(n0, 1.0)  # only operational facilities fail
+        return active * up * self.req_mult[steps] / c.request_interval
+
+    def _instance(self, b: int, t: int, obs: dict[str, np.ndarray]) -> StaffingInstance:
+        H = self.H
+        world = np.asarray(obs["world"], dtype=np.float64)[b]
+        status = self.prev_status[b]
+        notice = self.prev_notice[b]
+        per = obs["personnel"][b]
+        level = per[:, PER_LEVEL].astype(np.int64)
+        on = status != EMPTY
+        steps = t + np.arange(H)
+        ready = np.zeros((3, H))
+        paid = np.zeros((3, H))
+        for p in np.flatnonzero(on):
+            lv = level[p]
+            if notice[p] == 1:
+                paid[lv] += steps < self.leave_at[b, p]
+                continue
+            paid[lv] += 1.0
+            if status[p] == ONBOARDING:
+                ready[lv] += steps >= self.ready_at[b, p]
+            else:
+                ready[lv] += 1.0
+        fix = world[[W["fix_novice"], W["fix_mid"], W["fix_expert"]]]
+        salary = world[[W["salary_novice"], W["salary_mid"], W["salary_expert"]]]
+        speed = max(world[W["speed"]], 1e-9)
+        fac = obs["facilities"][b]
+        act = np.asarray(obs["facility_mask"])[b] == 1
+        homes = per[(on & (notice == 0))][:, [PER_HOME_X, PER_HOME_Y]]
+        travel = 0.0
+        if act.any() and len(homes):
+            f = fac[act]
+            d = np.abs(f[:, None, FAC_X] - homes[None, :, 0]) + np.abs(f[:, None, FAC_Y] - homes[None, :, 1])
+            travel = float(d.min(axis=1).mean()) / speed
+        # the running mean over this episode's solves: the nearest home is farther with fewer people, and a
+        # capacity read off the present headcount alone swings the plan (let go, then hire back)
+        self.travel_n[b] += 1.0
+        self.travel_mean[b] += (travel - self.travel_mean[b]) / self.travel_n[b]
+        T = world[W["service_time"]] + 2.0 * self.travel_mean[b]
+        cap = world[W["target_utilization"]] * fix / max(T, 1e-9)
+        return StaffingInstance(demand=self._demand(b, t, obs), capacity=cap, salary=salary, ready=ready, paid=paid,
+                                hire_delay=int(world[W["hire_delay"]]), notice_delay=int(world[W["notice_delay"]]),
+                                max_headcount=int(world[W["max_personnel"]]),
+                                min_headcount=int(world[W["min_personnel"]]), shortfall_cost=self.shortfall_cost,
+                                action_cost=ACTION_COST)
+
+    def _positioning(self, b: int, obs: dict[str, np.ndarray], out: np.ndarray) -> None:
+        fac = obs["facilities"][b]
+        act = np.asarray(obs["facility_mask"])[b] == 1
+        if not act.any():
+            return
+        world = np.asarray(obs["world"], dtype=np.float64)[b]
+        reach = 2.0 * world[W["heat_sigma"]]
+        on = (self.prev_status[b] != EMPTY) & (self.prev_notice[b] == 0)
+        homes = obs["personnel"][b][on][:, [PER_HOME_X, PER_HOME_Y]]
+        if self.forecast == "ma":
+            demand = self.fac_onsets[b].sum(-1) + 1.0 / self.window  # a facility's own requests, smoothed
+        else:
+            demand = np.ones(self.M)  # memoryless failures and lifetimes: every active facility alike
+        near = np.zeros(self.M)
+        if len(homes):
+            d = np.abs(fac[:, None, FAC_X] - homes[None, :, 0]) + np.abs(fac[:, None, FAC_Y] - homes[None, :, 1])
+            near = (d <= reach).sum(axis=1)
+        per_person = np.where(act, demand / (1.0 + near), 0.0)
+        out[0] = per_person / per_person.max()
+        inv = np.where(act, (1.0 + near) / demand, 0.0)
+        out[1] = inv / inv.max()
+
+    # -- the protocol -------------------------------------------------------------------------------------------
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        start = time.perf_counter()
+        t = np.broadcast_to(np.asarray(obs["t"], dtype=np.int64), (obs["facilities"].shape[0],))
+        if not self._started or (t[0] == 0 and self.timing["steps"] > 0):
+            self._start(obs)
+        self._observe(obs, t)
+        B, M, N = self.B, self.M, self.N
+        d = np.full((B, M), N, dtype=np.int64)
+        w = np.zeros(B, dtype=np.int64)
+        p = np.zeros((B, 2, M), dtype=np.float64)
+        K.act_batch(as_obs(obs), self.pstate, self.codes, self.hp, d, w, p, np.ascontiguousarray(t))
+        mask = np.asarray(obs["workforce_mask"])
+        self.last = [None] * B if len(self.last) != B else self.last
+        for b in range(B):
+            tb = int(t[b])
+            if tb - self.plan_t0[b] >= min(self.R, self.H):
+                s0 = time.perf_counter()
+                res = plan_staffing(self._instance(b, tb, obs), time_limit=self.time_limit_s, block=BLOCK)
+                self.timing["solves"] += 1
+                self.timing["solve_s"] += time.perf_counter() - s0
+                self.plan[b] = res.solution
+                self.plan_t0[b] = tb
+                self.last[b] = res
+            a = int(self.plan[b, tb - self.plan_t0[b]])
+            w[b] = a if mask[b, a] else 0
+            if w[b] != 0:
+                self._positioning(b, obs, p[b])
+        self.timing["steps"] += 1
+        self.timing["act_s"] += time.perf_counter() - start
+        return {"dispatch": d, "workforce": w, "positioning": p}
+
+
+def make(base: Any, forecast: str, name: str | None = None, **knobs: Any) -> MPC:
+    """An :class:`MPC` of ``base`` with the ``forecast`` kind, knobs overriding the defaults."""
+    return MPC(base, forecast=forecast, name=name, **knobs)
+
+
+__all__ = ["DEFAULTS", "FORECASTS", "KNOBS", "MPC", "knob", "make"]

@@ -1,0 +1,221 @@
+"""A rolling-horizon staffing plan: a MILP of hires and let-goes per level over the next H steps.
+
+The model (one environment, steps ``h = 0..H-1`` from now, levels ``l = 0..L-1``):
+
+- decisions ``x[l, h]``, ``y[l, h]`` in {0, 1}: hire, let go one person of level l at step h;
+  at most one workforce action per step, ``sum_l x[l, h] + y[l, h] <= 1`` (the simulator's rule);
+- **lags**: a hire at h works from ``h + hire_delay`` and is paid from h; a let-go at h stops
+  working at ``h + 1`` and is paid until ``h + notice_delay``;
+- productive people ``P[l, h] = ready[l, h] + sum_{h' <= h - hire_delay} x[l, h'] - sum_{h' < h} y[l, h']``
+  with ``ready[l, h]`` those known now (working, plus those in onboarding once it ends); a
+  let-go only of someone productive at its step; ``sum_l P[l, h] >= floor[h]`` (the
+  smallest headcount, where the people known now reach it);
+- payroll ``E[l, h] = paid[l, h] + sum_{h' <= h} x[l, h'] - sum_{h' <= h - notice_delay} y[l, h']``,
+  ``sum_l E[l, h] <= max_headcount`` (the slots);
+- demand covered: ``sum_l capacity[l] P[l, h] + s[h] >= demand[h]``, shortfall ``s[h] >= 0``;
+- minimize ``sum_{h, l} salary[l] E[l, h] + shortfall_cost sum_h s[h] + action_cost sum (x + y)``.
+
+``demand`` and ``capacity`` share a unit (the policy's: requests per step, and the requests
+per step a productive person of each level resolves). ``P`` and ``E`` are linear in the
+decisions; they are kept as variables with one balance row per step (sparse: O(L H)
+non-zeros), which HiGHS solves far faster than the cumulative sums written on ``x`` and ``y``. Solved by HiGHS
+through :func:`scipy.optimize.milp`, with an optional time limit (the best incumbent is
+kept; none yet is a plan of no actions, which is always feasible).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from wfbench.solvers.result import (
+    OPTIMAL,
+    TIME_LIMIT,
+    SolveResult,
+    SolverInputError,
+    Timer,
+    check_time_limit,
+    relative_gap,
+)
+
+
+@dataclass(frozen=True)
+class StaffingInstance:
+    """One plan's data; ``H`` steps, ``L`` levels (shapes checked by :func:`plan_staffing`)."""
+
+    demand: np.ndarray  # (H,) demand per step
+    capacity: np.ndarray  # (L,) demand one productive person of each level covers per step
+    salary: np.ndarray  # (L,) pay per step
+    ready: np.ndarray  # (L, H) productive people known now at each step (no decision of the plan)
+    paid: np.ndarray  # (L, H) people on the payroll at each step, known now
+    hire_delay: int
+    notice_delay: int
+    max_headcount: int
+    min_headcount: int = 0
+    shortfall_cost: float = 10.0
+    action_cost: float = 1e-3
+
+
+def _array(a: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    try:
+        v = np.array(a, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SolverInputError(f"{name} must be numbers") from None
+    if v.shape != shape:
+        raise SolverInputError(f"{name} must have shape {shape}; got {v.shape}")
+    if not np.isfinite(v).all() or (v < 0).any():
+        raise SolverInputError(f"{name} must be finite numbers >= 0")
+    return v
+
+
+def _count(v: Any, name: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
+        raise SolverInputError(f"{name} = {v!r} is not allowed; allowed: an integer >= 0")
+    return int(v)
+
+
+def plan_staffing(inst: StaffingInstance, time_limit: float | None = None, block: int = 1) -> SolveResult:
+    """The optimal plan of ``inst`` (module docstring).
+
+    ``block``: decide once per ``block`` steps how many of each action the block takes (at
+    most ``block``, one per step from its start), with the lags taken at their latest (a
+    block's hires work from its last step plus ``hire_delay`` and are paid from its first;
+    its let-goes stop work after its first step and are paid to its last plus
+    ``notice_delay``). 1 is the exact per-step model; a larger block makes the MILP
+    smaller (``2 L H / block`` integers) at the price of that pessimism.
+
+    Returns:
+        A :class:`SolveResult` whose ``solution`` is the (H,) workforce action per step in
+        the simulator's coding (0 no-op, ``1 + l`` hire level l, ``1 + L + l`` let go level l);
+        ``detail`` holds ``hires`` and ``letgo`` (L, blocks), ``productive`` and ``payroll``
+        (L, H), ``coverage`` and ``shortfall`` (H,).
+    """
+    time_limit = check_time_limit(time_limit)
+    G = _count(block, "block")
+    if G < 1:
+        raise SolverInputError(f"block = {block!r} is not allowed; allowed: an integer >= 1")
+    demand = np.atleast_1d(np.array(inst.demand, dtype=np.float64))
+    H = demand.shape[0]
+    if H < 1:
+        raise SolverInputError("demand must have at least one step")
+    demand = _array(demand, "demand", (H,))
+    cap = np.atleast_1d(np.array(inst.capacity, dtype=np.float64))
+    L = cap.shape[0]
+    cap = _array(cap, "capacity", (L,))
+    salary = _array(inst.salary, "salary", (L,))
+    ready = _array(inst.ready, "ready", (L, H))
+    paid = _array(inst.paid, "paid", (L, H))
+    hd, nd = _count(inst.hire_delay, "hire_delay"), _count(inst.notice_delay, "notice_delay")
+    max_head, min_head = _count(inst.max_headcount, "max_headcount"), _count(inst.min_headcount, "min_headcount")
+    pen = float(inst.shortfall_cost)
+    eps = float(inst.action_cost)
+    if not (math.isfinite(pen) and pen >= 0 and math.isfinite(eps) and eps >= 0):
+        raise SolverInputError("shortfall_cost and action_cost must be finite numbers >= 0")
+    with Timer() as clock:
+        import scipy.sparse as sp
+        from scipy.optimize import Bounds, LinearConstraint, milp
+
+        G = block
+        nk = -(-H // G)  # decision blocks
+        nxy = L * nk
+        # columns: x[l, k], y[l, k] (integers 0..G), then P[l, h], E[l, h] (continuous, integral at an optimum), s[h]
+        X, Y, P, E, S = 0, nxy, 2 * nxy, 2 * nxy + L * H, 2 * nxy + 2 * L * H
+        n = S + H
+        xk = lambda base, l, k: base + l * nk + k  # noqa: E731
+        at = lambda base, l, h: base + l * H + h  # noqa: E731
+        c = np.zeros(n)
+        c[X:P] = eps
+        for l in range(L):
+            c[at(E, l, 0): at(E, l, 0) + H] = salary[l]
+        c[S:] = pen
+        # where a block's decisions act: a hire works from k G + G - 1 + hire_delay and is paid from k G; a
+        # let-go stops working at k G + 1 and is paid until k G + G - 1 + notice_delay (block 1: the exact lags)
+        works, leaves, unpaid = {}, {}, {}
+        for k in range(nk):
+            works.setdefault(k * G + G - 1 + hd, []).append(k)
+            leaves.setdefault(k * G + 1, []).append(k)
+            unpaid.setdefault(k * G + G - 1 + nd, []).append(k)
+        rows, cols, vals, lo, hi = [], [], [], [], []
+        r = 0
+
+        def add(entries, lower, upper):
+            nonlocal r
+            for j, v in entries:
+                rows.append(r)
+                cols.append(j)
+                vals.append(v)
+            lo.append(lower)
+            hi.append(upper)
+            r += 1
+
+        floor = np.minimum(min_head, ready.sum(axis=0))
+        for k in range(nk):  # at most one workforce action per step
+            add([(xk(X, l, k), 1.0) for l in range(L)] + [(xk(Y, l, k), 1.0) for l in range(L)], -np.inf,
+                min(G, H - k * G))
+        for h in range(H):
+            for l in range(L):
+                # P[l, h] = P[l, h-1] + (ready[l, h] - ready[l, h-1]) + hires that start work - let-goes that stop
+                e = [(at(P, l, h), 1.0)] + [(xk(X, l, k), -1.0) for k in works.get(h, ())]
+                e += [(xk(Y, l, k), 1.0) for k in leaves.get(h, ())]
+                if h > 0:
+                    e.append((at(P, l, h - 1), -1.0))
+                d = ready[l, h] - (ready[l, h - 1] if h > 0 else 0.0)
+                add(e, d, d)
+                # E[l, h] = E[l, h-1] + (paid[l, h] - paid[l, h-1]) + hires paid from h - notices that end
+                e = [(at(E, l, h), 1.0)] + [(xk(X, l, k), -1.0) for k in ([h // G] if h % G == 0 else [])]
+                e += [(xk(Y, l, k), 1.0) for k in unpaid.get(h, ())]
+                if h > 0:
+                    e.append((at(E, l, h - 1), -1.0))
+                d = paid[l, h] - (paid[l, h - 1] if h > 0 else 0.0)
+                add(e, d, d)
+                if h % G == 0:  # a block's let-goes only of people productive at its start
+                    add([(at(P, l, h), 1.0), (xk(Y, l, h // G), -1.0)], 0.0, np.inf)
+            add([(at(P, l, h), cap[l]) for l in range(L)] + [(S + h, 1.0)], demand[h], np.inf)  # coverage
+            add([(at(P, l, h), 1.0) for l in range(L)], floor[h], np.inf)  # the smallest headcount
+            add([(at(E, l, h), 1.0) for l in range(L)], -np.inf, max_head)  # the slots
+        A = sp.csr_matrix((vals, (rows, cols)), shape=(r, n))
+        integrality = np.concatenate([np.ones(2 * nxy), np.zeros(n - 2 * nxy)])
+        upper = np.concatenate([np.full(2 * nxy, float(G)), np.full(n - 2 * nxy, np.inf)])
+        options: dict[str, Any] = {"disp": False}
+        if time_limit is not None:
+            options["time_limit"] = time_limit
+        res = milp(c, integrality=integrality, bounds=Bounds(np.zeros(n), upper),
+                   constraints=[LinearConstraint(A, np.asarray(lo), np.asarray(hi))], options=options)
+    if res.x is None:
+        if res.status == 1:  # the time limit before an incumbent: no actions (always feasible)
+            z = np.zeros(n)
+            z[P:E], z[E:S] = ready.ravel(), paid.ravel()
+            z[S:] = np.maximum(0.0, demand - cap @ ready)
+            return _result(TIME_LIMIT, z, c, None, clock.elapsed, L, H, G, cap,
+                           "time limit before HiGHS found an incumbent; the plan of no actions")
+        raise RuntimeError(f"plan_staffing: HiGHS reports {res.message!r} on a problem the no-action plan satisfies "
+                           "(check ready >= floor and paid <= max_headcount)")
+    bound = getattr(res, "mip_dual_bound", None)
+    bound = None if bound is None or not math.isfinite(bound) else float(bound)
+    status = OPTIMAL if res.status == 0 else TIME_LIMIT
+    return _result(status, res.x, c, bound, clock.elapsed, L, H, G, cap, str(res.message))
+
+
+def _result(status, z, c, bound, elapsed, L, H, G, cap, message) -> SolveResult:
+    nk = -(-H // G)
+    nxy = L * nk
+    x = np.rint(z[:nxy]).reshape(L, nk).astype(np.int64)
+    y = np.rint(z[nxy:2 * nxy]).reshape(L, nk).astype(np.int64)
+    P0 = 2 * nxy
+    productive = np.rint(z[P0:P0 + L * H]).reshape(L, H)
+    payroll = np.rint(z[P0 + L * H:P0 + 2 * L * H]).reshape(L, H)
+    s = np.maximum(np.asarray(z[P0 + 2 * L * H:], dtype=np.float64), 0.0)
+    action = np.zeros(H, dtype=np.int64)
+    for k in range(nk):  # a block's actions on its first steps: hires, then let-goes
+        todo = [1 + l for l in range(L) for _ in range(x[l, k])] + [1 + L + l for l in range(L) for _ in range(y[l, k])]
+        action[k * G: k * G + len(todo)] = todo
+    objective = float(c @ z)
+    return SolveResult(status=status, objective=objective, solution=action, bound=bound, solve_time_s=elapsed,
+                       solver="highs", method="milp", gap=relative_gap(objective, bound), message=message,
+                       detail={"hires": x, "letgo": y, "productive": productive, "payroll": payroll,
+                               "shortfall": s, "coverage": cap @ productive, "block": G})
+
+
+__all__ = ["StaffingInstance", "plan_staffing"]

@@ -1,0 +1,57 @@
+"""The rolling-horizon staffing MILP (wfbench.solvers.staffing_mpc) on tiny instances solved by hand."""
+
+import numpy as np
+import pytest
+from wfbench.solvers import SolverInputError
+from wfbench.solvers.staffing_mpc import StaffingInstance, plan_staffing
+
+SALARY = np.array([1.0, 1.5, 2.0])
+
+
+def novices(n, H):
+    return np.array([[n], [0], [0]], dtype=float) * np.ones((3, H))
+
+
+def test_hires_come_hire_delay_early_and_as_late_as_that_allows():
+    # one novice; demand 1 then 3 from step 4; a hire works 2 steps after it; one action per step
+    inst = StaffingInstance(demand=[1, 1, 1, 1, 3, 3, 3, 3], capacity=[1, 1, 1], salary=SALARY, ready=novices(1, 8),
+                            paid=novices(1, 8), hire_delay=2, notice_delay=1, max_headcount=5)
+    res = plan_staffing(inst)
+    # by hand: two novices (the cheapest capacity), hired at steps 1 and 2 (one per step, working from 3 and 4)
+    assert res.status == "optimal" and res.solution.tolist() == [0, 1, 1, 0, 0, 0, 0, 0]
+    assert res.detail["productive"][0].tolist() == [1, 1, 1, 2, 3, 3, 3, 3]
+    assert res.detail["payroll"][0].tolist() == [1, 2, 3, 3, 3, 3, 3, 3]  # paid from the hire on
+    assert (res.detail["coverage"] >= np.array([1, 1, 1, 1, 3, 3, 3, 3])).all() and res.detail["shortfall"].sum() == 0
+    assert res.objective == pytest.approx(8 + 7 + 6 + 2e-3)  # payroll steps, and the two actions' small cost
+
+
+def test_let_goes_stop_work_next_step_and_are_paid_through_the_notice():
+    inst = StaffingInstance(demand=[3, 3, 1, 1, 1, 1, 1, 1], capacity=[1, 1, 1], salary=SALARY, ready=novices(3, 8),
+                            paid=novices(3, 8), hire_delay=2, notice_delay=2, max_headcount=5, min_headcount=1)
+    res = plan_staffing(inst)
+    # by hand: demand 3 at step 1, so the first let-go is at step 1 (stops work at 2), the second at step 2
+    assert res.solution.tolist() == [0, 4, 4, 0, 0, 0, 0, 0]
+    assert res.detail["productive"][0].tolist() == [3, 3, 2, 1, 1, 1, 1, 1]
+    assert res.detail["payroll"][0].tolist() == [3, 3, 3, 2, 1, 1, 1, 1]
+    assert res.detail["shortfall"].sum() == 0
+
+
+def test_a_jump_faster_than_the_lags_is_shortfall_not_an_impossible_plan():
+    inst = StaffingInstance(demand=[0, 0, 3, 3], capacity=[1, 1, 1], salary=SALARY, ready=novices(0, 4),
+                            paid=novices(0, 4), hire_delay=1, notice_delay=1, max_headcount=5, shortfall_cost=100.0)
+    res = plan_staffing(inst)
+    assert res.solution.tolist() == [1, 1, 1, 0]  # one a step: 1, 2 then 3 at work
+    assert res.detail["productive"][0].tolist() == [0, 1, 2, 3]
+    assert res.detail["shortfall"].tolist() == pytest.approx([0, 0, 1, 0])
+
+
+def test_blocks_take_the_lags_at_their_latest_and_bad_input_is_refused():
+    inst = StaffingInstance(demand=[1, 1, 1, 1, 3, 3, 3, 3], capacity=[1, 1, 1], salary=SALARY, ready=novices(1, 8),
+                            paid=novices(1, 8), hire_delay=2, notice_delay=1, max_headcount=5)
+    res = plan_staffing(inst, block=2)
+    assert res.solution.tolist() == [1, 1, 0, 0, 0, 0, 0, 0]  # block 0's hires work from its last step + 2 = 3
+    assert (res.detail["coverage"] >= inst.demand).all()
+    with pytest.raises(SolverInputError, match="block = 0 is not allowed"):
+        plan_staffing(inst, block=0)
+    with pytest.raises(SolverInputError, match="ready must have shape"):
+        plan_staffing(StaffingInstance(**{**inst.__dict__, "ready": np.ones((3, 2))}))
