@@ -175,6 +175,35 @@ class PositionalEncoder(nn.Module):
         return self.mlp(feats)
 
 
+# (device, dtype, q, k, v and mask shapes) of the calls a fused backend refused: they go to the math kernel directly
+_MATH_ONLY: set[tuple] = set()
+
+
+def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, attn_mask: torch.Tensor) -> torch.Tensor:
+    """``F.scaled_dot_product_attention``, with the math kernel where a fused backend refuses the shape.
+
+    On CUDA torch picks cuDNN's attention for bf16 when it can, and cuDNN may refuse a shape
+    at run time (``Expected mha_graph.execute(...).is_good() to be true``, issue #44, the
+    ``paper`` network at B = 4096). Such a RuntimeError retries the call under
+    ``sdpa_kernel(SDPBackend.MATH)`` (the reference kernel, any shape and dtype), and calls of
+    the same shapes go there directly from then on. A call that succeeds is the plain
+    ``F.scaled_dot_product_attention``: the same bits as before (float32 CPU included).
+    A refusal in the backward pass is not caught here.
+    """
+    key = (q.device.type, q.dtype, tuple(q.shape), tuple(k.shape), tuple(v.shape), tuple(attn_mask.shape))
+    if key not in _MATH_ONLY:
+        try:
+            return F.scaled_dot_product_attention(q, k, v, attn_mask=attn_mask)
+        except torch.OutOfMemoryError:
+            raise  # not a refusal: the math kernel needs more memory, not less
+        except RuntimeError:
+            _MATH_ONLY.add(key)
+    from torch.nn.attention import SDPBackend, sdpa_kernel
+
+    with sdpa_kernel(SDPBackend.MATH):
+        return F.scaled_dot_product_attention(q, k, v, attn_mask=attn_mask)
+
+
 class Attention(nn.Module):
     """Pre-norm multi-head attention with a key mask and an optional additive bias (B, heads, Lq, Lk)."""
 
@@ -195,7 +224,7 @@ class Attention(nn.Module):
             ~_safe_keys(key_mask)[:, None, None, :], float("-inf"))
         if bias is not None:
             mask = mask + bias.to(q.dtype)
-        y = F.scaled_dot_product_attention(q, k, v, attn_mask=mask)
+        y = attention(q, k, v, mask)
         x = x + self.o(y.transpose(1, 2).reshape(B, Lq, d))
         return x + self.ffn(self.nf(x))
 
@@ -282,14 +311,19 @@ class WorkforceNet(nn.Module):
         return fac, per, g, z
 
     def memory(self, z: torch.Tensor, state, starts: torch.Tensor):
-        """The LSTM over a sequence: z (T, B, H), starts (T, B) (1: an episode starts here, reset the state)."""
-        h, c = state
-        outs = []
-        for t in range(z.shape[0]):
-            keep = (1.0 - starts[t].to(z.dtype)).view(1, -1, 1)
-            o, (h, c) = self.lstm(z[t:t + 1], (h * keep, c * keep))
-            outs.append(o[0])
-        return torch.stack(outs), (h, c)
+        """The LSTM over a sequence: z (T, B, H), starts (T, B) (1: an episode starts here, reset the state).
+
+        In float32 under autocast too (cuDNN's autocast would run it in float16 whatever the
+        autocast dtype); in float32 the casts are the tensors themselves: the same bits.
+        """
+        with torch.autocast(device_type=z.device.type, enabled=False):
+            z, (h, c) = z.float(), (s.float() for s in state)
+            outs = []
+            for t in range(z.shape[0]):
+                keep = (1.0 - starts[t].to(z.dtype)).view(1, -1, 1)
+                o, (h, c) = self.lstm(z[t:t + 1], (h * keep, c * keep))
+                outs.append(o[0])
+            return torch.stack(outs), (h, c)
 
     def heads(self, x: dict[str, torch.Tensor], fac, per, g, mem, at=None) -> dict[str, torch.Tensor]:
         """Fusion of the memory with the entities, then the heads (raw logits, fp32) and the value.

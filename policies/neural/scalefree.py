@@ -12,7 +12,7 @@ The network, per step::
     personnel rows [flags, Fourier(position, home / extent)] --MLP--> P (B, N, d)
     context [v1 globals, log context]                      --MLP--> g (B, d)
     z = [masked mean F, masked mean P, g] --LSTM--> h (B, H)      the memory, once per environment
-    heads (fp32):
+    heads (fp32, also under autocast):
       dispatch   only the facilities with a real choice (open request, someone free), over the
                  k nearest eligible people in travel time plus "nobody":
                  C tanh((q_f . k_p / sqrt(d) + pair(tt, rank, tt - tt_min) - alpha(g, h) tt) / C)
@@ -345,36 +345,48 @@ class ScaleFreeNet(nn.Module):
         g = self.glob_mlp(x["glob"])
         mf, mp = _masked_mean(fac, x["fac_mask"]), _masked_mean(per, x["per_mask"])
         z = self.summary(torch.cat([mf, mp, g], -1)).view(T, B, -1)
-        h, c = state
-        outs = []
-        for t in range(T):
-            keep = (1.0 - starts[t].to(z.dtype)).view(1, -1, 1)
-            o, (h, c) = self.lstm(z[t:t + 1], (h * keep, c * keep))
-            outs.append(o[0])
-        mem = torch.stack(outs).reshape(T * B, -1)
-        top = self.top_norm(torch.cat([mf, mp, g, mem], -1))
-        out = {"value": self.value_head(top).squeeze(-1), "workforce": self.wf_head(top), "fac": fac, "mem": mem}
-        rows, facs = x["choose"].nonzero(as_tuple=True)
-        if rows.numel():
-            cand, tt = x["cand"][rows, facs], x["tt"][rows, facs]  # (C, k)
-            q = self.ptr_q(fac[rows, facs]) + self.ptr_mem(mem[rows])  # (C, d)
-            keys = self.ptr_k(per[rows[:, None], cand.clamp_max(per.shape[1] - 1)])  # (C, k, d)
-            near = tt[:, :1]
-            kk = tt.shape[1]
-            rank = torch.arange(kk, device=tt.device, dtype=tt.dtype).expand_as(tt) / kk
-            pair = self.pair(torch.stack([torch.log1p(tt), rank, (tt - near) / (1.0 + near)], -1)).squeeze(-1)
-            alpha = F.softplus(self.alpha(torch.cat([g[rows], mem[rows]], -1)))  # (C, 1)
-            logits = (keys @ q[:, :, None]).squeeze(-1) / math.sqrt(q.shape[-1]) + pair - alpha * tt
-            logits = torch.cat([logits, self.noop(q)], -1)
-            out["dispatch"] = CLIP * torch.tanh(logits / CLIP)
-        else:
-            out["dispatch"] = fac.new_zeros((0, x["cand"].shape[-1] + 1))
+        # the memory in float32 under autocast too: cuDNN's autocast would run the LSTM in float16 whatever the
+        # autocast dtype (its output then meets bf16 tensors), and the state is carried from step to step
+        with torch.autocast(device_type=z.device.type, enabled=False):
+            z, (h, c) = z.float(), (s.float() for s in state)
+            outs = []
+            for t in range(T):
+                keep = (1.0 - starts[t].to(z.dtype)).view(1, -1, 1)
+                o, (h, c) = self.lstm(z[t:t + 1], (h * keep, c * keep))
+                outs.append(o[0])
+            mem = torch.stack(outs).reshape(T * B, -1)
+        # the heads in float32, as the paper network's (under autocast the entity rows come in bf16, and the
+        # positioning head runs after the forward, outside autocast). In float32 .float() is the tensor itself
+        # and the autocast context does nothing: the same bits as without it
+        with torch.autocast(device_type=fac.device.type, enabled=False):
+            fac, per, g, mf, mp, mem = fac.float(), per.float(), g.float(), mf.float(), mp.float(), mem.float()
+            top = self.top_norm(torch.cat([mf, mp, g, mem], -1))
+            out = {"value": self.value_head(top).squeeze(-1), "workforce": self.wf_head(top), "fac": fac, "mem": mem}
+            rows, facs = x["choose"].nonzero(as_tuple=True)
+            if rows.numel():
+                cand, tt = x["cand"][rows, facs], x["tt"][rows, facs]  # (C, k)
+                q = self.ptr_q(fac[rows, facs]) + self.ptr_mem(mem[rows])  # (C, d)
+                keys = self.ptr_k(per[rows[:, None], cand.clamp_max(per.shape[1] - 1)])  # (C, k, d)
+                near = tt[:, :1]
+                kk = tt.shape[1]
+                rank = torch.arange(kk, device=tt.device, dtype=tt.dtype).expand_as(tt) / kk
+                pair = self.pair(torch.stack([torch.log1p(tt), rank, (tt - near) / (1.0 + near)], -1)).squeeze(-1)
+                alpha = F.softplus(self.alpha(torch.cat([g[rows], mem[rows]], -1)))  # (C, 1)
+                logits = (keys @ q[:, :, None]).squeeze(-1) / math.sqrt(q.shape[-1]) + pair - alpha * tt
+                logits = torch.cat([logits, self.noop(q)], -1)
+                out["dispatch"] = CLIP * torch.tanh(logits / CLIP)
+            else:
+                out["dispatch"] = fac.new_zeros((0, x["cand"].shape[-1] + 1))
         return out, (h, c)
 
     def positioning(self, out: dict, rows: torch.Tensor, which: torch.Tensor) -> torch.Tensor:
-        """Positioning logits (n, M) of environments ``rows``, row ``which`` (0 hire, 1 let go) of each."""
-        fac = out["fac"][rows] + self.pos_mem(out["mem"][rows])[:, None]
-        logits = self.pos_head(fac)  # (n, M, 2)
+        """Positioning logits (n, M) of environments ``rows``, row ``which`` (0 hire, 1 let go) of each.
+
+        In float32 (a head), called inside autocast or not: ``out`` holds float32 rows (:meth:`forward`).
+        """
+        with torch.autocast(device_type=out["fac"].device.type, enabled=False):
+            fac = out["fac"][rows].float() + self.pos_mem(out["mem"][rows].float())[:, None]
+            logits = self.pos_head(fac)  # (n, M, 2)
         return logits.gather(-1, which.view(-1, 1, 1).expand(-1, logits.shape[1], 1)).squeeze(-1)
 
     # -- the distributions ------------------------------------------------------------------------

@@ -274,8 +274,8 @@ class Trainer:
     """
 
     def __init__(self, config: HindsightConfig, resume: str | Path | None = None, progress: bool = True,
-                 log: bool = True):
-        self.run = toolkit.start_run(config, progress, log)
+                 log: bool = True, amp: str | torch.dtype | None = "auto"):
+        self.run = toolkit.start_run(config, progress, log, amp)
         c = config
         # the random streams of its own (the network's initial weights come from torch's, seeded by start_run)
         self.gen = torch.Generator(device=self.run.device).manual_seed(c.seed)  # the learner's sampling noise
@@ -353,7 +353,7 @@ class Trainer:
                 M, N = self.sim.M, self.sim.N  # across worlds the next episode may be of another size
             t0 = time.perf_counter()
             raw, x, out, self.state, acts = toolkit.policy_step(self.model, self.obs, self.state, self.starts,
-                                                                self.model, gen, c.bf16)
+                                                                self.model, gen, self.run.amp)
             mine = {k: v.cpu().numpy() for k, v in acts.items()}
             t1 = time.perf_counter()
             values_s = 0.0
@@ -495,7 +495,7 @@ class Trainer:
             if k == c.value_horizon - 1 or self.value_fork.done:
                 break
             x = featurize(obs_to_torch(obs, dev), self.run.network.coord_scale)
-            with toolkit.autocast(dev, c.bf16):
+            with toolkit.autocast(dev, self.run.amp):
                 out, state = self.model(x, state, starts)
             noise = {key: gumbel(shape, self.value_gen, dev)[noise_row]
                      for key, shape in noise_shapes(B * S, M, N).items()}
@@ -510,7 +510,7 @@ class Trainer:
         T, S = batch["starts"].shape
         raw = {k: batch[k].flatten(0, 1) for k in OBS_KEYS}
         x = featurize(raw, self.run.network.coord_scale)
-        with toolkit.autocast(self.run.device, c.bf16):
+        with toolkit.autocast(self.run.device, self.run.amp):
             out, _ = self.model(x, (batch["h"], batch["c"]), batch["starts"])
         acts = {k: batch[k].flatten(0, 1).long() for k in HEADS}
         # a step counts once the LSTM state is trustworthy: after the burn-in, or from an episode start on

@@ -164,14 +164,14 @@ class Actor:
     """
 
     def __init__(self, cfg: ImpalaConfig, scenario: ScenarioConfig, model: WorkforceNet, device: torch.device,
-                 index: int = 0, count: int = 1):
+                 index: int = 0, count: int = 1, amp: str | torch.dtype | None = "auto"):
         self.cfg, self.device, self.index = cfg, device, index
         self.model = copy.deepcopy(model).eval()
         for p in self.model.parameters():
             p.requires_grad_(False)
         self.version = -1  # the learner update whose parameters this copy holds
         # with stagger False the B episodes end together and are reset in place (never a fresh batch)
-        self.env = toolkit.Collector(cfg, scenario, device, staggered=cfg.stagger, index=index, count=count)
+        self.env = toolkit.Collector(cfg, scenario, device, staggered=cfg.stagger, index=index, count=count, amp=amp)
 
     @property
     def seed_cursor(self) -> int:
@@ -245,8 +245,8 @@ class Trainer:
     """An IMPALA run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
 
     def __init__(self, config: ImpalaConfig, resume: str | Path | None = None, progress: bool = True,
-                 log: bool = True):
-        self.run = toolkit.start_run(config, progress, log)
+                 log: bool = True, amp: str | torch.dtype | None = "auto"):
+        self.run = toolkit.start_run(config, progress, log, amp)
         c = config
         self.model = WorkforceNet(self.run.network).to(self.run.device)
         if c.optimizer == "adam":
@@ -259,7 +259,7 @@ class Trainer:
         if c.init and resume is None:
             toolkit.init_weights(self)
         # the thread path's actor, here; the Ray path's live in Ray workers (started by train())
-        self.actor = None if c.address else Actor(c, self.run.scenario, self.model, self.run.device)
+        self.actor = None if c.address else Actor(c, self.run.scenario, self.model, self.run.device, amp=self.run.amp)
         self.n_actors = c.ray_actors if c.address else 1
         # what a checkpoint needs of each actor, as of its last rollout the learner used (None: none yet)
         self.actor_metas: list[dict | None] = [self.actor.meta()] if self.actor else [None] * self.n_actors
@@ -292,7 +292,7 @@ class Trainer:
         T, B = roll["logp"].shape
         raw = {k: v.flatten(0, 1) for k, v in roll["raw"].items()}  # (T + 1) * B rows, time major
         x = featurize(raw, self.run.network.coord_scale)
-        with toolkit.autocast(self.run.device, c.bf16):
+        with toolkit.autocast(self.run.device, self.run.amp):
             out, _ = self.model(x, roll["init_state"], roll["starts"])
         values = out["value"].float().view(T + 1, B)
         n = T * B  # the last step's rows only give the bootstrap value

@@ -53,7 +53,11 @@ seeds), scored through ``wfbench.evaluate`` in the checkpoint's default (sampled
 Each checkpoint records the seeds it was selected on.
 
 Same code on CPU and CUDA; on CUDA the forward passes run under bf16 autocast (the
-heads and the value in fp32) and ``compile=True`` wraps the network in ``torch.compile``.
+heads, the value and the LSTM in fp32; ``Trainer(config, amp=...)`` picks another dtype,
+or autocast on CPU, as tests/train/test_amp.py does) and ``compile=True`` wraps the
+network in ``torch.compile``. On CUDA a minibatch too large for half the GPU's memory is
+run in chunks of ``update_envs`` environments whose gradients add up
+(:meth:`Trainer._chunked_step`, :mod:`wfbench.train.memory`); on CPU the whole minibatch.
 On CPU a run is deterministic given ``seed``.
 """
 
@@ -70,7 +74,7 @@ import torch
 from wfbench import policies
 from wfbench.policies.neural import scalefree
 from wfbench.policies.neural.model import AgentSet, WorkforceNet, agent_set_config
-from wfbench.train import toolkit
+from wfbench.train import memory, toolkit
 
 AGENTS = ("joint", "independent")
 VARIANTS = {
@@ -90,7 +94,7 @@ class TrainConfig(toolkit.ActorCriticConfig):
     gae_lambda: float = 0.95
     clip: float = 0.2
     vf_clip: float = 0.2
-    compile: bool = False  # CUDA only: torch.compile of the network
+    compile: bool = False  # torch.compile of the network (any device; made for CUDA)
     value_warmup: int = 0  # first updates that fit the value head alone, the policy frozen (fine-tuning --init)
     scalefree_ok = True  # PPO trains the scale-free network (--model scalefree)
 
@@ -122,8 +126,8 @@ class Trainer:
     """A PPO run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
 
     def __init__(self, config: TrainConfig, resume: str | Path | None = None, progress: bool = True,
-                 log: bool = True):
-        self.run = run = toolkit.start_run(config, progress, log)
+                 log: bool = True, amp: str | torch.dtype | None = "auto", update_envs: int | str | None = "auto"):
+        self.run = run = toolkit.start_run(config, progress, log, amp)
         c = config
         self.decisions = VARIANTS[c.variant]
         independent = c.agents == "independent"
@@ -147,7 +151,7 @@ class Trainer:
         self.staggered = c.stagger and c.variant == "joint"
         helper = (lambda: policies.Composite("none", "threshold", "spatial")) if c.variant == "dispatch" else None
         self.env = toolkit.Collector(c, run.scenario, run.device, reward=REWARDS[c.variant], staggered=self.staggered,
-                                     fresh_batches=True, helper=helper)
+                                     fresh_batches=True, helper=helper, amp=run.amp)
         self.update = 0
         self.timing = self.env.timing  # simulator, obs_to_tensor, forward (the collector's), update
         self.timing["update"] = 0.0
@@ -159,8 +163,18 @@ class Trainer:
                 self.vopt.load_state_dict(ckpt["value_optimizer"])
             self.env.restore(ckpt)
             self.update = ckpt["update"]
-        self.net = torch.compile(self.model) if (c.compile and run.cuda) else self.model
+        self.net = torch.compile(self.model) if c.compile else self.model
         self.env.start(self.model)
+        # the environments of one forward and backward pass of the update: None, the whole minibatch (on CPU,
+        # and wherever it fits); on CUDA a minibatch over half the GPU's memory runs in chunks (wfbench.train.memory)
+        if update_envs == "auto":
+            update_envs = None
+            if run.cuda:
+                budget = 0.5 * torch.cuda.get_device_properties(run.device).total_memory
+                update_envs = memory.update_envs(run.network, self.sim.M, self.sim.N, c.num_steps, budget)
+        if update_envs is not None and (type(update_envs) is not int or update_envs < 1):
+            raise ValueError(f"update_envs = {update_envs!r} is not allowed; allowed: auto, None or an integer >= 1")
+        self.update_envs = update_envs
 
     @property
     def sim(self):
@@ -189,7 +203,7 @@ class Trainer:
                                 self.values, model=self.model)
         self.run.global_step += T * self.sim.B
         t0 = time.perf_counter()
-        with torch.no_grad(), toolkit.autocast(self.run.device, c.bf16):
+        with torch.no_grad(), toolkit.autocast(self.run.device, self.run.amp):
             x = scalefree.features(self.model, {k: v[T] for k, v in roll["raw"].items()})
             out, _ = self.net(x, self.env.state, roll["starts"][T][None])
             next_value = self.values(out)
@@ -223,10 +237,13 @@ class Trainer:
             perm = torch.randperm(B, generator=perm_gen).to(self.run.device)
             for i in range(c.minibatches):
                 idx = perm[i * mb:(i + 1) * mb]
+                if self.update_envs is not None and self.update_envs < mb:
+                    self._chunked_step(feats, roll, idx, stats)
+                    continue
                 x = {k: v[:, idx].flatten(0, 1) for k, v in feats.items()}
                 acts = {k: roll[k][:, idx].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
                 state = tuple(s[:, idx] for s in roll["init_state"])
-                with toolkit.autocast(self.run.device, c.bf16):
+                with toolkit.autocast(self.run.device, self.run.amp):
                     out, _ = self.net(x, state, roll["starts"][:-1, idx])
                 if scalefree.obs_version(self.model) == 1:  # the heads this network has (the dispatch variant: one)
                     acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
@@ -264,6 +281,66 @@ class Trainer:
                     stats[f"ent_{k}"].append(v.mean().item())
         self.timing["update"] += time.perf_counter() - t0
         return {k: float(np.mean(v)) for k, v in stats.items() if v}
+
+    def _chunked_step(self, feats: dict, roll: dict, idx: torch.Tensor, stats: dict) -> None:
+        """One minibatch (environments ``idx``) in chunks of ``update_envs`` environments, one optimizer step.
+
+        The loss of :meth:`learn` written as sums over the rows divided by the minibatch's
+        rows, so the chunks' gradients add up to the whole minibatch's (up to the order of
+        float sums); the advantages are normalized over the whole minibatch. Only the
+        activations of one chunk are alive at a time (``wfbench.train.memory``).
+        """
+        c = self.run.config
+        T = roll["starts"].shape[0] - 1
+        n = idx.numel() * T
+        adv_all = roll["adv"][:, idx].flatten(0, 1)
+        mean, std = adv_all.mean(0), adv_all.std(0) + 1e-8
+        warm = self.update < c.value_warmup
+        opt = self.vopt if warm else self.opt
+        opt.zero_grad(set_to_none=True)
+        self.opt.zero_grad(set_to_none=True)
+        sums = {k: 0.0 for k in ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac")}
+        parts_sum: dict[str, float] = {}
+        for sub in idx.split(self.update_envs):
+            x = {k: v[:, sub].flatten(0, 1) for k, v in feats.items()}
+            acts = {k: roll[k][:, sub].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
+            state = tuple(s[:, sub] for s in roll["init_state"])
+            with toolkit.autocast(self.run.device, self.run.amp):
+                out, _ = self.net(x, state, roll["starts"][:-1, sub])
+            if scalefree.obs_version(self.model) == 1:
+                acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
+            logp, ent, parts = self.agent_log_probs(out, x, acts)
+            old_logp = roll["logp"][:, sub].flatten(0, 1)
+            adv = (roll["adv"][:, sub].flatten(0, 1) - mean) / std
+            ratio = (logp - old_logp).exp()
+            pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).sum() / n
+            value = self.values(out)
+            old_v, ret = roll["value"][:, sub].flatten(0, 1), roll["ret"][:, sub].flatten(0, 1)
+            v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
+            v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).sum() / n
+            entropy = ent.sum() / n
+            if warm:
+                loss = 0.5 * ((value - ret) ** 2).sum() / n
+            else:
+                loss = pg + c.vf_coef * v_loss - c.ent_coef * entropy
+            loss.backward()
+            with torch.no_grad():
+                sums["approx_kl"] += float(((ratio - 1) - (logp - old_logp)).sum()) / ratio.numel() * sub.numel()
+                sums["clipfrac"] += float(((ratio - 1).abs() > c.clip).float().sum()) / ratio.numel() * sub.numel()
+            sums["pg_loss"] += pg.item()
+            sums["v_loss"] += v_loss.item()
+            sums["entropy"] += entropy.item()
+            for k, v in parts.items():
+                parts_sum[k] = parts_sum.get(k, 0.0) + float(v.detach().sum()) / n
+        for group in self.clip_groups:
+            torch.nn.utils.clip_grad_norm_(group, c.max_grad_norm)
+        opt.step()
+        sums["approx_kl"] /= idx.numel()
+        sums["clipfrac"] /= idx.numel()
+        for k, v in sums.items():
+            stats[k].append(v)
+        for k, v in parts_sum.items():
+            stats[f"ent_{k}"].append(v)
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):

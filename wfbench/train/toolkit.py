@@ -179,9 +179,38 @@ def take_seeds(run_seed: int, cursor: int, k: int, index: int = 0, count: int = 
     return list(train[start:start + k * n:n])
 
 
-def autocast(device: torch.device, bf16: bool):
-    """bf16 autocast of a forward pass on CUDA (``bf16``); a no-op context on CPU."""
-    return torch.autocast(device_type=device.type, dtype=torch.bfloat16, enabled=device.type == "cuda" and bf16)
+AMP_DTYPES = {"bfloat16": torch.bfloat16, "float16": torch.float16}
+
+
+def amp_dtype(device: torch.device, bf16: bool, amp: str | torch.dtype | None = "auto") -> torch.dtype | None:
+    """The autocast dtype of a run's forward passes; None: float32 (no autocast).
+
+    ``amp="auto"`` (what ``wfbench train`` uses): bfloat16 on CUDA when ``bf16``, float32
+    on CPU. Otherwise ``amp`` is the dtype itself (``torch.bfloat16``, ``torch.float16``
+    or their names) on whatever device the run is, CPU included, or None for float32:
+    the CPU tests run the trainers' CUDA dtype path this way (``torch.autocast("cpu", ...)``,
+    tests/train/test_amp.py).
+    """
+    if isinstance(amp, str):
+        if amp == "auto":
+            return torch.bfloat16 if device.type == "cuda" and bf16 else None
+        if amp not in AMP_DTYPES:
+            raise ValueError(f"amp {amp!r} is not allowed; allowed: auto, {', '.join(AMP_DTYPES)}")
+        return AMP_DTYPES[amp]
+    if amp is not None and amp not in AMP_DTYPES.values():
+        raise ValueError(f"amp {amp!r} is not allowed; allowed: auto, None, {', '.join(AMP_DTYPES)}")
+    return amp
+
+
+def autocast(device: torch.device, amp: torch.dtype | bool | None):
+    """Autocast of a forward pass in dtype ``amp`` on ``device``'s type; None: a no-op context (float32).
+
+    ``amp`` is a run's :func:`amp_dtype` (``Run.amp``); a bool is the older ``bf16`` flag
+    (bfloat16 on CUDA only). The network keeps its heads in float32 either way.
+    """
+    if isinstance(amp, bool):
+        amp = amp_dtype(device, amp)
+    return torch.autocast(device_type=device.type, dtype=amp or torch.bfloat16, enabled=amp is not None)
 
 
 def network_config(preset: str, decisions: tuple[str, ...], overrides: dict):
@@ -192,18 +221,18 @@ def network_config(preset: str, decisions: tuple[str, ...], overrides: dict):
 
 
 def policy_step(net, obs: dict, state, starts: torch.Tensor, model, gen: torch.Generator | None,
-                bf16: bool) -> tuple[dict, dict, dict, tuple, dict]:
+                amp: torch.dtype | bool | None) -> tuple[dict, dict, dict, tuple, dict]:
     """One step of the network on a batch (no grad): observation -> tensors -> forward -> sampled heads.
 
     ``model`` is the network ``net`` runs (``net`` may be its compiled wrapper); it says
     which observation it reads. ``gen`` draws the Gumbel noise of the sample (None:
-    greedy). Returns the raw tensors, the features, the head outputs, the LSTM state
-    after the step and the actions.
+    greedy), ``amp`` the autocast dtype (:func:`autocast`). Returns the raw tensors, the
+    features, the head outputs, the LSTM state after the step and the actions.
     """
     dev = starts.device
     raw = scalefree.raw_tensors(model, obs, dev)
     x = scalefree.features(model, raw)
-    with torch.no_grad(), autocast(dev, bf16):
+    with torch.no_grad(), autocast(dev, amp):
         out, state = net(x, state, starts[None])
     (B, M), N = obs["requesting"].shape, obs["personnel"].shape[1]
     shapes = scalefree.noise_shapes(model, B, M, N)
@@ -232,12 +261,16 @@ class Collector:
     next step flagged as a start. With ``fresh_batches`` and no stagger the B episodes
     end together and a new Simulator is made on the next B seeds (with a fresh ``helper``,
     the heuristic parts of PPO's dispatch variant, which keep per-environment memory).
+    ``amp``: the autocast dtype of the forward passes (:func:`amp_dtype`; ``"auto"``:
+    from ``cfg.bf16`` and the device).
     """
 
     def __init__(self, cfg: ActorCriticConfig, scenario: ScenarioConfig, device: torch.device, *,
                  reward: str = "nsw", staggered: bool = True, fresh_batches: bool = False,
-                 helper: Callable[[], Any] | None = None, index: int = 0, count: int = 1):
+                 helper: Callable[[], Any] | None = None, index: int = 0, count: int = 1,
+                 amp: str | torch.dtype | None = "auto"):
         self.cfg, self.scenario, self.device, self.reward = cfg, scenario, device, reward
+        self.amp = amp_dtype(device, cfg.bf16, amp)
         self.staggered, self.fresh_batches, self.make_helper = staggered, fresh_batches, helper
         self.index, self.count = index, count
         self.gen = torch.Generator(device=device).manual_seed(cfg.seed + 1_000_003 * index)
@@ -380,7 +413,7 @@ class Collector:
         for t in range(T):
             t0 = time.perf_counter()
             raw, x, out, self.state, acts = policy_step(net, self.obs, self.state, self.starts,
-                                                        model, self.gen, self.cfg.bf16)
+                                                        model, self.gen, self.amp)
             logp = log_prob(out, x, acts).float()
             if t == 0:  # the buffers of what the first step shows the shapes and types of
                 roll["raw"] = {k: torch.empty((T + 1, *v.shape), dtype=v.dtype, device=dev) for k, v in raw.items()}
@@ -433,7 +466,8 @@ class Run:
     started from; a resumed run keeps its first), ``hardware`` (of each segment),
     ``wall_before`` (seconds of the earlier segments of a resumed run; None when its
     checkpoint did not record them) and ``wall_start`` (``time.monotonic()`` when this
-    segment started).
+    segment started). ``amp``: the autocast dtype of its forward passes (None: float32;
+    :func:`amp_dtype`).
     """
 
     config: BaseConfig
@@ -450,6 +484,7 @@ class Run:
     best: dict = field(default_factory=lambda: {"score": -math.inf, "update": None})
     history: list = field(default_factory=list)
     global_step: int = 0
+    amp: torch.dtype | None = None
 
     @property
     def cuda(self) -> bool:
@@ -457,8 +492,12 @@ class Run:
         return self.device.type == "cuda"
 
 
-def start_run(config: BaseConfig, progress: bool, log: bool) -> Run:
-    """Check ``config``, set torch's threads and seed; the :class:`Run` record of a fresh run on it."""
+def start_run(config: BaseConfig, progress: bool, log: bool, amp: str | torch.dtype | None = "auto") -> Run:
+    """Check ``config``, set torch's threads and seed; the :class:`Run` record of a fresh run on it.
+
+    ``amp``: the autocast dtype of the run's forward passes (:func:`amp_dtype`; ``"auto"``:
+    bfloat16 on CUDA with ``config.bf16``, float32 on CPU).
+    """
     # resolved once, by the check; several worlds (``scenarios``): a WorldSet, which the collector, the public
     # scores and the checkpoint read
     scenario = config.validate()
@@ -467,7 +506,7 @@ def start_run(config: BaseConfig, progress: bool, log: bool) -> Run:
     torch.manual_seed(config.seed)
     return Run(config=config, device=device, scenario=scenario, network=config.network_config(),
                dir=Path(config.run_dir), progress=progress, log=log, commit=git_commit(),
-               hardware=training_hardware(device))
+               hardware=training_hardware(device), amp=amp_dtype(device, config.bf16, amp))
 
 
 def init_weights(trainer) -> None:
