@@ -2,7 +2,8 @@
 
     python benchmarks/train_speed.py [--scenario paper-64] [--models cpu,small,paper] [--threads 1,2]
                                      [--agents joint,independent] [--updates 2] [--num-envs 32]
-                                     [--num-steps 32] [--json out.json]
+                                     [--num-steps 32] [--device cpu|cuda] [--bf16] [--compile]
+                                     [--json out.json]
 
 For each model and thread count: one warm-up update (compiles, allocates), then
 ``--updates`` timed updates of the real trainer (``wfbench.train.ppo.Trainer``: rollout
@@ -11,6 +12,12 @@ the heuristic parts of the dispatch variant included), observation -> tensors, t
 rollout forward pass with sampling, and the update (forward and backward over the
 rollout). ``--agents independent`` measures one network per decision (three networks).
 Checkpoints and public-seed scoring are off. Numbers go to docs/performance.md.
+
+``--device cuda`` runs the trainer on the GPU (the clock is read after
+``torch.cuda.synchronize()``; the row adds the GPU's name and its peak memory),
+``--bf16`` its forward passes under bf16 autocast (on CPU too: ``torch.autocast("cpu")``,
+the CUDA dtype path; off by default, as on CPU training) and ``--compile`` wraps the
+network in ``torch.compile`` (the warm-up update then includes the compilation).
 """
 
 from __future__ import annotations
@@ -29,28 +36,42 @@ from wfbench.train.ppo import TrainConfig, Trainer
 
 
 def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int, num_steps: int,
-            agents: str = "joint") -> dict:
+            agents: str = "joint", device: str = "cpu", bf16: bool = False, compile: bool = False) -> dict:
+    cuda = device == "cuda"
+
+    def sync():
+        if cuda:
+            torch.cuda.synchronize()
+
     with tempfile.TemporaryDirectory() as tmp:
         cfg = TrainConfig(scenario=scenario, model=model, num_envs=num_envs, num_steps=num_steps,
                           steps=num_envs * num_steps * (updates + 1), eval_every=0, checkpoint_every=10**9,
-                          run_dir=tmp, threads=threads, device="cpu", agents=agents)
-        tr = Trainer(cfg, progress=False, log=False)
-        tr.learn(tr.rollout())  # warm-up
+                          run_dir=tmp, threads=threads, device=device, agents=agents, bf16=bf16, compile=compile)
+        tr = Trainer(cfg, progress=False, log=False, amp=torch.bfloat16 if bf16 else None)
+        tr.learn(tr.rollout())  # warm-up (and compilation)
+        sync()
         for k in tr.timing:
             tr.timing[k] = 0.0
+        if cuda:
+            torch.cuda.reset_peak_memory_stats()
         load0 = os.getloadavg()[0]
         t0, c0, steps0 = time.perf_counter(), time.process_time(), tr.run.global_step
         for _ in range(updates):
             tr.learn(tr.rollout())
+        sync()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         steps = tr.run.global_step - steps0
+    gpu = {}
+    if cuda:
+        gpu = {"gpu": torch.cuda.get_device_name(), "gpu_peak_gib": torch.cuda.max_memory_allocated() / 2**30}
     return {"scenario": scenario, "model": model, "agents": agents, "parameters": count_parameters(tr.model),
-            "threads": threads, "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
+            "threads": threads, "device": device, "bf16": bf16, "compile": compile, "num_envs": num_envs,
+            "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
             "cpu_s": cpu, "env_steps_per_cpu_s": steps / cpu, "load_avg_before": load0,
-            "load_avg_after": os.getloadavg()[0], **{f"{k}_share": v / wall for k, v in tr.timing.items()}}
+            "load_avg_after": os.getloadavg()[0], **gpu, **{f"{k}_share": v / wall for k, v in tr.timing.items()}}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="paper-64")
     ap.add_argument("--models", default="cpu,small,paper")
@@ -60,27 +81,36 @@ def main() -> None:
     ap.add_argument("--num-envs", type=int, default=32)
     ap.add_argument("--num-steps", type=int, default=32)
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
+    ap.add_argument("--bf16", action="store_true", help="bf16 autocast of the forward passes (CPU too)")
+    ap.add_argument("--compile", action="store_true", help="torch.compile the network")
     ap.add_argument("--json", default=None)
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     rows = []
     settings = [(m, g, int(t)) for m in a.models.split(",") for g in a.agents.split(",") for t in a.threads.split(",")]
     for _ in range(a.repeat):
         for model, agents, threads in settings:
-            r = measure(a.scenario, model, threads, a.updates, a.num_envs, a.num_steps, agents)
+            r = measure(a.scenario, model, threads, a.updates, a.num_envs, a.num_steps, agents, a.device, a.bf16,
+                        a.compile)
             rows.append(r)
-            print(f"{r['scenario']:9s} {r['model']:6s} {agents:11s} {r['parameters']:>8,d} params  threads {threads}  "
+            how = f"{a.device}{' bf16' if a.bf16 else ''}{' compiled' if a.compile else ''}"
+            gpu = f"  GPU peak {r['gpu_peak_gib']:.1f} GiB" if "gpu_peak_gib" in r else ""
+            print(f"{r['scenario']:9s} {r['model']:6s} {agents:11s} {how} {r['parameters']:>8,d} params  "
+                  f"threads {threads}  "
                   f"{r['env_steps_per_s']:7.0f} env-steps/s  simulator {r['simulator_share']:.0%}  "
                   f"obs->tensor {r['obs_to_tensor_share']:.0%}  forward {r['forward_share']:.0%}  "
                   f"update {r['update_share']:.0%}  ({r['env_steps_per_cpu_s']:.0f} per CPU-s, load "
-                  f"{r['load_avg_before']:.1f}-{r['load_avg_after']:.1f})", flush=True)
+                  f"{r['load_avg_before']:.1f}-{r['load_avg_after']:.1f}){gpu}", flush=True)
     machine = {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
                "torch": torch.__version__, "load_avg_1min": os.getloadavg()[0],
-               "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
+               "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"), "device": a.device,
+               **({"gpu": torch.cuda.get_device_name()} if a.device == "cuda" else {})}
     print(json.dumps(machine))
     if a.json:
         with open(a.json, "w") as fh:
             json.dump({"machine": machine, "rows": rows, "num_envs": a.num_envs, "num_steps": a.num_steps}, fh,
                       indent=2)
+    return rows
 
 
 if __name__ == "__main__":

@@ -37,8 +37,10 @@ def add_parser(sub) -> None:
                          "public seeds (docs/rl.md, Generalists)")
     tr.add_argument("--steps", type=positive, default=None, help="environment steps in all (default 1000000)")
     tr.add_argument("--model", default=None,
-                    help="network: cpu (no attention, fastest on CPU), tiny, small or paper (~0.5M parameters), "
-                         "or scalefree (observation version 2, any world size; PPO only; docs/rl.md)")
+                    help="network: scalefree (observation version 2, any world size; PPO's default for the joint "
+                         "network; docs/rl.md), or a preset of the paper's network: cpu (no attention, fastest on "
+                         "CPU), tiny, small or paper (~0.5M parameters); the default of --variant dispatch, "
+                         "--agents independent and the other algorithms is their config's")
     tr.add_argument("--num-envs", type=positive, default=None, help="environments side by side (default 32)")
     tr.add_argument("--num-steps", type=positive, default=None, help="steps per rollout (default 32)")
     tr.add_argument("--epochs", type=positive, default=None, help="PPO epochs per rollout (default 2)")
@@ -47,7 +49,7 @@ def add_parser(sub) -> None:
     tr.add_argument("--ent-coef", type=float, default=None, help="entropy bonus (default 0.003)")
     tr.add_argument("--seed", type=nonneg, default=None, help="run seed: network init, sampling, training seeds")
     tr.add_argument("--device", default=None, choices=["auto", "cpu", "cuda"], help="default auto")
-    tr.add_argument("--compile", action="store_true", help="torch.compile the network (CUDA)")
+    tr.add_argument("--compile", action="store_true", help="torch.compile the network (made for CUDA)")
     tr.add_argument("--no-bf16", action="store_true", help="no bf16 autocast on CUDA")
     tr.add_argument("--threads", type=positive, default=None, help="torch CPU threads (default 1)")
     tr.add_argument("--checkpoint-every", type=positive, default=None, help="updates between checkpoints (20)")
@@ -76,6 +78,19 @@ def add_parser(sub) -> None:
     tr.add_argument("--no-tensorboard", action="store_true", help="write no TensorBoard logs")
 
 
+def default_model(config_cls: type, given: dict) -> str:
+    """The network of a ``wfbench train`` without ``--model``: the scale-free one where the trainer trains it.
+
+    That is PPO's joint network (issue #44); ``--variant dispatch``, ``--agents independent``
+    and the trainers that do not train it (IMPALA, hindsight learning) keep their config's
+    default. The older networks stay available by name (``--model small``).
+    """
+    from wfbench.policies.neural.scalefree import ARCH
+
+    joint = given.get("variant", "joint") == "joint" and given.get("agents", "joint") == "joint"
+    return ARCH if config_cls.scalefree_ok and joint else config_cls().model
+
+
 def run(args: argparse.Namespace) -> int:
     from wfbench.cli.settings import train_settings
 
@@ -94,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
     try:  # the algorithm first: it types the --set values (a resumed run's is its checkpoint's)
         algo = resumed_algorithm(args.resume, args.algo) if args.resume else (args.algo or DEFAULT_ALGORITHM)
         given = train_settings(get_algorithm(algo).config_class(), given, algo, args.set or [])
+        if not args.resume and "model" not in given:
+            given["model"] = default_model(get_algorithm(algo).config_class(), given)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     try:
