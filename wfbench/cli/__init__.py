@@ -36,7 +36,7 @@ import wfbench.cli.suite as suite
 import wfbench.cli.train as train
 import wfbench.cli.tune as tune
 import wfbench.cli.worker as worker
-from wfbench.cli.common import EXIT_POLICY_FAILED, EXIT_USAGE, Parser, UsageError
+from wfbench.cli.common import EXIT_POLICY_FAILED, EXIT_USAGE, Parser, UsageError, missing_extra, with_suggestion
 
 # the commands in the order --help lists them
 COMMANDS = {"evaluate": evaluate, "compare": compare, "leaderboard": leaderboard, "reproduce": reproduce,
@@ -66,12 +66,37 @@ def _search_current_folder() -> None:
         sys.path.insert(0, cwd)
 
 
+def _command(args) -> str:
+    """``wfbench COMMAND [SUBCOMMAND]`` of parsed ``args``, for messages."""
+    words = ["wfbench", getattr(args, "command", None)]
+    words += [getattr(args, a, None) for a in ("lb_command", "serve_command")]
+    return " ".join(w for w in words if w)
+
+
+def _format_warning(message, category, filename, lineno, line=None, _default=None) -> str:
+    """A warning of wfbench's own classes as one line, ``wfbench: warning: ...`` (no file or source line)."""
+    if category.__module__.startswith("wfbench."):
+        return f"wfbench: warning: {message}\n"
+    return _default(message, category, filename, lineno, line)
+
+
+def _one_line_warnings() -> None:
+    """Install :func:`_format_warning` as ``warnings.formatwarning``, once (recorded warnings are not formatted)."""
+    import functools
+    import warnings
+
+    if isinstance(warnings.formatwarning, functools.partial) and warnings.formatwarning.func is _format_warning:
+        return
+    warnings.formatwarning = functools.partial(_format_warning, _default=warnings.formatwarning)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``) and return its exit status."""
     from wfbench.harness.guard import PolicyError
 
     args = None
     try:
+        _one_line_warnings()
         _search_current_folder()
         args = build_parser().parse_args(argv)
         args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded by commands that write provenance
@@ -79,7 +104,13 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()  # here, where a closed pipe is handled, not at interpreter exit
         return status
     except UsageError as exc:
-        print(f"wfbench: error: {exc}", file=sys.stderr)
+        print(f"wfbench: error: {with_suggestion(str(exc))}", file=sys.stderr)
+        return EXIT_USAGE
+    except ModuleNotFoundError as exc:  # an optional extra that is not installed: one line naming it
+        message = missing_extra(exc, _command(args))
+        if message is None:
+            raise
+        print(f"wfbench: error: {message}", file=sys.stderr)
         return EXIT_USAGE
     except PolicyError as exc:
         if getattr(args, "traceback", False):

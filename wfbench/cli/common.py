@@ -8,7 +8,10 @@ a user's mistake; :func:`wfbench.cli.main` prints it as one line and exits with
 from __future__ import annotations
 
 import argparse
+import difflib
+import importlib.util
 import math
+import re
 from pathlib import Path
 
 from wfbench.core.seeds import resolve_seeds
@@ -21,6 +24,86 @@ SCENARIO_HELP = "a preset name, a suite's scenario id such as paper-64-v1, or a 
 
 class UsageError(Exception):
     """A mistake in the command line: printed as one line, exit status 2."""
+
+
+# The optional extras (pyproject.toml, [project.optional-dependencies]) by the top-level modules that commands import
+# when they run: one that is not installed is a one-line usage error naming its extra (missing_extra).
+EXTRAS = {"torch": "rl", "stable_baselines3": "rl", "sb3_contrib": "rl", "tensorboard": "rl", "ray": "ray",
+          "fastapi": "server", "starlette": "server", "uvicorn": "server", "sqlalchemy": "server",
+          "psycopg": "server", "python_multipart": "server", "multipart": "server", "httpx": "server"}
+
+
+def extra_message(command: str, module: str) -> str:
+    """The one line for ``command`` needing ``module`` of an optional extra that is not installed."""
+    extra = EXTRAS[module]
+    return (f"{command} needs {module}, which is not installed; install the {extra} extra: "
+            f"pip install 'wfbench[{extra}]'")
+
+
+def missing_extra(exc: BaseException, command: str) -> str | None:
+    """:func:`extra_message` when ``exc`` is the import of a module of an optional extra failing; None otherwise."""
+    if not isinstance(exc, ModuleNotFoundError) or not exc.name:
+        return None
+    module = exc.name.partition(".")[0]
+    return extra_message(command, module) if module in EXTRAS else None
+
+
+def require_extra(command: str, *modules: str) -> None:
+    """A usage error naming the extra when one of ``modules`` is not installed: checked before any work starts."""
+    for module in modules:
+        if importlib.util.find_spec(module) is None:
+            raise UsageError(extra_message(command, module))
+
+
+def _names_of(kind: str) -> list[str] | None:
+    """Every allowed name of a kind whose message does not list them all (policies, scenarios); None for others."""
+    if kind == "policy":
+        from wfbench.policies import names
+
+        return list(names())
+    if kind == "scenario":
+        from wfbench.core.config import PRESETS
+        from wfbench.scenarios import SUITES
+
+        return [*PRESETS, *(i for s in SUITES.values() for i in s.ids())]
+    return None
+
+
+def _listed(text: str) -> list[str]:
+    """The names a message lists after ``allowed:`` or ``available:`` (up to ``;`` or `` (``)."""
+    m = re.search(r"(?:allowed|available): (.*)", text)
+    if not m:
+        return []
+    items = re.split(r";| \(", m.group(1))[0]
+    return [x.strip().strip("'") for x in items.split(",") if x.strip()]
+
+
+def _or(names: list[str]) -> str:
+    quoted = [repr(n) for n in names]
+    return quoted[0] if len(quoted) == 1 else f"{', '.join(quoted[:-1])} or {quoted[-1]}"
+
+
+def with_suggestion(message: str) -> str:
+    """``message`` with ``did you mean ...?`` (difflib's closest allowed names) after the unknown name it refuses.
+
+    The one place where every refused name (policy, scenario, suite, split, track, target,
+    algorithm, backend, seed set, an argparse choice or command) gets its suggestion: the
+    message is left as it is when it names no unknown name or nothing allowed is close.
+    """
+    choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+    if choice:
+        close = difflib.get_close_matches(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)), n=3)
+        return f"{message}; did you mean {_or(close)}?" if close else message
+    m = (re.search(r"unknown ([a-zA-Z][a-zA-Z ]*?) '([^']*)'", message)
+         or re.search(r"([a-zA-Z]+) '([^']*)' is not (?:known|allowed)", message))
+    if not m:
+        return message
+    kind, name = m.groups()
+    allowed = _names_of(kind) or _listed(message[m.end():])
+    close = [c for c in difflib.get_close_matches(name, allowed, n=3) if c != name]
+    if not close:
+        return message
+    return f"{message[:m.end()]} (did you mean {_or(close)}?){message[m.end():]}"
 
 
 class Parser(argparse.ArgumentParser):

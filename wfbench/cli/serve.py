@@ -8,9 +8,10 @@ URL for workers on other hosts (docs/leaderboard.md, "The hosted leaderboard").
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 
-from wfbench.cli.common import Parser, UsageError, int_at_least
+from wfbench.cli.common import Parser, UsageError, int_at_least, require_extra
 
 DB_ENV = "WFBENCH_SERVER_DB"
 DB_HELP = (f"the board's database: a SQLite file path or sqlite:/// URL, or a postgresql+psycopg:// URL (default: "
@@ -117,6 +118,10 @@ def seed(board, phase: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.serve_command is None:  # the web server: all of the server extra, before the database is made
+        require_extra("wfbench serve", "sqlalchemy", "fastapi", "uvicorn")
+        if importlib.util.find_spec("python_multipart") is None and importlib.util.find_spec("multipart") is None:
+            require_extra("wfbench serve", "python_multipart")  # the uploads' parser (older releases: multipart)
     board = open_board(args.db, track_names(args.tracks))
     if args.serve_command == "account":
         from wfbench.leaderboard.hosted.db import BoardError
