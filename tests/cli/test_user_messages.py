@@ -83,7 +83,9 @@ def test_missing_extra__other_import_errors_are_not_hidden():
     (["reproduce", "tabel3"], "(did you mean 'table3'", "allowed: table2, table3"),
     (["leaderboard", "show", "--track", "papr-64"], "(did you mean 'paper-64'?)", "available: paper-64"),
     (["train", "--algo", "ppp"], "did you mean 'ppo'?", "(choose from 'ppo'"),
-    (["evalute"], "did you mean 'evaluate'?", "(choose from 'evaluate'"),
+    (["evalute"], "; did you mean 'evaluate'?", "(choose from 'evaluate'"),
+    (["train", "--set", "total_steps=1", "--scenario", "small"], "'total_steps=1' (did you mean 'steps'",
+     "settings: scenario, "),
 ])
 def test_unknown_name__suggests_the_closest_and_keeps_the_list(argv, suggested, kept, capsys):
     assert main(argv) == EXIT_USAGE

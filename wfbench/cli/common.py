@@ -78,9 +78,13 @@ def _listed(text: str) -> list[str]:
     return [x.strip().strip("'") for x in items.split(",") if x.strip()]
 
 
-def _or(names: list[str]) -> str:
-    quoted = [repr(n) for n in names]
-    return quoted[0] if len(quoted) == 1 else f"{', '.join(quoted[:-1])} or {quoted[-1]}"
+def did_you_mean(name: str, allowed) -> str:
+    """`` (did you mean 'a' or 'b'?)`` with difflib's closest of ``allowed`` to ``name``; empty when none is close."""
+    close = [c for c in difflib.get_close_matches(name, list(allowed), n=3) if c != name]
+    if not close:
+        return ""
+    quoted = [repr(n) for n in close]
+    return f" (did you mean {quoted[0] if len(quoted) == 1 else ', '.join(quoted[:-1]) + ' or ' + quoted[-1]}?)"
 
 
 def with_suggestion(message: str) -> str:
@@ -92,18 +96,15 @@ def with_suggestion(message: str) -> str:
     """
     choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
     if choice:
-        close = difflib.get_close_matches(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)), n=3)
-        return f"{message}; did you mean {_or(close)}?" if close else message
+        hint = did_you_mean(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)))
+        return f"{message}; {hint[2:-1]}" if hint else message
     m = (re.search(r"unknown ([a-zA-Z][a-zA-Z ]*?) '([^']*)'", message)
          or re.search(r"([a-zA-Z]+) '([^']*)' is not (?:known|allowed)", message))
     if not m:
         return message
     kind, name = m.groups()
-    allowed = _names_of(kind) or _listed(message[m.end():])
-    close = [c for c in difflib.get_close_matches(name, allowed, n=3) if c != name]
-    if not close:
-        return message
-    return f"{message[:m.end()]} (did you mean {_or(close)}?){message[m.end():]}"
+    hint = did_you_mean(name, _names_of(kind) or _listed(message[m.end():]))
+    return f"{message[:m.end()]}{hint}{message[m.end():]}"
 
 
 class Parser(argparse.ArgumentParser):

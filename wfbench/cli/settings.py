@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 import json
 
+from wfbench.cli.common import did_you_mean
+
 
 def coerce(field: dataclasses.Field, pair: str, text: str):
     """``text`` as a value of ``field``: the type of its default (bool, int, float, str), else JSON."""
@@ -40,7 +42,8 @@ def train_settings(config_cls: type, given: dict, algo: str, pairs: list[str]) -
         key, sep, text = pair.partition("=")
         key = key.strip().replace("-", "_")
         if not sep or key not in fields:
-            raise ValueError(f"--set {pair!r}: expected KEY=VALUE with KEY one of the --algo {algo} settings: "
+            hint = did_you_mean(key, fields) if sep else ""
+            raise ValueError(f"--set {pair!r}{hint}: expected KEY=VALUE with KEY one of the --algo {algo} settings: "
                              f"{', '.join(fields)}")
         out[key] = coerce(fields[key], pair, text)
     return out
