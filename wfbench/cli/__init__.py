@@ -1,7 +1,10 @@
 """The ``wfbench`` command line: one module per command, each adding its subparser and holding its handler.
 
 User mistakes (unknown policy or scenario, bad numbers, unwritable output) print one
-line saying what is wrong and what is allowed, and exit with status 2. A policy that
+line saying what is wrong and what is allowed (an unknown name with the closest allowed
+ones, ``did you mean ...?``), and exit with status 2, as does a command whose optional
+extra is not installed (the line names the extra). wfbench's own warnings print as one
+line, ``wfbench: warning: ...``. A policy that
 fails (raises, overruns its act timeout, returns a malformed action) prints one line
 naming the policy, its file and line, and exits with status 1; ``--traceback`` prints
 the whole trace first. A reader that closes stdout early (``wfbench policies | head``)
