@@ -80,6 +80,7 @@ def test_missing_extra__other_import_errors_are_not_hidden():
     (["evaluate", "--policy", "heuristic", "--suite", "suite-v1", "--split", "heldot"], "(did you mean 'heldout'?)",
      "allowed: train, heldout"),
     (["evaluate", "--policy", "heuristic", "--backend", "proces"], "(did you mean 'process'?)", "available: serial"),
+    (["evaluate", "--policy", "heuristic", "--seeds", "tset"], "(did you mean 'test'?)", "a set name (test = 0-49"),
     (["reproduce", "tabel3"], "(did you mean 'table3'", "allowed: table2, table3"),
     (["leaderboard", "show", "--track", "papr-64"], "(did you mean 'paper-64'?)", "available: paper-64"),
     (["train", "--algo", "ppp"], "did you mean 'ppo'?", "(choose from 'ppo'"),

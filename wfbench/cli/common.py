@@ -61,6 +61,10 @@ def _names_of(kind: str) -> list[str] | None:
         from wfbench.policies import names
 
         return list(names())
+    if kind == "seeds":  # a mistyped set name among the forms of a seed spec
+        from wfbench.core.seeds import SEED_SETS
+
+        return list(SEED_SETS)
     if kind == "scenario":
         from wfbench.core.config import PRESETS
         from wfbench.scenarios import SUITES
@@ -99,7 +103,7 @@ def with_suggestion(message: str) -> str:
         hint = did_you_mean(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)))
         return f"{message}; {hint[2:-1]}" if hint else message
     m = (re.search(r"unknown ([a-zA-Z][a-zA-Z ]*?) '([^']*)'", message)
-         or re.search(r"([a-zA-Z]+) '([^']*)' is not (?:known|allowed)", message))
+         or re.search(r"([a-zA-Z]+) '([^']*)' (?:is not (?:known|allowed)|not understood)", message))
     if not m:
         return message
     kind, name = m.groups()
