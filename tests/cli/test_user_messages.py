@@ -74,18 +74,18 @@ def test_missing_extra__other_import_errors_are_not_hidden():
 
 
 @pytest.mark.parametrize(("argv", "suggested", "kept"), [
-    (["evaluate", "--policy", "heurstic", "--seeds", "2"], "(did you mean 'heuristic'", "available: random, "),
-    (["evaluate", "--policy", "heuristic", "--scenario", "papr-64"], "(did you mean 'paper-64'", "(presets)"),
-    (["evaluate", "--policy", "heuristic", "--suite", "suite-v2"], "(did you mean 'suite-v1'?)", "allowed: suite-v1"),
-    (["evaluate", "--policy", "heuristic", "--suite", "suite-v1", "--split", "heldot"], "(did you mean 'heldout'?)",
+    (["evaluate", "--policy", "heurstic", "--seeds", "2"], "; did you mean 'heuristic'", "available: random, "),
+    (["evaluate", "--policy", "heuristic", "--scenario", "papr-64"], "; did you mean 'paper-64'", "(presets)"),
+    (["evaluate", "--policy", "heuristic", "--suite", "suite-v2"], "; did you mean 'suite-v1'?", "allowed: suite-v1"),
+    (["evaluate", "--policy", "heuristic", "--suite", "suite-v1", "--split", "heldot"], "; did you mean 'heldout'?",
      "allowed: train, heldout"),
-    (["evaluate", "--policy", "heuristic", "--backend", "proces"], "(did you mean 'process'?)", "available: serial"),
-    (["evaluate", "--policy", "heuristic", "--seeds", "tset"], "(did you mean 'test'?)", "a set name (test = 0-49"),
-    (["reproduce", "tabel3"], "(did you mean 'table3'", "allowed: table2, table3"),
-    (["leaderboard", "show", "--track", "papr-64"], "(did you mean 'paper-64'?)", "available: paper-64"),
+    (["evaluate", "--policy", "heuristic", "--backend", "proces"], "; did you mean 'process'?", "available: serial"),
+    (["evaluate", "--policy", "heuristic", "--seeds", "tset"], "; did you mean 'test'?", "a set name (test = 0-49"),
+    (["reproduce", "tabel3"], "; did you mean 'table3'", "allowed: table2, table3"),
+    (["leaderboard", "show", "--track", "papr-64"], "; did you mean 'paper-64'?", "available: paper-64"),
     (["train", "--algo", "ppp"], "did you mean 'ppo'?", "(choose from 'ppo'"),
     (["evalute"], "; did you mean 'evaluate'?", "(choose from 'evaluate'"),
-    (["train", "--set", "total_steps=1", "--scenario", "small"], "'total_steps=1' (did you mean 'steps'",
+    (["train", "--set", "total_steps=1", "--scenario", "small"], "value_warmup; did you mean 'steps'",
      "settings: scenario, "),
 ])
 def test_unknown_name__suggests_the_closest_and_keeps_the_list(argv, suggested, kept, capsys):
@@ -100,7 +100,7 @@ def test_unknown_name__no_suggestion_when_nothing_is_close():
     assert with_suggestion("--seeds: 0 is not allowed; allowed: a count >= 1") == (
         "--seeds: 0 is not allowed; allowed: a count >= 1")
     assert with_suggestion("unknown track 'paper64'; available: paper-64, large") == (
-        "unknown track 'paper64' (did you mean 'paper-64'?); available: paper-64, large")
+        "unknown track 'paper64'; available: paper-64, large; did you mean 'paper-64'?")
 
 
 def test_warning__wfbench_warnings_are_one_line_without_a_path(tmp_path):

@@ -92,11 +92,12 @@ def did_you_mean(name: str, allowed) -> str:
 
 
 def with_suggestion(message: str) -> str:
-    """``message`` with ``did you mean ...?`` (difflib's closest allowed names) after the unknown name it refuses.
+    """``message`` ending in ``; did you mean ...?``: difflib's closest allowed names to the unknown one it refuses.
 
     The one place where every refused name (policy, scenario, suite, split, track, target,
-    algorithm, backend, seed set, an argparse choice or command) gets its suggestion: the
-    message is left as it is when it names no unknown name or nothing allowed is close.
+    algorithm, backend, seed set, an argparse choice or command) gets its suggestion, after
+    the message (whose text, list included, stays as it was); the message is left as it is
+    when it names no unknown name or nothing allowed is close.
     """
     choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
     if choice:
@@ -108,7 +109,7 @@ def with_suggestion(message: str) -> str:
         return message
     kind, name = m.groups()
     hint = did_you_mean(name, _names_of(kind) or _listed(message[m.end():]))
-    return f"{message[:m.end()]}{hint}{message[m.end():]}"
+    return f"{message}; {hint[2:-1]}" if hint else message
 
 
 class Parser(argparse.ArgumentParser):

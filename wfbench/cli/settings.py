@@ -43,7 +43,7 @@ def train_settings(config_cls: type, given: dict, algo: str, pairs: list[str]) -
         key = key.strip().replace("-", "_")
         if not sep or key not in fields:
             hint = did_you_mean(key, fields) if sep else ""
-            raise ValueError(f"--set {pair!r}{hint}: expected KEY=VALUE with KEY one of the --algo {algo} settings: "
-                             f"{', '.join(fields)}")
+            raise ValueError(f"--set {pair!r}: expected KEY=VALUE with KEY one of the --algo {algo} settings: "
+                             f"{', '.join(fields)}{'; ' + hint[2:-1] if hint else ''}")
         out[key] = coerce(fields[key], pair, text)
     return out
