@@ -97,7 +97,8 @@ INSTALL_HINT = "install it with `apt-get install bubblewrap` (Debian/Ubuntu; `dn
 # anyone can reproduce its keys; a hosted board keeps its own secret in its database
 LOCAL_KEY_SECRET = b"wfbench-local-sandbox-v1"
 LOCAL_KEY_CONTEXT = "local"
-WARMUP_S = 60.0  # the default warm-up allowance of a sandbox's first reset and first act (Limits.warmup_s)
+WARMUP_S = 300.0  # the default warm-up allowance of a sandbox's first reset and first act (Limits.warmup_s): a
+# cold compile of the kernels a built-in needs took over 60 s on the loaded 2-core VM (issue #42)
 CACHE_MOUNT = "/wfbench-numba"  # the evaluator's numba cache of each wfbench folder, read-only, at CACHE_MOUNT/<i>
 _FROM_CHILD = WireLimits(max_bytes=64 << 20)  # an action is a few arrays of (B, M)
 # bubblewrap's own environment: nothing of the evaluator's (a database URL, tokens) reaches it, whoever runs it; in a
