@@ -42,8 +42,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import wfbench.policies as _policies_pkg
-import wfbench.solvers as _solvers_pkg
 from joblib.externals.loky.backend.context import get_context
 from wfbench.leaderboard.store import ROW_COLUMNS, NameTaken, Store, Submission, scrub_paths
 from wfbench.leaderboard.tracks import SuiteTrack, Track, get_track
@@ -51,6 +49,7 @@ from wfbench.policies import registry as _registry
 from wfbench.policies import tuned as _tuned
 
 from wfbench import __version__
+from wfbench.core.paths import package_dir
 from wfbench.harness.backends import check_backend, run_chunks, shutdown_pools
 from wfbench.harness.budget import BUDGET_COLUMNS, machine_line, policy_budget
 from wfbench.harness.guard import (
@@ -97,8 +96,8 @@ def _sha(path: str | Path) -> str:
 def policy_code_digest() -> str:
     """sha256 over wfbench's policy code (every ``.py`` of ``policies`` and ``solvers``) and its version."""
     h = hashlib.sha256(__version__.encode())
-    for pkg in (_policies_pkg, _solvers_pkg):
-        root = Path(pkg.__file__).resolve().parent
+    for pkg in ("wfbench.policies", "wfbench.solvers"):
+        root = package_dir(pkg)
         for f in sorted(root.rglob("*.py")):
             # the folder's name (policies/, solvers/): the digest names files as it did before they were installed
             # under wfbench., so moving a name changes no fingerprint

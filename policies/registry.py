@@ -18,6 +18,8 @@ from wfbench.policies.composite import Composite
 from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
 from wfbench.policies.oracle.best import BestInHindsight
 
+from wfbench.core.paths import CHECKPOINTS, data_path
+
 # name -> (dispatch, workforce, positioning, description)
 COMPOSITES: dict[str, tuple[str, str, str, str]] = {
     "random": ("random", "random", "random", "uniformly random valid actions for all three decisions (Table 3 row 1)"),
@@ -137,7 +139,7 @@ LEARNED: dict[str, tuple[str, str]] = {
                           "travel time, the world's parameters as context) trained by PPO from scratch across "
                           "suite-v1's eight training scenarios; the median of 5 training seeds"),
 }
-CHECKPOINT_DIR = Path(__file__).resolve().parent / "neural" / "checkpoints"
+CHECKPOINT_DIR = data_path(CHECKPOINTS)  # policies/neural/checkpoints/ (wfbench/policies/... in a wheel)
 
 # The built-ins as each table lines them up, one table read by all (issue #33): the leaderboard's seeded entries
 # (wfbench.leaderboard.submit.seed_builtins), ``wfbench reproduce suite``'s policies before the networks and the

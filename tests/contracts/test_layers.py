@@ -21,6 +21,12 @@ def test_layers__import_contracts_hold():
     assert "0 broken" in run.stdout, run.stdout
 
 
+def _folder(name: str, package_dir: dict[str, str]) -> Path:
+    """The checkout's folder of package ``name`` (pyproject.toml's package-dir maps wfbench.policies to policies/)."""
+    top = max((n for n in ("wfbench", *package_dir) if name == n or name.startswith(n + ".")), key=len)
+    return ROOT / package_dir.get(top, top) / Path(*name[len(top):].split(".")[1:])
+
+
 def _packages() -> set[str]:
     """Every package of the tree, by its installed name (pyproject.toml's package-dir maps the folders)."""
     import tomllib
@@ -34,22 +40,39 @@ def _packages() -> set[str]:
     return found
 
 
+def _data_packages(pyproject: dict) -> set[str]:
+    """The data packages: package-data folders without code (namespace packages of shipped files, issue #45)."""
+    setuptools = pyproject["tool"]["setuptools"]
+    return {name for name in setuptools["package-data"]
+            if not (_folder(name, setuptools["package-dir"]) / "__init__.py").exists()}
+
+
 def test_layers__every_package_is_installed_and_has_an_exhaustive_contract():
     # an exhaustive contract fails on a module that is in none of its layers; a package without such a contract
     # (a new subpackage) would let its modules import each other in any order, unseen; a package missing from
-    # [tool.setuptools] packages is missing from the wheel
+    # [tool.setuptools] packages is missing from the wheel. A package of one module (wfbench.policies.tuned: its
+    # __init__.py beside its shipped files) has nothing to order.
     import tomllib
 
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
     contracts = pyproject["tool"]["importlinter"]["contracts"]
     covered = {c for contract in contracts if contract.get("exhaustive") for c in contract.get("containers", [])}
     packages = _packages()
-    assert packages - covered == set(), (f"packages without an exhaustive import-linter contract in pyproject.toml: "
-                                         f"{sorted(packages - covered)}; give each its layers (docs/design.md, Layers)")
+    package_dir = pyproject["tool"]["setuptools"]["package-dir"]
+    ordered = {p for p in packages
+               if any(f.name != "__init__.py" or f.parent != _folder(p, package_dir)
+                      for f in _folder(p, package_dir).rglob("*.py"))}
+    assert ordered - covered == set(), (f"packages without an exhaustive import-linter contract in pyproject.toml: "
+                                        f"{sorted(ordered - covered)}; give each its layers (docs/design.md, Layers)")
     assert {"wfbench", "wfbench.core", "wfbench.cli", "wfbench.train", "wfbench.leaderboard",
             "wfbench.policies", "wfbench.harness", "wfbench.analysis", "wfbench.scenarios"} <= covered
+    data = _data_packages(pyproject)
+    for name in data:  # a folder of files and no code, or it would need a contract too
+        folder = _folder(name, package_dir)
+        assert folder.is_dir() and not any(folder.rglob("*.py")), f"data package {name}: {folder} holds code or is gone"
     listed = set(pyproject["tool"]["setuptools"]["packages"])
-    assert listed == packages, f"[tool.setuptools] packages differs from the tree: {sorted(listed ^ packages)}"
+    assert listed == packages | data, (f"[tool.setuptools] packages differs from the tree: "
+                                       f"{sorted(listed ^ (packages | data))}")
 
 
 def test_layers__importing_the_core_pulls_nothing_above_it():

@@ -80,12 +80,13 @@ import numba
 import numpy as np
 from numba.core import caching, event
 
-ROOT = Path(__file__).resolve().parents[2]  # the folder that holds wfbench/ (and, in a checkout, policies/, solvers/)
+from wfbench.core.paths import package_dir
+
 # In-project imports are followed into these packages. wfbench.policies and wfbench.solvers are the checkout's
 # top-level folders policies/ and solvers/ (pyproject.toml maps them); an installed wheel has them under wfbench/.
-PACKAGES = {"wfbench": ROOT / "wfbench"} | {
-    f"wfbench.{name}": ROOT / name if (ROOT / name / "__init__.py").is_file() else ROOT / "wfbench" / name
-    for name in ("policies", "solvers")}
+# The import system says which (wfbench.core.paths), not arithmetic on this file's path.
+PACKAGES = {name: package_dir(name) for name in ("wfbench", "wfbench.policies", "wfbench.solvers")}
+ROOT = PACKAGES["wfbench"].parent  # the folder that holds wfbench/ (and, in a checkout, policies/, solvers/)
 CACHED_PACKAGES = ("wfbench", "policies")  # the folders (under ROOT) whose functions DigestLocator locates
 ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
 

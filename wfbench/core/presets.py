@@ -44,6 +44,7 @@ from importlib.resources import files
 from typing import Any
 
 from wfbench.core.layout import FacilityLayout
+from wfbench.core.paths import REAL_DATA
 from wfbench.core.schedule import RateSchedule
 
 TABLE2_GRIDS = (32, 64, 128, 256)
@@ -60,7 +61,7 @@ WEEK_HOURS = 168
 
 def data_file(name: str) -> str:
     """The text of a committed data file under ``wfbench/core/data/``."""
-    return files("wfbench.core").joinpath("data", name).read_text(encoding="utf-8")
+    return files(REAL_DATA).joinpath(name).read_text(encoding="utf-8")
 
 
 def _rows(name: str) -> list[dict[str, str]]:

@@ -49,6 +49,7 @@ from typing import Any
 from numba.core import event as numba_event
 
 from wfbench.core.actions import ActionError
+from wfbench.core.paths import package_dir
 from wfbench.core.simulator import Simulator
 from wfbench.policies import get
 
@@ -58,10 +59,9 @@ DYNAMIC_CODE = "<dynamic-code>"
 
 # files in these folders are not the user's (the Python installation, installed packages, wfbench's own folders):
 # the innermost frame outside them is "where", and the leaderboard's fingerprint leaves them out
-_ROOT = Path(__file__).resolve().parents[2]  # the checkout (or site-packages) that holds wfbench/
 NOT_USER = tuple(  # folder prefixes with their separator: /repo/wfbench_runs/ is the user's
     {str(Path(sysconfig.get_paths()[k]).resolve()) + os.sep for k in ("stdlib", "platstdlib", "purelib", "platlib")}
-    | {str(_ROOT / pkg) + os.sep for pkg in ("wfbench", "policies", "solvers", "leaderboard")}
+    | {str(package_dir(f"wfbench{pkg}")) + os.sep for pkg in ("", ".policies", ".solvers", ".leaderboard")}
 )
 
 

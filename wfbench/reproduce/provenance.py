@@ -26,6 +26,8 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from wfbench.core.paths import package_dir
+
 # the top-level folders whose files compute results, by their name in the repository
 CODE_ROOTS = ("wfbench", "policies", "solvers")
 _SUFFIXES = (".py", ".json", ".toml", ".csv")
@@ -33,12 +35,8 @@ _SKIP_PARTS = ("__pycache__", "checkpoints")
 
 
 def _roots() -> dict[str, Path]:
-    import wfbench
-    import wfbench.policies
-    import wfbench.solvers
-
-    return {"wfbench": Path(wfbench.__file__).parent, "policies": Path(wfbench.policies.__file__).parent,
-            "solvers": Path(wfbench.solvers.__file__).parent}
+    return {"wfbench": package_dir("wfbench"), "policies": package_dir("wfbench.policies"),
+            "solvers": package_dir("wfbench.solvers")}
 
 
 def _counts(path: str) -> bool:

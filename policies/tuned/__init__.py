@@ -28,13 +28,15 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from wfbench.core.paths import TUNED as TUNED_PACKAGE
+from wfbench.core.paths import data_path
 from wfbench.core.seeds import TEST
 
 FORMAT = "wfbench-tuned-policy"
 FORMAT_VERSION = 1
 SUFFIXES = (".json", ".toml")
 PREFIX = "tuned:"
-TUNED_DIR = Path(__file__).resolve().parent / "tuned"
+TUNED_DIR = data_path(TUNED_PACKAGE)  # this package's folder, policies/tuned/: the shipped files beside this code
 REQUIRED = ("base", "params", "scenario", "seeds", "trials", "best_score")
 
 
