@@ -269,8 +269,15 @@ def connect(url: str | Path) -> Engine:
             raise BoardError(f"database {shown!r} is not allowed (in memory, or no file); allowed: {URL_FORMS}")
         return _sqlite(Path(parsed.database))
     if parsed.drivername == "postgresql+psycopg":
-        return sa.create_engine(parsed, pool_pre_ping=True)
+        # a client stopped inside a transaction (a worker paused past its lease) would hold its row locks, and every
+        # other worker's claim skips locked jobs: the server ends such a session after IDLE_IN_TRANSACTION_MS
+        return sa.create_engine(parsed, pool_pre_ping=True,
+                                connect_args={"options": f"-c idle_in_transaction_session_timeout="
+                                                         f"{IDLE_IN_TRANSACTION_MS}"})
     raise BoardError(f"database {shown!r} is not allowed; allowed: {URL_FORMS}")
+
+
+IDLE_IN_TRANSACTION_MS = 10_000  # PostgreSQL: a board transaction is a few statements; 10 s idle is a stalled client
 
 
 def _sqlite(path: Path) -> Engine:
