@@ -109,9 +109,13 @@ def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None 
     return (n_policies + 1) * len(_chosen(get_suite(suite_name), scenarios))
 
 
+def piece_folder(policy: str) -> str:
+    """The folder of ``policy``'s pieces under ``cache/``: its name made path-safe (``#`` becomes ``_``)."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
+
+
 def _cache_path(out: Path, policy: str, scenario: SuiteScenario) -> Path:
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
-    return out / "cache" / safe / f"{scenario.id}.csv"
+    return out / "cache" / piece_folder(policy) / f"{scenario.id}.csv"
 
 
 def _cached(path: Path, scenario: SuiteScenario, seeds: list[int]) -> pd.DataFrame | None:

@@ -16,7 +16,6 @@ seeds spread over the two halves of a 50-seed run (under a minute on 2 cores).
 from __future__ import annotations
 
 import json
-import re
 import time
 import warnings
 from collections.abc import Sequence
@@ -89,10 +88,6 @@ class Piece:
         return json.loads(self.path.with_suffix(".json").read_text())
 
 
-def _safe(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
-
-
 def _known_policies() -> list[str]:
     from wfbench.reproduce.suite import default_policies, with_members
 
@@ -108,7 +103,9 @@ def pieces(folder: Path, policies: Sequence[str] | None = None, scenarios: Seque
     """
     suite = get_suite(suite_name)
     chosen = [suite.scenario(x) for x in scenarios] if scenarios else list(suite.scenarios)
-    by_dir = {_safe(p): p for p in [*_known_policies(), *(policies or [])]}
+    from wfbench.reproduce.suite import piece_folder
+
+    by_dir = {piece_folder(p): p for p in [*_known_policies(), *(policies or [])]}
     wanted = set(policies) if policies else None
     out = []
     for d in sorted(p for p in (folder / "cache").iterdir() if p.is_dir()) if (folder / "cache").is_dir() else []:
