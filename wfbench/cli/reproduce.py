@@ -23,20 +23,27 @@ def add_parser(sub) -> None:
                         "the suite")
     rp.add_argument("target", help="table2, table3, figure3, gap (heuristic, solver, oracle and the bound "
                     "per scenario), suite (every built-in policy on every scenario of suite-v1, normalized and "
-                    "aggregated; docs/suite.md) or verify (recompute the pieces of the suite run in --out and "
-                    "compare them bit for bit; exit 1 if one differs)")
+                    "aggregated; docs/suite.md), verify (recompute the pieces of the suite run in --out and "
+                    "compare them bit for bit; exit 1 if one differs) or frontier (held-out IQM against decision "
+                    "cost per policy, and the verdict per budget; docs/suite.md)")
     rp.add_argument("--out", default="results", help="output folder (default: ./results)")
     rp.add_argument("--runs", type=positive, default=None, help="episodes per cell or row (default 50); verify: "
                     "the first seeds of each piece to recompute (default 1)")
     rp.add_argument("--methods", default=None, help="figure3 only: comma-separated policies to draw (default: "
                     "the paper's, solver, tuned, learned and oracle ones; the learned where their checkpoint and "
                     "torch are)")
-    rp.add_argument("--seeds", type=seeds_spec, default=None, help="suite and verify only: the seeds (suite default: "
-                    "test, 0-49, instead of --runs; verify default: each piece's first --runs seeds, see --runs)")
-    rp.add_argument("--policies", default=None, help="suite and verify only: comma-separated policies (default: "
-                    "every built-in policy, the shipped networks and the oracle)")
-    rp.add_argument("--scenarios", default=None, help="suite and verify only: comma-separated scenario ids or "
-                    "presets of the suite (default: all)")
+    rp.add_argument("--seeds", type=seeds_spec, default=None, help="suite, verify and frontier only: the seeds "
+                    "(suite and frontier default: test, 0-49, instead of --runs; verify default: each piece's first "
+                    "--runs seeds, see --runs)")
+    rp.add_argument("--policies", default=None, help="suite, verify and frontier only: comma-separated "
+                    "policies (default: every built-in policy, the shipped networks and the oracle; frontier: the "
+                    "heuristics, solvers, lookaheads, two networks and the oracle)")
+    rp.add_argument("--scenarios", default=None, help="suite, verify and frontier only: comma-separated "
+                    "scenario ids or presets of the suite (default: all; frontier: the split's)")
+    rp.add_argument("--split", default=None, choices=["train", "heldout"], help="frontier only: the split "
+                    "(default heldout)")
+    rp.add_argument("--reuse", default=None, help="frontier only: comma-separated suite run folders whose cached "
+                    "pieces are read before anything is played (default: docs/results/suite-v1-50)")
     rp.add_argument("--no-networks", action="store_true", help="suite only: leave the shipped networks out")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)
@@ -97,15 +104,24 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
     """The suite target's options, checked now (an unknown policy or scenario fails before anything runs)."""
     given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios),
                             ("--no-networks", args.no_networks or None)) if v is not None]
-    if args.target not in ("suite", "verify"):
+    own = [o for o, v in (("--split", args.split), ("--reuse", args.reuse)) if v is not None]
+    if own and args.target != "frontier":
+        raise UsageError(f"{own[0]} applies to frontier only, not to {args.target}")
+    if args.target not in ("suite", "verify", "frontier"):
         if given:
-            raise UsageError(f"{given[0]} applies to suite and verify only, not to {args.target}")
+            raise UsageError(f"{given[0]} applies to suite, verify and frontier only, not to {args.target}")
         return {}
+    if args.target == "frontier" and args.no_networks:
+        raise UsageError("--no-networks applies to suite only, not to frontier (give --policies)")
     if args.target == "verify" and args.no_networks:
         raise UsageError("--no-networks applies to suite only, not to verify (give --policies)")
     from wfbench.scenarios import get_suite
 
     kwargs: dict = {"networks": not args.no_networks} if args.target == "suite" else {}
+    if args.split is not None:
+        kwargs["split"] = args.split
+    if args.reuse is not None:
+        kwargs["reuse"] = _names(args.reuse, "--reuse")
     if args.seeds is not None:
         kwargs["seeds"] = args.seeds
     if args.policies is not None:
@@ -119,6 +135,13 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
         for x in kwargs["scenarios"]:
             try:
                 suite.scenario(x)
+            except ValueError as exc:
+                raise UsageError(f"--scenarios: {exc}") from None
+        if args.target == "frontier":
+            from wfbench.reproduce.frontier import _chosen
+
+            try:
+                _chosen(suite, kwargs["scenarios"], kwargs.get("split", "heldout"))
             except ValueError as exc:
                 raise UsageError(f"--scenarios: {exc}") from None
     return kwargs

@@ -1,4 +1,4 @@
-"""Regenerate the paper's Table 2, Table 3 and Figure 3 with wfbench's model, the oracle gap, and the suite.
+"""Regenerate the paper's Table 2, Table 3 and Figure 3 with wfbench's model, the oracle gap, the suite, its frontier.
 
 One module per target (:mod:`~wfbench.reproduce.table2`, :mod:`~wfbench.reproduce.table3`,
 :mod:`~wfbench.reproduce.figure3`, :mod:`~wfbench.reproduce.gap`); the paper's numbers are
@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import wfbench.reproduce.figure3 as figure3
+import wfbench.reproduce.frontier as frontier
 import wfbench.reproduce.gap as gap
 import wfbench.reproduce.suite as suite
 import wfbench.reproduce.table2 as table2
@@ -25,11 +26,13 @@ import wfbench.reproduce.verify as verify
 from wfbench.reproduce.common import Output, Progress
 
 TARGETS = {"table2": table2.table2, "table3": table3.table3, "figure3": figure3.figure3, "gap": gap.gap,
-           "suite": suite.suite, "verify": verify.verify}
+           "suite": suite.suite, "verify": verify.verify,
+           "frontier": frontier.frontier}
 """``wfbench reproduce TARGET``: each called as ``target(out, runs=, backend=, workers=, address=, progress=)``."""
 
 SIZES = {"table2": table2.size, "table3": table3.size, "figure3": figure3.size, "gap": gap.size, "suite": suite.size,
-         "verify": lambda **_: None}  # verify: as many as the folder has pieces (a bar without a total)
+         "verify": lambda **_: None,  # verify: as many as the folder has pieces (a bar without a total)
+         "frontier": frontier.size}
 
 
 def target_size(name: str, **kwargs) -> int | None:

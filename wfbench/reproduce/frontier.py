@@ -1,0 +1,273 @@
+"""The verdict as score against compute: held-out IQM per policy beside what its decisions cost (issue #43).
+
+``wfbench reproduce frontier`` plays (or reads from a suite run's pieces) every chosen policy
+on a split's scenarios and writes, per policy, the IQM of the normalized score with its 95%
+stratified bootstrap interval beside three costs: the evaluator's decision time p50 (ms per
+env-step), the CPU milliseconds per env-step (CPU seconds over env-steps: observe, decide and
+simulate) and the CPU seconds per episode. Then, at each budget of :data:`BUDGETS_MS`, the best
+deployable policy of the OR side (heuristics, solvers, lookaheads) and of the learned side
+(networks) that stay within it. docs/suite.md ("Score against compute") reads the output.
+
+Pieces are found first under ``out/cache`` and then in the ``reuse`` folders (a suite run's
+``cache/``), and a piece whose seeds include the chosen ones is cut to them; missing pieces
+are played and stored under ``out/cache`` as the suite stores them.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wfbench.analysis.aggregate import AGGREGATE_NOTE, aggregate_suite
+from wfbench.analysis.tables import markdown_table
+from wfbench.core.kpis import SCORE
+from wfbench.core.seeds import describe, resolve_seeds
+from wfbench.reproduce.common import Output, Progress, write
+from wfbench.reproduce.suite import _run, _store, piece_folder
+from wfbench.scenarios import SuiteScenario, get_suite, normalize
+
+BUDGETS_MS = (1.0, 10.0, 100.0)  # CPU ms per env-step: the issue's "about 1 ms, 10 ms, 100 ms"
+BASELINE = "solver-tuned"  # the probability of improvement is taken over it (the rollouts' base)
+SIDES = {"heuristic": "OR", "solver": "OR", "rollout": "OR", "mpc": "OR", "network": "learned",
+         "oracle": "reference", "random": "reference"}
+DEFAULT_REUSE = ("docs/results/suite-v1-50",)
+
+
+def default_policies() -> list[str]:
+    """The heuristics and solvers (tuned too), every deployable lookahead, the scale-free network, the oracle."""
+    from wfbench.policies.registry import lookahead_names
+
+    return ["heuristic", "heuristic-tuned", "heuristic-tuned-train", "solver", "solver-tuned", "solver-tuned-train",
+            *lookahead_names(), "ppo-general", "scalefree-general", "oracle"]
+
+
+def family(policy: str) -> str:
+    """The line a policy is joined on: heuristic, solver, rollout, mpc, network, oracle or random."""
+    from wfbench.policies.registry import parse_spec
+
+    if policy.startswith("rollout-"):
+        return "rollout"
+    if policy.startswith("mpc"):
+        return "mpc"
+    if parse_spec(policy).kind in ("learned", "member", "checkpoint"):
+        return "network"
+    for name in ("oracle", "solver", "heuristic", "random"):
+        if policy.startswith(name):
+            return name
+    return "other"
+
+
+def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, split: str = "heldout",
+         suite_name: str = "suite-v1", **_: object) -> int:
+    """The (policy, scenario) pieces :func:`frontier` reads or plays (for a progress bar)."""
+    return len(policies or default_policies()) * len(_chosen(get_suite(suite_name), scenarios, split))
+
+
+def _chosen(suite, scenarios: Sequence[str] | None, split: str) -> list[SuiteScenario]:
+    if scenarios:
+        chosen = [suite.scenario(x) for x in scenarios]
+        wrong = [sc.id for sc in chosen if sc.split != split]
+        if wrong:
+            raise ValueError(f"scenario {wrong[0]} is in the {suite.scenario(wrong[0]).split} split, not {split}; "
+                             f"allowed: the {split} scenarios of {suite.name}")
+        return chosen
+    return [sc for sc in suite.scenarios if sc.split == split]
+
+
+def find_piece(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
+               seeds: list[int]) -> pd.DataFrame | None:
+    """The first stored piece of (policy, scenario) of this scenario hash whose seeds include ``seeds``, cut to them."""
+    for folder in folders:
+        path = folder / "cache" / piece_folder(policy) / f"{scenario.id}.csv"
+        meta = path.with_suffix(".json")
+        if not (path.exists() and meta.exists()):
+            continue
+        m = json.loads(meta.read_text())
+        if m.get("hash") != scenario.hash or not set(seeds) <= set(m.get("seeds", [])):
+            continue
+        df = pd.read_csv(path, float_precision="round_trip")
+        return df.set_index("seed").loc[seeds].reset_index()
+    return None
+
+
+def cost_row(df: pd.DataFrame) -> dict[str, float]:
+    """What a policy's pieces cost: decision p50 (median over episodes), CPU ms per env-step, CPU s per episode."""
+    steps = float(df["episode_length"].sum())
+    return {"decision_ms_p50": float(df["decision_ms_p50"].median()),
+            "cpu_ms_per_step": 1e3 * float(df["cpu_s"].sum()) / steps,
+            "cpu_s_per_episode": float(df["cpu_s"].mean())}
+
+
+def verdicts(table: pd.DataFrame, budgets: Sequence[float] = BUDGETS_MS) -> list[dict]:
+    """At each budget: the best OR and the best learned policy within it (by IQM), and who is ahead.
+
+    Within a budget means a CPU cost per env-step (``cpu_ms_per_step``) at most the budget.
+    "apart" when their 95% IQM intervals do not overlap.
+    """
+    out = []
+    for b in budgets:
+        within = table[table["cpu_ms_per_step"] <= b]
+        best = {}
+        for side in ("OR", "learned"):
+            s = within[within["side"] == side]
+            best[side] = s.loc[s["iqm"].idxmax()] if len(s) else None
+        row = {"budget_ms": b}
+        for side, r in best.items():
+            row[f"{side}_policy"] = None if r is None else r["policy"]
+            row[f"{side}_iqm"] = np.nan if r is None else r["iqm"]
+        o, n = best["OR"], best["learned"]
+        if o is None or n is None:
+            row["ahead"], row["apart"] = ("OR" if n is None else "learned") if (o is not None or n is not None) \
+                else None, None
+        else:
+            hi, lo = (o, n) if o["iqm"] >= n["iqm"] else (n, o)
+            row["ahead"] = "OR" if hi is o else "learned"
+            row["apart"] = bool(hi["iqm_low"] > lo["iqm_high"])
+        out.append(row)
+    return out
+
+
+def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
+             address: str | None = None, progress: Progress = None, seeds: str | Sequence[int] | None = None,
+             policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, split: str = "heldout",
+             reuse: Sequence[str | Path] = DEFAULT_REUSE, suite_name: str = "suite-v1", reps: int = 5000,
+             poi_reps: int = 1000, **_: object) -> Output:
+    """Held-out IQM against decision cost per policy, the figure, and the verdict at each budget (module docstring).
+
+    Args:
+        out: the output folder (pieces played here are kept in its ``cache/``).
+        runs: seeds 0..runs-1 when ``seeds`` is not given.
+        backend: how missing pieces are played (:func:`wfbench.evaluate`).
+        workers: processes or Ray tasks.
+        address: Ray cluster address.
+        progress: called with the name of each piece as it is read or played.
+        seeds: the seeds (a set name or a list).
+        policies: the policies (default :func:`default_policies`).
+        scenarios: a subset of the split's scenarios (default all of them).
+        split: ``heldout`` (default) or ``train``.
+        reuse: suite run folders whose ``cache/`` pieces are read before anything is played.
+        suite_name: the suite.
+        reps: bootstrap replications of the intervals.
+        poi_reps: bootstrap replications of the probability of improvement's interval.
+    """
+    s = get_suite(suite_name)
+    chosen = _chosen(s, scenarios, split)
+    seed_list = resolve_seeds(seeds) if seeds is not None else list(range(runs))
+    names = list(dict.fromkeys(policies)) if policies else default_policies()
+    folders = [out, *(Path(r) for r in reuse)]
+    frames: dict[str, pd.DataFrame] = {}
+    failures = []
+    for name in names:
+        parts = []
+        for sc in chosen:
+            if progress:
+                progress(f"{sc.id}: {name}")
+            df = find_piece(folders, name, sc, seed_list)
+            if df is None:
+                try:
+                    df, wall_s = _run(name, sc, seed_list, backend, workers, address)
+                except Exception as exc:  # noqa: BLE001 - a long run reports a failing piece and goes on
+                    failures.append([sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]])
+                    continue
+                _store(out / "cache" / piece_folder(name) / f"{sc.id}.csv", df, name, sc, seed_list, wall_s)
+            df = df.copy()
+            df.insert(0, "normalized", normalize(df[SCORE].to_numpy(), sc.id, s))
+            df.insert(0, "split", sc.split)
+            df.insert(0, "scenario", sc.id)
+            parts.append(df)
+        if len(parts) == len(chosen):
+            frames[name] = pd.concat(parts, ignore_index=True)
+    if not frames:
+        raise ValueError("no policy has a result on every chosen scenario: " + "; ".join(" ".join(f) for f in failures))
+    baseline = BASELINE if BASELINE in frames else None
+    agg = aggregate_suite(frames, baseline=baseline, reps=reps, poi_reps=poi_reps)[split]
+    table = agg.table.set_index("policy")
+    rows = []
+    for name, df in frames.items():
+        fam = family(name)
+        r = table.loc[name]
+        rows.append({"policy": name, "family": fam, "side": SIDES.get(fam, "other"),
+                     "iqm": r["iqm"], "iqm_low": r["iqm_low"], "iqm_high": r["iqm_high"],
+                     "p_improve": r.get("p_improve", np.nan), "p_improve_low": r.get("p_improve_low", np.nan),
+                     "p_improve_high": r.get("p_improve_high", np.nan), **cost_row(df)})
+    result = pd.DataFrame(rows)
+    files: list[Path] = []
+    out.mkdir(parents=True, exist_ok=True)
+    seeds_text = describe(seed_list)
+    ids = ", ".join(sc.id for sc in chosen)
+    header = ["Policy", "Family", "IQM [95% CI]", f"P(improvement over {baseline}) [95% CI]",
+              "Decision p50 (ms)", "CPU ms / env-step", "CPU s / episode"]
+    cells = [[r["policy"], r["family"], f"{r['iqm']:.3f} [{r['iqm_low']:.3f}, {r['iqm_high']:.3f}]",
+              "(baseline)" if r["policy"] == baseline or np.isnan(r["p_improve"]) else
+              f"{r['p_improve']:.2f} [{r['p_improve_low']:.2f}, {r['p_improve_high']:.2f}]",
+              f"{r['decision_ms_p50']:.3g}", f"{r['cpu_ms_per_step']:.3g}", f"{r['cpu_s_per_episode']:.3g}"]
+             for _, r in result.sort_values("cpu_ms_per_step").iterrows()]
+    v = verdicts(result)
+    verdict_rows = [[f"<= {x['budget_ms']:g} ms", _side_cell(x, "OR"), _side_cell(x, "learned"), _ahead_cell(x)]
+                    for x in v]
+    md = "\n".join([
+        f"{s.name}, {split} split ({len(chosen)} scenarios: {ids}), seeds {seeds_text}: IQM of the normalized score "
+        "per policy beside what it cost, cheapest first. Decision p50: the evaluator's median decision time (for a "
+        "compiled composite its whole rollout per env-step); CPU ms / env-step: the CPU seconds of the episodes over "
+        "their env-steps (observe, decide and simulate), the cost the budgets below are measured in.", "",
+        markdown_table(header, cells), "", AGGREGATE_NOTE, "",
+        "The best deployable policy of each side within each budget (CPU ms per env-step; the oracle reads the "
+        "future and is not deployable):", "",
+        markdown_table(["Budget", "Best OR (IQM)", "Best learned (IQM)", "Ahead"], verdict_rows)])
+    if failures:
+        md += "\n\nFailed (not cached; a rerun tries them again):\n\n" + markdown_table(["Scenario", "Policy", "Error"],
+                                                                                        failures)
+    files += write(out, "frontier", md, result)
+    (out / "frontier-verdict.csv").write_text(pd.DataFrame(v).to_csv(index=False))
+    files.append(out / "frontier-verdict.csv")
+    files += _figure(result, split, len(chosen), seeds_text, out / "frontier")
+    return Output(md, files)
+
+
+def _ahead_cell(v: dict) -> str:
+    if v["ahead"] is None:
+        return "-"
+    return v["ahead"] + ("" if v["apart"] is None else ", intervals apart" if v["apart"] else ", intervals overlap")
+
+
+def _side_cell(v: dict, side: str) -> str:
+    return "-" if v[f"{side}_policy"] is None else f"{v[f'{side}_policy']} ({v[f'{side}_iqm']:.3f})"
+
+
+def _figure(result: pd.DataFrame, split: str, n: int, seeds_text: str, path_stem: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from wfbench.analysis.plots import save_figure
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
+    colors = dict(zip(["heuristic", "solver", "rollout", "mpc", "network", "oracle", "random", "other"],
+                      plt.get_cmap("tab10").colors, strict=False))
+    for ax, x, label in ((axes[0], "decision_ms_p50", "decision time p50 (ms per env-step, log)"),
+                         (axes[1], "cpu_s_per_episode", "CPU seconds per episode (log)")):
+        for fam, g in result.groupby("family", sort=False):
+            g = g.sort_values(x)
+            yerr = np.vstack([g["iqm"] - g["iqm_low"], g["iqm_high"] - g["iqm"]])
+            ax.errorbar(g[x], g["iqm"], yerr=yerr, marker="o", ms=4, capsize=2, color=colors.get(fam),
+                        linestyle="--" if fam == "oracle" else "-", label=fam)
+            for _, r in g.iterrows():
+                ax.annotate(r["policy"], (r[x], r["iqm"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel(f"IQM of the normalized score, {split} (95% CI)")
+    axes[0].legend(fontsize=7, loc="lower right")
+    fig.suptitle(f"Score against compute: {split} split, {n} scenarios, seeds {seeds_text}")
+    fig.tight_layout()
+    files = [save_figure(fig, path_stem.with_suffix(".png")), save_figure(fig, path_stem.with_suffix(".svg"))]
+    plt.close(fig)
+    return files
+
+
+__all__ = ["BUDGETS_MS", "default_policies", "family", "find_piece", "frontier", "size", "verdicts"]
