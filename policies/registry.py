@@ -88,6 +88,9 @@ LOOKAHEAD: dict[str, tuple[str, str, str]] = {
                                  "R=80)"),
     "rollout-solver-tuned-100ms": ("solver-tuned", "100ms", "rollout of solver-tuned, the 100 ms budget (K=16, "
                                    "H=120, R=10)"),
+    # the network as the base: the same knobs as the 1 ms preset cost far more (H forward passes a decision)
+    "rollout-scalefree-general": ("scalefree-general", "1ms", "rollout of the scale-free network on sampled "
+                                  "futures, the network playing them (K=2, H=80, R=80)"),
 }
 
 

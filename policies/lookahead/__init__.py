@@ -2,6 +2,8 @@
 
 - :mod:`wfbench.policies.lookahead.rollout`: rollout of a compiled base policy on K sampled
   futures of H steps (:class:`Rollout`), with budget presets (:data:`BUDGETS`).
+- :mod:`wfbench.policies.lookahead.network_rollout`: the same with a trained network as the
+  base (:class:`NetworkRollout`), the network playing the sampled futures.
 - :mod:`wfbench.policies.lookahead.mpc`: a rolling-horizon staffing MILP on a forecast
   (:class:`MPC`: ``mpc-rates`` on the public rates, ``mpc-ma`` on a moving average).
 
@@ -10,7 +12,21 @@ and draw the unobserved from the public model under the policy's own keys. The o
 that read the true future are :mod:`wfbench.policies.oracle`.
 """
 
-from wfbench.policies.lookahead.mpc import MPC
-from wfbench.policies.lookahead.rollout import BUDGETS, DEFAULT_BUDGET, Rollout, budget, knob, make
+from typing import Any
 
-__all__ = ["BUDGETS", "DEFAULT_BUDGET", "MPC", "Rollout", "budget", "knob", "make"]
+from wfbench.policies.lookahead.mpc import MPC
+from wfbench.policies.lookahead.network_rollout import NetworkRollout
+from wfbench.policies.lookahead.rollout import BUDGETS, DEFAULT_BUDGET, Rollout, budget, knob
+
+
+def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, **knobs: Any) -> Any:
+    """A rollout of ``base`` at a budget preset, knobs overriding it.
+
+    :class:`Rollout` of a compiled composite, :class:`NetworkRollout` of a network.
+    """
+    if not getattr(base, "compiled", False) and hasattr(base, "model"):
+        return NetworkRollout(base, budget=budget_name, name=name, **knobs)
+    return Rollout(base, budget=budget_name, name=name, **knobs)
+
+
+__all__ = ["BUDGETS", "DEFAULT_BUDGET", "MPC", "NetworkRollout", "Rollout", "budget", "knob", "make"]

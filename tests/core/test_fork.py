@@ -330,16 +330,27 @@ def test_forked_lifetimes_follow_the_public_model_and_a_wrong_mean_is_rejected()
     assert lifetime_pvalue(NONSTATIONARY.replace(initial_facilities=12), NONSTATIONARY) < 1e-6
 
 
-def test_a_rollout_acts_the_same_up_to_T_in_two_episodes_that_differ_after_T():
-    """The lookahead policy itself: the same actions at every step up to T, and the same candidate scores at T."""
+def _compiled_rollout():
     from wfbench.policies.lookahead import Rollout
 
+    return Rollout(policies.get("solver-tuned"), K=2, H=30, R=10, scenario=SMALL)
+
+
+def _network_rollout():
+    from wfbench.policies.lookahead.network_rollout import NetworkRollout
+
+    return NetworkRollout(policies.get("scalefree-general"), K=2, H=10, R=10, scenario=SMALL)
+
+
+@pytest.mark.parametrize("make", [_compiled_rollout, _network_rollout], ids=["solver-tuned", "scalefree-general"])
+def test_a_rollout_acts_the_same_up_to_T_in_two_episodes_that_differ_after_T(make):
+    """The lookahead policy itself: the same actions at every step up to T, and the same candidate scores at T."""
     seed, T = 1004, 40  # T: a decision step (T % R == 0)
     runs = []
     for swap in (False, True):
         sim = Simulator(SMALL, [seed])
         obs = sim.reset()
-        pol = Rollout(policies.get("solver-tuned"), K=2, H=30, R=10, scenario=SMALL)
+        pol = make()
         pol.reset([seed])
         actions = []
         for t in range(T + 1):

@@ -1,0 +1,176 @@
+"""Rollout with a trained network as the base: lookahead on top of a learned policy (issue #43).
+
+:class:`NetworkRollout` is :class:`~wfbench.policies.lookahead.rollout.Rollout` with a
+network (:class:`~wfbench.policies.neural.policy.NetworkPolicy` deciding all three
+decisions, e.g. ``scalefree-general``) in place of the compiled composite. At a workforce
+decision it scores the network's own workforce action and its allowed neighbours (the
+no-op, a hire or a let-go of each level) on the same K sampled worlds of H steps each
+(:class:`wfbench.core.belief.Belief`), with a copy of the network playing every later step
+of every world from the recurrent state it has now. The score is the mean over the K
+worlds of the sum of ``NSW_t`` over the steps; the network's action is scored first and
+wins ties. Dispatch and positioning are the network's.
+
+The rollouts step the batched simulator from Python and run the network on all rows of a
+decision at once (candidates x K per deciding environment), so a decision costs H forward
+passes of that batch: far more than the compiled roll-forward of a composite base
+(docs/policies.md has the measured cost). The copy's sampling noise is keyed by the seed
+the policy was reset with, its own seed, the step and the sample index k, so every
+candidate meets the same noise in world k (common random numbers) and nothing is read of
+the trace.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET, knob
+from wfbench.policies.protocol import seeds_array
+
+from wfbench.core.actions import AGENTS
+from wfbench.core.belief import Belief, config_from_observation
+from wfbench.core.config import ScenarioConfig
+
+PURPOSE_NOISE = 0x4E52  # the copy's sampling noise: a purpose of its own beside the belief's keys
+
+
+class NetworkRollout:
+    """Rollout of a network ``base`` on K sampled futures of H steps (module docstring).
+
+    Args:
+        base: a :class:`~wfbench.policies.neural.policy.NetworkPolicy` that decides dispatch,
+            workforce and positioning (``policies.get("scalefree-general")``).
+        K, H, R: the knobs of :class:`~wfbench.policies.lookahead.rollout.Rollout`; None takes the
+            ``budget`` preset's.
+        budget: a preset of :data:`~wfbench.policies.lookahead.rollout.BUDGETS` for the knobs not given.
+        scenario: the public config of the world; None: from :meth:`set_world`, else the first observation.
+        seed: the policy's own seed, mixed into its belief keys and the copy's noise.
+        name: the policy's name.
+    """
+
+    decisions = AGENTS
+    reads_trace = False
+
+    def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
+                 budget: str = DEFAULT_BUDGET, scenario: str | ScenarioConfig | None = None, seed: int = 0,
+                 name: str | None = None):
+        if not (hasattr(base, "model") and set(getattr(base, "decisions", ())) == set(AGENTS)):
+            raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a network deciding dispatch, "
+                             "workforce and positioning; allowed: a NetworkPolicy such as scalefree-general")
+        k0, h0, r0 = globals()["budget"](budget)
+        self.K = knob("K", k0 if K is None else K)
+        self.H = knob("H", h0 if H is None else H)
+        self.R = knob("R", r0 if R is None else R)
+        self.base = base
+        self.seed = int(seed)
+        self.name = name or f"rollout-{getattr(base, 'name', 'network')}"
+        self.config = None if scenario is None else ScenarioConfig.resolve(scenario)
+        self.belief: Belief | None = None
+        self.last_scores: np.ndarray | None = None
+        self.timing: dict[str, float] = {}
+        self.trained_on = getattr(base, "trained_on", None)
+
+    def settings(self) -> dict[str, int]:
+        return {"K": self.K, "H": self.H, "R": self.R}
+
+    def set_world(self, config: str | ScenarioConfig) -> None:
+        """The public config of the world (the evaluator's, before ``reset``)."""
+        self.config = ScenarioConfig.resolve(config)
+
+    def reset(self, seeds: int | Sequence[int]) -> None:
+        self._seeds = seeds_array(seeds)
+        self.base.reset(self._seeds)
+        self.belief = None
+
+    def _start(self, obs: dict[str, np.ndarray]) -> None:
+        from wfbench.policies.neural.policy import NetworkPolicy
+
+        config = self.config or config_from_observation(obs)
+        B = obs["facilities"].shape[0]
+        if len(self._seeds) != B:
+            raise RuntimeError(f"{self.name}: reset with {len(self._seeds)} seed(s), observed {B} environment(s)")
+        self.belief = Belief(config)
+        self.belief.reset(self._seeds, self.seed)
+        self.horizon = config.horizon
+        self.forks: dict[int, Any] = {}  # rows -> a fork of that many rows, allocated once
+        b = self.base
+        self.player = NetworkPolicy(b.model, mode=b.mode, device=str(b.device), seed=b.seed, name=f"{self.name}/copy",
+                                    threads=b.threads)
+        self.B = B
+        self.timing = {"steps": 0.0, "act_s": 0.0, "decisions": 0.0, "rolls": 0.0}
+
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        start = time.perf_counter()
+        if self.belief is None or int(np.asarray(obs["t"]).reshape(-1)[0]) == 0 and self.belief.t[0] > 0:
+            if self.belief is not None:
+                self.base.reset(self._seeds)
+            self._start(obs)
+        self.belief.update(obs)
+        action = self.base.act(obs)
+        action = {k: np.array(v, copy=True) for k, v in action.items()}
+        t = np.asarray(obs["t"], dtype=np.int64)
+        w = action["workforce"]
+        decide = (w != 0) | (t % self.R == 0)
+        self.last_scores = None
+        if decide.any():
+            self._decide(obs, np.flatnonzero(decide), action, int(t[0]))
+        self.timing["steps"] += 1
+        self.timing["act_s"] += time.perf_counter() - start
+        return action
+
+    def _fork(self, rows: int):
+        if rows not in self.forks:
+            self.forks[rows] = self.belief.simulator(rows)
+        return self.forks[rows]
+
+    def _decide(self, obs, envs: np.ndarray, action: dict[str, np.ndarray], t: int) -> None:
+        import torch
+
+        mask = obs["workforce_mask"]
+        w = action["workforce"]
+        rows_env, rows_a, rows_k, cands = [], [], [], {}
+        for b in envs:
+            allowed = [int(w[b])] + [a for a in range(7) if a != w[b] and mask[b, a]]
+            cands[int(b)] = allowed
+            for a in allowed:
+                for k in range(self.K):
+                    rows_env.append(int(b))
+                    rows_a.append(a)
+                    rows_k.append(k)
+        n = len(rows_env)
+        env_idx = np.asarray(rows_env, dtype=np.int64)
+        fork = self._fork(n)
+        self.belief.sample_into(fork, env_idx, np.asarray(rows_k, dtype=np.int64), self.H)
+        p = self.player
+        h, c = self.base._state  # after this step's act: the network's memory of the episode so far
+        idx = torch.as_tensor(env_idx, device=h.device)
+        p._state = (h[:, idx].clone(), c[:, idx].clone())
+        p._starts = torch.zeros(1, n, device=h.device)
+        p._rngs = [np.random.default_rng([int(self._seeds[e]), self.seed, PURPOSE_NOISE, t, k])
+                   for e, k in zip(rows_env, rows_k, strict=True)]
+        first = {"dispatch": action["dispatch"][env_idx], "workforce": np.asarray(rows_a, dtype=np.int64),
+                 "positioning": action["positioning"][env_idx]}
+        steps = min(self.H, self.horizon - t)
+        total, fobs = fork.step_observe(first)
+        for _ in range(steps - 1):
+            r, fobs = fork.step_observe(p.act(fobs))
+            total += r
+        self.timing["decisions"] += len(envs)
+        self.timing["rolls"] += n
+        scores = np.full((self.B, 7), np.nan)
+        i = 0
+        for b in envs:
+            best_a, best_v = None, -np.inf
+            for a in cands[int(b)]:
+                v = float(total[i: i + self.K].mean())
+                scores[b, a] = v
+                if v > best_v:  # the network's own action is first: it wins ties
+                    best_a, best_v = a, v
+                i += self.K
+            w[b] = best_a
+        self.last_scores = scores
+
+
+__all__ = ["NetworkRollout"]
