@@ -76,6 +76,15 @@ def test_verdicts__the_best_of_each_side_within_each_budget():
     assert only["learned_policy"] is None and only["ahead"] == "OR" and only["apart"] is None
 
 
+def test_the_oracle_line_names_where_a_policy_is_above_it():
+    frames = {"oracle": pd.DataFrame({"scenario": ["a", "a", "b"], "nsw": [0.8, 0.6, 0.5]}),
+              "mine": pd.DataFrame({"scenario": ["a", "a", "b"], "nsw": [0.7, 0.6, 0.6]})}
+    assert target._oracle_line(frames) == "The oracle's mean NSW is below: mine on b (0.6000 > 0.5000)."
+    frames["mine"]["nsw"] = 0.5
+    assert target._oracle_line(frames).startswith("The oracle's mean NSW is at least every other policy's here on "
+                                                  "each of the 2 scenarios")
+
+
 def test_family__joins_each_kind_on_its_line():
     assert [target.family(p) for p in ("rollout-solver-tuned-1ms", "mpc-ma", "scalefree-general", "solver-tuned",
                                        "heuristic-tuned-train", "oracle")] == \

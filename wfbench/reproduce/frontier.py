@@ -218,6 +218,8 @@ def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int |
         "The best deployable policy of each side within each budget (CPU ms per env-step; the oracle reads the "
         "future and is not deployable):", "",
         markdown_table(["Budget", "Best OR (IQM)", "Best learned (IQM)", "Ahead"], verdict_rows)])
+    if "oracle" in frames:
+        md += "\n\n" + _oracle_line(frames)
     if failures:
         md += "\n\nFailed (not cached; a rerun tries them again):\n\n" + markdown_table(["Scenario", "Policy", "Error"],
                                                                                         failures)
@@ -226,6 +228,18 @@ def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int |
     files.append(out / "frontier-verdict.csv")
     files += _figure(result, split, len(chosen), seeds_text, out / "frontier")
     return Output(md, files)
+
+
+def _oracle_line(frames: dict[str, pd.DataFrame]) -> str:
+    """Whether the oracle's mean NSW is at least every other policy's on every scenario, and where not."""
+    means = {n: df.groupby("scenario", sort=False)[SCORE].mean() for n, df in frames.items()}
+    oracle = means.pop("oracle")
+    above = [f"{n} on {sc} ({m[sc]:.4f} > {oracle[sc]:.4f})" for n, m in means.items() for sc in m.index
+             if m[sc] > oracle[sc]]
+    if not above:
+        return (f"The oracle's mean NSW is at least every other policy's here on each of the {len(oracle)} "
+                "scenarios.")
+    return "The oracle's mean NSW is below: " + "; ".join(above) + "."
 
 
 def _ahead_cell(v: dict) -> str:
