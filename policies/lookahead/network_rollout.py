@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET, knob
+from wfbench.policies.lookahead.rollout import budget as preset_knobs
 from wfbench.policies.protocol import seeds_array
 
 from wfbench.core.actions import AGENTS
@@ -59,7 +60,7 @@ class NetworkRollout:
         if not (hasattr(base, "model") and set(getattr(base, "decisions", ())) == set(AGENTS)):
             raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a network deciding dispatch, "
                              "workforce and positioning; allowed: a NetworkPolicy such as scalefree-general")
-        k0, h0, r0 = globals()["budget"](budget)
+        k0, h0, r0 = preset_knobs(budget)
         self.K = knob("K", k0 if K is None else K)
         self.H = knob("H", h0 if H is None else H)
         self.R = knob("R", r0 if R is None else R)
