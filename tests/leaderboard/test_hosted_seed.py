@@ -59,12 +59,12 @@ def test_seeding_refuses_a_user_named_wfbench(board):
 
 def test_the_cli_seeds_a_track_and_says_what_it_did(tmp_path, capsys):
     db = str(tmp_path / "board.sqlite")
-    assert main(["serve", "seed", "--db", db, "--tracks", "paper-64", "--phase", "dev"]) == 0
+    assert main(["serve", "baselines", "--db", db, "--tracks", "paper-64", "--phase", "dev"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[1] == "heuristic on paper-64 (dev): submission 2 queued"
     assert f"oracle on paper-64 (dev): left out: {ORACLE_LEFT_OUT}" in out
     assert out[-1] == f"9 new submissions of account 'wfbench'; start 'wfbench worker --server {db}' to evaluate them"
-    assert main(["serve", "seed", "--db", db, "--tracks", "paper-64", "--phase", "dev"]) == 0
+    assert main(["serve", "seed", "--db", db, "--tracks", "paper-64", "--phase", "dev"]) == 0  # the old name
     out = capsys.readouterr().out.splitlines()
     assert out[1] == "heuristic on paper-64 (dev): already there, submission 2 (queued)" and out[-1].startswith("0 new")
     assert main(["serve", "seed", "--db", db, "--phase", "final"]) == 2

@@ -62,7 +62,8 @@ def add_parser(sub) -> None:
                     help="rank only entries whose p99 wall time per decision is at most this many milliseconds")
     lw.add_argument("--max-cpu-s", type=budget_limit, default=None,
                     help="rank only entries that used at most this many CPU seconds per episode")
-    ld = lsub.add_parser("seed", help="fill in the built-in entries (random, heuristic, solver, ...)")
+    ld = lsub.add_parser("baselines", aliases=["seed"], help="fill in the built-in entries (random, heuristic, "
+                         "solver, ...); 'seed' is the old name of this command")
     ld.add_argument("--track", default=None, help="one track (default: every one-scenario track; a suite track "
                                                   "only when named)")
     ld.add_argument("--db", default=None)
@@ -195,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"withdrew {args.name!r} from track {tr.name}: its entry and {n} rows moved to the audit tables "
                   f"of {store.path}")
             return 0
-        if args.lb_command == "seed":
+        if args.lb_command in ("baselines", "seed"):
             check_backend_args(args)
             failed = 0
             for tr in seed_tracks(track(args.track) if args.track else None):  # a suite track only when named

@@ -1,4 +1,4 @@
-"""``wfbench serve``: the hosted leaderboard's web server; ``account add NAME``: an account; ``seed``: the built-ins.
+"""``wfbench serve``: the hosted board's web server; ``account add NAME``: an account; ``baselines``: the built-ins.
 
 The server stores uploads and queues them; ``wfbench worker`` evaluates them. Both read
 the same database: a SQLite file (the default, nothing else to start) or a PostgreSQL
@@ -40,8 +40,11 @@ def add_parser(sub) -> None:
     add.add_argument("name", help="the account's name")
     add.add_argument("--admin", action="store_true", help="an admin account")
     add.add_argument("--db", default=argparse.SUPPRESS, help=DB_HELP)  # after the subcommand too
-    seed = ssub.add_parser("seed", help="enter the built-in policies (the baselines the reports compare with) as "
-                                        "submissions of the admin account 'wfbench'; seeding again adds nothing")
+    # "seed" is the old spelling: it said "random seed" to every reader of the other commands
+    seed = ssub.add_parser("baselines", aliases=["seed"],
+                           help="enter the built-in policies (the baselines the reports compare with) as "
+                                "submissions of the admin account 'wfbench'; entering them again adds nothing "
+                                "('seed' is the old name of this command)")
     seed.add_argument("--tracks", default=argparse.SUPPRESS,
                       help="comma-separated tracks to enter them on (default: all the board's)")
     seed.add_argument("--phase", choices=("dev", "test", "both"), default="both",
@@ -100,7 +103,7 @@ def worker_command(board) -> str:
 
 
 def seed(board, phase: str) -> int:
-    """``wfbench serve seed``: one line per built-in, track and phase; what to start next."""
+    """``wfbench serve baselines`` (or ``seed``): one line per built-in, track and phase; what to start next."""
     from wfbench.leaderboard.hosted.db import BoardError
     from wfbench.leaderboard.hosted.seed import ACCOUNT, PHASES
     from wfbench.leaderboard.hosted.seed import seed as seed_builtins
@@ -133,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"account {args.name!r}{' (admin)' if args.admin else ''} made; its token, shown only now:")
         print(token)
         return 0
-    if args.serve_command == "seed":
+    if args.serve_command in ("baselines", "seed"):
         return seed(board, args.phase)
     if args.serve_command == "end-test":
         import time
