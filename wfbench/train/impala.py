@@ -1,10 +1,15 @@
-"""IMPALA for the paper's joint model: an actor with lagging parameters, a learner with V-trace (one file).
+"""IMPALA for the joint model: an actor with lagging parameters, a learner with V-trace (one file).
 
 Espeholt et al. 2018, "IMPALA: Scalable Distributed Deep-RL with Importance Weighted
 Actor-Learner Architectures". The network, the observation -> tensor step, the action
 distributions, the reward shaping, the checkpoints and the public-seed selection are
 those of the PPO trainer (:mod:`wfbench.train.ppo`, ``docs/rl.md``); what differs is who
-acts with which parameters, and how the learner corrects for it::
+acts with which parameters, and how the learner corrects for it. The network is the
+paper's (a preset of :mod:`wfbench.policies.neural.model`, observation version 1) or the
+scale-free one (``model="scalefree"``, :mod:`wfbench.policies.neural.scalefree`, version 2):
+:func:`build_network` picks the class, and the features and log-probabilities go through
+``scalefree``'s helpers, which tell the two apart (for a preset the same computation as
+before the scale-free network existed)::
 
     actor:   its own copy of the network, refreshed from the learner every K updates
              T steps of the B environments of a Simulator (staggered episodes, partial reset;
@@ -66,11 +71,12 @@ from typing import NamedTuple
 
 import numpy as np
 import torch
+from torch import nn
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.backends import require_ray
-from wfbench.policies.neural.dist import log_prob_entropy
-from wfbench.policies.neural.model import WorkforceNet, featurize
+from wfbench.policies.neural import scalefree
+from wfbench.policies.neural.model import WorkforceNet
 from wfbench.train import toolkit
 
 MODES = ("async", "sync")
@@ -85,7 +91,7 @@ class ImpalaConfig(toolkit.ActorCriticConfig):
     """Every setting of an IMPALA run (the shared ones in :class:`wfbench.train.toolkit.ActorCriticConfig`)."""
 
     variant: str = "joint"  # joint only (the paper trains joint IMPALA)
-    model: str = "cpu"  # wfbench.policies.neural.model.PRESETS
+    model: str = "cpu"  # wfbench.policies.neural.model.PRESETS, or "scalefree" (the scale-free network)
     run_dir: str = "runs/impala"
     mode: str = "async"  # async: actor thread + bounded queue; sync: actor and learner in turn
     queue_size: int = 1  # async: rollouts waiting for the learner, at most
@@ -98,6 +104,7 @@ class ImpalaConfig(toolkit.ActorCriticConfig):
     vtrace_lambda: float = 1.0  # c_t = lambda * min(c_bar, pi / mu)
     address: str = ""  # "": the actor thread of `mode`; else Ray actors: "local", "auto", "ray://HOST:PORT"
     ray_actors: int = 2  # with address: Ray actors, each with num_envs environments (one CPU x threads each)
+    scalefree_ok = True  # IMPALA trains the scale-free network (--model scalefree), as PPO does
 
     def check(self) -> None:
         if self.variant != "joint":
@@ -120,6 +127,53 @@ class ImpalaConfig(toolkit.ActorCriticConfig):
                 raise ValueError(f"mode {self.mode!r} is not allowed with address (Ray actors run beside the "
                                  "learner); allowed: async")
             require_ray(f"address {self.address!r}")
+
+
+def build_network(network) -> nn.Module:
+    """The network of a run's config (``Run.network``): the scale-free one for observation version 2.
+
+    Args:
+        network: the config of :meth:`ImpalaConfig.network_config`, a preset's ``ModelConfig``
+            or a ``ScaleFreeConfig``.
+
+    Returns:
+        A fresh ``WorkforceNet`` (a preset) or ``ScaleFreeNet`` (``scalefree``), on CPU.
+    """
+    if getattr(network, "obs_version", 1) == 2:
+        return scalefree.ScaleFreeNet(network)
+    return WorkforceNet(network)
+
+
+def joint_log_prob(model: nn.Module, out: dict, x: dict, acts: dict) -> tuple[torch.Tensor, torch.Tensor, dict]:
+    """The joint log-probability (rows,) of stored actions, the joint entropy (rows,) and the entropy per head.
+
+    By ``model``'s distributions (:func:`wfbench.policies.neural.scalefree.head_log_probs`);
+    for a version-1 network the sums of :func:`wfbench.policies.neural.dist.log_prob_entropy`.
+
+    Args:
+        model: the network whose head outputs ``out`` are.
+        out: the head outputs of ``model``'s forward on the rows of ``x``.
+        x: the features of the rows.
+        acts: the stored actions of the rows (``dispatch``, ``workforce``, ``positioning``).
+    """
+    heads = scalefree.head_log_probs(model, out, x, acts)
+    logp = sum(lp for lp, _ in heads.values())
+    ent = sum(e for _, e in heads.values())
+    return logp, ent, {k: e for k, (_, e) in heads.items()}
+
+
+def _first_rows(model: nn.Module, out: dict, x: dict, n: int) -> dict:
+    """The head outputs of the first ``n`` rows of a forward (the learner's T steps, not the bootstrap step).
+
+    A version-1 network's outputs are per row (the value left out: the log-probabilities do not
+    read it). The scale-free network's ``dispatch`` has a row per choosing facility in row-major
+    order, so the first ``n`` rows' are the first ``x["choose"][:n].sum()``.
+    """
+    if scalefree.obs_version(model) == 1:
+        return {k: v[:n] for k, v in out.items() if k != "value"}
+    heads = {k: v[:n] for k, v in out.items() if k != "dispatch"}
+    heads["dispatch"] = out["dispatch"][:int(x["choose"][:n].sum())]
+    return heads
 
 
 # -- V-trace ------------------------------------------------------------------------------------
@@ -163,7 +217,7 @@ class Actor:
     return normalizer).
     """
 
-    def __init__(self, cfg: ImpalaConfig, scenario: ScenarioConfig, model: WorkforceNet, device: torch.device,
+    def __init__(self, cfg: ImpalaConfig, scenario: ScenarioConfig, model: nn.Module, device: torch.device,
                  index: int = 0, count: int = 1, amp: str | torch.dtype | None = "auto"):
         self.cfg, self.device, self.index = cfg, device, index
         self.model = copy.deepcopy(model).eval()
@@ -195,7 +249,7 @@ class Actor:
     def rollout(self) -> dict:
         """T steps (:meth:`Collector.collect`): T + 1 observations, the bootstrap V(x_T)'s the last."""
         roll = self.env.collect(self.model, self.cfg.num_steps,
-                                lambda out, x, acts: log_prob_entropy(out, x, acts)[0])
+                                lambda out, x, acts: joint_log_prob(self.model, out, x, acts)[0])
         roll["version"] = self.version
         roll["actor"] = self.index
         roll["meta"] = self.meta()
@@ -213,7 +267,7 @@ class RemoteActor:
 
     def __init__(self, cfg: ImpalaConfig, index: int, meta: dict | None, scenario: ScenarioConfig):
         torch.set_num_threads(cfg.threads)
-        model = WorkforceNet(cfg.network_config())
+        model = build_network(cfg.network_config())
         self.actor = Actor(cfg, scenario, model, torch.device("cpu"), index, cfg.ray_actors)
         if meta is not None:  # resume: this actor's return normalizer, generator and seed cursor
             self.actor.restore(meta)
@@ -248,7 +302,7 @@ class Trainer:
                  log: bool = True, amp: str | torch.dtype | None = "auto"):
         self.run = toolkit.start_run(config, progress, log, amp)
         c = config
-        self.model = WorkforceNet(self.run.network).to(self.run.device)
+        self.model = build_network(self.run.network).to(self.run.device)
         if c.optimizer == "adam":
             self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=c.eps)
         else:
@@ -291,14 +345,14 @@ class Trainer:
         t0 = time.perf_counter()
         T, B = roll["logp"].shape
         raw = {k: v.flatten(0, 1) for k, v in roll["raw"].items()}  # (T + 1) * B rows, time major
-        x = featurize(raw, self.run.network.coord_scale)
+        x = scalefree.features(self.model, raw)
         with toolkit.autocast(self.run.device, self.run.amp):
             out, _ = self.model(x, roll["init_state"], roll["starts"])
         values = out["value"].float().view(T + 1, B)
         n = T * B  # the last step's rows only give the bootstrap value
-        heads = {k: v[:n] for k, v in out.items() if k != "value"}
+        heads = _first_rows(self.model, out, x, n)
         acts = {k: roll[k].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
-        logp, ent, parts = log_prob_entropy(heads, {k: v[:n] for k, v in x.items()}, acts)
+        logp, ent, parts = joint_log_prob(self.model, heads, {k: v[:n] for k, v in x.items()}, acts)
         logp = logp.view(T, B)
         log_rhos = logp.detach() - roll["logp"]
         vt = vtrace(log_rhos, roll["reward"], c.gamma * (1.0 - roll["done"]), values[:T].detach(),
