@@ -63,7 +63,7 @@ def test_train_speed__device_and_compile_reach_the_trainer(train_speed, monkeypa
 @pytest.mark.parametrize(("flags", "model"), [([], "scalefree"), (["--model", "small"], "small"),
                                               (["--variant", "dispatch"], "small"),
                                               (["--agents", "independent"], "small"),
-                                              (["--algo", "impala", "--set", "mode=sync"], "cpu")])
+                                              (["--algo", "impala", "--set", "mode=sync"], "scalefree")])
 def test_train__without_model_trains_the_scalefree_network_where_the_trainer_can(tmp_path, flags, model):
     run = tmp_path / "run"
     argv = ["train", "--scenario", "small", "--num-envs", "4", "--num-steps", "4", "--steps", "16",

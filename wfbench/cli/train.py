@@ -81,9 +81,9 @@ def add_parser(sub) -> None:
 def default_model(config_cls: type, given: dict) -> str:
     """The network of a ``wfbench train`` without ``--model``: the scale-free one where the trainer trains it.
 
-    That is PPO's joint network (issue #44); ``--variant dispatch``, ``--agents independent``
-    and the trainers that do not train it (IMPALA, hindsight learning) keep their config's
-    default. The older networks stay available by name (``--model small``).
+    That is PPO's and IMPALA's joint network (issue #44); ``--variant dispatch``,
+    ``--agents independent`` and the trainer that does not train it (hindsight learning) keep
+    their config's default. The older networks stay available by name (``--model small``).
     """
     from wfbench.policies.neural.scalefree import ARCH
 
