@@ -32,7 +32,7 @@ from torch import nn
 from wfbench.policies.neural import scalefree
 
 from wfbench import policies
-from wfbench.core.context import observe_v2
+from wfbench.core.observation_v2 import observe_v2
 from wfbench.core.simulator import Simulator
 from wfbench.harness.budget import machine, machine_line
 

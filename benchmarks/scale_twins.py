@@ -1,7 +1,7 @@
 """A world and its twins in other units (issue #32): lengths, speed and spatial spread times k, every policy scored.
 
 A world whose grid side, speed and ``heat_sigma`` are all multiplied by k is the same
-world in other units (``wfbench.core.context.scaled_world``). A policy that reads the
+world in other units (``wfbench.core.observation_v2.scaled_world``). A policy that reads the
 world as a dispatcher does scores the same on both, up to the discretization of the grid
 (facilities sit on whole cells). For each world, each policy and k in ``--ks``, the mean
 NSW over the seeds; then per policy the largest move from k = 1, and for a method with
@@ -27,7 +27,7 @@ from wfbench.policies.registry import parse_member, seed_members
 
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.context import scaled_world
+from wfbench.core.observation_v2 import scaled_world
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.harness.budget import machine, machine_line
 from wfbench.harness.evaluation import evaluate
@@ -107,7 +107,7 @@ def main() -> None:
     summary = t.groupby("method", sort=False)[["largest move", "seeds' spread at k=1"]].mean().reset_index()
     text = (f"# A world and its twins at k = {', '.join(f'{k:g}' for k in ks)}\n\n"
             f"Mean NSW over seeds {describe(seeds)}; lengths, speed and heat_sigma times k "
-            "(`wfbench.core.context.scaled_world`). A method with training seeds is the mean of its seeds; "
+            "(`wfbench.core.observation_v2.scaled_world`). A method with training seeds is the mean of its seeds; "
             "its spread is max - min of the seeds' means at k = 1.\n\n"
             f"Command: `python benchmarks/scale_twins.py --seeds {a.seeds} --ks {a.ks} --out {a.out}`; "
             f"{wall / 60:.1f} minutes on {machine_line(machine())}.\n\n"

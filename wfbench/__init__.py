@@ -23,7 +23,7 @@ from wfbench.core.trace import trace
 # Gymnasium imports an entry point's module only when an environment is made. The vector
 # entry points make ``gymnasium.make_vec(id, num_envs=B)`` one batched WorkforceVectorEnv.
 # A changed observation is a new version of an id (Gymnasium's convention): Workforce-v1 is
-# Workforce-v0 with observation version 2 (wfbench.core.context), its registered kwargs.
+# Workforce-v0 with observation version 2 (wfbench.core.observation_v2), its registered kwargs.
 ENV_IDS = {
     "wfbench/Workforce-v0": "wfbench.envs.gym_env:WorkforceEnv",
     "wfbench/Workforce-v1": "wfbench.envs.gym_env:WorkforceEnv",

@@ -45,7 +45,7 @@ from wfbench.solvers.staffing_mpc import StaffingInstance, plan_staffing
 
 from wfbench.core.actions import AGENTS
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.context import W
+from wfbench.core.observation_v2 import W
 from wfbench.core.observe import FAC_REQUESTING, FAC_X, FAC_Y, PER_HOME_X, PER_HOME_Y, PER_LEVEL
 from wfbench.core.state import EMPTY, ONBOARDING
 

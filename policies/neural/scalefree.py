@@ -1,6 +1,6 @@
 """A network that reads the world as a dispatcher does: observation version 2, any size (``--model scalefree``).
 
-What it sees (:func:`featurize`, from :func:`wfbench.core.context.observe_v2`): every
+What it sees (:func:`featurize`, from :func:`wfbench.core.observation_v2.observe_v2`): every
 length in travel-time steps, positions divided by the world's extent in travel time,
 the world's public parameters and the counts that keep ratios (``context``, in logs),
 never ``units`` (the speed and the grid in cells). A world whose lengths and speed are
@@ -71,11 +71,11 @@ from wfbench.policies.neural.model import (
 from wfbench.policies.neural.model import featurize as featurize_v1
 from wfbench.policies.neural.model import obs_to_torch as obs_to_torch_v1
 
-from wfbench.core.context import observe_v2
+from wfbench.core.observation_v2 import observe_v2
 
 ARCH = "scalefree"
 OBS_KEYS_V2 = (*OBS_KEYS, "context")
-# the context's columns (wfbench.core.context.CONTEXT_FEATURES), as literals so this module needs nothing of
+# the context's columns (wfbench.core.observation_v2.CONTEXT_FEATURES), as literals so this module needs nothing of
 # the simulator: which enter as they are (probabilities, salaries, utilization targets); the rest as log(1 + x)
 N_CONTEXT = 33
 CTX_EXTENT_X, CTX_EXTENT_Y = 0, 1

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from wfbench import RateSchedule, ScenarioConfig, Simulator
-from wfbench.core.context import WORLD_FEATURES
+from wfbench.core.observation_v2 import WORLD_FEATURES
 from wfbench.core.observe import FACILITY_FEATURES, GLOBAL_FEATURES, PERSONNEL_FEATURES
 
 from .reference import EMPTY, IDLE, ONBOARDING, RETURNING, SERVICING, TO_FACILITY, ReferenceEnv

@@ -1,4 +1,4 @@
-"""Observation version 2 (wfbench.core.context, issue #32) and the environments that show it.
+"""Observation version 2 (wfbench.core.observation_v2, issue #32) and the environments that show it.
 
 Version 2 gives every length in travel-time steps and the world's public parameters as a
 scale-free ``context``, the units apart in ``units``. The claim it is built for: a world
@@ -25,7 +25,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import wfbench
 from wfbench import ScenarioConfig, Simulator, policies
 from wfbench.core.config import PRESETS
-from wfbench.core.context import (
+from wfbench.core.observation_v2 import (
     CONTEXT_FEATURES,
     UNIT_FEATURES,
     V2_KEYS,

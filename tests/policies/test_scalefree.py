@@ -15,7 +15,7 @@ from wfbench.policies.neural.policy import from_checkpoint  # noqa: E402
 
 import wfbench  # noqa: E402
 from wfbench import policies  # noqa: E402
-from wfbench.core.context import observe_v2, scaled_world  # noqa: E402
+from wfbench.core.observation_v2 import observe_v2, scaled_world  # noqa: E402
 from wfbench.core.simulator import Simulator  # noqa: E402
 
 

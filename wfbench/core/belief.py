@@ -34,7 +34,7 @@ reads a trace, a true state or an episode seed's generator.
 
 What the observation does not carry and the public config must give (:class:`PublicModel`):
 version 1 carries no parameter of the world at all; version 2 (the ``world`` key every
-observation carries, :mod:`wfbench.core.context`) carries grid, speed, delays, rates,
+observation carries, :mod:`wfbench.core.observation_v2`) carries grid, speed, delays, rates,
 salaries and slots, but only this step's schedule multipliers (not the future ones), not
 the facility layout, not the mean facility lifetime (``initial_facilities *
 churn_interval``) and not the placement rule. :meth:`PublicModel.from_config` takes them
@@ -53,7 +53,7 @@ from numba import njit
 
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.context import WORLD_DYNAMIC, WORLD_FEATURES, world_parameters
+from wfbench.core.observation_v2 import WORLD_DYNAMIC, WORLD_FEATURES, world_parameters
 from wfbench.core.observe import (
     FAC_DOWNTIME,
     FAC_PERSON,

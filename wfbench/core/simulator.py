@@ -19,9 +19,9 @@ from numba import njit
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.core.actions import AGENTS, ActionError, validate_actions
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.context import WorldKey
 from wfbench.core.dynamics import reset_batch, reset_env
 from wfbench.core.entrypoints import bind, run_split
+from wfbench.core.observation_v2 import WorldKey
 from wfbench.core.observe import allocate_obs, observe_env, observe_range, step_observe_range, step_range
 from wfbench.core.state import COUNTERS, K_NSW, METRICS, allocate, make_params
 from wfbench.core.trace import NEVER, Trace, trace, trace_batch

@@ -8,7 +8,7 @@ and act through a 1-D ``MultiDiscrete``, the shape SB3's PPO and MaskablePPO tak
   ``[dispatch (M entries of 0..N), workforce (0..6), positioning (2M entries of
   0..10, weight = level / 10)]``.
 - Workforce-v1: Workforce-v0 with observation version 2 (``obs_version=2``,
-  :mod:`wfbench.core.context`): coordinates in travel-time steps, and the keys
+  :mod:`wfbench.core.observation_v2`): coordinates in travel-time steps, and the keys
   ``context`` (the world's public parameters and counts, scale-free) and ``units``
   (speed, grid width and height). Dynamics, reward and actions are Workforce-v0's.
 - Dispatch-v0: the action is the dispatch vector; workforce and positioning are made

@@ -31,7 +31,7 @@ Options for RL libraries that want one shape for everything (``docs/envs.md``):
   dicts ``metrics``, ``counts``, ``step_counts``.
 - ``obs_version=1`` (default): the paper's observation; ``obs_version=2``: observation
   version 2 (coordinates in travel-time steps, plus ``context`` and ``units``;
-  :mod:`wfbench.core.context`), the observation of ``wfbench/Workforce-v1``; the
+  :mod:`wfbench.core.observation_v2`), the observation of ``wfbench/Workforce-v1``; the
   environment's ``metadata["name"]`` then ends in ``_v1``, as the Gymnasium id does.
 - ``state()`` and ``state_space``: the shared observation without the masks, flattened
   (in the observation's version).

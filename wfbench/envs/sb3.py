@@ -33,7 +33,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.vec_env import VecEnv
 
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.context import observe_v2
+from wfbench.core.observation_v2 import observe_v2
 from wfbench.core.state import N_WORKFORCE_ACTIONS
 from wfbench.envs.spaces import POSITIONING_LEVELS
 from wfbench.envs.vector import WorkforceVectorEnv
@@ -194,7 +194,7 @@ class SB3Policy:
     decision only (run it in ``policies.Composite`` beside the built-in workforce and
     positioning policies it was trained with). Actions are the model's deterministic
     choice, masked when the model is a MaskablePPO. A model trained on observation
-    version 2 (its space has ``context``) is given :func:`~wfbench.core.context.observe_v2`
+    version 2 (its space has ``context``) is given :func:`~wfbench.core.observation_v2.observe_v2`
     of the observation.
     """
 

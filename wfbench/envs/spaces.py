@@ -1,9 +1,9 @@
 """Observation and action spaces shared by the PettingZoo and Gymnasium environments.
 
-Two observation versions (``obs_version=``, :data:`wfbench.core.context.OBS_VERSIONS`):
+Two observation versions (``obs_version=``, :data:`wfbench.core.observation_v2.OBS_VERSIONS`):
 1, the paper's (coordinates in grid cells; ``wfbench/Workforce-v0``), and 2 (coordinates
 in travel-time steps, plus ``context`` and ``units``; ``wfbench/Workforce-v1``), derived
-from the simulator's observation by :func:`wfbench.core.context.observe_v2`. Neither
+from the simulator's observation by :func:`wfbench.core.observation_v2.observe_v2`. Neither
 space has the simulator's ``world`` key: version 1 stays as it was, and version 2 holds
 the same parameters scale-free in ``context`` and the units apart in ``units``.
 """
@@ -17,7 +17,7 @@ from gymnasium import spaces
 
 from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.context import (
+from wfbench.core.observation_v2 import (
     CONTEXT_FEATURES,
     OBS_VERSIONS,
     UNIT_FEATURES,
@@ -95,7 +95,7 @@ def shared_spaces(c: ScenarioConfig, obs_version: int = 1) -> dict[str, spaces.S
 
 
 def context_bounds(c: ScenarioConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) float32 of :data:`~wfbench.core.context.CONTEXT_FEATURES` in the world ``c``.
+    """(low, high) float32 of :data:`~wfbench.core.observation_v2.CONTEXT_FEATURES` in the world ``c``.
 
     Every column is >= 0, so low is 0 (below 0 only for a rate whose schedule goes
     negative). high is the greatest value the column takes in this world: for the
