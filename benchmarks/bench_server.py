@@ -15,8 +15,8 @@ server and the database, not an evaluation. Times are printed, never asserted.
 
 Usage::
 
-    python benchmarks/bench_server.py --uploads 64 --concurrency 8 --entries 8
-    python benchmarks/bench_server.py --db postgresql+psycopg://wfbench:wfbench@127.0.0.1:5432/bench
+    python -m benchmarks.bench_server --uploads 64 --concurrency 8 --entries 8
+    python -m benchmarks.bench_server --db postgresql+psycopg://wfbench:wfbench@127.0.0.1:5432/bench
 """
 
 from __future__ import annotations
@@ -32,10 +32,11 @@ import httpx
 import numpy as np
 from wfbench.leaderboard.hosted import queue
 from wfbench.leaderboard.hosted.db import Board
-from wfbench.leaderboard.hosted.server import LiveServer, create_app
+from wfbench.leaderboard.hosted.server import create_app
 from wfbench.leaderboard.hosted.worker import aggregate
 from wfbench.leaderboard.tracks import Track
 
+from tests.leaderboard.live_server import LiveServer  # a test helper: run from the checkout with python -m
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import machine, machine_line
 from wfbench.harness.package import archive

@@ -36,10 +36,11 @@ import httpx
 import numpy as np
 import pytest
 from wfbench.leaderboard.hosted.db import Board
-from wfbench.leaderboard.hosted.server import LiveServer, create_app
+from wfbench.leaderboard.hosted.server import create_app
 from wfbench.leaderboard.store import KPI_COLUMNS
 
 from tests.harness.test_sandbox import RULE as SANDBOX_RULE
+from tests.leaderboard.live_server import LiveServer
 from tests.leaderboard.test_server import TRACK
 from wfbench.harness.evaluation import evaluate
 from wfbench.harness.package import pack

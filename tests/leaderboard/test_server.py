@@ -23,10 +23,11 @@ import sqlalchemy as sa
 from fastapi.testclient import TestClient
 from wfbench.leaderboard.hosted import queue
 from wfbench.leaderboard.hosted.db import Board, jobs, packages, submissions
-from wfbench.leaderboard.hosted.server import LiveServer, create_app
+from wfbench.leaderboard.hosted.server import create_app
 from wfbench.leaderboard.hosted.worker import Worker, aggregate
 from wfbench.leaderboard.tracks import Track
 
+from tests.leaderboard.live_server import LiveServer
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.guard import PolicyError
 from wfbench.harness.package import archive
