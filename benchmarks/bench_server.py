@@ -39,7 +39,7 @@ from wfbench.leaderboard.tracks import Track
 from tests.leaderboard.live_server import LiveServer  # a test helper: run from the checkout with python -m
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import machine, machine_line
-from wfbench.harness.package import archive
+from wfbench.harness.isolation.package import archive
 
 TRACK = Track(name="bench", config=ScenarioConfig.preset("small"), public_seeds=tuple(range(1000, 1050)),
               test_seeds=tuple(range(50)), description="the benchmark's track (no policy runs)")

@@ -141,12 +141,12 @@ def postgres_url():
 
 @pytest.fixture
 def bwrap() -> str:
-    """The path of bubblewrap, which runs submitted policies (:mod:`wfbench.harness.sandbox`)."""
+    """The path of bubblewrap, which runs submitted policies (:mod:`wfbench.harness.isolation.sandbox`)."""
     path = shutil.which("bwrap")
     if not path:
         _skip_or_fail("bubblewrap is not installed: on Debian/Ubuntu `apt-get install bubblewrap` "
                       "(.ci/run installs it)", REQUIRE_BWRAP)
-    from wfbench.harness.sandbox import SandboxUnavailable, _seccomp_program
+    from wfbench.harness.isolation.sandbox import SandboxUnavailable, _seccomp_program
 
     try:  # the sandbox's seccomp filter needs libseccomp's Python bindings (issue #42)
         _seccomp_program()

@@ -7,7 +7,7 @@
 - :mod:`~wfbench.leaderboard.hosted.hidden`: the development and test phases, the hidden test
   seeds and their published commitment.
 - :mod:`~wfbench.leaderboard.hosted.worker`: ``wfbench worker``, which runs the queue through the
-  sandbox (:mod:`wfbench.harness.sandbox`).
+  sandbox (:mod:`wfbench.harness.isolation.sandbox`).
 - :mod:`~wfbench.leaderboard.hosted.server`, :mod:`~wfbench.leaderboard.hosted.client`: ``wfbench serve``
   and ``wfbench leaderboard upload``.
 

@@ -1,11 +1,11 @@
 """The client of a hosted board (``wfbench leaderboard upload``): pack, upload, follow the state, print the result.
 
-The package is made here the way the server reads it (:mod:`wfbench.harness.package`): a
-``module:attr`` entry point is packed from the current folder (:func:`~wfbench.harness.package.pack`:
+The package is made here the way the server reads it (:mod:`wfbench.harness.isolation.package`): a
+``module:attr`` entry point is packed from the current folder (:func:`~wfbench.harness.isolation.package.pack`:
 the same code gives the same bytes, so uploading it again is a dedupe hit on the server, not
 a second evaluation), a folder holding ``wfbench-policy.json`` is packed as it is, and a
 ``.zip`` or ``.whl`` is sent as it is. Each is checked with
-:func:`~wfbench.harness.package.inspect` before it leaves, so a package the server would
+:func:`~wfbench.harness.isolation.package.inspect` before it leaves, so a package the server would
 refuse is refused here with the same one-line reason and nothing is sent.
 
 ``wfbench leaderboard mine`` lists an account's submissions (:meth:`Client.mine`,
@@ -56,9 +56,9 @@ def load_package(policy: str, root: str | Path = ".") -> Package:
         root: where an entry point's module is looked up (the current folder).
 
     Raises:
-        UploadError: nothing of that name, or a package :func:`~wfbench.harness.package.inspect` refuses.
+        UploadError: nothing of that name, or a package :func:`~wfbench.harness.isolation.package.inspect` refuses.
     """
-    from wfbench.harness.package import PackageError, inspect, pack, pack_folder
+    from wfbench.harness.isolation.package import PackageError, inspect, pack, pack_folder
 
     path = Path(policy)
     try:

@@ -349,7 +349,7 @@ def token_hash(token: str) -> str:
 
 
 def package_sha(data: bytes) -> str:
-    """The content hash of a package, ``sha256:<hex>`` (as :func:`wfbench.harness.package.content_hash`)."""
+    """The content hash of a package, ``sha256:<hex>`` (as :func:`wfbench.harness.isolation.package.content_hash`)."""
     return "sha256:" + hashlib.sha256(data).hexdigest()
 
 
@@ -875,7 +875,7 @@ class Board:
         return hidden.public(_hidden(r)) if r else None
 
     def key_secret(self) -> bytes:
-        """The board's secret for the opaque per-episode keys (:func:`wfbench.harness.sandbox.evaluate_sandboxed`)."""
+        """The board's secret for the opaque per-episode keys (``isolation.sandbox.evaluate_sandboxed``)."""
         with self.engine.begin() as conn:
             value = conn.execute(sa.select(secrets_table.c.value).where(secrets_table.c.name == KEY_SECRET)).scalar()
         if value is None:

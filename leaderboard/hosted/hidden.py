@@ -18,7 +18,7 @@ a verifier must read them as exact integers (Python's ``json`` does; JavaScript'
 ``Number`` would not).
 
 A policy never sees a seed: the sandbox hands it opaque per-episode keys derived from a
-board secret and :func:`key_context` (:mod:`wfbench.harness.sandbox`).
+board secret and :func:`key_context` (:mod:`wfbench.harness.isolation.sandbox`).
 
 Ranking a phase with :mod:`wfbench.leaderboard.report` needs a track whose ``test_seeds``
 are what the rows carry as ``seed`` (:func:`board_track`): the public seeds on the dev

@@ -31,7 +31,7 @@ from wfbench.leaderboard.hosted import hidden
 from wfbench.leaderboard.hosted.db import BUILTIN_ACCOUNT, Account, Board, BoardError, accounts
 from wfbench.policies import registry
 
-from wfbench.harness.package import pack
+from wfbench.harness.isolation.package import pack
 
 ACCOUNT = BUILTIN_ACCOUNT  # the admin account the built-ins are submitted under (its token is thrown away)
 ENTRY = "wfbench_builtin:policy"

@@ -11,7 +11,7 @@ optionally ``name`` and ``entry``) is answered, in this order:
 - 413 when the body is larger than the package limit: a declared ``Content-Length`` is
   refused before anything is read, and the body is counted while it streams in, so a
   chunked upload is cut off at the limit rather than stored first and measured after;
-- 400 with a one-line reason for a bad form or a package :func:`wfbench.harness.package.inspect`
+- 400 with a one-line reason for a bad form or a package :func:`wfbench.harness.isolation.package.inspect`
   refuses (zip-slip, zip bomb, no manifest, ...), an unknown track or phase;
 - 429 when the account is over its phase's quota (jobs at once, N a day);
 - 201 with ``{id, state, url}`` for a new submission, 200 for the same package, entry,
@@ -54,7 +54,7 @@ from wfbench.leaderboard.hosted import pages
 from wfbench.leaderboard.hosted.db import Board, BoardError, NotFound, NotYours, QuotaExceeded, Submission
 from wfbench.leaderboard.hosted.hidden import PHASES
 
-from wfbench.harness.package import MAX_PACKAGE_BYTES, PackageError, check_entry, inspect
+from wfbench.harness.isolation.package import MAX_PACKAGE_BYTES, PackageError, check_entry, inspect
 
 FORM_OVERHEAD = 64 * 1024  # what the form's other fields and the multipart framing may add to the package's bytes
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 ._+#@-]{0,63}$")

@@ -1,9 +1,9 @@
 """``wfbench worker --server DBURL``: evaluate queued submissions in the sandbox and store their rows, fenced.
 
 The loop: :func:`~wfbench.leaderboard.hosted.queue.claim` a job, unpack its package
-(:func:`wfbench.harness.package.unpack`, which re-checks it) into a temporary folder,
+(:func:`wfbench.harness.isolation.package.unpack`, which re-checks it) into a temporary folder,
 run the units the submission still misses chunk by chunk through the evaluator
-(:func:`wfbench.harness.sandbox.evaluate_sandboxed`: the policy in bubblewrap, seeing
+(:func:`wfbench.harness.isolation.sandbox.evaluate_sandboxed`: the policy in bubblewrap, seeing
 observations and opaque keys only), store each chunk with
 :func:`~wfbench.leaderboard.hosted.queue.write_rows` and end the job with
 :func:`~wfbench.leaderboard.hosted.queue.finish`: ``done`` with the aggregate, or
@@ -27,7 +27,7 @@ Whose fault a failure is (issue #42): the policy's own failures (it raised, ran 
 time limit or its time budget, ran out of memory, returned a malformed action, or its
 package was refused) end the submission for good, with the reason and its word of
 :data:`~wfbench.leaderboard.hosted.db.FAILURE_KINDS`. A fault of the board's (the sandbox
-did not start, :class:`wfbench.harness.sandbox.SandboxUnavailable`; a full disk; any
+did not start, :class:`wfbench.harness.isolation.sandbox.SandboxUnavailable`; a full disk; any
 other error of the worker's own) hands the job back at once
 (:func:`~wfbench.leaderboard.hosted.queue.release`), up to the attempt limit; after a
 SandboxUnavailable the worker stops, since it cannot run any job.
@@ -102,7 +102,7 @@ Unpacker = Callable[[bytes, Path], Any]
 def warm_builtins() -> None:
     """Compile the kernels of the leaderboard's built-ins into this process's numba cache, once per process.
 
-    The sandboxes copy from that cache (:class:`wfbench.harness.sandbox_child.CacheCopies`):
+    The sandboxes copy from that cache (:class:`wfbench.harness.isolation.child.CacheCopies`):
     the seeded built-ins (:mod:`wfbench.leaderboard.hosted.seed`) and any package wrapping
     one then start warm. The shapes do not matter (numba compiles per type), so the
     small preset serves every track. A built-in that reads the trace is skipped: the
@@ -110,7 +110,7 @@ def warm_builtins() -> None:
     """
     from wfbench.policies import registry
 
-    from wfbench.harness.sandbox import warm_cache
+    from wfbench.harness.isolation.sandbox import warm_cache
 
     for name in registry.LINEUPS["leaderboard"]:
         try:
@@ -124,11 +124,11 @@ def warm_builtins() -> None:
 
 def sandbox_evaluator(package_dir: str | Path, entry: str, config: ScenarioConfig, seeds: Sequence[int],
                       limits: Any, key_secret: bytes, key_context: str, chunk_size: int | None = None) -> pd.DataFrame:
-    """The production evaluator: :func:`wfbench.harness.sandbox.evaluate_sandboxed` (default limits if None).
+    """The production evaluator: :func:`wfbench.harness.isolation.sandbox.evaluate_sandboxed` (default limits if None).
 
     The first call of a process warms its numba cache first (:func:`warm_builtins`).
     """
-    from wfbench.harness import sandbox
+    from wfbench.harness.isolation import sandbox
 
     warm_builtins()
     return sandbox.evaluate_sandboxed(package_dir, entry, config, seeds, limits or sandbox.Limits(), key_secret,
@@ -136,15 +136,15 @@ def sandbox_evaluator(package_dir: str | Path, entry: str, config: ScenarioConfi
 
 
 def package_unpacker(data: bytes, dest: Path) -> Any:
-    """The production unpacker: :func:`wfbench.harness.package.unpack` (re-checks the archive while writing)."""
-    from wfbench.harness.package import unpack
+    """The production unpacker: :func:`~wfbench.harness.isolation.package.unpack` (re-checks what it writes)."""
+    from wfbench.harness.isolation.package import unpack
 
     return unpack(data, dest)
 
 
 def check_sandbox() -> None:
-    """Raise :class:`wfbench.harness.sandbox.SandboxUnavailable` (saying how to install it) without bubblewrap."""
-    from wfbench.harness import sandbox
+    """Raise :class:`~wfbench.harness.isolation.sandbox.SandboxUnavailable` (saying how to install it) without bwrap."""
+    from wfbench.harness.isolation import sandbox
 
     sandbox.check_sandbox()
 
@@ -270,7 +270,7 @@ class Worker:
         worker_id: the name stored as the lease's owner (default ``host:pid``).
         lease_s: the lease in seconds; renewed every third of it.
         chunk_size: seeds per evaluator call and per stored transaction.
-        limits: the sandbox's limits (:class:`wfbench.harness.sandbox.Limits`; None: its defaults).
+        limits: the sandbox's limits (:class:`wfbench.harness.isolation.sandbox.Limits`; None: its defaults).
         evaluator: what runs a chunk (default :func:`sandbox_evaluator`).
         unpack: what unpacks a package into a folder (default :func:`package_unpacker`).
         say: where progress lines go (default: stderr).
@@ -342,7 +342,7 @@ class Worker:
     def run_one(self) -> str | None:
         """Claim one job and evaluate it: ``done``, ``failed``, ``requeued`` (a board fault) or ``lost``; None if none.
 
-        After a :class:`~wfbench.harness.sandbox.SandboxUnavailable` the job is handed back
+        After a :class:`~wfbench.harness.isolation.sandbox.SandboxUnavailable` the job is handed back
         and the error raised: this worker cannot run any job.
         """
         c = claim(self.board.engine, self.worker_id, self.lease_s)
@@ -425,7 +425,7 @@ class Worker:
         if left <= 0:
             raise OverBudget(f"used its time budget of {budget:g} s of worker time per upload ({self.job_time_s:g} s "
                              f"per scenario of its track) with {done} of {total} episodes done")
-        from wfbench.harness.sandbox import Limits
+        from wfbench.harness.isolation.sandbox import Limits
 
         limits = self.limits if self.limits is not None else Limits()
         return dataclasses.replace(limits, wall_time_s=min(limits.wall_time_s, left))
@@ -514,7 +514,7 @@ def run_worker(server: str, worker_id: str | None = None, lease_s: float = DEFAU
     Refuses to start (status 2, one line) without the sandbox, a bad database URL or
     lease; stops on SIGTERM (status 143) leaving the job to the lease's expiry.
     ``tracks``: the board's tracks (default: every track, as ``wfbench serve``'s).
-    ``limits``: the sandbox's :class:`~wfbench.harness.sandbox.Limits` (None: its defaults).
+    ``limits``: the sandbox's :class:`~wfbench.harness.isolation.sandbox.Limits` (None: its defaults).
     ``job_time_s``: the time budget per upload, per scenario of its track (:class:`Worker`).
     ``evaluator`` and ``unpack``: for the tests only (the sandbox is checked only when
     the evaluator is the sandbox's).

@@ -1,7 +1,7 @@
 """Built-ins under opaque keys (issue 42, board problem 6): which score as ``wfbench evaluate`` does, bit for bit.
 
 The hosted board and ``wfbench evaluate --sandbox`` hand a policy's ``reset`` one opaque key
-per episode (HMAC of the seed, :func:`wfbench.harness.sandbox.opaque_keys`) instead of the
+per episode (HMAC of the seed, :func:`wfbench.harness.isolation.sandbox.opaque_keys`) instead of the
 seed. A built-in whose decisions draw from a stream keyed by the number ``reset`` gets
 therefore plays other draws under keys than under seeds: same world, other hires' levels,
 other noise. These tests run each deployable built-in in-process, once with its seeds (as
@@ -26,7 +26,7 @@ from wfbench.policies.registry import deployable_names, learned_names
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import results_only
 from wfbench.harness.evaluation import evaluate
-from wfbench.harness.sandbox import LOCAL_KEY_CONTEXT, LOCAL_KEY_SECRET, opaque_keys
+from wfbench.harness.isolation.sandbox import LOCAL_KEY_CONTEXT, LOCAL_KEY_SECRET, opaque_keys
 
 SCENARIO = ScenarioConfig.preset("small")  # the whole horizon: the threshold rule hires and lets go after step 50
 SEEDS = [0, 1, 2, 3]

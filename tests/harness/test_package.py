@@ -1,4 +1,4 @@
-"""Policy packages (wfbench.harness.package): deterministic packing, and every archive a stranger could upload
+"""Policy packages (wfbench.harness.isolation.package): deterministic packing, and every archive a stranger could upload
 to break out of its folder or fill a disk is refused in one line, before or while unpacking (issue #34)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from wfbench.harness.package import (
+from wfbench.harness.isolation.package import (
     MANIFEST,
     Manifest,
     PackageError,
@@ -177,7 +177,7 @@ def test_headers_that_lie_about_sizes_get_no_further_than_their_claim(tmp_path):
 
 def test_unpack_counts_the_bytes_it_writes(tmp_path, monkeypatch):
     """The second line of defence: were the header checks fooled, the bytes written still stop at the limit."""
-    import wfbench.harness.package as package
+    import wfbench.harness.isolation.package as package
 
     data = _zip({MANIFEST: MANIFEST_OK, "mypol.py": os.urandom(4000), "more.bin": os.urandom(4000)})
     monkeypatch.setattr(package, "inspect", lambda *args: Manifest("mypol:Policy"))

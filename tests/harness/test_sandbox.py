@@ -1,4 +1,4 @@
-"""The policy sandbox (wfbench.harness.sandbox): a clean package scores bit for bit as evaluate() scores it, and
+"""The policy sandbox (harness.isolation.sandbox): a clean package scores bit for bit as evaluate() scores it, and
 hostile packages (fork bomb, huge allocation, disk fill, output flood, endless loops, network, reading the host,
 another process's memory) each end in a SandboxError with the right one-line reason and leave no process behind
 (issue #34)."""
@@ -23,8 +23,8 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.harness.budget import results_only
 from wfbench.harness.evaluation import evaluate
-from wfbench.harness.package import pack, unpack
-from wfbench.harness.sandbox import (
+from wfbench.harness.isolation.package import pack, unpack
+from wfbench.harness.isolation.sandbox import (
     Limits,
     SandboxError,
     SandboxPolicy,

@@ -23,8 +23,8 @@ import time
 import numpy as np
 import pytest
 
-from wfbench.harness.sandbox import Limits, SandboxError, SandboxPolicy, SandboxUnavailable, check_sandbox
-from wfbench.harness.wire import MAGIC
+from wfbench.harness.isolation.sandbox import Limits, SandboxError, SandboxPolicy, SandboxUnavailable, check_sandbox
+from wfbench.harness.isolation.wire import MAGIC
 
 from .test_sandbox import CONTEXT, HOSTILE, SECRET, _fails, _hostile, _package
 
@@ -162,7 +162,7 @@ def test_the_seccomp_filter_refuses_the_kernels_riskier_calls(bwrap, tmp_path):
 
 
 def test_no_seccomp_bindings_no_sandbox(monkeypatch):
-    from wfbench.harness import sandbox
+    from wfbench.harness.isolation import sandbox
 
     monkeypatch.setattr(sandbox, "SECCOMP_PYTHONS", ("/nonexistent/python3",))
     sandbox._seccomp_program.cache_clear()

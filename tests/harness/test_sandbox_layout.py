@@ -27,8 +27,8 @@ from pathlib import Path
 
 import pytest
 
-from wfbench.harness import sandbox
-from wfbench.harness.sandbox import PACKAGES, SandboxUnavailable, check_sandbox
+from wfbench.harness.isolation import sandbox
+from wfbench.harness.isolation.sandbox import PACKAGES, SandboxUnavailable, check_sandbox
 
 SECRET_URL = "postgresql+psycopg://board:S3cr3t-Passw0rd@db.internal/board"
 USER = 54_321  # a uid no account uses: setpriv needs no passwd entry
@@ -133,7 +133,7 @@ class Policy:
 
 def _write_package(root: Path, name: str, source: str) -> Path:
     """``source`` as ``pol.py`` of a package, packed and unpacked as a board does, readable by every user."""
-    from wfbench.harness.package import pack, unpack
+    from wfbench.harness.isolation.package import pack, unpack
 
     src = root / f"{name}-src"
     src.mkdir()
@@ -148,7 +148,7 @@ def test_a_sandbox_runs_with_python_the_venv_and_the_checkout_under_tmp(bwrap, l
     out = _run(layout, f'''
         import json, wfbench
         from wfbench.core.config import ScenarioConfig
-        from wfbench.harness import sandbox
+        from wfbench.harness.isolation import sandbox
         sandbox.check_sandbox()
         rows = sandbox.evaluate_sandboxed({str(package)!r}, "pol:Policy", ScenarioConfig.preset("small").replace(
             horizon=5), [0, 1], None, b"s", "tests")
@@ -237,7 +237,7 @@ def _spy_report(layout, as_user: int | None) -> tuple[dict, str]:
     leak.chmod(0o644)
     out = _run(layout, f'''
         import json, os
-        from wfbench.harness import sandbox
+        from wfbench.harness.isolation import sandbox
         fd = os.open({str(leak)!r}, os.O_RDONLY)  # a descriptor the worker holds, inheritable
         os.set_inheritable(fd, True)
         try:

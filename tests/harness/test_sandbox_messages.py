@@ -10,9 +10,9 @@ import sys
 import pytest
 
 from wfbench.cli import main
-from wfbench.harness import sandbox
-from wfbench.harness.package import pack, unpack
-from wfbench.harness.sandbox import SandboxError, SandboxPolicy, SandboxUnavailable
+from wfbench.harness.isolation import sandbox
+from wfbench.harness.isolation.package import pack, unpack
+from wfbench.harness.isolation.sandbox import SandboxError, SandboxPolicy, SandboxUnavailable
 
 from .test_sandbox import CONTEXT, RULE, SECRET, TIGHT, _package
 

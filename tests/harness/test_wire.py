@@ -1,4 +1,4 @@
-"""The sandbox's pipe protocol (wfbench.harness.wire): arrays round-trip exactly, and every malformed or
+"""The sandbox's pipe protocol (wfbench.harness.isolation.wire): arrays round-trip exactly, and every malformed or
 oversized frame is refused with one line saying what is wrong (issue #34)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import struct
 import numpy as np
 import pytest
 
-from wfbench.harness.wire import (
+from wfbench.harness.isolation.wire import (
     DTYPES,
     Decoder,
     Kind,

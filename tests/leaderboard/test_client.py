@@ -11,7 +11,7 @@ from wfbench.leaderboard.hosted.client import UploadError, load_package, upload
 
 from tests.leaderboard.test_server import TRACK, Live, make_package, package, serve_board
 from wfbench.cli import main
-from wfbench.harness.package import content_hash
+from wfbench.harness.isolation.package import content_hash
 
 POLICY = "class Policy:\n    decisions = ()\n\n    def reset(self, keys):\n        pass\n\n    def act(self, obs):\n" \
          "        return {}\n"

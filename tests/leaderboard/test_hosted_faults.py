@@ -37,8 +37,8 @@ from tests.leaderboard.test_worker import (
     submit,
 )
 from wfbench.harness.guard import PolicyError
-from wfbench.harness.package import PackageError
-from wfbench.harness.sandbox import SandboxError, SandboxUnavailable
+from wfbench.harness.isolation.package import PackageError
+from wfbench.harness.isolation.sandbox import SandboxError, SandboxUnavailable
 
 
 @pytest.fixture

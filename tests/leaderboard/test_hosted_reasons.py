@@ -18,7 +18,7 @@ from wfbench.leaderboard.hosted.worker import Worker
 
 from tests.leaderboard.test_server import make_package, post
 from tests.leaderboard.test_worker import TINY
-from wfbench.harness.package import pack
+from wfbench.harness.isolation.package import pack
 
 LEAKY = textwrap.dedent("""
     import numpy as np

@@ -43,7 +43,7 @@ from tests.harness.test_sandbox import RULE as SANDBOX_RULE
 from tests.leaderboard.live_server import LiveServer
 from tests.leaderboard.test_server import TRACK
 from wfbench.harness.evaluation import evaluate
-from wfbench.harness.package import pack
+from wfbench.harness.isolation.package import pack
 
 pytestmark = pytest.mark.slow
 
@@ -56,7 +56,7 @@ WORKER = """
 import sys
 from tests.harness.test_sandbox import RULE as SANDBOX_RULE
 from tests.leaderboard.test_server import TRACK
-from wfbench.harness.sandbox import Limits
+from wfbench.harness.isolation.sandbox import Limits
 from wfbench.leaderboard.hosted.worker import run_worker
 sys.exit(run_worker(sys.argv[1], worker_id=sys.argv[2], once=True, poll_s=0.1, chunk_size=3,
                     tracks={TRACK.name: TRACK},
@@ -372,7 +372,7 @@ def test_an_oracle_rebuilt_from_what_a_policy_is_handed_scores_no_better(hosted)
     from wfbench.policies import get
     from wfbench.policies.registry import LINEUPS
 
-    from wfbench.harness.sandbox import opaque_keys
+    from wfbench.harness.isolation.sandbox import opaque_keys
 
     board, _, _ = hosted
     seeds = list(board.ensure_hidden_seeds(TRACK.name).seeds)

@@ -30,7 +30,7 @@ from wfbench.leaderboard.tracks import Track
 from tests.leaderboard.live_server import LiveServer
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.guard import PolicyError
-from wfbench.harness.package import archive
+from wfbench.harness.isolation.package import archive
 
 TRACK = Track(name="tiny-hosted", config=ScenarioConfig.preset("small").replace(name="tiny-hosted", horizon=60),
               public_seeds=(1000, 1001, 1002), test_seeds=(0, 1, 2), description="a small hosted track for the tests")

@@ -144,7 +144,7 @@ def test_a_package_the_unpacker_refuses_fails_with_its_reason(board):
 
 
 def test_the_worker_refuses_to_start_without_the_sandbox(board, monkeypatch, capsys):
-    from wfbench.harness.sandbox import SandboxUnavailable
+    from wfbench.harness.isolation.sandbox import SandboxUnavailable
 
     def missing():
         raise SandboxUnavailable("bubblewrap (bwrap) is not installed: apt-get install bubblewrap")
@@ -262,7 +262,7 @@ IDLE = textwrap.dedent("""
 
 
 def test_the_worker_runs_a_package_in_the_real_sandbox(board, bwrap, tmp_path, monkeypatch):
-    from wfbench.harness.package import pack
+    from wfbench.harness.isolation.package import pack
 
     (tmp_path / "idlepkg").mkdir()
     (tmp_path / "idlepkg" / "__init__.py").write_text(IDLE)

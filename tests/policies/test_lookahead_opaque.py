@@ -10,8 +10,8 @@ import numpy as np
 from wfbench.policies.lookahead import Rollout
 
 from wfbench import ScenarioConfig, policies
+from wfbench.harness.isolation.sandbox import LOCAL_KEY_SECRET, opaque_keys
 from wfbench.harness.runner import run_batch
-from wfbench.harness.sandbox import LOCAL_KEY_SECRET, opaque_keys
 
 CONFIG = ScenarioConfig.preset("small").replace(horizon=160)
 SEEDS = [1000, 1001, 1002, 1003, 1004, 1005]

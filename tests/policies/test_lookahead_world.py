@@ -10,9 +10,10 @@ import numpy as np
 from wfbench.policies.lookahead import Rollout
 
 from wfbench import ScenarioConfig, policies
-from wfbench.harness import sandbox, sandbox_child
+from wfbench.harness.isolation import child as sandbox_child
+from wfbench.harness.isolation import sandbox
+from wfbench.harness.isolation.wire import Decoder, Kind, array_text, encode, text_array
 from wfbench.harness.runner import public_world, run_batch
-from wfbench.harness.wire import Decoder, Kind, array_text, encode, text_array
 
 SMALL = ScenarioConfig.preset("small").replace(horizon=6)
 

@@ -81,7 +81,7 @@ def package_bytes(spec: str) -> bytes:
     """The package ``--policy`` names with --sandbox: a folder with a manifest, a .zip/.whl, or module:attr."""
     from pathlib import Path
 
-    from wfbench.harness import package
+    from wfbench.harness.isolation import package
 
     path = Path(spec)
     try:
@@ -102,13 +102,13 @@ def package_bytes(spec: str) -> bytes:
 def run_sandboxed(spec: str, config, seeds: list[int], act_timeout: float | None):
     """The rows of ``spec`` run as a hosted board runs it: packed, unpacked, in the sandbox, with opaque keys.
 
-    The keys come from the public :data:`~wfbench.harness.sandbox.LOCAL_KEY_SECRET`: a local run
+    The keys come from the public :data:`~wfbench.harness.isolation.sandbox.LOCAL_KEY_SECRET`: a local run
     has no seed to hide, and the same command gives the same keys.
     """
     import tempfile
     from pathlib import Path
 
-    from wfbench.harness import package, sandbox
+    from wfbench.harness.isolation import package, sandbox
 
     data = package_bytes(spec)
     limits = sandbox.Limits(act_timeout_s=act_timeout or sandbox.Limits.wall_time_s)

@@ -24,7 +24,8 @@ def add_parser(sub) -> None:
     p.add_argument("--job-time", type=seconds, default=None, metavar="S",
                    help="worker seconds one upload may use per scenario of its track, over every attempt (default "
                         "3600; wfbench.leaderboard.hosted.worker.JOB_TIME_S)")
-    limits = p.add_argument_group("the sandbox's limits per submission (default: wfbench.harness.sandbox.Limits)")
+    limits = p.add_argument_group("the sandbox's limits per submission (default: "
+                                  "wfbench.harness.isolation.sandbox.Limits)")
     limits.add_argument("--memory", type=positive, default=None, metavar="MB",
                         help="address space of the policy's process (default 4096)")
     limits.add_argument("--act-timeout", type=seconds, default=None, metavar="S",
@@ -38,7 +39,7 @@ LIMIT_FLAGS = {"memory": "memory_mb", "act_timeout": "act_timeout_s", "wall_time
 
 
 def run(args) -> int:
-    from wfbench.harness.sandbox import Limits
+    from wfbench.harness.isolation.sandbox import Limits
     from wfbench.leaderboard.hosted.queue import DEFAULT_LEASE_S
     from wfbench.leaderboard.hosted.worker import JOB_TIME_S, run_worker
 

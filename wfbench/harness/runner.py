@@ -161,7 +161,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
             else:
                 if getattr(policy, "reads_trace", False):  # declared: the leaderboard keeps it off deployable tracks
                     guard.call("attach", policy.attach, sim.config)
-                elif hasattr(policy, "set_world"):  # a sandbox passes it on with RESET (sandbox_child.serve)
+                elif hasattr(policy, "set_world"):  # a sandbox passes it on with RESET (isolation.child.serve)
                     guard.call("set_world", policy.set_world, public_world(sim.config))
                 guard.call("reset", policy.reset, sim.seeds)
                 while not sim.done:

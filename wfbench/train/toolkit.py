@@ -537,7 +537,7 @@ def run_checkpoint(trainer, algo: str, count: int, **fields) -> dict:
     return {
         "model": {k: v.detach().cpu() for k, v in trainer.model.state_dict().items()},
         "model_config": run.network.to_dict(),
-        "obs_version": getattr(run.network, "obs_version", 1),  # the observation the network reads (core.observation_v2)
+        "obs_version": getattr(run.network, "obs_version", 1),  # the observation it reads (core.observation_v2)
         "algo": algo,
         "variant": run.config.variant,
         "scenario": run.scenario.name,

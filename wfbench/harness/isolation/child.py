@@ -1,18 +1,18 @@
 """The process inside the sandbox: loads a policy package and answers the evaluator over two pipes.
 
-Run as ``python -I -B -u -m wfbench.harness.sandbox_child CONFIG`` by
-:mod:`wfbench.harness.sandbox` inside bubblewrap; ``CONFIG`` is JSON: the file descriptors
+Run as ``python -I -B -u -m wfbench.harness.isolation.child CONFIG`` by
+:mod:`wfbench.harness.isolation.sandbox` inside bubblewrap; ``CONFIG`` is JSON: the file descriptors
 of the two protocol pipes (``in``, ``out``), the ``entry`` point, the resource limits
 (``rlimits``: name -> value) and ``memory_mb`` for the messages. It closes every other
 descriptor, sets the limits on itself and sends STARTED, all before any of the package's
 code runs (``-I`` keeps the package off the import path until then, so no module of the
 package can shadow one of the child's); then it puts ``/policy`` on the path, loads the
-entry point, sends HELLO and serves RESET, ACT and BYE (:mod:`wfbench.harness.wire`) until
+entry point, sends HELLO and serves RESET, ACT and BYE (:mod:`wfbench.harness.isolation.wire`) until
 BYE or the end of its input. A failure of the policy (an exception while loading, in
 ``reset`` or in ``act``, or an action that cannot be sent) is answered with ERROR, a
 one-line reason naming the file and line inside the package, and the process exits.
 With ``"probe": true`` it stops after STARTED's work and prints :data:`PROBE_OK`
-(:func:`wfbench.harness.sandbox.check_sandbox`).
+(:func:`wfbench.harness.isolation.sandbox.check_sandbox`).
 
 It imports only what it needs (numpy and the wire format; numba is loaded anyway by the
 ``wfbench`` package): the evaluator waits for it on every evaluation. Time is the
@@ -46,7 +46,7 @@ from numba.core import caching
 from numba.core import event as numba_event
 
 from wfbench.core import jit
-from wfbench.harness.wire import Decoder, Kind, Message, WireError, array_text, encode, text_array, wire_dtype
+from wfbench.harness.isolation.wire import Decoder, Kind, Message, WireError, array_text, encode, text_array, wire_dtype
 
 PACKAGE_ROOT = "/policy/"  # where the sandbox mounts the package; frames under it are the user's
 PROBE_OK = "wfbench-sandbox-probe-ok"  # what a probe prints once its Python has imported wfbench in the sandbox

@@ -206,7 +206,7 @@ def _read_manifest(zf: zipfile.ZipFile) -> Manifest:
         info = zf.getinfo(MANIFEST)
     except KeyError:
         raise PackageError(f"the package has no {MANIFEST} at its top; it needs one: "
-                           '{"entry": "module:attr", "format": 1} (wfbench.harness.package.pack writes it)') from None
+                           '{"entry": "module:attr", "format": 1} (harness.isolation.package.pack writes it)') from None
     if info.file_size > 64 << 10:
         raise PackageError(f"{MANIFEST} is {info.file_size} bytes; allowed: at most 64 KiB")
     try:

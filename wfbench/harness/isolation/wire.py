@@ -1,6 +1,6 @@
 """The pipe protocol between the evaluator and a sandboxed policy: frames of named numpy arrays, never pickle.
 
-A sandboxed policy (:mod:`wfbench.harness.sandbox`) is someone else's code, so what it
+A sandboxed policy (:mod:`wfbench.harness.isolation.sandbox`) is someone else's code, so what it
 sends back is read as untrusted bytes: unpickling would run its code in the evaluator.
 A message is one frame::
 

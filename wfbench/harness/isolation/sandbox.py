@@ -1,8 +1,8 @@
 """Running someone else's policy package in a bubblewrap sandbox, as an ordinary policy of the evaluator.
 
 A hosted leaderboard runs code that strangers upload. :class:`SandboxPolicy` starts the
-package in a separate process, ``python -m wfbench.harness.sandbox_child``, inside
-bubblewrap, and speaks to it over two pipes (:mod:`wfbench.harness.wire`: named arrays,
+package in a separate process, ``python -m wfbench.harness.isolation.child``, inside
+bubblewrap, and speaks to it over two pipes (:mod:`wfbench.harness.isolation.wire`: named arrays,
 never pickle). The simulator stays in the evaluator: the policy sees observations and
 opaque keys, never the scenario, the seeds or anything else of the host.
 
@@ -85,8 +85,8 @@ from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.harness.guard import Guard, LoadedPolicy, PolicyError
-from wfbench.harness.sandbox_child import PROBE_OK, cache_folder
-from wfbench.harness.wire import Decoder, Kind, Message, WireError, WireLimits, array_text, encode, text_array
+from wfbench.harness.isolation.child import PROBE_OK, cache_folder
+from wfbench.harness.isolation.wire import Decoder, Kind, Message, WireError, WireLimits, array_text, encode, text_array
 
 # the policy's user when the evaluator runs as root: one drawn per sandbox from a range no account uses, so that
 # the process limit (counted per user) is each sandbox's own and sandboxes cannot signal one another
@@ -367,7 +367,7 @@ _host_cache_folder = cache(cache_folder)
 def shared_caches() -> list[tuple[str, Path]]:
     """(a source file, the folder this process's numba caches its folder in) where that folder holds entries.
 
-    What a sandbox mounts read-only for its child to copy from (:class:`wfbench.harness.sandbox_child.CacheCopies`):
+    What a sandbox mounts read-only for its child to copy from (:class:`wfbench.harness.isolation.child.CacheCopies`):
     this process's own cache, which only this process (or another trusted run of wfbench on the
     machine) writes, never a sandbox.
     """
@@ -419,7 +419,7 @@ def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, u
         cmd += ["--cap-add", "CAP_SETUID", "--cap-add", "CAP_SETGID", "--cap-add", "CAP_SETPCAP", "--",
                 "setpriv", "--reuid", str(uid), "--regid", str(uid), "--clear-groups",
                 "--inh-caps=-all", "--bounding-set=-all"]
-    cmd += ["--", _interpreter(), "-I", "-B", "-u", "-m", "wfbench.harness.sandbox_child", json.dumps(config)]
+    cmd += ["--", _interpreter(), "-I", "-B", "-u", "-m", "wfbench.harness.isolation.child", json.dumps(config)]
     return cmd
 
 
