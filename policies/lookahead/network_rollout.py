@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET, knob
+from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET, candidate_rows, knob, pick_best
 from wfbench.policies.lookahead.rollout import budget as preset_knobs
 from wfbench.policies.protocol import seeds_array
 
@@ -129,17 +129,8 @@ class NetworkRollout:
     def _decide(self, obs, envs: np.ndarray, action: dict[str, np.ndarray], t: int) -> None:
         import torch
 
-        mask = obs["workforce_mask"]
         w = action["workforce"]
-        rows_env, rows_a, rows_k, cands = [], [], [], {}
-        for b in envs:
-            allowed = [int(w[b])] + [a for a in range(7) if a != w[b] and mask[b, a]]
-            cands[int(b)] = allowed
-            for a in allowed:
-                for k in range(self.K):
-                    rows_env.append(int(b))
-                    rows_a.append(a)
-                    rows_k.append(k)
+        cands, rows_env, rows_a, rows_k = candidate_rows(envs, w, obs["workforce_mask"], self.K)
         n = len(rows_env)
         env_idx = np.asarray(rows_env, dtype=np.int64)
         fork = self._fork(n)
@@ -160,18 +151,7 @@ class NetworkRollout:
             total += r
         self.timing["decisions"] += len(envs)
         self.timing["rolls"] += n
-        scores = np.full((self.B, 7), np.nan)
-        i = 0
-        for b in envs:
-            best_a, best_v = None, -np.inf
-            for a in cands[int(b)]:
-                v = float(total[i: i + self.K].mean())
-                scores[b, a] = v
-                if v > best_v:  # the network's own action is first: it wins ties
-                    best_a, best_v = a, v
-                i += self.K
-            w[b] = best_a
-        self.last_scores = scores
+        self.last_scores = pick_best(total, envs, cands, self.K, w, self.B)  # the network's action wins ties
 
 
 __all__ = ["NetworkRollout"]

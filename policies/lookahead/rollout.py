@@ -158,17 +158,7 @@ class Rollout:
 
     def _decide(self, obs, envs: np.ndarray, d, w, p) -> None:
         """Score every allowed workforce action of ``envs`` on K common sampled futures; keep the best."""
-        mask = obs["workforce_mask"]
-        rows_env, rows_a, rows_k = [], [], []
-        cands: dict[int, list[int]] = {}
-        for b in envs:
-            allowed = [int(w[b])] + [a for a in range(7) if a != w[b] and mask[b, a]]
-            cands[int(b)] = allowed
-            for a in allowed:
-                for k in range(self.K):
-                    rows_env.append(int(b))
-                    rows_a.append(a)
-                    rows_k.append(k)
+        cands, rows_env, rows_a, rows_k = candidate_rows(envs, w, obs["workforce_mask"], self.K)
         n = len(rows_env)
         env_idx = np.asarray(rows_env, dtype=np.int64)
         self.belief.sample_into(self.fork, env_idx, np.asarray(rows_k, dtype=np.int64), self.H)
@@ -182,18 +172,50 @@ class Rollout:
                              rows=n)[:n]
         self.timing["decisions"] += len(envs)
         self.timing["rolls"] += n
-        scores = np.full((self.B, 7), np.nan)
-        i = 0
-        for b in envs:
-            best_a, best_v = None, -np.inf
-            for a in cands[int(b)]:
-                v = float(score[i: i + self.K].mean())
-                scores[b, a] = v
-                if v > best_v:  # the base's action is first: it wins ties
-                    best_a, best_v = a, v
-                i += self.K
-            w[b] = best_a
-        self.last_scores = scores
+        self.last_scores = pick_best(score, envs, cands, self.K, w, self.B)
+
+
+def candidate_rows(envs: np.ndarray, w: np.ndarray, mask: np.ndarray,
+                   K: int) -> tuple[dict[int, list[int]], list[int], list[int], list[int]]:
+    """The candidates of each deciding environment and the fork rows that score them.
+
+    Each environment's candidates are the base's workforce action ``w[b]`` first, then every
+    other action its mask allows; each candidate gets K rows, sample k = 0..K-1 (the same K
+    worlds for every candidate). Returns the candidates per environment and, per row, its
+    environment, action and sample.
+    """
+    rows_env, rows_a, rows_k = [], [], []
+    cands: dict[int, list[int]] = {}
+    for b in envs:
+        allowed = [int(w[b])] + [a for a in range(7) if a != w[b] and mask[b, a]]
+        cands[int(b)] = allowed
+        for a in allowed:
+            for k in range(K):
+                rows_env.append(int(b))
+                rows_a.append(a)
+                rows_k.append(k)
+    return cands, rows_env, rows_a, rows_k
+
+
+def pick_best(score: np.ndarray, envs: np.ndarray, cands: dict[int, list[int]], K: int, w: np.ndarray,
+              B: int) -> np.ndarray:
+    """Set ``w[b]`` to each environment's best candidate by its mean over its K rows; the (B, 7) mean scores.
+
+    The rows of ``score`` are in :func:`candidate_rows`' order. The base's action is first,
+    so it wins ties.
+    """
+    scores = np.full((B, 7), np.nan)
+    i = 0
+    for b in envs:
+        best_a, best_v = None, -np.inf
+        for a in cands[int(b)]:
+            v = float(score[i: i + K].mean())
+            scores[b, a] = v
+            if v > best_v:
+                best_a, best_v = a, v
+            i += K
+        w[b] = best_a
+    return scores
 
 
 def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, **knobs: Any) -> Rollout:
@@ -201,4 +223,4 @@ def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, 
     return Rollout(base, budget=budget_name, name=name, **knobs)
 
 
-__all__ = ["BUDGETS", "DEFAULT_BUDGET", "KNOBS", "Rollout", "budget", "knob", "make"]
+__all__ = ["BUDGETS", "DEFAULT_BUDGET", "KNOBS", "Rollout", "budget", "candidate_rows", "knob", "make", "pick_best"]

@@ -28,6 +28,7 @@ from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.reproduce.common import Output, Progress, write
 from wfbench.reproduce.suite import _run, _store, piece_folder
+from wfbench.reproduce.suite import family as suite_family
 from wfbench.scenarios import SuiteScenario, get_suite, normalize
 
 BUDGETS_MS = (1.0, 10.0, 100.0)  # CPU ms per env-step: the issue's "about 1 ms, 10 ms, 100 ms"
@@ -46,19 +47,12 @@ def default_policies() -> list[str]:
 
 
 def family(policy: str) -> str:
-    """The line a policy is joined on: heuristic, solver, rollout, mpc, network, oracle or random."""
-    from wfbench.policies.registry import parse_spec
-
+    """The line a policy is joined on: rollout, mpc, or the suite's family (heuristic, solver, network, ...)."""
     if policy.startswith("rollout-"):
         return "rollout"
     if policy.startswith("mpc"):
         return "mpc"
-    if parse_spec(policy).kind in ("learned", "member", "checkpoint"):
-        return "network"
-    for name in ("oracle", "solver", "heuristic", "random"):
-        if policy.startswith(name):
-            return name
-    return "other"
+    return suite_family(policy)
 
 
 def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, split: str = "heldout",
