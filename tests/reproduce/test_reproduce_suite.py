@@ -89,7 +89,7 @@ def test_suite__other_seeds_are_not_taken_from_the_cache(first, monkeypatch):
 
 
 @pytest.mark.parametrize(("argv", "message"), [
-    (["reproduce", "gap", "--policies", "random"], "--policies applies to suite and verify only, not to gap"),
+    (["reproduce", "gap", "--policies", "random"], "--policies applies to suite, verify and frontier only, not to gap"),
     (["reproduce", "verify", "--no-networks"], "--no-networks applies to suite only, not to verify (give --policies)"),
     (["reproduce", "suite", "--scenarios", "nope"], "--scenarios: unknown scenario 'nope' in suite-v1; allowed: "),
     (["reproduce", "suite", "--policies", "no-such-policy"], "no-such-policy"),
