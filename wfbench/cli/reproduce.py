@@ -43,7 +43,8 @@ def add_parser(sub) -> None:
     rp.add_argument("--split", default=None, choices=["train", "heldout"], help="frontier only: the split "
                     "(default heldout)")
     rp.add_argument("--reuse", default=None, help="frontier only: comma-separated suite run folders whose cached "
-                    "pieces are read before anything is played (default: docs/results/suite-v1-50)")
+                    "pieces are read before anything is played (default: docs/results/frontier-v1 and "
+                    "docs/results/suite-v1-50, the committed runs)")
     rp.add_argument("--no-networks", action="store_true", help="suite only: leave the shipped networks out")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)

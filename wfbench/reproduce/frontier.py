@@ -35,7 +35,7 @@ BUDGETS_MS = (1.0, 10.0, 100.0)  # CPU ms per env-step: the issue's "about 1 ms,
 BASELINE = "solver-tuned"  # the probability of improvement is taken over it (the rollouts' base)
 SIDES = {"heuristic": "OR", "solver": "OR", "rollout": "OR", "mpc": "OR", "network": "learned",
          "oracle": "reference", "random": "reference"}
-DEFAULT_REUSE = ("docs/results/suite-v1-50",)
+DEFAULT_REUSE = ("docs/results/frontier-v1", "docs/results/suite-v1-50")  # the committed runs, from a checkout
 
 
 def default_policies() -> list[str]:
