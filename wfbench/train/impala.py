@@ -7,7 +7,7 @@ those of the PPO trainer (:mod:`wfbench.train.ppo`, ``docs/rl.md``); what differ
 acts with which parameters, and how the learner corrects for it. The network is the
 paper's (a preset of :mod:`wfbench.policies.neural.model`, observation version 1) or the
 scale-free one (``model="scalefree"``, :mod:`wfbench.policies.neural.scalefree`, version 2):
-:func:`build_network` picks the class, and the features and log-probabilities go through
+:func:`wfbench.train.toolkit.build_model` picks the class, and the features and log-probabilities go through
 ``scalefree``'s helpers, which tell the two apart (for a preset the same computation as
 before the scale-free network existed)::
 
@@ -76,7 +76,6 @@ from torch import nn
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.backends import require_ray
 from wfbench.policies.neural import scalefree
-from wfbench.policies.neural.model import WorkforceNet
 from wfbench.train import toolkit
 
 MODES = ("async", "sync")
@@ -127,21 +126,6 @@ class ImpalaConfig(toolkit.ActorCriticConfig):
                 raise ValueError(f"mode {self.mode!r} is not allowed with address (Ray actors run beside the "
                                  "learner); allowed: async")
             require_ray(f"address {self.address!r}")
-
-
-def build_network(network) -> nn.Module:
-    """The network of a run's config (``Run.network``): the scale-free one for observation version 2.
-
-    Args:
-        network: the config of :meth:`ImpalaConfig.network_config`, a preset's ``ModelConfig``
-            or a ``ScaleFreeConfig``.
-
-    Returns:
-        A fresh ``WorkforceNet`` (a preset) or ``ScaleFreeNet`` (``scalefree``), on CPU.
-    """
-    if getattr(network, "obs_version", 1) == 2:
-        return scalefree.ScaleFreeNet(network)
-    return WorkforceNet(network)
 
 
 def joint_log_prob(model: nn.Module, out: dict, x: dict, acts: dict) -> tuple[torch.Tensor, torch.Tensor, dict]:
@@ -267,7 +251,7 @@ class RemoteActor:
 
     def __init__(self, cfg: ImpalaConfig, index: int, meta: dict | None, scenario: ScenarioConfig):
         torch.set_num_threads(cfg.threads)
-        model = build_network(cfg.network_config())
+        model = toolkit.build_model(cfg.network_config())
         self.actor = Actor(cfg, scenario, model, torch.device("cpu"), index, cfg.ray_actors)
         if meta is not None:  # resume: this actor's return normalizer, generator and seed cursor
             self.actor.restore(meta)
@@ -302,7 +286,7 @@ class Trainer:
                  log: bool = True, amp: str | torch.dtype | None = "auto"):
         self.run = toolkit.start_run(config, progress, log, amp)
         c = config
-        self.model = build_network(self.run.network).to(self.run.device)
+        self.model = toolkit.build_model(self.run.network).to(self.run.device)
         if c.optimizer == "adam":
             self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=c.eps)
         else:

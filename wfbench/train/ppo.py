@@ -73,7 +73,7 @@ import torch
 
 from wfbench import policies
 from wfbench.policies.neural import scalefree
-from wfbench.policies.neural.model import AgentSet, WorkforceNet, agent_set_config
+from wfbench.policies.neural.model import agent_set_config
 from wfbench.train import memory, toolkit
 
 AGENTS = ("joint", "independent")
@@ -131,10 +131,7 @@ class Trainer:
         c = config
         self.decisions = VARIANTS[c.variant]
         independent = c.agents == "independent"
-        if getattr(run.network, "obs_version", 1) == 2:
-            self.model = scalefree.ScaleFreeNet(run.network).to(run.device)
-        else:
-            self.model = (AgentSet(run.network) if independent else WorkforceNet(run.network)).to(run.device)
+        self.model = toolkit.build_model(run.network, independent).to(run.device)
         # the agents: their heads, and the parameters each one's gradient is clipped over
         if independent:
             self.agents = {d: (d,) for d in self.decisions}

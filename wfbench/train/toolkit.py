@@ -50,7 +50,7 @@ from wfbench.harness.budget import training_hardware
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies.neural import scalefree
 from wfbench.policies.neural.dist import env_action, gumbel
-from wfbench.policies.neural.model import count_parameters, model_config
+from wfbench.policies.neural.model import AgentSet, WorkforceNet, count_parameters, model_config
 from wfbench.policies.neural.policy import NetworkPolicy, load_checkpoint
 from wfbench.scenarios.score import normalize
 from wfbench.train.worlds import Worlds, WorldSet, deal, world_set
@@ -218,6 +218,18 @@ def network_config(preset: str, decisions: tuple[str, ...], overrides: dict):
     if preset == scalefree.ARCH:
         return scalefree.scalefree_config(decisions, **overrides)
     return model_config(preset, decisions, **overrides)
+
+
+def build_model(network, independent: bool = False) -> torch.nn.Module:
+    """A fresh network (on CPU) for a run's config (:func:`network_config`).
+
+    The scale-free network for an observation-version-2 config (``ScaleFreeConfig``), else the
+    paper's: ``AgentSet`` (one network per decision) when ``independent``, ``WorkforceNet``
+    otherwise.
+    """
+    if getattr(network, "obs_version", 1) == 2:
+        return scalefree.ScaleFreeNet(network)
+    return AgentSet(network) if independent else WorkforceNet(network)
 
 
 def policy_step(net, obs: dict, state, starts: torch.Tensor, model, gen: torch.Generator | None,
