@@ -26,8 +26,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET, candidate_rows, knob, pick_best
-from wfbench.policies.lookahead.rollout import budget as preset_knobs
+from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET, RolloutBase, candidate_rows, pick_best
 from wfbench.policies.protocol import seeds_array
 
 from wfbench.core.actions import AGENTS
@@ -37,7 +36,7 @@ from wfbench.core.config import ScenarioConfig
 PURPOSE_NOISE = 0x4E52  # the copy's sampling noise: a purpose of its own beside the belief's keys
 
 
-class NetworkRollout:
+class NetworkRollout(RolloutBase):
     """Rollout of a network ``base`` on K sampled futures of H steps (module docstring).
 
     Args:
@@ -51,34 +50,15 @@ class NetworkRollout:
         name: the policy's name.
     """
 
-    decisions = AGENTS
-    reads_trace = False
-
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  budget: str = DEFAULT_BUDGET, scenario: str | ScenarioConfig | None = None, seed: int = 0,
                  name: str | None = None):
         if not (hasattr(base, "model") and set(getattr(base, "decisions", ())) == set(AGENTS)):
             raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a network deciding dispatch, "
                              "workforce and positioning; allowed: a NetworkPolicy such as scalefree-general")
-        k0, h0, r0 = preset_knobs(budget)
-        self.K = knob("K", k0 if K is None else K)
-        self.H = knob("H", h0 if H is None else H)
-        self.R = knob("R", r0 if R is None else R)
-        self.base = base
-        self.seed = int(seed)
-        self.name = name or f"rollout-{getattr(base, 'name', 'network')}"
-        self.config = None if scenario is None else ScenarioConfig.resolve(scenario)
-        self.belief: Belief | None = None
-        self.last_scores: np.ndarray | None = None
-        self.timing: dict[str, float] = {}
+        name = name or f"rollout-{getattr(base, 'name', 'network')}"
+        super().__init__(base, K, H, R, budget, scenario, seed, name)
         self.trained_on = getattr(base, "trained_on", None)
-
-    def settings(self) -> dict[str, int]:
-        return {"K": self.K, "H": self.H, "R": self.R}
-
-    def set_world(self, config: str | ScenarioConfig) -> None:
-        """The public config of the world (the evaluator's, before ``reset``)."""
-        self.config = ScenarioConfig.resolve(config)
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         self._seeds = seeds_array(seeds)

@@ -70,35 +70,26 @@ def budget(name: str) -> tuple[int, int, int]:
     return BUDGETS[name]
 
 
-class Rollout:
-    """Rollout of the compiled composite ``base`` on K sampled futures of H steps (module docstring).
+class RolloutBase:
+    """What every rollout shares: its knobs from a budget preset, its base, name and seed, the public world.
 
-    Args:
-        base: a composite of built-in kernels (``Composite.compiled``), e.g. ``policies.get("solver-tuned")``.
-        K, H, R: the knobs (:data:`KNOBS`), integers >= 1; None takes the ``budget`` preset's.
-        budget: a preset of :data:`BUDGETS` for the knobs not given.
-        scenario: the public config of the world (a name, a path or a config); None: from
-            :meth:`set_world` (the evaluator's), else built from the first observation.
-        seed: the policy's own seed, mixed into its belief keys.
-        name: the policy's name.
+    The subclasses (:class:`Rollout`, and
+    :class:`~wfbench.policies.lookahead.network_rollout.NetworkRollout`) check their base and
+    call this after.
     """
 
     decisions = AGENTS
     reads_trace = False
 
-    def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
-                 budget: str = DEFAULT_BUDGET, scenario: str | ScenarioConfig | None = None, seed: int = 0,
-                 name: str | None = None):
-        if not getattr(base, "compiled", False):
-            raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
-                             "allowed: a compiled composite (a registry composite or tuned file of one)")
+    def __init__(self, base: Any, K: int | None, H: int | None, R: int | None, budget: str,
+                 scenario: str | ScenarioConfig | None, seed: int, name: str):
         k0, h0, r0 = globals()["budget"](budget)
         self.K = knob("K", k0 if K is None else K)
         self.H = knob("H", h0 if H is None else H)
         self.R = knob("R", r0 if R is None else R)
         self.base = base
         self.seed = int(seed)
-        self.name = name or f"rollout-{getattr(base, 'name', 'base')}"
+        self.name = name
         self.config = None if scenario is None else ScenarioConfig.resolve(scenario)
         self.belief: Belief | None = None
         self.last_scores: np.ndarray | None = None  # (B, 7) mean score per workforce action at the last decision
@@ -115,7 +106,31 @@ class Rollout:
         """
         self.config = ScenarioConfig.resolve(config)
 
-    attach = set_world  # the name of before; the runner hands ``attach`` only to policies that read the trace
+
+class Rollout(RolloutBase):
+    """Rollout of the compiled composite ``base`` on K sampled futures of H steps (module docstring).
+
+    Args:
+        base: a composite of built-in kernels (``Composite.compiled``), e.g. ``policies.get("solver-tuned")``.
+        K, H, R: the knobs (:data:`KNOBS`), integers >= 1; None takes the ``budget`` preset's.
+        budget: a preset of :data:`BUDGETS` for the knobs not given.
+        scenario: the public config of the world (a name, a path or a config); None: from
+            :meth:`set_world` (the evaluator's), else built from the first observation.
+        seed: the policy's own seed, mixed into its belief keys.
+        name: the policy's name.
+    """
+
+    def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
+                 budget: str = DEFAULT_BUDGET, scenario: str | ScenarioConfig | None = None, seed: int = 0,
+                 name: str | None = None):
+        if not getattr(base, "compiled", False):
+            raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
+                             "allowed: a compiled composite (a registry composite or tuned file of one)")
+        name = name or f"rollout-{getattr(base, 'name', 'base')}"
+        super().__init__(base, K, H, R, budget, scenario, seed, name)
+
+    # the name of before; the runner hands ``attach`` only to policies that read the trace
+    attach = RolloutBase.set_world
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         self._seeds = seeds_array(seeds)
@@ -223,4 +238,5 @@ def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, 
     return Rollout(base, budget=budget_name, name=name, **knobs)
 
 
-__all__ = ["BUDGETS", "DEFAULT_BUDGET", "KNOBS", "Rollout", "budget", "candidate_rows", "knob", "make", "pick_best"]
+__all__ = ["BUDGETS", "DEFAULT_BUDGET", "KNOBS", "Rollout", "RolloutBase", "budget", "candidate_rows", "knob", "make",
+           "pick_best"]
