@@ -27,7 +27,7 @@ from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.reproduce.common import Output, Progress, write
-from wfbench.reproduce.suite import _run, _store, piece_folder
+from wfbench.reproduce.suite import _cache_path, _run, _store
 from wfbench.reproduce.suite import family as suite_family
 from wfbench.scenarios import SuiteScenario, get_suite, normalize
 
@@ -76,7 +76,7 @@ def find_piece(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
                seeds: list[int]) -> pd.DataFrame | None:
     """The first stored piece of (policy, scenario) of this scenario hash whose seeds include ``seeds``, cut to them."""
     for folder in folders:
-        path = folder / "cache" / piece_folder(policy) / f"{scenario.id}.csv"
+        path = _cache_path(folder, policy, scenario)
         meta = path.with_suffix(".json")
         if not (path.exists() and meta.exists()):
             continue
@@ -114,9 +114,9 @@ def verdicts(table: pd.DataFrame, budgets: Sequence[float] = BUDGETS_MS) -> list
             row[f"{side}_policy"] = None if r is None else r["policy"]
             row[f"{side}_iqm"] = np.nan if r is None else r["iqm"]
         o, n = best["OR"], best["learned"]
-        if o is None or n is None:
-            row["ahead"], row["apart"] = ("OR" if n is None else "learned") if (o is not None or n is not None) \
-                else None, None
+        if o is None or n is None:  # one side alone is ahead, with no interval to compare
+            row["apart"] = None
+            row["ahead"] = "OR" if o is not None else "learned" if n is not None else None
         else:
             hi, lo = (o, n) if o["iqm"] >= n["iqm"] else (n, o)
             row["ahead"] = "OR" if hi is o else "learned"
@@ -167,7 +167,7 @@ def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int |
                 except Exception as exc:  # noqa: BLE001 - a long run reports a failing piece and goes on
                     failures.append([sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]])
                     continue
-                _store(out / "cache" / piece_folder(name) / f"{sc.id}.csv", df, name, sc, seed_list, wall_s)
+                _store(_cache_path(out, name, sc), df, name, sc, seed_list, wall_s)
             df = df.copy()
             df.insert(0, "normalized", normalize(df[SCORE].to_numpy(), sc.id, s))
             df.insert(0, "split", sc.split)
@@ -190,7 +190,6 @@ def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int |
                      "p_improve_high": r.get("p_improve_high", np.nan), **cost_row(df)})
     result = pd.DataFrame(rows)
     files: list[Path] = []
-    out.mkdir(parents=True, exist_ok=True)
     seeds_text = describe(seed_list)
     ids = ", ".join(sc.id for sc in chosen)
     header = ["Policy", "Family", "IQM [95% CI]", f"P(improvement over {baseline}) [95% CI]",
