@@ -76,8 +76,14 @@ def _count(v: Any, name: str) -> int:
     return int(v)
 
 
-def plan_staffing(inst: StaffingInstance, time_limit: float | None = None, block: int = 1) -> SolveResult:
+def plan_staffing(inst: StaffingInstance, time_limit: float | None = None, block: int = 1,
+                  node_limit: int | None = None) -> SolveResult:
     """The optimal plan of ``inst`` (module docstring).
+
+    ``node_limit``: HiGHS's branch-and-bound nodes at most (``mip_max_nodes``), a limit of
+    work, not of time, so the plan is the same on any machine and under any load; a
+    deployable policy limits its solves this way (``time_limit`` is wall-clock: the plan
+    at the limit depends on the machine's speed).
 
     ``block``: decide once per ``block`` steps how many of each action the block takes (at
     most ``block``, one per step from its start), with the lags taken at their latest (a
@@ -93,6 +99,8 @@ def plan_staffing(inst: StaffingInstance, time_limit: float | None = None, block
         (L, H), ``coverage`` and ``shortfall`` (H,).
     """
     time_limit = check_time_limit(time_limit)
+    if node_limit is not None and (isinstance(node_limit, bool) or not isinstance(node_limit, int) or node_limit < 1):
+        raise SolverInputError(f"node_limit = {node_limit!r} is not allowed; allowed: an integer >= 1, or None")
     G = _count(block, "block")
     if G < 1:
         raise SolverInputError(f"block = {block!r} is not allowed; allowed: an integer >= 1")
@@ -181,15 +189,17 @@ def plan_staffing(inst: StaffingInstance, time_limit: float | None = None, block
         options: dict[str, Any] = {"disp": False}
         if time_limit is not None:
             options["time_limit"] = time_limit
+        if node_limit is not None:
+            options["node_limit"] = node_limit
         res = milp(c, integrality=integrality, bounds=Bounds(np.zeros(n), upper),
                    constraints=[LinearConstraint(A, np.asarray(lo), np.asarray(hi))], options=options)
     if res.x is None:
-        if res.status == 1:  # the time limit before an incumbent: no actions (always feasible)
+        if res.status == 1:  # a limit (time or nodes) before an incumbent: no actions (always feasible)
             z = np.zeros(n)
             z[P:E], z[E:S] = ready.ravel(), paid.ravel()
             z[S:] = np.maximum(0.0, demand - cap @ ready)
             return _result(TIME_LIMIT, z, c, None, clock.elapsed, L, H, G, cap,
-                           "time limit before HiGHS found an incumbent; the plan of no actions")
+                           "a limit before HiGHS found an incumbent; the plan of no actions")
         raise RuntimeError(f"plan_staffing: HiGHS reports {res.message!r} on a problem the no-action plan satisfies "
                            "(check ready >= floor and paid <= max_headcount)")
     bound = getattr(res, "mip_dual_bound", None)

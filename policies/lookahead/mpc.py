@@ -27,6 +27,9 @@ plan's actions step by step until the next solve (an action the mask refuses is 
   inverse. Under ``rates`` every active facility has the same forecast (failures and
   lifetimes are memoryless); under ``ma`` a facility's own observed requests over the window.
 - **Dispatch** is the base's assignment (``solver-tuned-train``'s compiled kernels).
+- **Tunable** (:attr:`MPC.tunable`, ``wfbench tune mpc-rates --scenarios suite-v1:train``): the
+  knobs, the MILP's two prices and a scale on the capacity model; each solve is limited in
+  branch-and-bound nodes, not seconds, so a plan never depends on the machine's speed.
 
 Nothing here reads the trace, a seed's generator or the true state.
 """
@@ -41,6 +44,7 @@ from typing import Any
 import numpy as np
 from wfbench.policies import kernels as K
 from wfbench.policies.protocol import as_obs, seeds_array
+from wfbench.policies.tunable import Param
 from wfbench.solvers.staffing_mpc import StaffingInstance, plan_staffing
 
 from wfbench.core.actions import AGENTS
@@ -51,12 +55,24 @@ from wfbench.core.state import EMPTY, ONBOARDING
 
 FORECASTS = ("rates", "ma")
 KNOBS = {"H": "steps of the plan", "R": "steps between two solves",
-         "window": "steps of the moving average of observed requests (mpc-ma)"}
+         "window": "steps of the moving average of observed requests (mpc-ma)",
+         "node_limit": "HiGHS's branch-and-bound nodes per solve"}
 DEFAULTS = {"H": 100, "R": 20, "window": 100}
 BLOCK = 10  # steps per decision block of the MILP (plan_staffing's block)
 SHORTFALL_COST = 1000.0  # per request per step not covered, salary units: a queue that outgrows its people never drains
-TIME_LIMIT_S = 0.2  # per solve; HiGHS keeps its best plan at the limit
+# per solve, HiGHS's branch-and-bound nodes at most: a limit of work, so the plan is the same under any load (a
+# wall-clock limit made it depend on the machine's speed); the largest solve measured on the held-out worlds took 17
+NODE_LIMIT = 1000
 ACTION_COST = 50.0  # per hire or let-go, salary units: what churn costs beyond the lags (a novice earns 1 a step)
+# what a tuner may search (wfbench tune), and a tuned file may set; the defaults above sit inside
+TUNABLE: dict[str, Param] = {
+    "H": Param(20, 300, "int"),
+    "R": Param(5, 100, "int"),
+    "window": Param(10, 400, "int"),
+    "shortfall_cost": Param(10.0, 10000.0, "float", log=True),
+    "action_cost": Param(1.0, 1000.0, "float", log=True),
+    "capacity_scale": Param(0.5, 2.0),
+}
 
 
 def knob(name: str, value: Any) -> int:
@@ -80,7 +96,10 @@ class MPC:
         H, R, window: the knobs (:data:`KNOBS`), integers >= 1.
         scenario: the public config (``rates``); None: from :meth:`set_world` (the evaluator's).
         shortfall_cost: the MILP's price of a request per step not covered, salary units.
-        time_limit_s: HiGHS's limit per solve.
+        action_cost: its price of a hire or let-go, salary units.
+        capacity_scale: a factor on the capacity model's requests a step per person (the
+            model is coarse; tuning may correct it).
+        node_limit: HiGHS's branch-and-bound nodes per solve, at most.
         name: the policy's name.
     """
 
@@ -89,7 +108,8 @@ class MPC:
 
     def __init__(self, base: Any, forecast: str = "rates", H: int = DEFAULTS["H"], R: int = DEFAULTS["R"],
                  window: int = DEFAULTS["window"], scenario: str | ScenarioConfig | None = None,
-                 shortfall_cost: float = SHORTFALL_COST, time_limit_s: float = TIME_LIMIT_S, name: str | None = None):
+                 shortfall_cost: float = SHORTFALL_COST, action_cost: float = ACTION_COST,
+                 capacity_scale: float = 1.0, node_limit: int = NODE_LIMIT, name: str | None = None):
         if not getattr(base, "compiled", False):
             raise ValueError(f"mpc base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
                              "allowed: a compiled composite (a registry composite or tuned file of one)")
@@ -97,7 +117,10 @@ class MPC:
             raise ValueError(f"mpc forecast {forecast!r} is not allowed; allowed: {', '.join(FORECASTS)}")
         self.H, self.R, self.window = knob("H", H), knob("R", R), knob("window", window)
         self.base, self.forecast = base, forecast
-        self.shortfall_cost, self.time_limit_s = float(shortfall_cost), float(time_limit_s)
+        self.shortfall_cost = TUNABLE["shortfall_cost"].check(shortfall_cost, "shortfall_cost")
+        self.action_cost = TUNABLE["action_cost"].check(action_cost, "action_cost")
+        self.capacity_scale = TUNABLE["capacity_scale"].check(capacity_scale, "capacity_scale")
+        self.node_limit = knob("node_limit", node_limit)
         self.name = name or f"mpc-{forecast}"
         self.config = None if scenario is None else ScenarioConfig.resolve(scenario)
         self.timing: dict[str, float] = {}
@@ -108,6 +131,25 @@ class MPC:
         if self.forecast == "ma":
             out["window"] = self.window
         return out
+
+    @property
+    def tunable(self) -> dict[str, Param]:
+        """What a tuner may search, name -> range (``window`` only for the ``ma`` forecast)."""
+        return {k: p for k, p in TUNABLE.items() if k != "window" or self.forecast == "ma"}
+
+    def params(self) -> dict[str, float | int]:
+        """The current value of each tunable parameter."""
+        return {k: getattr(self, k) for k in self.tunable}
+
+    def with_params(self, params: dict[str, float | int], name: str | None = None) -> MPC:
+        """A copy with some tunable parameters changed; ValueError of one line names a bad name or value."""
+        values = self.params()
+        for k, v in params.items():
+            if k not in self.tunable:
+                raise ValueError(f"{self.name} has no tunable parameter {k!r}; allowed: {', '.join(self.tunable)}")
+            values[k] = self.tunable[k].check(v, k)
+        return MPC(self.base, forecast=self.forecast, scenario=self.config, node_limit=self.node_limit,
+                   name=name or self.name, **values)
 
     def set_world(self, config: str | ScenarioConfig) -> None:
         """The world's public parameters (the evaluator calls it before ``reset``); ``rates`` needs them."""
@@ -229,12 +271,12 @@ class MPC:
         self.travel_n[b] += 1.0
         self.travel_mean[b] += (travel - self.travel_mean[b]) / self.travel_n[b]
         T = world[W["service_time"]] + 2.0 * self.travel_mean[b]
-        cap = world[W["target_utilization"]] * fix / max(T, 1e-9)
+        cap = self.capacity_scale * (world[W["target_utilization"]] * fix / max(T, 1e-9))
         return StaffingInstance(demand=self._demand(b, t, obs), capacity=cap, salary=salary, ready=ready, paid=paid,
                                 hire_delay=int(world[W["hire_delay"]]), notice_delay=int(world[W["notice_delay"]]),
                                 max_headcount=int(world[W["max_personnel"]]),
                                 min_headcount=int(world[W["min_personnel"]]), shortfall_cost=self.shortfall_cost,
-                                action_cost=ACTION_COST)
+                                action_cost=self.action_cost)
 
     def _positioning(self, b: int, obs: dict[str, np.ndarray], out: np.ndarray) -> None:
         fac = obs["facilities"][b]
@@ -276,7 +318,7 @@ class MPC:
             tb = int(t[b])
             if tb - self.plan_t0[b] >= min(self.R, self.H):
                 s0 = time.perf_counter()
-                res = plan_staffing(self._instance(b, tb, obs), time_limit=self.time_limit_s, block=BLOCK)
+                res = plan_staffing(self._instance(b, tb, obs), node_limit=self.node_limit, block=BLOCK)
                 self.timing["solves"] += 1
                 self.timing["solve_s"] += time.perf_counter() - s0
                 self.plan[b] = res.solution
@@ -296,4 +338,4 @@ def make(base: Any, forecast: str, name: str | None = None, **knobs: Any) -> MPC
     return MPC(base, forecast=forecast, name=name, **knobs)
 
 
-__all__ = ["DEFAULTS", "FORECASTS", "KNOBS", "MPC", "knob", "make"]
+__all__ = ["DEFAULTS", "FORECASTS", "KNOBS", "MPC", "NODE_LIMIT", "TUNABLE", "knob", "make"]

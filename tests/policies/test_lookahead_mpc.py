@@ -66,3 +66,50 @@ def test_on_paper_64_mpc_is_below_solver_tuned_train_as_documented():
     for name in ("mpc-rates", "mpc-ma"):
         d = run_batch(policies.get(name), config, seeds).means["nsw"] - base
         assert -0.08 < d.mean() < 0.0, (name, d)
+
+
+def test_its_tunable_parameters_round_trip_and_bad_ones_get_one_line():
+    pol = policies.get("mpc-ma")
+    assert set(pol.tunable) == {"H", "R", "window", "shortfall_cost", "action_cost", "capacity_scale"}
+    assert "window" not in policies.get("mpc-rates").tunable, "the rates forecast has no moving average"
+    assert pol.params() == {"H": 100, "R": 20, "window": 100, "shortfall_cost": 1000.0, "action_cost": 50.0,
+                            "capacity_scale": 1.0}
+    tuned = pol.with_params({"H": 60, "capacity_scale": 1.25}, name="mpc-ma-mine")
+    assert tuned.name == "mpc-ma-mine" and tuned.forecast == "ma" and tuned.base is pol.base
+    assert tuned.params() == {**pol.params(), "H": 60, "capacity_scale": 1.25}
+    assert pol.params()["H"] == 100, "the original is unchanged"
+    with pytest.raises(ValueError, match="has no tunable parameter 'window'; allowed: H, R, shortfall_cost") as err:
+        policies.get("mpc-rates").with_params({"window": 50})
+    assert "\n" not in str(err.value)
+    with pytest.raises(ValueError, match=r"capacity_scale = 3 is out of range; allowed: float in \[0.5, 2\]"):
+        pol.with_params({"capacity_scale": 3})
+
+
+def test_a_tuned_file_of_it_loads_by_path(tmp_path):
+    from wfbench.policies.tuned import TunedPolicy, write
+
+    path = write(TunedPolicy(name="mpc-rates-mine", base="mpc-rates", params={"R": 40, "action_cost": 200.0},
+                             scenario="suite-v1:train", seeds=[1000], trials=1, best_score=0.5),
+                 tmp_path / "mine.json")
+    pol = policies.get(str(path))
+    assert isinstance(pol, MPC) and pol.name == "mpc-rates-mine" and pol.forecast == "rates"
+    assert pol.R == 40 and pol.action_cost == 200.0 and pol.H == 100
+
+
+def test_its_solves_are_limited_in_work_not_time(monkeypatch):
+    """A wall-clock limit makes the plan depend on the machine's load; the node limit does not."""
+    import wfbench.policies.lookahead.mpc as mpc
+
+    seen = []
+    real = mpc.plan_staffing
+
+    def spy(inst, time_limit=None, block=1, node_limit=None):
+        seen.append((time_limit, node_limit))
+        return real(inst, time_limit=time_limit, block=block, node_limit=node_limit)
+
+    monkeypatch.setattr(mpc, "plan_staffing", spy)
+    pol = policies.get("mpc-ma")
+    run_batch(pol, ScenarioConfig.preset("small").replace(horizon=30), [1000])
+    assert seen and set(seen) == {(None, mpc.NODE_LIMIT)}
+    with pytest.raises(ValueError, match="mpc knob node_limit = 0 is not allowed"):
+        MPC(pol.base, node_limit=0)

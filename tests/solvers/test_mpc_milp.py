@@ -55,3 +55,13 @@ def test_blocks_take_the_lags_at_their_latest_and_bad_input_is_refused():
         plan_staffing(inst, block=0)
     with pytest.raises(SolverInputError, match="ready must have shape"):
         plan_staffing(StaffingInstance(**{**inst.__dict__, "ready": np.ones((3, 2))}))
+
+
+def test_a_node_limit_keeps_the_optimum_here_and_bad_limits_are_refused():
+    inst = StaffingInstance(demand=[1, 1, 1, 1, 3, 3, 3, 3], capacity=[1, 1, 1], salary=SALARY, ready=novices(1, 8),
+                            paid=novices(1, 8), hire_delay=2, notice_delay=1, max_headcount=5)
+    res = plan_staffing(inst, node_limit=1000)
+    assert res.status == "optimal" and res.solution.tolist() == plan_staffing(inst).solution.tolist()
+    for bad in (0, -3, 2.5, True, "many"):
+        with pytest.raises(SolverInputError, match=f"node_limit = {bad!r} is not allowed; allowed: an integer >= 1"):
+            plan_staffing(inst, node_limit=bad)
