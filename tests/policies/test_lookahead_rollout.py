@@ -63,3 +63,18 @@ def test_a_small_rollout_is_not_worse_than_its_base_on_public_seeds():
     assert mine.mean() >= base.mean(), (mine, base)
     again, second = play(roll, config, seeds)  # reset starts over: the same seeds, the same episode
     assert np.array_equal(first, second) and np.array_equal(mine, again)
+
+
+
+def test_a_rollout_slower_than_the_act_limit_fails_like_any_slow_policy_in_one_line():
+    """The issue's bad input: a lookahead handed over as an object (as a user or the board hands one) whose act
+    outlasts the act limit is stopped, and told so in one line. Registry names are trusted built-ins: unguarded."""
+    from wfbench.harness.guard import PolicyError
+
+    from wfbench import evaluate
+
+    pol = policies.get("rollout-solver-tuned-100ms")
+    with pytest.raises(PolicyError) as err:
+        evaluate(pol, "paper-64", [1000], backend="serial", act_timeout_s=0.05)
+    assert str(err.value).startswith("policy 'rollout-solver-tuned-100ms' did not return from act within the act "
+                                     "timeout of 0.05 s") and "\n" not in str(err.value)
