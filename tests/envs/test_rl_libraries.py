@@ -1,9 +1,9 @@
 """Each RL library's default path on our environments, plugged in as its documentation shows (docs/envs.md).
 
 PettingZoo's and Gymnasium's own checkers run in tests/envs/test_envs.py; here: PettingZoo's state and render
-tests, SuperSuit, Tianshou, TorchRL, and skrl, whose IPPO and MAPPO train a few updates (the ``dev`` extra installs
-them; RLlib, too heavy for the suite, is run by benchmarks/rllib_ppo.py; PufferLib, AgileRL and BenchMARL do not
-install beside our pins, docs/envs.md).
+tests, SuperSuit (SB3's PPO trains on it), Tianshou, TorchRL, and skrl (its IPPO and MAPPO train a few updates);
+the ``dev`` extra installs them (RLlib, too heavy for the suite, is run by benchmarks/rllib_ppo.py; PufferLib,
+AgileRL and BenchMARL do not install beside our pins, docs/envs.md).
 """
 
 import gymnasium
@@ -83,6 +83,27 @@ def test_supersuit_vectorizes_and_flattens_with_its_defaults():
     for _ in range(3):
         obs, rew, term, trunc, _ = vec.step(np.stack([vec.action_space.sample() for _ in range(6)]))
     assert obs.shape[0] == rew.shape[0] == 6 and not term.any()
+
+
+@pytest.mark.slow
+def test_supersuit_vec_env_trains_under_stable_baselines3_with_seed_none():
+    """SB3's PPO on SuperSuit's SB3 base class: two updates with ``seed=None``; a seed fails in SB3's ``env.seed``."""
+    import supersuit as ss
+    from stable_baselines3 import PPO
+
+    def vec_env():
+        env = ss.flatten_v0(wfbench.parallel_env("small", **LIBRARY_OPTIONS))
+        return ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), 1, num_cpus=0,
+                                     base_class="stable_baselines3")
+
+    with pytest.raises(AttributeError, match="'ConcatVecEnv' object has no attribute 'seed'"):
+        PPO("MlpPolicy", vec_env(), seed=0, device="cpu")
+    model = PPO("MlpPolicy", vec_env(), n_steps=8, batch_size=24, n_epochs=1, seed=None, device="cpu")
+    before = [p.detach().clone() for p in model.policy.parameters()]
+    model.learn(48)  # 3 agents x 8 steps a rollout: two updates
+    assert model.num_timesteps == 48
+    assert any(not np.array_equal(b.numpy(), p.detach().numpy()) for b, p in zip(before, model.policy.parameters(),
+                                                                                  strict=True))
 
 
 def test_tianshou_pettingzoo_env_takes_the_aec_env():
