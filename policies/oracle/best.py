@@ -1,44 +1,13 @@
 """The best policy in hindsight: play every candidate on each seed's known future, then replay the best one.
 
-:class:`BestInHindsight` is the registry's ``oracle``. It is told the scenario
-(``attach``) and the seeds (``reset``), so it knows each seed's whole exogenous future,
-and the simulator is a pure function of (config, seed, actions). At ``reset`` it plays
-every candidate policy on a private ``Simulator(config, seeds)`` for the whole episode,
-batched over the seeds, and keeps per seed the candidate with the highest episode NSW
-(the first in candidate order on a tie). ``act`` then makes, per seed, exactly that
-candidate's episode again:
-
-- a candidate whose every part is a built-in kernel (``compiled``: the registry's
-  deployable composites and tuned files) is played compiled
-  (:func:`~wfbench.policies.oracle.rollout.roll_forward` from the reset state, which is the
-  whole-episode rollout) and replayed live: a fresh copy of it acts on the rows of the
-  seeds that chose it. Its randomness is keyed by each environment's seed and its state
-  is per row, so it acts the same on a sub-batch as on the whole batch. For the same
-  reason its episode total on a seed is the same bits in any batch: the totals cache
-  (:mod:`wfbench.policies.oracle.cache`) holds those the runner or an earlier oracle
-  played, and only the seeds it lacks are played (``cached`` counts the others);
-- any other candidate (the hindsight planner ``oracle-planner``, the shipped networks)
-  is played through ``reset``/``act``/``step`` and its actions are recorded: the
-  dispatches that send somebody, the workforce code of each step, and the positioning
-  row the simulator reads (row 0 when the step hires, row 1 when it lets go; the other
-  row and every row of a no-op step are never read). ``act`` returns the recorded
-  actions. A network's sampled actions can change with the batch's size in the last
-  float bit (batched matrix products), so replaying what it did, not asking it again,
-  is what makes the replay exact. For the same reason a shipped network's totals are
-  cached per seed *and batch*: when the runner (or an earlier oracle) played it on this
-  very batch, its totals come from the cache, and it is played only if it turns out
-  the best on some seed, for the actions to replay.
-
-A candidate played through ``act`` stops early once it cannot win on any seed: its
-partial sum of ``NSW_t`` plus one per remaining step (``NSW_t`` lies in [0, 1]) is below
-the best episode total found so far on every seed of the batch. That is exact
-pruning, never a change of the choice. ``scores`` holds every candidate's episode NSW
-per seed (NaN where it was stopped; a total from the cache is never stopped),
-``choice`` the candidate each seed replays and ``timing`` the seconds each candidate
-took (``docs/hindsight.md``, "The oracle").
-
-It reads the trace (``reads_trace = True``): not deployable, refused on the
-leaderboard's deployable tracks like every oracle.
+:class:`BestInHindsight` is the registry's ``oracle``. At ``reset`` it plays every candidate
+(``wfbench.policies.registry.oracle_candidates()``) on a private ``Simulator(config, seeds)``
+and keeps per seed the one with the highest episode NSW (the first on a tie); ``act`` replays
+that episode exactly: compiled candidates live, the others from their recorded actions.
+Totals come from :mod:`wfbench.policies.oracle.cache` where it has them, and a candidate that
+cannot win on any seed is stopped early (exact pruning). ``scores``, ``choice``, ``cached`` and
+``timing`` say what happened. It reads the trace: not deployable. Why each step is exact:
+``docs/hindsight.md``, "The oracle: the best policy in hindsight".
 """
 
 from __future__ import annotations

@@ -1,44 +1,13 @@
 """Episode totals of compiled composites and shipped networks, shared by the evaluation runner and the ``oracle``.
 
-A composite of built-in kernels (``policy.compiled``) plays the same episode on a seed
-whatever batch it runs in: its randomness is keyed by the seed and its state is per row.
-So its episode total of NSW (``sim.state.totals[:, K_NSW]``, float64) on one seed of one
-scenario is a pure function of:
-
-- the compiled code: :func:`code_digest`, a sha256 of
-  :func:`wfbench.core.jit.source_digest` of ``policies/rollout.py`` (the runner's
-  rollout), ``policies/oracle/rollout.py`` (the oracle's roll-forward) and
-  ``wfbench/core/simulator.py`` (the trace and the reset): each covers the file and every
-  in-project module it imports, so the kernels and the simulator core they inline, and
-  the numba, numpy and Python versions;
-- the scenario: :func:`scenario_hash`, a sha256 of the config's canonical JSON (sorted
-  keys, as a suite hashes its scenarios);
-- the policy: its ``compiled_plan`` kernel codes and hyper-parameters, and the seed's
-  random keys (``PolicyState.keys`` before the episode, which also carry the parts' own
-  seeds);
-- the seed.
-
-:func:`lookup` and :func:`store` key a total by exactly these, so a hit is the total the
-play would give, bit for bit, and a change to any of them misses. The runner stores
-what it plays (a registry name's compiled rollout), the oracle looks up its compiled
-candidates and stores what it had to play (``docs/hindsight.md``, "Episodes played
-once").
-
-A checkpoint's network (alone or beside built-in kernels, :func:`played_key`) is
-played through ``act``, and its sampled actions on a seed can change with the batch in
-the last float bit (batched matrix products): its totals are keyed by the seed *and*
-the batch's seeds in order (:func:`batch_keys`), so a hit is a total played on exactly
-that batch. The runner stores the batches it plays; the oracle looks its network
-candidates up on its own batch, and plays one only when it misses or when the network
-is the best on some seed (the replay needs its actions).
-
-Where: in this process's memory, and on disk in ``$WFBENCH_ORACLE_CACHE`` (a folder),
-else ``$WFBENCH_CACHE_DIR/oracle-totals``, else ``platformdirs.user_cache_dir("wfbench")
-/oracle-totals``, shared by the process backend's workers and later runs.
-``WFBENCH_ORACLE_CACHE=off`` (or ``0``) turns the cache off: nothing is looked up or
-stored. On disk, one folder per (code, scenario, policy) key holds ``.npz`` files of
-``seeds``, ``keys`` and ``totals``, each written whole to a temporary file and renamed
-(atomic), so a reader never sees half a file; an unreadable file is a miss.
+A total (``sim.state.totals[:, K_NSW]``, float64) is keyed by everything it depends on: the
+compiled code (:func:`code_digest`), the scenario (:func:`scenario_hash`), the policy's
+``compiled_plan`` and the seed's random keys, and the seed; a network's (:func:`played_key`)
+also by the batch's seeds in order (:func:`batch_keys`), since its sampled actions can change
+with the batch in the last float bit. So a hit is the total the play would give, bit for bit.
+:func:`lookup` and :func:`store` use memory and ``.npz`` files in ``$WFBENCH_ORACLE_CACHE``
+(``off`` turns it off), else ``$WFBENCH_CACHE_DIR/oracle-totals``, else the user cache folder.
+Every part of the key, who writes and the file layout: ``docs/hindsight.md``, "Episodes played once".
 """
 
 from __future__ import annotations

@@ -1,22 +1,12 @@
 """The dispatch oracle's candidates: small changes to the nearest-first dispatch that hindsight suggests.
 
-The oracle knows, for every open request, the repair outcome of its next visit: the
-draw ``u`` of (facility slot, request, visit) is a pure function of the seed
-(:mod:`wfbench.core.rng`), and the visit fixes the fault iff ``u < base_fix_rate *
-level_multiplier[level]``. So it knows which levels would fix the fault on the next
-visit and which would come back empty-handed. The candidates for one environment are:
-
-1. the nearest-first dispatch of the heuristic (the base, always first);
-2. for each open request (at most ``max_requests``, those the base serves first):
-   - **hold back**: the base without the person sent to it (the person stays free for
-     a failure that is about to happen, or for a request they would fix);
-   - **a fixer**: the nearest free person whose level fixes the fault on this visit,
-     swapped in (if the base sent that person elsewhere, the two requests swap people);
-   - **the runner-up**: the second nearest free person, swapped in the same way.
-
-Each candidate is scored by an exact roll-forward of the environment's shadow
-(:mod:`wfbench.policies.oracle.rollout`) and the best is sent; the base wins ties. The
-candidates differ in the first step only; what follows is the base's continuation.
+The oracle knows each open request's next repair outcome (the draw of (slot, request, visit) is
+a pure function of the seed, :mod:`wfbench.core.rng`). Its candidates are the base
+nearest-first dispatch (always first) and, for each of at most ``max_requests`` requests the
+base serves first, holding back the person sent, the nearest person who would fix it, and the
+runner-up, each swapped in. Each is scored by an exact roll-forward of the shadow
+(:mod:`wfbench.policies.oracle.rollout`) under the base; the base wins ties
+(``docs/hindsight.md``, "Dispatch oracle").
 """
 
 from __future__ import annotations

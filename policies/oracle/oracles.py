@@ -1,17 +1,12 @@
 """The hindsight oracles as policies: one part per decision, sharing one planner inside a composite.
 
-:class:`OracleDispatch`, :class:`OracleWorkforce` and :class:`OraclePositioning` are
-policies for one decision each (registered as ``oracle`` in
-:data:`wfbench.policies.decisions.DECISIONS`). Each holds a :class:`~wfbench.policies.oracle.planner.Planner`;
-:class:`policies.Composite` calls :meth:`join` on its trace-reading parts, which then
-share one planner that makes all their decisions together (the registry's ``oracle``
-composite: one planner for all three) and models the composite's built-in parts
-exactly.
-
-They are **not deployable**: they read the episode's future. Every one has
-``reads_trace = True`` and needs ``attach(config)`` before ``reset(seeds)``; the
-evaluator attaches only policies that say so, and the leaderboard refuses them on
-deployable tracks (``docs/hindsight.md``).
+:class:`OracleDispatch`, :class:`OracleWorkforce` and :class:`OraclePositioning` are the
+per-decision ``oracle`` of :data:`wfbench.policies.decisions.DECISIONS`. Each holds a
+:class:`~wfbench.policies.oracle.planner.Planner`; :class:`policies.Composite` calls
+:meth:`join` on its trace-reading parts, so they share one planner that decides them together
+and models the composite's built-in parts exactly. They read the future (``reads_trace = True``,
+``attach(config)`` before ``reset(seeds)``): not deployable (``docs/hindsight.md``,
+"Composites and how to run them").
 """
 
 from __future__ import annotations

@@ -1,35 +1,13 @@
 """The hindsight planner: a shadow of the real episode, forked and rolled forward to score candidate actions.
 
-A :class:`Planner` is told the scenario (:meth:`Planner.attach`) and the seeds
-(:meth:`Planner.reset`). Because the whole exogenous future is a pure function of
-(config, seed), it keeps a *shadow* ``Simulator(config, seeds)`` that it steps with
-exactly the joint action the real episode takes (:meth:`Planner.record`, called by
-:class:`policies.Composite` after every ``act``), so the shadow's state is the real
-state; each ``act`` checks this on the observation (the facility, personnel and
-global features must be equal, bit for bit) and raises if not.
-
-At each step it decides the decisions in ``decide``:
-
-1. the **base** kernels act on the real observation: nearest-first dispatch for a
-   decided dispatch, the no-op for a decided workforce, spatial averaging for a
-   decided positioning, and, for every decision made by a built-in part of the same
-   composite, that part's kernel (so the planner knows that part's action of this step
-   exactly);
-2. **workforce** (every ``workforce_every`` steps): the seven workforce actions with
-   their maps (:mod:`wfbench.policies.oracle.workforce`), each scored by a roll-forward of
-   ``workforce_horizon`` steps;
-3. **positioning**: the maps come from the known future demand, the request onsets of
-   the no-op roll-forward of step 2 (:mod:`wfbench.policies.oracle.positioning`); with the
-   workforce decided by another part, a roll-forward is made for the environments
-   whose workforce part hires or lets go this step;
-4. **dispatch**: the candidates of :mod:`wfbench.policies.oracle.dispatch`, each scored by a
-   roll-forward of ``dispatch_horizon`` steps.
-
-A roll-forward copies the shadow's rows into a preallocated fork
-(:func:`wfbench.core.lookahead.copy_state`) together with the base kernels' state, takes the
-candidate as the first step's action and then runs the base kernels compiled
-(:func:`wfbench.policies.oracle.rollout.roll_forward`); its score is the sum of ``NSW_t``
-over the steps. Everything is deterministic: the same seeds give the same actions.
+A :class:`Planner` keeps a *shadow* ``Simulator(config, seeds)`` stepped with exactly the real
+joint action (:meth:`Planner.record`, called by :class:`policies.Composite` after every
+``act``); each ``act`` checks the shadow against the observation bit for bit and raises
+:class:`ShadowDivergedError` if it differs. ``decide`` runs the base kernels, then scores the
+workforce, positioning and dispatch candidates (:mod:`wfbench.policies.oracle.workforce`,
+:mod:`~wfbench.policies.oracle.positioning`, :mod:`~wfbench.policies.oracle.dispatch`) by
+compiled roll-forwards of a preallocated fork (:func:`wfbench.core.lookahead.copy_state`,
+:func:`wfbench.policies.oracle.rollout.roll_forward`); ``docs/hindsight.md``, "How the planner works".
 """
 
 from __future__ import annotations

@@ -1,26 +1,12 @@
 """The positioning oracle's maps: hire at the p-median of the known future demand, let go the cheapest loss.
 
-The known future demand of an environment is the list of cells where requests will
-open over the next steps, read off an exact roll-forward of its shadow
-(:func:`wfbench.policies.oracle.rollout.roll_forward` with ``record=True``). Each distinct
-cell is a client weighted by its number of requests. From it:
-
-- **hire map** (:func:`hire_sites`): the p-median of the demand through
-  :func:`wfbench.solvers.facility_location.solve_p_median` (greedy + swap local search) with
-  ``p`` = retained headcount + 1 and the active facilities as candidate sites; the
-  medians are matched to the current homes by an optimal assignment
-  (:func:`wfbench.solvers.assignment.solve`) and the median left unmatched is where the
-  workforce lacks a person. A second site is the single best addition to the current
-  homes (the site that cuts the demand-weighted distance to the nearest home most); the
-  workforce oracle scores both by roll-outs.
-- **let-go map** (:func:`release_targets`): for each level, the retained person whose
-  removal raises the demand-weighted distance least (clients move to their second
-  nearest home); the map puts its weight on the active facility nearest that
-  person's home, which makes their home the hottest of the level under the
-  simulator's heat map in the usual case (two homes of a level close together can
-  swap: the roll-outs score what really happens).
-
-A map is a (2, M) positioning action: row 0 read by a hire, row 1 by a let-go.
+The known future demand is the cells where requests open in an exact roll-forward
+(:func:`wfbench.policies.oracle.rollout.roll_forward` with ``record=True``), each a client
+weighted by its requests. :func:`hire_sites` gives the p-median's unmatched median
+(:func:`wfbench.solvers.facility_location.solve_p_median`, matched to the homes by
+:func:`wfbench.solvers.assignment.solve`) and the best single addition; :func:`release_targets`
+the person per level whose removal costs least. A map is a (2, M) positioning action: row 0
+read by a hire, row 1 by a let-go (``docs/hindsight.md``, "Positioning oracle").
 """
 
 from __future__ import annotations

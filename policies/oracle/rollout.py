@@ -1,17 +1,11 @@
 """Compiled roll-forward: step a batch from its current state under built-in kernels.
 
 :func:`roll_forward` is :func:`wfbench.policies.rollout.rollout` without the reset and for a
-number of steps: every environment of a simulator (usually a fork,
-:func:`wfbench.core.lookahead.fork`) optionally takes one explicit first action, then
-observes, acts with the built-in kernels of ``codes`` and steps, ``steps`` steps in
-all (fewer at the horizon). It calls the same ``step_env``, ``observe_env`` and
-``act_env`` as ``Simulator.step`` and the whole-episode rollout, so a roll-forward is
-the episode the simulator would run under those actions (a test checks it against
-``Simulator.step`` with the kernels' actions from ``act``).
-
-It returns the sum of ``NSW_t`` over the steps it ran, per environment (the score the
-oracles maximize), and can record where requests open on the way (the facility cells
-of the failures: the known future demand the positioning oracle plans for).
+number of steps, usually on a fork (:func:`wfbench.core.lookahead.fork`), with an optional
+explicit first action. It calls the same ``step_env``, ``observe_env`` and ``act_env`` as
+``Simulator.step``, so it plays the episode the simulator would (tested). It returns the sum of
+``NSW_t`` per environment and can record where requests open (the known future demand)
+(``docs/hindsight.md``, "Exact look-ahead").
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
 """The workforce oracle's candidates: the seven workforce actions, each with the map it would use.
 
-Every ``every`` steps the oracle scores the no-op, a hire of each level and a let-go
-of each level (those the workforce mask allows) by exact roll-forwards of ``horizon``
-steps with the workforce frozen afterwards: each candidate is "this headcount for the
-next ``horizon`` steps", so a hire is charged its on-boarding delay (``hire_delay``
-steps of salary without work) and credited with the work it takes on once on board,
-against the failures that will really happen. A hire is scored with each hire site
-the positioning oracle proposes (:func:`wfbench.policies.oracle.positioning.hire_sites`),
-a let-go with the cheapest person of that level; with positioning left to another
-policy, with that policy's map. The best candidate is taken; the no-op wins ties.
-Between decision steps the oracle does nothing (a receding horizon: it re-plans at
-the next decision step with the world as it then is).
+Every ``every`` steps the oracle scores the no-op and each hire and let-go the mask allows by
+exact roll-forwards of ``horizon`` steps with the workforce frozen afterwards ("this headcount
+for the next ``horizon`` steps", on-boarding delay included). A hire is scored with each site
+of :func:`wfbench.policies.oracle.positioning.hire_sites`, a let-go with the cheapest person of
+its level; the no-op wins ties. A receding horizon: it re-plans at the next decision step
+(``docs/hindsight.md``, "Workforce oracle").
 """
 
 from __future__ import annotations
