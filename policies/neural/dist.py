@@ -1,19 +1,10 @@
 """The action distributions of the model's heads: masks, sampling, log-probabilities and entropies.
 
-- **dispatch**: per facility, a categorical over the N people plus the no-op (column N),
-  masked by ``dispatch_mask``. Facilities choose in slot order and a person picked by an
-  earlier facility is masked for the later ones, so no action ever names one person
-  twice. A facility without an open unassigned request can only take the no-op, so it
-  adds nothing to the log-probability or the entropy.
-- **workforce**: a categorical over the 2L + 1 codes, masked by ``workforce_mask``.
-- **positioning**: per row (0 hire, 1 let go) a pointer over the active facilities; the
-  action puts weight 1 on the chosen facility and 0 elsewhere. Only the row that the
-  step's workforce action uses counts in the log-probability and the entropy (the other
-  row has no effect on the world).
-
-Sampling takes Gumbel noise from the caller (``noise``): the trainer draws it from a
-seeded torch generator, the deployed policy from one generator per environment keyed by
-the environment's seed, and greedy decisions pass ``None`` (argmax).
+Dispatch is a categorical per facility over the N people plus the no-op, in slot order, a
+person picked earlier masked for later facilities (no action names one person twice);
+workforce a categorical over the 2L + 1 codes; positioning a pointer per row, of which only the
+row the step's workforce action uses counts. Sampling is Gumbel-max with noise from the caller
+(``noise``; ``None``: argmax). The rules and why: ``docs/rl.md``, "The action distributions".
 """
 
 from __future__ import annotations

@@ -1,30 +1,12 @@
 """The paper's joint model (section 4, "Joint Model") in torch, and the observation -> tensor step.
 
-One network for every scenario size: facilities and people are sets of slots, empty
-slots are masked everywhere (attention keys, pooling, pointer targets), so the same
-weights run on ``small`` (8 + 8 slots) and ``paper-64`` (50 + 50).
-
-The network, per step::
-
-    facility rows (B, M, 7) --MLP + positional encoder of (x, y)--> F (B, M, d)
-    personnel rows (B, N, 9) --MLP + positional encoder of (x, y) and home--> P (B, N, d)
-    globals (B, 12) --MLP--> g (B, d)
-    blocks x n_blocks:  F <- self-attn(F),  P <- self-attn(P),
-                        F <- cross-attn(F -> P),  P <- cross-attn(P -> F)    (+ feed-forward)
-    z = [masked mean F, masked mean P, g]  --LSTM (memory over time)--> h (B, H)
-    fusion: every row of F and P concatenated with h and projected, then n_fusion
-            facility-facility and personnel-personnel self-attention layers
-    heads (fp32): dispatch pointer  (B, M, N + 1): q_f . k_p / sqrt(d) - a * distance(f, p) (+ no-op)
-                  workforce         (B, 2L + 1)    from [mean F, mean P, h]
-                  positioning       (B, 2, M): a pointer over facilities per row
-                  value             (B,)
-
-The cross-attention between facilities and people also gets a learned per-head bias
-on their Manhattan distance. Masks are applied by the distributions
-(:mod:`wfbench.policies.neural.dist`), not here: the heads return raw logits.
-
-torch is imported here and only here (and in the modules that import this one);
-``import policies`` never imports it.
+:class:`WorkforceNet` is one network for every scenario size: facilities and people are sets of
+slots, empty ones masked everywhere. Entity embeddings and positional encoders, attention blocks
+(``n_blocks``), an LSTM memory, fusion (``n_fusion``) and fp32 heads: a dispatch pointer, the
+workforce codes, a positioning pointer per row, and the value. The heads return raw logits; the
+masks are applied by :mod:`wfbench.policies.neural.dist`. :data:`PRESETS` are the ``--model``
+sizes, :func:`featurize` builds the inputs (``docs/rl.md``, "The model").
+torch is imported here and in the modules that import this one; ``import policies`` never imports it.
 """
 
 from __future__ import annotations

@@ -1,34 +1,12 @@
 """A trained checkpoint as a policy: ``policies.get("impala:path/to/ckpt.pt")``, by the algorithm that trained it.
 
-Every checkpoint records its algorithm (the ``algo`` key: ``ppo``, ``impala`` or
-``hindsight``, :data:`CHECKPOINT_ALGORITHMS`; a checkpoint without one is PPO's) and
-loads as ``ALGO:PATH``; ``ppo:PATH`` is kept as an alias that loads any checkpoint.
-
-``NetworkPolicy`` follows the policy protocol (``docs/policies.md``): ``reset(seeds)``
-clears the LSTM memory and makes one random generator per environment keyed by its
-seed, ``act(obs)`` runs the network on the whole batch at once. Three modes:
-
-- ``sample`` (the default): actions drawn from the policy's distributions, the noise
-  drawn from the environment's own generator, so a seed decides the same alone or in
-  any batch (up to float rounding of batched matrix products). The RL probe found that
-  greedy decisions mislead when the useful action is rare (letting people go), so the
-  distribution the policy was trained as is the default.
-- ``greedy``: the most likely action of every head.
-- ``greedy-dispatch``: the most likely dispatch, sampled workforce and positioning (the
-  same random stream as ``sample``). For networks that imitate a dispatch they cannot
-  fully explain (``docs/hindsight-learning.md``: sampling an imitation of the oracle's
-  dispatch makes holds and swaps its argmax does not), while the rare workforce actions
-  stay sampled (their argmax is the no-op).
-
-``trained_on`` is the scenario the checkpoint records (``scenario``); :func:`wfbench.evaluate`
-warns once when it runs the policy on another (a network runs on any size, but what it
-learned is of its own scenario).
-
-A checkpoint trained with ``--variant dispatch`` holds only the dispatch head; loaded,
-it is deployed inside ``policies.Composite`` with the heuristic workforce (``threshold``)
-and positioning (``spatial``) rules it was trained with. A checkpoint of independent
-agents (``--agents independent``: one network per decision) runs the same way, each
-head from its own network.
+A checkpoint records its algorithm (``algo``: :data:`CHECKPOINT_ALGORITHMS`; none means PPO)
+and loads as ``ALGO:PATH``; ``ppo:PATH`` loads any. :class:`NetworkPolicy` follows the policy
+protocol (``docs/policies.md``) and acts on the whole batch at once, in mode ``sample`` (the
+default: noise from one generator per environment keyed by its seed), ``greedy`` or
+``greedy-dispatch``. ``trained_on`` is the checkpoint's scenario. A dispatch-only checkpoint is
+deployed inside ``policies.Composite`` with ``threshold`` and ``spatial``; independent agents run
+each head from its own network. Modes and why: ``docs/rl.md``, "A checkpoint is a policy".
 """
 
 from __future__ import annotations

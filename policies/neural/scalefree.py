@@ -1,42 +1,13 @@
 """A network that reads the world as a dispatcher does: observation version 2, any size (``--model scalefree``).
 
-What it sees (:func:`featurize`, from :func:`wfbench.core.observation_v2.observe_v2`): every
-length in travel-time steps, positions divided by the world's extent in travel time,
-the world's public parameters and the counts that keep ratios (``context``, in logs),
-never ``units`` (the speed and the grid in cells). A world whose lengths and speed are
-multiplied by k shows it the same tensors.
-
-The network, per step::
-
-    facility rows  [flags, Fourier(x / extent)]            --MLP--> F (B, M, d)
-    personnel rows [flags, Fourier(position, home / extent)] --MLP--> P (B, N, d)
-    context [v1 globals, log context]                      --MLP--> g (B, d)
-    z = [masked mean F, masked mean P, g] --LSTM--> h (B, H)      the memory, once per environment
-    heads (fp32, also under autocast):
-      dispatch   only the facilities with a real choice (open request, someone free), over the
-                 k nearest eligible people in travel time plus "nobody":
-                 C tanh((q_f . k_p / sqrt(d) + pair(tt, rank, tt - tt_min) - alpha(g, h) tt) / C)
-                 with q_f from F_f and h, alpha = softplus(.) a learned prior per step of travel
-                 conditioned on the context, C = 10 (Kool et al.'s clipping)
-      workforce  from [mean F, mean P, h, g]
-      positioning a pointer over facilities, computed only for the environments whose
-                 workforce action hires or lets go (:meth:`ScaleFreeNet.positioning`)
-      value      from [mean F, mean P, h, g]
-
-No attention: the entities meet through the pooled summary, the memory and the pointer,
-like the ``cpu`` preset of :mod:`wfbench.policies.neural.model`, whose cost it cuts further (the
-pointer on the few facilities that choose, k candidates instead of N, no per-entity
-fusion with the memory; docs/rl.md, "Scale-free network").
-
-The action distributions are here too (:meth:`ScaleFreeNet.sample`,
-:meth:`ScaleFreeNet.log_prob_entropy`): the same rules as :mod:`wfbench.policies.neural.dist`
-(facilities choose in slot order, a person picked earlier is masked for the later ones,
-positioning counts only where the workforce action uses it), on the candidate lists.
-
-Which observation a network reads, and so which inputs, noise and distributions it takes,
-is decided here for every network (:func:`raw_tensors`, :func:`features`,
-:func:`noise_shapes`, :func:`sample`, :func:`head_log_probs`): the deployed policy and
-the trainers call these rather than each telling the versions apart.
+:func:`featurize` reads :func:`wfbench.core.observation_v2.observe_v2`: lengths in travel-time
+steps, positions over the world's extent, the public ``context``, never ``units``, so a world
+scaled by k shows the same tensors. :class:`ScaleFreeNet` has no attention: entity MLPs, one LSTM
+memory per environment, a dispatch pointer over the k nearest eligible people of only the
+choosing facilities, and its own action distributions (:meth:`ScaleFreeNet.sample`). Which
+observation a network reads is decided here for every network (:func:`raw_tensors`,
+:func:`features`, :func:`noise_shapes`, :func:`sample`, :func:`head_log_probs`), so callers do
+not tell versions apart. The architecture: ``docs/rl.md``, "The network".
 """
 
 from __future__ import annotations

@@ -1,22 +1,11 @@
 """Tuned-policy files: a base policy and the hyper-parameters a search chose for it.
 
-``wfbench tune`` writes one (JSON, or TOML by the file's suffix); ``policies.get`` reads
-one wherever a policy is named: ``path/to/file.json``, ``tuned:path/to/file.json`` or a
-registered name (``heuristic-tuned``, a file under ``policies/tuned/``). The file says
-how it was made, so a reader can judge the number it claims::
-
-    {
-      "format": "wfbench-tuned-policy", "format_version": 1,
-      "name": "heuristic-tuned", "base": "heuristic",
-      "params": {"workforce.high": 0.83, "workforce.cooldown": 12, ...},
-      "scenario": "paper-64", "seeds": [1000, ..., 1049], "seed_set": "public 1000..1049 (50)",
-      "objective": "mean nsw", "trials": 100, "best_score": 0.75,
-      "wfbench_version": "0.1.0", "command": "wfbench tune heuristic ...", "study_name": "...", "sampler_seed": 0
-    }
-
-``base`` is a built-in composite name or a ``D+W+P`` composite; ``params`` are its
-``Composite.tunable`` names with values in range. A file whose seeds include test seeds
-is refused: tuning on the seeds that are reported makes the report worthless.
+``wfbench tune`` writes one (JSON, or TOML by the file's suffix); ``policies.get`` reads one
+wherever a policy is named: ``path/to/file.json``, ``tuned:path/to/file.json`` or a registered
+name (``heuristic-tuned``, a file under ``policies/tuned/``). ``base`` is a built-in composite
+name or a ``D+W+P`` composite; ``params`` are its ``Composite.tunable`` names with values in
+range; the file also records how it was made (scenario, seeds, trials, command). A file whose
+seeds include test seeds is refused. The format: ``docs/policies.md``, "Tuning".
 """
 
 from __future__ import annotations
