@@ -1,38 +1,12 @@
 """Rectangular min-cost assignment with forbidden pairs and an optional "leave unassigned" cost.
 
-Problem (rows i = requests, columns j = people, in the dispatch use)::
-
-    minimize   sum_ij c_ij x_ij + sum_i u_i (1 - sum_j x_ij)
-    subject to sum_j x_ij <= 1, sum_i x_ij <= 1, x_ij in {0, 1}, x_ij = 0 where mask is False
-
-- With ``unassigned_cost=None`` there is no ``u`` term and every row of the smaller
-  side must be assigned (every row when ``n_rows <= n_cols``, every column otherwise),
-  the convention of :func:`scipy.optimize.linear_sum_assignment`. If the mask makes
-  that impossible the status is ``"infeasible"`` (solution all -1, objective NaN).
-- With ``unassigned_cost`` (a scalar or one value per row) any row may be left
-  unassigned at that cost, so the problem is always feasible; the optimum pairs a row
-  only where that is cheaper than leaving it.
-
-Methods, which agree on the optimum (a test checks it on random and degenerate
-instances):
-
-- ``"exact"``: :func:`scipy.optimize.linear_sum_assignment` (shortest augmenting path).
-  Forbidden pairs are infinite costs; the unassigned option is ``n_rows`` extra columns,
-  column ``n_cols + i`` costing ``u_i`` for row i only.
-- ``"milp"``: :func:`scipy.optimize.milp` (HiGHS branch and cut), one binary per
-  allowed pair. Honors ``time_limit`` and reports the dual bound and gap.
-- ``"lp"``: the LP relaxation through cvxpy, solved by HiGHS or OSQP. The assignment
-  polytope is integral, so the LP optimum equals the integer one. The problem is built
-  once per (shape, unassigned or not, solver) with cvxpy Parameters (costs, allowed
-  pairs, unassigned costs), so re-solving with new data skips cvxpy's compilation
-  (``detail["rebuilt"]`` says which solves compiled). Above ``PARAMETRIC_MAX_PAIRS``
-  pairs the parametric form is too large and each solve builds its own problem. The integral solution is read off
-  the LP solution: a min-cost assignment restricted to the LP's support (pairs with
-  ``x > 1e-6``), optimal by complementary slackness; when the LP solution is only
-  approximate (OSQP) and that support admits no assignment, the assignment that keeps
-  the most LP mass. ``bound`` is the LP value when HiGHS solved it to optimality; OSQP
-  (a first-order method, tolerance 1e-6) gives no certificate, so its LP value is only
-  ``detail["lp_objective"]`` and its status is at best ``"feasible"``.
+:func:`solve` minimizes ``sum_ij c_ij x_ij + sum_i u_i (1 - sum_j x_ij)`` over one-to-one pairs
+the mask allows. Without ``unassigned_cost`` every row of the smaller side must be assigned
+(scipy's convention; ``"infeasible"`` when the mask forbids it); with it any row may stay
+unassigned at that cost. Methods ``"exact"`` (:func:`scipy.optimize.linear_sum_assignment`),
+``"milp"`` (HiGHS) and ``"lp"`` (cvxpy, HiGHS or OSQP, built once per shape with Parameters)
+agree on the optimum (tested). :func:`candidate_mask` and :func:`solve_sparse` are the reference
+for the sparse assignment. How each method works: ``docs/solvers.md``, "Assignment".
 """
 
 from __future__ import annotations

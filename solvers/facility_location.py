@@ -1,37 +1,12 @@
 """Uncapacitated facility location (UFL) and p-median.
 
-UFL: open a set S of facilities (fixed cost ``f_i``) and serve every client from its
-cheapest open facility: minimize ``sum_{i in S} f_i + sum_j min_{i in S} c_ij``.
-p-median: the same with no fixed costs and exactly ``|S| = p``; clients may be
-weighted (``weights[j] * dist[i, j]``). Rows are candidate facilities, columns clients.
-
-Methods:
-- ``"milp"``: the strong formulation (``x_ij <= y_i``, ``sum_i x_ij = 1``, binary
-  ``y``; ``x`` may stay continuous because with integral ``y`` an optimal ``x`` is
-  integral) solved by HiGHS through :func:`scipy.optimize.milp`. Honors
-  ``time_limit``: on the limit it returns the best incumbent with HiGHS's dual bound
-  and gap (and the local-search solution if HiGHS has no incumbent yet).
-- ``"lp"``: the LP relaxation of the same formulation through cvxpy (HiGHS, or OSQP),
-  whose value is the ``bound`` (HiGHS only: OSQP gives no certificate, its value is
-  ``detail["lp_objective"]``), then a rounding step. UFL: open every facility with
-  ``y_i >= 1/2``, then for each client served less than half by those, the facility
-  carrying most of it. p-median: the ``p`` largest ``y_i``. Status ``"optimal"`` when the
-  rounded cost meets the bound (the LP was integral), else ``"feasible"`` with the gap.
-- ``"local-search"``: greedy construction (add the facility that lowers the cost most
-  until none does; for p-median, ``p`` greedy additions) followed by best-improvement
-  local search over add, drop and swap moves (swaps only for p-median), evaluated with
-  the nearest / second-nearest bookkeeping of Whitaker's fast interchange so that a
-  full neighbourhood costs ``O(m n)``. No bound; compare with the MILP for the gap.
-
-:func:`p_median_sparse` is the compiled greedy and swap search on sparse candidate lists
-(issue #35; docs/solvers.md, "Sparse candidate graphs"): client j may be served only by its
-k nearest sites, or else at ``far[j]`` (its weight times the distance to its (k+1)-th
-nearest site, a lower bound on what any other site costs it). For a set of medians that
-gives every client one of its k nearest, the sparse objective is the dense one. The greedy
-is lazy (a gain only falls as sites open, so a stale gain bounds the fresh one) and picks
-the dense greedy's site, ties included, when the lists are complete; the swap search keeps
-the nearest / second-nearest bookkeeping over the lists, so one neighbourhood costs
-O(clients x k + sites log sites) instead of O(sites x clients).
+UFL opens a set S of facilities (fixed cost ``f_i``) and serves every client from its cheapest
+open one: minimize ``sum_{i in S} f_i + sum_j min_{i in S} c_ij``; p-median has no fixed costs,
+exactly ``|S| = p`` and optional client weights. Rows are candidate facilities, columns clients.
+:func:`solve_ufl` and :func:`solve_p_median` take ``"milp"`` (the strong formulation, HiGHS),
+``"lp"`` (relaxation and rounding; the LP value is the bound) or ``"local-search"`` (greedy, then
+add/drop/swap with Whitaker's fast interchange). :func:`p_median_sparse` is the compiled search on
+k-nearest candidate lists. ``docs/solvers.md``, "Facility location" and "Sparse candidate graphs".
 """
 
 from __future__ import annotations

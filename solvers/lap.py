@@ -1,26 +1,12 @@
 """A compiled rectangular linear assignment solver, callable from numba code.
 
-:func:`scipy.optimize.linear_sum_assignment` is the reference (``wfbench.solvers.assignment``
-uses it), but it cannot be called from inside a compiled simulation loop. The
-dispatch policy solves one small assignment per step per environment (a few open
-requests x tens of free people), so a Python call per environment would cost more
-than the solve. :func:`lap_min` is the same method as scipy's, shortest augmenting
-paths with dual variables (Crouse, "On implementing 2D rectangular assignment
-algorithms", IEEE TAES 2016), written for numba; a test checks that it finds the same
-optimal cost as scipy on random instances with ties and forbidden (infinite) pairs.
-
-On the largest worlds a dense matrix is the cost itself, so the module also holds the
-assignment on a sparse candidate graph (issue #35; docs/solvers.md, "Sparse candidate graphs"):
-
-- :func:`knn_manhattan`: the k nearest points of each query in Manhattan distance through a
-  uniform grid, ties to the lower point index (the order a dense scan with strict ``<``
-  gives); expected cost O(queries + points + queries x k) on spread-out points.
-- :func:`lap_sparse`: min-cost assignment of every row of a CSR graph, each row with an
-  optional "nobody" column of its own. The method of :func:`lap_min` (shortest augmenting
-  paths with dual variables) with Dijkstra on a binary heap, so a path costs
-  O(edges reached x log) instead of O(columns). It is exact on the graph: its optimum is
-  the dense one whenever a dense optimum uses candidate edges only (tests check both
-  against scipy).
+:func:`lap_min` is scipy's method (shortest augmenting paths with dual variables; Crouse, IEEE
+TAES 2016) written for numba, so the compiled dispatch can solve its small per-step assignment
+without a Python call; a test checks it finds scipy's optimal cost. For the largest worlds,
+:func:`knn_manhattan` (k nearest points through a uniform grid, ties to the lower index) and
+:func:`lap_sparse` (the same method on a CSR candidate graph, Dijkstra on a binary heap, an
+optional "nobody" column per row; exact on the graph) solve without a dense matrix
+(``docs/solvers.md``, "Sparse candidate graphs").
 """
 
 from __future__ import annotations

@@ -1,22 +1,11 @@
 """Queueing answers to "how many people do we need".
 
-The service system is read as an M/M/c queue: requests arrive at rate ``lambda`` per
-step, each occupies one person for a mean job duration ``E[S]`` steps, so the offered
-load is ``R = lambda * E[S]`` people-busy. With ``c`` people:
-
-- :func:`erlang_c` is the probability that a request waits for a free person,
-  computed through the numerically stable Erlang-B recursion
-  ``B(0) = 1, B(k) = a B(k-1) / (k + a B(k-1))`` and ``C = c B / (c - a (1 - B))``
-  (``C = 1`` when ``a >= c``: the queue is unstable).
-- :func:`square_root_staffing` staffs ``c = ceil(R + beta * sqrt(R))``. The safety
-  factor ``beta`` is given, or derived from a target waiting probability ``alpha``
-  through the Halfin-Whitt relation ``alpha = 1 / (1 + beta Phi(beta) / phi(beta))``;
-  a target utilization ``rho`` gives ``c = ceil(R / rho)`` instead. The plan also
-  reports the smallest ``c`` whose exact Erlang-C probability meets ``alpha``.
-- :func:`job_duration` builds ``E[S]`` from the pieces of a field-service job: travel
-  out, service, travel back, and the expected number of visits when a visit fixes the
-  fault with probability ``q`` (a geometric number of visits, mean ``1 / q``), mixed
-  over experience levels.
+The service system is read as an M/M/c queue with offered load ``R = lambda * E[S]``
+people-busy. :func:`erlang_c` is the probability that a request waits (the stable Erlang-B
+recursion), :func:`square_root_staffing` staffs ``c = ceil(R + beta * sqrt(R))`` (``beta`` from a
+waiting target through Halfin-Whitt, or ``c = ceil(R / rho)`` for a utilization target), and
+:func:`job_duration` builds ``E[S]`` from travel, service and geometric revisits. The formulas:
+``docs/solvers.md``, "Staffing".
 """
 
 from __future__ import annotations

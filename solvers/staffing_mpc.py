@@ -1,26 +1,12 @@
 """A rolling-horizon staffing plan: a MILP of hires and let-goes per level over the next H steps.
 
-The model (one environment, steps ``h = 0..H-1`` from now, levels ``l = 0..L-1``):
-
-- decisions ``x[l, h]``, ``y[l, h]`` in {0, 1}: hire, let go one person of level l at step h;
-  at most one workforce action per step, ``sum_l x[l, h] + y[l, h] <= 1`` (the simulator's rule);
-- **lags**: a hire at h works from ``h + hire_delay`` and is paid from h; a let-go at h stops
-  working at ``h + 1`` and is paid until ``h + notice_delay``;
-- productive people ``P[l, h] = ready[l, h] + sum_{h' <= h - hire_delay} x[l, h'] - sum_{h' < h} y[l, h']``
-  with ``ready[l, h]`` those known now (working, plus those in onboarding once it ends); a
-  let-go only of someone productive at its step; ``sum_l P[l, h] >= floor[h]`` (the
-  smallest headcount, where the people known now reach it);
-- payroll ``E[l, h] = paid[l, h] + sum_{h' <= h} x[l, h'] - sum_{h' <= h - notice_delay} y[l, h']``,
-  ``sum_l E[l, h] <= max_headcount`` (the slots);
-- demand covered: ``sum_l capacity[l] P[l, h] + s[h] >= demand[h]``, shortfall ``s[h] >= 0``;
-- minimize ``sum_{h, l} salary[l] E[l, h] + shortfall_cost sum_h s[h] + action_cost sum (x + y)``.
-
-``demand`` and ``capacity`` share a unit (the policy's: requests per step, and the requests
-per step a productive person of each level resolves). ``P`` and ``E`` are linear in the
-decisions; they are kept as variables with one balance row per step (sparse: O(L H)
-non-zeros), which HiGHS solves far faster than the cumulative sums written on ``x`` and ``y``. Solved by HiGHS
-through :func:`scipy.optimize.milp`, with an optional time limit (the best incumbent is
-kept; none yet is a plan of no actions, which is always feasible).
+:func:`plan_staffing` plans one environment (a :class:`StaffingInstance`): hires ``x[l, h]`` and
+let-goes ``y[l, h]`` (at most one action a step), with the hire and notice lags, a smallest
+headcount, the slots as a cap on payroll, and forecast demand covered or paid for as shortfall;
+it minimizes payroll plus the shortfall and action costs. Productive people and payroll are
+variables with one balance row per step (sparse), solved by HiGHS through
+:func:`scipy.optimize.milp` with an optional time limit (no incumbent yet: a plan of no actions,
+always feasible). The model in full: ``docs/solvers.md``, "A rolling-horizon staffing plan".
 """
 
 from __future__ import annotations
