@@ -1,18 +1,12 @@
 """Actions: what each agent's batched decision looks like, and the check that names a malformed one.
 
-A batched action is a dict with one array per agent (:data:`AGENTS`):
-
-- ``"dispatch"``: (B, M) integers in ``0..N``; entry f names the person sent to
-  facility slot f, ``N`` is the no-op;
-- ``"workforce"``: (B,) integers in ``0..6``: 0 no-op, ``1 + l`` hire level l,
-  ``4 + l`` let go a person of level l;
-- ``"positioning"``: (B, 2, M) weights in [0, 1]; row 0 places a hire, row 1 picks
-  who is let go (see ``docs/model.md``).
-
-:func:`validate_actions` converts a well-formed dict to the plain arrays the compiled
-core takes and raises :class:`ActionError`, naming the agent and the index, on a
-malformed one (wrong keys, shape or type, out of range, not a number). Well-formed but
-impossible actions are not errors: the step ignores and counts them.
+A batched action is a dict with one array per agent (:data:`AGENTS`): ``"dispatch"`` (B, M) in
+``0..N`` (``N`` the no-op), ``"workforce"`` (B,) in ``0..6`` (0 no-op, ``1 + l`` hire level l,
+``4 + l`` let go level l), ``"positioning"`` (B, 2, M) weights in [0, 1] (row 0 places a hire,
+row 1 picks who is let go). :func:`validate_actions` converts it to the arrays the compiled core
+takes and raises :class:`ActionError`, naming the agent and the index, on a malformed one;
+well-formed but impossible actions are ignored and counted by the step (``docs/policies.md``,
+"Actions"; ``docs/model.md``).
 """
 
 from __future__ import annotations

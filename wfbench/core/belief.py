@@ -1,45 +1,13 @@
 """Simulators built from what a policy sees: sampled worlds for deployable lookahead (issue #43).
 
-:mod:`wfbench.core.lookahead` forks the *true* state: the fork holds the episode's key, its
-future arrivals and its running clocks, so it plays the episode's own future (what the
-hindsight oracles use). A deployable lookahead may not read any of that. A
-:class:`Belief` keeps, per environment, what can be known from the observations alone,
-and writes simulator states that agree with everything observed and draw every
-unobserved part fresh from the scenario's public model, under keys the policy owns:
-
-- **observed, copied**: facility cells, operational/requesting flags, assignments;
-  personnel status, level, home, position, job; who is under notice; the metrics of
-  the last step (``globals``); the step ``t``.
-- **reconstructed from past observations** (exact when the belief has seen every
-  observation from ``t = 0``): when each facility arrived (``fac_since``), its
-  down-indicator window (``fac_ring``, the rolling downtime's terms); when each hire
-  ends onboarding (``per_ready``, ``per_since``), when a notice ends (``per_leave``),
-  how many service steps are left (``per_timer``), each person's work-indicator
-  window (``per_ring``). The observed rolling downtime and utilization are decoded
-  each step to check and correct the windows.
-- **drawn fresh from the public model** (:class:`PublicModel`): the remaining failure
-  clock of every operational facility (``Exp(1)``: memoryless, so this is the exact
-  conditional law), the remaining lifetime of every facility (``ceil(Exp(mean))`` is
-  geometric, also memoryless: exact), the future arrivals (a Poisson process of the
-  churn schedule's rate from ``t + 1``, cells by the layout, lifetimes as above), and,
-  through the fork's key, every later failure clock, repair outcome and hire placement.
-
-Random streams: a row's key is a hash of the environment's belief key (the policy's own,
-:func:`belief_key`: from the seed the policy is reset with, as every policy keys its
-draws, under a purpose of its own), the step and the sample index ``k``. The draws of the
-fork's simulator are then indexed by purpose as in the true world (``docs/design.md``),
-so sample ``k`` of an environment at a step is the same world whatever the candidate
-action played in it: common random numbers across candidates come for free. Nothing here
-reads a trace, a true state or an episode seed's generator.
-
-What the observation does not carry and the public config must give (:class:`PublicModel`):
-version 1 carries no parameter of the world at all; version 2 (the ``world`` key every
-observation carries, :mod:`wfbench.core.observation_v2`) carries grid, speed, delays, rates,
-salaries and slots, but only this step's schedule multipliers (not the future ones), not
-the facility layout, not the mean facility lifetime (``initial_facilities *
-churn_interval``) and not the placement rule. :meth:`PublicModel.from_config` takes them
-from the scenario's public config; :func:`check_world` refuses an observation of another
-world.
+Where :mod:`wfbench.core.lookahead` forks the *true* state (the hindsight oracles), a
+:class:`Belief` keeps per environment only what the observations reveal, reconstructs the hidden
+windows and timers from past observations (exact from ``t = 0``), and writes simulator states
+that re-observe as the observation, every unobserved part drawn fresh from the public model
+(:class:`PublicModel`, from the scenario's config; :func:`check_world` refuses another world's
+observation) under the policy's own keys (:func:`belief_key`). Sample ``k`` of a step is one world
+whatever is played in it: common random numbers across candidates. Nothing here reads a trace or
+a true state. What comes from where: ``docs/policies.md``, "Simulators built from what a policy sees".
 """
 
 from __future__ import annotations

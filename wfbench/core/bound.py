@@ -1,34 +1,12 @@
 """A proven upper bound on the episode score, computed from the trace and the config alone.
 
-No policy, oracles included, can score more than :func:`score_upper_bound` on a seed:
-the argument is in ``docs/hindsight.md`` ("The upper bound"); in short:
-
-1. **Nobody works before the first failure of the episode** ``t*``: work needs a
-   dispatch and a dispatch needs a down facility, so ``PUR_t = 0``, ``u_PUR = 0`` and
-   ``NSW_t = 0`` for ``t < t*``. Per slot the facility process is exogenous up to the
-   slot's first failure (the failure clock of the j-th activation is draw j while no
-   repair has happened in the slot), so ``t*`` is known.
-2. **Cost**: at most one let-go per step, each leaving ``max(fire_delay, 1)`` steps
-   later at the earliest, and the retained headcount never drops below
-   ``min_personnel``; so at step t at least ``n0 - k_t`` initial people remain
-   (``k_t = t - max(fire_delay, 1) + 1``) and ``WC_t`` is at least the sum of the
-   cheapest ``n0 - k_t`` initial salaries (and at least ``min_personnel`` cheapest
-   salaries): a per-step bound ``u_WC,t <= a_t``.
-3. **Downtime**: for the occupant of a slot that fails first in that slot, every
-   failure clock (draws ``j, j + 1, ...``) and repair draw (request ``0, 1, ...``) is
-   known. Its timeline alternates operational periods (no longer than the known clock
-   allows, whenever the repair before it happened) and down periods of at least
-   ``(service_time + 1) * V_k`` steps, ``V_k`` the fewest visits that fix request k at
-   the best fix probability. The alternating process with the longest operational and
-   the shortest down periods has, at every step, no more down steps so far than the
-   facility under any policy; with weights that do not increase over time that orders
-   the weighted sums too, and ``sum_t AFD_t`` is such a weighted sum once each weight
-   is replaced by its running minimum.
-4. **Hölder** with exponents (3/2, 3) over the steps ``t >= t*``:
-   ``score <= (1/T) (sum_t sqrt(a_t))^(2/3) (sum_t (1 - AFD_t))^(1/3)``.
-
-The bound is a pure function of ``(config, seed)``; 200 seeds of ``paper-64`` take well
-under a second once compiled.
+No policy, oracles included, can score more than :func:`score_upper_bound` on a seed;
+:func:`bound_parts` returns the pieces. In short: nobody works before the episode's first
+failure ``t*`` (known from the trace), the workforce cost is bounded below per step by the
+cheapest salaries the let-go rules can leave, each facility's downtime is bounded below by an
+alternating process of known clocks and fastest repairs, and Hölder with exponents (3/2, 3)
+combines them. A pure function of ``(config, seed)``. The argument, fact by fact:
+``docs/hindsight.md``, "The upper bound".
 """
 
 from __future__ import annotations

@@ -1,24 +1,12 @@
 """The compiled transition core: one environment ``b`` of a batch at a time.
 
-A step of environment b at time t (``docs/design.md``, "One time step"; ``docs/model.md`` has every
-rule with its source):
-
-1. ``exogenous`` (run at the *start* of step t, before the decisions are observed):
-   workforce transitions due at t (onboarding ends, a let-go person whose notice is
-   over and who is idle or returning leaves), facility exits, facility arrivals
-   (lowest free slot; dropped when none is free), then failures of operational
-   facilities (each spends ``request_hazard[t]`` of its exponential clock).
-2. ``apply_dispatch`` (facility by facility in slot order), then ``apply_workforce``
-   (the workforce action with its positioning weights). Impossible actions are ignored
-   and counted.
-3. ``advance``: downtime is recorded, then every person moves ``speed`` cells
-   (Manhattan, x first) or services; a visit's end draws its repair outcome.
-4. in the same pass, the terms of WC, PUR and AFD; ``record_metrics`` then writes the
-   metrics, utilities and NSW of step t.
-5. ``t += 1`` and the exogenous events of the new step.
-
-All functions mutate the arrays of :class:`wfbench.core.state.State` in place for
-environment ``b`` only, so environments are independent (and can run in parallel).
+``exogenous`` (workforce transitions, facility exits, arrivals, failures), ``apply_dispatch``
+then ``apply_workforce`` (impossible actions ignored and counted), ``advance`` (downtime, then
+movement or service; a visit's end draws its repair outcome) and ``record_metrics`` (the KPIs,
+utilities and ``NSW_t`` of the step) make up ``step_env``. Every function mutates the arrays of
+:class:`wfbench.core.state.State` in place for environment ``b`` only, so environments are
+independent and can run in parallel. The order of a step: ``docs/design.md``, "One time step";
+every rule with its source: ``docs/model.md``.
 """
 
 from __future__ import annotations

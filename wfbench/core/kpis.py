@@ -1,21 +1,12 @@
 """The KPIs in one table: name, label, unit, which direction is better, how each enters the welfare.
 
-Every list of KPIs in wfbench (the metric columns of the simulator's arrays and their
-index constants in :mod:`wfbench.core.state`, the evaluator's per-seed columns and
-summaries, the observation's global features, the environments' ``info``, the trainers'
-episode logs, the leaderboard store's columns and the labels of every table and figure)
-is read from :data:`KPIS`; ``tests/contracts/test_kpis.py`` fails when a module writes
-the list out again. A new KPI is one row here plus its computation in
-:func:`wfbench.core.dynamics.record_metrics`; it also changes two things that are
-versioned, so those need a new version by hand: the observation's global features
-(:mod:`wfbench.core.observe`: shipped networks read the old layout) and the leaderboard
-store's results tables (:mod:`wfbench.leaderboard.store`: a schema version whose
-migration adds the column to an existing store).
-
-The welfare (docs/metrics.md): each measured KPI maps to a utility in [0, 1], and the
-score ``nsw`` is the geometric mean of the utilities, ``(u_cost * u_utilization *
-u_downtime) ** (1/3)`` (:func:`wfbench.core.dynamics.record_metrics`); an episode's
-score is the mean of the per-step ``nsw``.
+Every list of KPIs in wfbench (the simulator's metric columns, the evaluator's frames, the
+observation's globals, ``info``, training logs, the leaderboard's columns, every label) reads
+:data:`KPIS`; ``tests/contracts/test_kpis.py`` fails when a module writes the list out again.
+A new KPI is one row here plus its computation in :func:`wfbench.core.dynamics.record_metrics`,
+and a new version by hand of the observation's global features (:mod:`wfbench.core.observe`) and
+of the leaderboard store's schema. The score ``nsw`` is the geometric mean of the utilities
+(``docs/metrics.md``; ``docs/design.md``, "Metrics, utilities and NSW").
 """
 
 from __future__ import annotations

@@ -1,22 +1,12 @@
 """Facility layouts: where on the grid facilities are, at the start and when they arrive.
 
-A layout is part of the scenario (``ScenarioConfig.layout``) and acts only through the
-trace (:mod:`wfbench.core.trace`): the compiled core reads the facility cells from the
-trace's arrays, so a layout is a pure function of ``(config, seed)`` like every other
-exogenous draw. Three kinds (``docs/scenarios.md``, "Facility layouts"):
-
-- ``uniform`` (the default): every cell of the grid equally likely, the paper's setting.
-- ``clustered``: ``towns`` town centres are drawn uniformly (away from the edges by up
-  to ``spread``) for each seed, and each facility, initial or arriving, picks a town at
-  random and lies a normal offset of standard deviation ``spread`` cells from its centre.
-  The towns change with the seed: a seed is a world, and a fixed geography is what the
-  ``sites`` layout is for.
-- ``sites``: a fixed list of ``(x, y, weight)`` sites on the grid; each facility picks a
-  site in proportion to its weight and lies a normal offset of standard deviation
-  ``jitter`` cells from it (exactly on it with ``jitter = 0``).
-
-Cells off the grid are clipped to its edge; offsets are rounded to the nearest cell.
-Personnel homes are not part of the layout (they stay uniform; see the docs).
+A layout (``ScenarioConfig.layout``, :class:`FacilityLayout`) acts only through the trace
+(:mod:`wfbench.core.trace`), so it is a pure function of ``(config, seed)`` like every other
+exogenous draw. Kinds: ``uniform`` (the default, the paper's), ``clustered`` (``towns`` centres
+drawn per seed, normal offsets of ``spread`` cells) and ``sites`` (a fixed weighted list, offsets
+of ``jitter`` cells). Cells are rounded and clipped to the grid; personnel homes stay uniform.
+The fields, streams and decisions: ``docs/scenarios.md``, "Facility layouts"; the draws:
+``docs/model.md``, "Exogenous inputs".
 """
 
 from __future__ import annotations

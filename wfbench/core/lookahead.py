@@ -1,27 +1,12 @@
 """Exact look-ahead: copy a simulator's state and roll the copy forward.
 
-Every exogenous draw of an episode is a pure function of (config, seed)
-(``docs/design.md``, "The trace and common random numbers"), and the state of a batch
-is a tuple of plain arrays (:class:`wfbench.core.state.State`). So a copy of the state of
-environment b, stepped with the same actions as the original, follows the original
-bit for bit: the copy meets the same failures, arrivals, repair outcomes and
-placement draws, because they are indexed by what they are for (slot, request, visit,
-hire number), not by when they are asked for. That is what the hindsight oracles
-(``policies/oracle``, ``docs/hindsight.md``) use to score candidate actions.
-
-- :func:`fork` makes a new :class:`~wfbench.core.simulator.Simulator` whose environments
-  are copies (``copies`` each) of chosen environments of another, at the same step.
-  The fork owns deep copies of the state arrays; it is an ordinary simulator:
-  ``step``, ``observe``, ``episode_means``, and the compiled roll-forward of built-in
-  policies (``wfbench.policies.oracle.rollout.roll_forward``).
-- :func:`copy_state` refreshes an existing fork in place from its source (no
-  allocation, and the fork's compiled entry points stay bound): what a planner that
-  looks ahead at every step uses.
-- :func:`state_equal` compares two simulators' states array by array (the test of
-  bit-identity, and the oracles' cheap check of their shadow).
-
-A fork does not share a mutable array with its source: stepping one never changes the
-other.
+Every exogenous draw is indexed by what it is for, not when it is asked for (``docs/design.md``,
+"The trace and common random numbers"), so a copy of an environment's state stepped with the
+same actions follows the original bit for bit. :func:`fork` makes a new
+:class:`~wfbench.core.simulator.Simulator` of copies of chosen environments (deep copies: stepping
+one never changes the other); :func:`copy_state` refreshes a fork in place without allocating;
+:func:`state_equal` compares two states array by array. The hindsight oracles score candidate
+actions this way (``docs/hindsight.md``, "Exact look-ahead").
 """
 
 from __future__ import annotations

@@ -1,30 +1,12 @@
 """Observation version 2: the world in travel time, with its public parameters as context.
 
-Version 1 (:mod:`wfbench.core.observe`, the paper's observation) gives positions in grid
-cells and shows none of the world's parameters. Every shipped network of before reads
-it, and it stays as it is, to the bit. Version 2 is derived from it and from the world's
-public parameters, which every observation carries under the key ``world``
-(:data:`WORLD_FEATURES`, in the world's own units; the simulator fills it):
-
-- every length in **travel time** (steps at this world's speed): the coordinates of
-  facilities and people are divided by the speed, and so are the grid's extent and the
-  width of the positioning heat map's bumps (``heat_sigma``, where hires are based);
-- the world's public parameters and counts that keep ratios as ``context``
-  (:data:`CONTEXT_FEATURES`): what a dispatcher knows of its own operation, never the
-  trace;
-- the three quantities in grid cells (speed, grid width and height) under ``units``,
-  apart, so that a policy that wants the unit of length has it, and a network that must
-  not depend on it can leave that key alone.
-
-A world whose lengths, speeds and spatial spreads are all multiplied by k is the same
-world in other units: its version-2 observation is the same (bit for bit when k is a
-power of two), except ``units`` and ``world``. ``tests/core/test_observe_v2.py`` checks it.
-
-The keys, one by one, are in ``docs/policies.md`` ("Observation version 2"). A policy
-gets it by calling :func:`observe_v2` itself on the observation it is given: the
-evaluator gives every policy the same observation, and nothing converts it for a policy
-(the attribute ``observation_version`` of the networks' policies only says which version
-they read). The environments take ``obs_version=2`` (``wfbench/Workforce-v1``).
+Version 1 (:mod:`wfbench.core.observe`, the paper's) stays as it is, to the bit. Version 2 is
+derived from it and from the ``world`` key (:data:`WORLD_FEATURES`) every observation carries:
+every length in travel-time steps, the public parameters and ratio-keeping counts as ``context``
+(:data:`CONTEXT_FEATURES`), and the grid-cell quantities apart under ``units``. A world scaled
+by k gives the same observation except ``units`` and ``world`` (bit for bit when k is a power of
+two; ``tests/core/test_observe_v2.py``). A policy calls :func:`observe_v2` itself; the
+environments take ``obs_version=2``. The keys: ``docs/policies.md``, "Observation version 2".
 """
 
 from __future__ import annotations

@@ -1,17 +1,12 @@
 """Positioning through a heat map: where a hire lives, whose home is hottest.
 
-The positioning decision gives a weight ``w_f`` in [0, 1] per facility slot. The heat
-map over the grid is ``H(x, y) = sum_f w_f exp(-|(x, y) - (x_f, y_f)|^2 / (2 sigma^2))``
-over active facilities (all-zero weights mean "no preference": every active facility
-weighs 1). A hire's home is the first cell of maximal heat in row-major order
-(``placement = "argmax"``) or a cell drawn with probability proportional to its heat
-(``"sample"``, from the trace's placement stream); a let-go removes the person of the
-chosen level whose home is hottest (``wfbench.core.dynamics``). ``docs/model.md`` has the
-rule and its source; ``docs/design.md`` where this module sits.
-
-The functions work on environment ``b`` of the state arrays and allocate only scratch;
-every cell sums its facilities in slot order, so all traversals (full scan, blocks,
-row by row) give the same values bit for bit.
+The heat map is ``H(x, y) = sum_f w_f exp(-|(x, y) - (x_f, y_f)|^2 / (2 sigma^2))`` over the
+active facilities (all-zero weights: every one weighs 1). A hire lives at the first hottest cell
+in row-major order (``placement = "argmax"``) or a cell drawn in proportion to the heat
+(``"sample"``); a let-go takes the person of the level whose home is hottest. The functions work
+on environment ``b`` and allocate only scratch; every cell sums its facilities in slot order, so
+all traversals give the same values bit for bit. The rule: ``docs/model.md``; ``docs/design.md``,
+"Positioning through a heat map".
 """
 
 from __future__ import annotations

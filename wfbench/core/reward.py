@@ -1,14 +1,10 @@
 """The rewards of a step, defined once: the environments and the trainers read them from here.
 
-- ``"nsw"``: the step's Nash social welfare ``NSW_t`` (:mod:`wfbench.core.kpis`), the
-  number an episode's score averages, so an agent trained on it optimizes exactly what
-  the leaderboard ranks. Every agent of the PettingZoo environment gets it.
-- ``"nsw-no-cost"``: the paper's dispatch-only reward, the welfare without its
-  workforce-cost term, the geometric mean ``sqrt(u_utilization * u_downtime)`` of the
-  other two utilities (a dispatcher cannot change the headcount).
-
-A trainer's shaping (an offset and a scale, return normalization) is its own and sits on
-top of these (:mod:`wfbench.train.toolkit`).
+``"nsw"`` is the step's ``NSW_t`` (:mod:`wfbench.core.kpis`), the number an episode's score
+averages, and what every agent of the PettingZoo environment gets; ``"nsw-no-cost"`` is the
+paper's dispatch-only reward, ``sqrt(u_utilization * u_downtime)`` (a dispatcher cannot change
+the headcount). A trainer's shaping sits on top (:mod:`wfbench.train.toolkit`;
+``docs/design.md``, "Metrics, utilities and NSW").
 """
 
 from __future__ import annotations

@@ -1,15 +1,11 @@
 """Counter-based random numbers: a draw is a pure function of (key, stream, i, j, k).
 
-The trace (``docs/design.md``, "The trace and common random numbers") indexes every
-environment draw by *what it is for* (the k-th failure of facility slot f; the v-th
-visit to request r of slot f), not by when it is used. Storing every such draw up front would cost ``slots x requests x
-visits`` numbers per environment; instead the trace holds one 64-bit key per seed
-(drawn from ``numpy.random.SeedSequence``) and each draw is computed on demand by
-hashing its index with the SplitMix64 finalizer (Steele, Lea & Flood 2014). The draw
-is the same whenever and wherever it is asked for, so runs are bit-identical whether a
-seed runs alone or in a batch, and every policy meets the same world.
-
-Policies that randomize use the same construction with their own key.
+The trace indexes every draw by *what it is for* (the k-th failure of slot f; the v-th visit
+to request r of slot f), not when it is used. Instead of storing ``slots x requests x visits``
+numbers, it holds one 64-bit key per seed (from ``numpy.random.SeedSequence``) and computes each
+draw on demand with the SplitMix64 finalizer (Steele, Lea & Flood 2014), so a seed is
+bit-identical alone or in a batch. Policies that randomize use the same construction with their
+own key (``docs/design.md``, "The trace and common random numbers"; ``docs/model.md``).
 """
 
 from __future__ import annotations

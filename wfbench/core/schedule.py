@@ -1,16 +1,11 @@
 """Rate schedules: how an exogenous rate changes over an episode.
 
-A schedule maps each step ``t`` to a positive multiplier ``m(t)`` of a base rate
-(the failure rate ``1 / request_interval`` or the facility arrival rate
-``1 / churn_interval``). Four kinds:
-
-- ``constant``: ``m(t) = 1``.
-- ``piecewise``: ``m(t) = values[i]`` for ``times[i] <= t < times[i + 1]``
-  (``times[0]`` must be 0).
-- ``seasonal``: ``m(t) = 1 + amplitude * sin(2 pi (t / period + phase))``,
-  ``0 <= amplitude < 1``.
-- ``drift``: ``m(t)`` moves linearly from ``start`` at ``t = 0`` to ``end`` at
-  ``t = horizon``.
+A :class:`RateSchedule` maps each step ``t`` to a positive multiplier ``m(t)`` of a base rate
+(the failure rate ``1 / request_interval`` or the arrival rate ``1 / churn_interval``):
+``constant`` (1), ``piecewise`` (``values[i]`` from ``times[i]`` on, ``times[0] = 0``),
+``seasonal`` (``1 + amplitude * sin(2 pi (t / period + phase))``, ``0 <= amplitude < 1``) or
+``drift`` (linear from ``start`` at ``t = 0`` to ``end`` at ``t = horizon``); ``docs/scenarios.md``,
+"The fields".
 """
 
 from __future__ import annotations

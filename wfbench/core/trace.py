@@ -1,21 +1,12 @@
 """The trace: every exogenous draw of one episode, a pure function of (config, seed).
 
-Contents (``docs/design.md``, "The trace and common random numbers"; ``docs/model.md`` lists every draw):
-
-- the initial facilities (cells, exit times) and workforce (home cells, levels);
-- facility arrivals: a non-homogeneous Poisson process with rate
-  ``churn_schedule(t) / churn_interval`` per step, each arrival with its cell and its
-  exit time (an exponential lifetime of mean ``initial_facilities * churn_interval``,
-  so that the active count is an M/M/infinity system that stays near its start);
-- the facility cells follow the scenario's layout (:mod:`wfbench.core.layout`): drawn
-  uniformly here, or, for another layout, redrawn from the layout's own stream after the
-  uniform draws, so the lifetimes, arrival times and workforce of a seed are the same
-  under every layout and only the cells differ;
-- ``key``: the 64-bit key of the counter-based draws (:mod:`wfbench.core.rng`) for the
-  per-slot failure clocks, the per-(slot, request, visit) repair outcomes and the
-  per-hire placement draws, which are computed on demand from their index.
-
-Nothing here depends on any decision, so every policy meets the same world.
+:func:`trace` returns a :class:`Trace`: the initial facilities and workforce, every facility
+arrival (a non-homogeneous Poisson process of rate ``churn_schedule(t) / churn_interval``, each
+with its cell and an exponential lifetime of mean ``initial_facilities * churn_interval``), the
+cells by the scenario's layout (:mod:`wfbench.core.layout`, drawn after the uniform draws so only
+the cells differ between layouts), and ``key``, the key of the counter-based draws
+(:mod:`wfbench.core.rng`) of failure clocks, repair outcomes and placements. Nothing depends on a
+decision, so every policy meets the same world. Every draw: ``docs/model.md``, "Exogenous inputs".
 """
 
 from __future__ import annotations
