@@ -1,29 +1,12 @@
 """Gymnasium environments ``wfbench/Workforce-v0`` (joint), ``wfbench/Workforce-v1`` and ``wfbench/Dispatch-v0``.
 
-Both observe a flat ``Dict`` of ``Box`` es (the shared observation plus action masks)
-and act through a 1-D ``MultiDiscrete``, the shape SB3's PPO and MaskablePPO take;
-``action_masks()`` returns the flat boolean mask MaskablePPO asks for.
-
-- Workforce-v0: one agent makes all three decisions. The action is
-  ``[dispatch (M entries of 0..N), workforce (0..6), positioning (2M entries of
-  0..10, weight = level / 10)]``.
-- Workforce-v1: Workforce-v0 with observation version 2 (``obs_version=2``,
-  :mod:`wfbench.core.observation_v2`): coordinates in travel-time steps, and the keys
-  ``context`` (the world's public parameters and counts, scale-free) and ``units``
-  (speed, grid width and height). Dynamics, reward and actions are Workforce-v0's.
-- Dispatch-v0: the action is the dispatch vector; workforce and positioning are made
-  by built-in policies (``fixed``, default the paper's heuristics). ``reward="nsw"``
-  (default) is the leaderboard's NSW; ``reward="nsw-no-cost"`` is the paper's
-  dispatch-only reward, the geometric mean of the utilization and downtime utilities.
-
-Options (both environments, ``docs/envs.md``): ``obs_version`` 1 (default) or 2 picks the
-observation version (``wfbench/Workforce-v1`` is ``wfbench/Workforce-v0`` with
-``obs_version=2``); ``observation="box"`` flattens the Dict
-into one float32 ``Box`` (Gymnasium's ``flatten``, masks included), for libraries that take
-only a Box; ``info="flat"`` (default) gives numbers only (``t``, ``seed``,
-``metric_<kpi>``, ``count_<counter>``, ``step_count_<counter>``), ``info="nested"`` the
-tallies as dicts ``metrics``, ``counts``, ``step_counts``; ``render_mode`` is
-``"rgb_array"`` or ``"human"`` (a matplotlib window).
+They observe a flat ``Dict`` of ``Box`` es (the shared observation plus action masks) and act
+through a 1-D ``MultiDiscrete``, the shape SB3's PPO and MaskablePPO take (``action_masks()``).
+:class:`WorkforceEnv` makes all three decisions (``[dispatch (M of 0..N), workforce (0..6),
+positioning (2M of 0..10, weight = level / 10)]``); ``Workforce-v1`` is it with ``obs_version=2``
+(:mod:`wfbench.core.observation_v2`). :class:`DispatchEnv` acts on the dispatch only, the other
+decisions made by built-in policies (``fixed``), with ``reward="nsw"`` or ``"nsw-no-cost"``.
+The options (``observation``, ``info``, ``obs_version``, ``render_mode``): ``docs/envs.md``.
 """
 
 from __future__ import annotations

@@ -1,42 +1,12 @@
 """PettingZoo environments: ``parallel_env(...)`` (ParallelEnv) and ``env(...)`` (AEC).
 
-Agents ``dispatch``, ``workforce`` and ``positioning`` act at every step on the same
-observation: the shared features and both action masks, ``dispatch_mask`` (M, N + 1)
-and ``workforce_mask`` (7,). The mask is not called ``action_mask`` because a
-MultiDiscrete mask cannot be one array. Each agent gets its own dict; the arrays in
-them are fresh copies every step, shared by the agents (the environment never writes
-to them again; copy an array before changing it in place if another agent reads it).
-All agents receive the same reward, the NSW of the step (a cooperative game).
-``fixed={"workforce": "threshold"}`` hands an agent to a built-in policy (a decision
-name from ``policies.DECISIONS``, a composite name such as ``"heuristic"`` or a policy
-object); fixed agents leave ``agents`` so the others can be trained alone. The episode
-is truncated at the scenario's horizon.
-
-Options for RL libraries that want one shape for everything (``docs/envs.md``):
-
-- ``observation="box"``: the observation is Gymnasium's flattening of the Dict (one
-  float32 ``Box``, masks included) instead of the Dict.
-- ``actions="shared"``: every agent has the same action space, the joint
-  ``MultiDiscrete`` of ``wfbench/Workforce-v0`` (M dispatch entries, the workforce
-  action, 2M positioning levels); each agent's own part is read and the rest ignored.
-  ``actions="own"`` (default): dispatch ``MultiDiscrete``, workforce ``Discrete``,
-  positioning ``Box (2, M)``.
-- ``positioning="flat"``: with ``actions="own"``, the positioning agent acts through a
-  1-D ``Box (2M,)``, the (2, M) weights row after row (Gymnasium's flattening of the
-  2-D ``Box``), for libraries that take only 1-D ``Box`` actions; the action is reshaped,
-  not cast, so it is the same simulator action as the 2-D one of the same numbers.
-  ``positioning="2d"`` (default): the ``Box (2, M)``.
-- ``info="flat"`` (default): numbers only (``t``, ``seed``, ``metric_<kpi>``,
-  ``count_<counter>``, ``step_count_<counter>``); ``info="nested"``: the tallies as
-  dicts ``metrics``, ``counts``, ``step_counts``.
-- ``obs_version=1`` (default): the paper's observation; ``obs_version=2``: observation
-  version 2 (coordinates in travel-time steps, plus ``context`` and ``units``;
-  :mod:`wfbench.core.observation_v2`), the observation of ``wfbench/Workforce-v1``; the
-  environment's ``metadata["name"]`` then ends in ``_v1``, as the Gymnasium id does.
-- ``state()`` and ``state_space``: the shared observation without the masks, flattened
-  (in the observation's version).
-- ``render_mode``: ``"rgb_array"`` returns frames, ``"human"`` shows them in a
-  matplotlib window.
+:class:`WorkforceParallelEnv` has the agents ``dispatch``, ``workforce`` and ``positioning``,
+acting at every step on the same observation (the shared features and the masks
+``dispatch_mask`` and ``workforce_mask``) and sharing the step's NSW as reward.
+``fixed={"workforce": "threshold"}`` hands an agent to a built-in policy, and it leaves
+``agents``. Options for libraries that want one shape for everything (``observation="box"``,
+``actions="shared"``, ``positioning="flat"``, ``info``, ``obs_version``), ``state()`` for a
+centralized critic and what each library needs: ``docs/envs.md``.
 """
 
 from __future__ import annotations

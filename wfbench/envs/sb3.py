@@ -1,23 +1,11 @@
 """Stable-Baselines3 pieces for wfbench (``docs/sb3.md``).
 
-A ``VecEnv`` over one batched simulator, an entity-set features extractor, and a
-trained model as a wfbench policy.
-
-This module imports torch and stable-baselines3 (the ``rl`` extra); nothing in the core
-or in ``wfbench.envs`` imports it, so ``import wfbench`` never loads torch.
-
-- :class:`WorkforceVecEnv`: an SB3 ``VecEnv`` over :class:`wfbench.envs.vector.WorkforceVectorEnv`;
-  the B environments step in one compiled call and reset through ``Simulator.reset(indices,
-  seeds)``. ``env_method("action_masks")`` and ``action_masks()`` give the masks
-  sb3-contrib's ``MaskablePPO`` asks for; a finished episode's last observation is in
-  ``infos[i]["terminal_observation"]`` with ``"TimeLimit.truncated": True`` (episodes end at
-  the horizon only), so PPO bootstraps the value of the cut-off state.
-- :class:`EntitySetExtractor`: facilities and personnel each through a small per-entity
-  MLP, then masked mean and max pooling over the active slots, with the global features;
-  the same weights fit any scenario size (the MultiDiscrete action head of SB3's policy
-  still has one logit per choice, so a trained *policy* is tied to its M and N).
-- :class:`SB3Policy`: a trained model as a wfbench policy (``decisions``, ``reset(seeds)``,
-  ``act(obs)``) for ``wfbench.evaluate``.
+:class:`WorkforceVecEnv` is an SB3 ``VecEnv`` over :class:`wfbench.envs.vector.WorkforceVectorEnv`
+(one compiled call for B environments, MaskablePPO's masks, truncation at the horizon with the
+terminal observation); :class:`EntitySetExtractor` pools facilities and people through
+per-entity MLPs, so its weights fit any scenario size; :class:`SB3Policy` wraps a trained model
+as a wfbench policy. This module imports torch and stable-baselines3 (the ``rl`` extra); nothing
+in the core or the rest of ``wfbench.envs`` imports it, so ``import wfbench`` never loads torch.
 """
 
 from __future__ import annotations

@@ -1,42 +1,13 @@
 """A Gymnasium ``VectorEnv`` over one batched :class:`~wfbench.core.simulator.Simulator`.
 
 ``WorkforceVectorEnv(scenario, num_envs, kind="workforce")`` is B copies of
-``wfbench/Workforce-v0`` (or, ``kind="dispatch"``, of ``wfbench/Dispatch-v0``; with
-``obs_version=2``, observation version 2, that of ``wfbench/Workforce-v1``) stepped
-by one compiled call for the whole batch, where ``SyncVectorEnv`` would make B Python
-calls. The spaces, the flat ``MultiDiscrete`` action, the observation keys and the
-reward are those of the single environments (``docs/sb3.md``):
-
-- ``step`` takes a (B, n) integer action, one row of the single environment's
-  ``MultiDiscrete`` per environment, and returns batched copies (fresh arrays that no
-  later call writes to).
-- Autoreset is ``AutoresetMode.SAME_STEP`` (default): an environment that reaches the
-  horizon is truncated and reset in the same ``step`` through
-  ``Simulator.reset(indices, seeds)`` (only those rows, on new seeds); the returned
-  observation row is the new episode's first, and ``infos["final_obs"]`` /
-  ``infos["final_info"]`` (with their ``_final_obs`` masks) hold the last one,
-  Gymnasium's convention. ``autoreset_mode="next_step"`` (``AutoresetMode.NEXT_STEP``,
-  what Gymnasium's stateful vector wrappers such as ``NormalizeObservation`` ask for):
-  the truncating step returns the last observation, and the next ``step`` ignores those
-  rows' actions and returns the new episode's first observation, reward 0, not done.
-  The mode is in ``metadata["autoreset_mode"]`` and the ``autoreset_mode`` attribute.
-- ``gymnasium.make_vec("wfbench/Workforce-v0", num_envs=B, scenario=...)`` builds this
-  environment (the ids' ``vector_entry_point``; ``"wfbench/Workforce-v1"`` passes
-  ``obs_version=2``); ``observation="box"`` flattens each row as the single
-  environment's option does.
-- Seeds: ``reset(seed=s)`` plays seeds ``s, s + 1, ...``; each environment's later
-  episodes take their seeds from a generator seeded with its first seed, as the single
-  environment does, so the vector environment replays ``SyncVectorEnv`` of the single
-  environments bit for bit (``tests/envs/test_vector_env.py``).
-- Masks: ``action_masks()`` is the (B, sum(nvec)) boolean mask of MaskablePPO's
-  convention; the observation carries ``dispatch_mask`` and ``workforce_mask`` too.
-- ``kind="dispatch"``: the workforce and positioning decisions are made by built-in
-  policies acting on the whole batch at once (``fixed``, default the paper's
-  heuristics). They keep memory per environment and the policy protocol has no reset
-  of part of a batch, so these environments are always reset together (``reset_mask``
-  must be all True); they start together and end together at the horizon, so the
-  autoreset is always of the whole batch, after which the policies are told the new
-  seeds (``reset(seeds)``).
+``wfbench/Workforce-v0`` (``kind="dispatch"``: ``wfbench/Dispatch-v0``; ``obs_version=2``:
+``wfbench/Workforce-v1``) stepped by one compiled call, with the single environments' spaces and
+reward; ``gymnasium.make_vec`` builds it. Autoreset is same-step by default, through the partial
+``Simulator.reset(indices, seeds)``, or ``autoreset_mode="next_step"``. Seeds follow the single
+environments', so it replays ``SyncVectorEnv`` bit for bit (``tests/envs/test_vector_env.py``);
+``kind="dispatch"`` environments are always reset together. ``docs/sb3.md``, "Episodes, autoreset
+and seeds".
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
 """Checks to run before you submit, shipped in the package as ``pettingzoo.test`` ships PettingZoo's.
 
-- :func:`check_env`: the installed RL libraries' own environment checkers (Gymnasium's
-  ``check_env``, Stable-Baselines3's ``check_env``, PettingZoo's ``parallel_api_test``,
-  ``api_test`` and seed tests) on a wfbench environment or one of your own, with their
-  warnings as errors.
-- :func:`check_policy`: your policy through the policy protocol (``docs/policies.md``)
-  on a few seeds: the keys, shapes, types and ranges of its actions, the action masks,
-  and the same actions for the same seed (again, and alone); the first problem raises a
-  :class:`PolicyCheckError` whose message is one line.
-
-Modules: ``env`` (the environment checkers) and ``policy`` (the policy check), neither
-importing the other.
+:func:`check_env` runs the installed RL libraries' own environment checkers (Gymnasium's and
+Stable-Baselines3's ``check_env``, PettingZoo's API and seed tests) with their warnings as
+errors (``docs/envs.md``, "Checking an environment"). :func:`check_policy` runs a policy through
+the protocol on a few seeds (actions, masks, the same actions for the same seed) and raises a
+one-line :class:`PolicyCheckError` at the first problem (``docs/policies.md``, "Checking a policy
+before you submit"). Modules: ``env`` and ``policy``, neither importing the other.
 """
 
 from wfbench.testing.env import ADVISORIES, check_env
