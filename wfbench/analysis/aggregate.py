@@ -1,22 +1,13 @@
 """The aggregate over a suite's scenarios, computed by rliable (Agarwal et al., 2021).
 
-IQM, mean and optimality gap with stratified bootstrap intervals, the probability of
-improvement over a baseline, and performance profiles.
-
-Scores are normalized per scenario (:func:`wfbench.scenarios.normalize`: 0 the random policy,
-1 the proven bound) and arranged per policy as a matrix ``(runs, scenarios)``: a run is
-a seed, or for a learned method a (training seed, evaluation seed) pair. The
-intervals are rliable's stratified bootstrap over runs within each scenario
-(:func:`rliable.library.get_interval_estimates`); the optimality gap is the mean
-shortfall of the score below 1, the bound.
-
-Determinism: rliable's bootstrap draws its indices from NumPy's global generator
-(``np.random.choice`` in ``StratifiedBootstrap.update_indices``), not from the
-``random_state`` it accepts (which arch, beneath it, also deprecates with a warning, so
-none is passed). Every call here therefore seeds that generator with the given seed and
-restores the global state afterwards, one policy at a time: identical inputs give bit-identical results, a
-policy's interval does not depend on which other policies are aggregated beside it,
-and nobody else's use of ``np.random`` is disturbed.
+IQM, mean and optimality gap with stratified bootstrap intervals, the probability of improvement
+over a baseline, and performance profiles, on scores normalized per scenario
+(:func:`wfbench.scenarios.normalize`) in a ``(runs, scenarios)`` matrix per policy; a run is a
+seed, or a (training seed, evaluation seed) pair (:func:`pool_seeds`). Determinism: rliable's
+bootstrap draws from NumPy's global generator, not the ``random_state`` it accepts, so each call
+seeds that generator per policy and restores it after: identical inputs give identical bits, a
+policy's interval does not depend on the others, and nobody else's ``np.random`` is disturbed
+(``docs/suite.md``, "The aggregate").
 """
 
 from __future__ import annotations

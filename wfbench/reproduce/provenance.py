@@ -1,20 +1,12 @@
 """What made a committed result: the commit, a hash of the code and a hash of the files a policy reads.
 
-Every piece of a suite run (one policy on one scenario, ``cache/POLICY/SCENARIO.csv``)
-has a ``.json`` beside it. Its ``hash`` and ``seeds`` decide whether the piece is reused;
-its ``provenance`` says what computed it:
-
-- ``commit``: the git commit of the checkout (None outside a checkout), and ``dirty``
-  whether files that compute results differed from it;
-- ``code_sha256``: :func:`code_sha256`, a hash of every file that computes results
-  (``wfbench/``, ``policies/`` and ``solvers/``, checkpoints excepted), the same in a
-  checkout and from git's objects of a commit (:func:`code_sha256_at`);
-- ``inputs``: the sha256 of each file whose bytes decide the policy (a network's
-  checkpoint, a tuned file), by its path in the repository.
-
-The provenance does not decide reuse (a new commit would discard every piece): a changed
-behaviour is caught by ``wfbench reproduce verify`` (:mod:`wfbench.reproduce.verify`),
-which recomputes pieces and compares them bit for bit, and by CI's fixed sample of it.
+Each suite piece's ``.json`` (beside ``cache/POLICY/SCENARIO.csv``) has a ``hash`` and ``seeds``
+that decide reuse, and a ``provenance``: ``commit`` and ``dirty``; ``code_sha256``
+(:func:`code_sha256`, every file under ``wfbench/``, ``policies/`` and ``solvers/`` but the
+checkpoints, the same from git's objects of a commit, :func:`code_sha256_at`); and ``inputs``,
+the sha256 of each checkpoint or tuned file the policy reads. It does not decide reuse (a new
+commit would discard every piece): :mod:`wfbench.reproduce.verify` catches a changed behaviour
+by recomputing pieces (``docs/suite.md``, "What moved in issue #42").
 """
 
 from __future__ import annotations

@@ -1,34 +1,13 @@
 """The suite: every built-in policy on every scenario of suite-v1, normalized, aggregated per split, with checks.
 
-Not one of the paper's targets: wfbench's own verdict across many worlds (issue #27,
-docs/suite.md). Every policy (random, the heuristics, the solver composites, the tuned
-ones, every shipped network zero-shot, the hindsight oracle) runs on every scenario
-through :func:`wfbench.evaluate` (so every backend works unchanged), beside the proven
-bound. Writes into the output folder:
-
-- ``suite-scores.md``/``.csv``: the mean normalized score and raw NSW per scenario and policy;
-- ``suite-aggregate.md``/``.csv``: IQM, mean and optimality gap with 95% stratified bootstrap
-  intervals and the probability of improvement over the heuristic, per split
-  (:mod:`wfbench.analysis.aggregate`);
-- ``suite-profile-<split>.png``/``.svg`` with ``.csv``: the performance profiles per split;
-- ``suite-scaling.png``/``.svg`` with ``.csv``: env-steps per second and decision latency
-  against the number of facilities and people, per policy family (the evaluator's budget
-  columns where it writes them, else episode wall time over steps);
-- ``suite-checks.md``/``.csv``: that no policy scores above the bound on any seed, and
-  whether the oracle is at least every deployable policy per scenario;
-- ``suite-per-seed.md``/``.csv`` (when a learned method has training seeds,
-  :data:`wfbench.policies.registry.SEED_RUNS`): each training seed's mean normalized score per
-  scenario and its IQM and mean per split, the shipped pick marked.
-
-A learned method with training seeds (``ppo-general``: ``ppo-general#seed0`` ...) is run as
-each of its members on each scenario as well as its shipped pick; its aggregate row,
-``METHOD (N seeds)``, pools the members' runs (a run is a (training seed, evaluation seed)
-pair: a ``(N x seeds, scenarios)`` matrix per split, :func:`wfbench.analysis.aggregate.pool_seeds`).
-The shipped pick keeps its own row, marked as such in the markdown.
-
-Each (policy, scenario) result is cached under ``cache/`` in the output folder with the
-scenario's hash and the seeds, so a stopped run resumes where it stopped and a changed
-scenario is run again.
+wfbench's own verdict across many worlds (issue #27): every policy (the built-ins, the tuned
+files, every shipped network zero-shot, a learned method's training seeds, the oracle) runs on
+every scenario through :func:`wfbench.evaluate`, beside the proven bound. :func:`suite` writes
+``suite-scores``, ``suite-aggregate`` (:mod:`wfbench.analysis.aggregate`), ``suite-profile-<split>``,
+``suite-scaling``, ``suite-checks`` and ``suite-per-seed``. Each (policy, scenario) piece is cached
+under ``cache/`` with the scenario's hash and the seeds, so a stopped run resumes and a changed
+scenario is run again. What each file holds: ``docs/suite.md``, "How to run" and "Learned methods
+over training seeds".
 """
 
 from __future__ import annotations

@@ -1,16 +1,12 @@
 """Committed results against what the code computes now: recompute pieces of a suite run and compare bit for bit.
 
-A suite run's folder (``docs/results/suite-v1-50``) keeps each (policy, scenario) piece in
-``cache/``. :func:`verify` plays chosen seeds of chosen pieces again with the code that
-imports it and compares every result column (the KPIs, utilities and counters; not the
-budget columns, which are measurements) to the bit. One differing number fails the piece.
-
-``wfbench reproduce verify --out FOLDER`` checks every piece on its first seed;
-``--policies``, ``--scenarios`` and ``--seeds`` narrow or widen it. :data:`CI_SAMPLE` is
-the fixed sample CI recomputes (tests/reproduce/test_committed_results.py): every policy
-of the run (each training seed, the oracle and the bound too) on one piece, every
-scenario of the suite but ``city`` (minutes a seed for the networks), a seed each, the
-seeds spread over the two halves of a 50-seed run (under a minute on 2 cores).
+:func:`verify` plays chosen seeds of chosen pieces of a run's ``cache/`` (``docs/results/suite-v1-50``)
+again with the installed code and compares every result column (KPIs, utilities, counters; not
+the budget columns, which are measurements) to the bit; one differing number fails the piece.
+``wfbench reproduce verify --out FOLDER`` checks every piece on its first seed. :data:`CI_SAMPLE`
+is what CI recomputes (``tests/reproduce/test_committed_results.py``): every policy of the run on
+one piece, every scenario but ``city``, one seed each, spread over both halves of the 50 seeds
+(``docs/suite.md``, "What moved in issue #42").
 """
 
 from __future__ import annotations
