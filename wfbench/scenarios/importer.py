@@ -1,22 +1,12 @@
 """A scenario from a user's own files: their sites, and optionally a log of their service requests.
 
 ``from_files(sites, requests, name=..., base="paper-64")`` returns a
-:class:`~wfbench.core.config.ScenarioConfig`; ``wfbench scenario import`` writes it as a
-TOML or JSON file. The formats and what the fit does are in ``docs/scenarios.md``
-("Your own sites and requests"); in short:
-
-- **sites** (CSV with a header): ``id``, then either ``x`` and ``y`` (grid cells of the
-  base scenario) or ``lat`` and ``lon`` (degrees, projected onto the grid by
-  :func:`wfbench.core.layout.project_latlon`), and ``weight`` (optional, default 1).
-  Other columns are ignored. The sites become the scenario's ``sites`` layout.
-- **requests** (CSV with a header): ``time`` (a step number, or an ISO 8601 timestamp,
-  the same kind on every line) and ``site`` (an id of the sites file). The log is fitted
-  to rates, not replayed: each site's weight becomes its number of requests, the
-  ``request_interval`` gives the log's overall rate, and the request schedule its time
-  profile (a ``piecewise`` schedule over equal time bins).
-
-A malformed file raises :class:`ScenarioFileError` (a ``ValueError``) naming the file,
-the line, the column, the value and what is allowed.
+:class:`~wfbench.core.config.ScenarioConfig`; ``wfbench scenario import`` writes it as TOML or
+JSON. The sites (``id``; ``x``, ``y`` or ``lat``, ``lon``; ``weight``) become a ``sites`` layout;
+the request log (``time``, ``site``) is fitted to rates, not replayed: site weights, the
+``request_interval`` and a ``piecewise`` request schedule. A malformed file raises
+:class:`ScenarioFileError` naming the file, line, column, value and what is allowed. The formats:
+``docs/scenarios.md``, "Your own sites and requests".
 """
 
 from __future__ import annotations

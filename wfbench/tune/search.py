@@ -1,35 +1,12 @@
 """Tune a policy's declared hyper-parameters on public seeds with Optuna's TPE.
 
-``tune("heuristic", "paper-64", trials=100)`` searches every parameter the policy
-declares (``Composite.tunable``, from :data:`wfbench.policies.rules.RULES`) for the highest mean NSW
-over the tuning seeds, and writes a tuned-policy file (:mod:`wfbench.policies.tuned`) that is a
-policy everywhere a policy is named. ``wfbench tune`` is its command line.
-
-- **Across worlds.** ``tune("heuristic", scenarios="suite-v1:train", trials=100)``
-  scores each trial on every world of the spec (a suite's training split or its
-  training scenarios, resolved as ``wfbench train --scenarios`` resolves them,
-  :func:`wfbench.train.worlds.resolve_worlds`, which refuses held-out scenarios) and
-  maximizes the mean over the worlds of each world's normalized score
-  (:func:`wfbench.scenarios.normalize`: 0 the random policy, 1 the mean proven bound), so
-  that no world counts more because its NSW spreads more; the learned generalists are
-  selected on the same number. A world that no suite has constants for is refused.
-  The file records the spec as its scenario, the worlds and each one's score.
-
-- **Seeds.** Public (1000-1049, the default) or train seeds only: test seeds are
-  refused, since a policy tuned on the seeds that are reported makes the report
-  worthless. The file records the seeds.
-- **Resuming.** The study lives in SQLite (``study_db``) under ``study_name``;
-  ``trials`` is the study's total of finished trials, so running the same call again
-  after Ctrl-C or a crash runs only the missing ones, and a larger ``trials`` extends
-  a finished study. A study remembers its policy, scenario (or worlds), seeds, search
-  space and objective, and a call that differs is refused rather than mixed in.
-- **Determinism.** The sampler is seeded (``sampler_seed``, offset by the trials the
-  study already holds, so a resumed study does not repeat its first proposals) and
-  every evaluation is deterministic, so the same call on a fresh study gives the same
-  file. The first trial of a new study is the untuned policy, so the result is never
-  worse than it on the tuning seeds.
-- **Where it runs.** Each trial is one :func:`wfbench.harness.evaluation.evaluate` call on the
-  chosen backend (a built-in composite is one compiled rollout per chunk of seeds).
+``tune("heuristic", "paper-64", trials=100)`` searches the parameters the policy declares
+(``Composite.tunable``) for the highest mean NSW over the tuning seeds and writes a tuned-policy
+file (:mod:`wfbench.policies.tuned`); ``scenarios="suite-v1:train"`` maximizes the mean normalized
+score over training worlds instead. Test seeds are refused. The study lives in SQLite, so a
+repeated call runs only the missing trials, and a differing call is refused. Deterministic: a
+seeded sampler, deterministic evaluations, the untuned policy as the first trial. ``wfbench tune``
+is its command line; ``docs/policies.md``, "Tuning".
 """
 
 from __future__ import annotations
