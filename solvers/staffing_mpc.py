@@ -5,8 +5,8 @@ let-goes ``y[l, h]`` (at most one action a step), with the hire and notice lags,
 headcount, the slots as a cap on payroll, and forecast demand covered or paid for as shortfall;
 it minimizes payroll plus the shortfall and action costs. Productive people and payroll are
 variables with one balance row per step (sparse), solved by HiGHS through
-:func:`scipy.optimize.milp` with an optional time limit (no incumbent yet: a plan of no actions,
-always feasible). The model in full: ``docs/solvers.md``, "A rolling-horizon staffing plan".
+:func:`scipy.optimize.milp` with an optional time or node limit (no incumbent yet: a plan of no
+actions, always feasible). The model in full: ``docs/solvers.md``, "A rolling-horizon staffing plan".
 """
 
 from __future__ import annotations
