@@ -445,5 +445,23 @@ class ScaleFreeNet(nn.Module):
         heads["positioning"] = (plp, pe)
         return heads
 
+    def dispatch_label_log_probs(self, out: dict, x: dict, persons: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per choosing facility (the rows of ``out["dispatch"]``): the log-probability of a label and whether it fits.
+
+        ``persons`` (R, M): a person per facility (N: nobody), as a stored dispatch action.
+        A label that names someone outside the facility's k candidates does not fit (False):
+        its log-probability is the no-op's, and an imitation loss leaves it out (hindsight
+        learning, docs/rl.md). The labels still take their people from the later facilities.
+        """
+        rows, facs = x["choose"].nonzero(as_tuple=True)
+        if not rows.numel():
+            empty = out["dispatch"].new_zeros(0).float()
+            return empty, empty.bool()
+        p = persons[rows, facs]
+        allowed, pick, _ = self._dispatch_masks(x, rows, facs, p, None)
+        lp, _ = _cat_logp_ent(out["dispatch"].float(), allowed, pick)
+        fits = (p >= x["per_in"].shape[-2]) | (pick < allowed.shape[1] - 1)
+        return lp, fits
+
 
 assert NEG < -CLIP  # a masked logit stays below every clipped one

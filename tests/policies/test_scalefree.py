@@ -158,11 +158,13 @@ def test_shipped_networks_of_before_read_version_1():
     assert from_checkpoint(wfbench.policies.registry.CHECKPOINT_DIR / "ppo-joint-paper-64.pt").observation_version == 1
 
 
-def test_a_trainer_that_does_not_train_it_says_so_in_one_line(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "wfbench.cli", "train", "--algo", "hindsight", "--model", "scalefree",
-                        "--steps", "64", "--run-dir", str(tmp_path / "x")], capture_output=True, text=True)
+def test_what_cannot_train_it_says_so_in_one_line(tmp_path):
+    # every trainer trains it (issue #44); one network per decision cannot be it
+    r = subprocess.run([sys.executable, "-m", "wfbench.cli", "train", "--algo", "ppo", "--agents", "independent",
+                        "--model", "scalefree", "--steps", "64", "--run-dir", str(tmp_path / "x")],
+                       capture_output=True, text=True)
     assert r.returncode != 0
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "model 'scalefree' is not trained by hindsight" in lines[0] \
-        and "--algo ppo or impala" in lines[0]
+    assert len(lines) == 1 and "agents 'independent' with model 'scalefree' is not allowed" in lines[0] \
+        and "allowed: agents joint" in lines[0]
     assert not (tmp_path / "x").exists()

@@ -91,7 +91,7 @@ def test_the_command_line_trains_it_and_refuses_what_stays_refused_in_one_line(t
     for cfg, message in [
         (_cfg(tmp_path, variant="dispatch"), "variant 'dispatch' is not allowed for impala; allowed: joint"),
         (_cfg(tmp_path, model_overrides={"heads": 4}), r"unknown scalefree model setting\(s\) \['heads'\]"),
-        (HindsightConfig(model="scalefree", scenario="small"), "model 'scalefree' is not trained by hindsight"),
+        (HindsightConfig(model="scalefree", scenario="small", variant="dispatch"), "variant 'dispatch' is not allowed"),
     ]:
         with pytest.raises(ValueError, match=message) as exc:
             cfg.validate()

@@ -37,10 +37,10 @@ def add_parser(sub) -> None:
                          "public seeds (docs/rl.md, Generalists)")
     tr.add_argument("--steps", type=positive, default=None, help="environment steps in all (default 1000000)")
     tr.add_argument("--model", default=None,
-                    help="network: scalefree (observation version 2, any world size; PPO's default for the joint "
-                         "network; docs/rl.md), or a preset of the paper's network: cpu (no attention, fastest on "
-                         "CPU), tiny, small or paper (~0.5M parameters); the default of --variant dispatch, "
-                         "--agents independent and the other algorithms is their config's")
+                    help="network: scalefree (observation version 2, any world size; the default of every "
+                         "algorithm's joint network; docs/rl.md), or a preset of the paper's network: cpu (no "
+                         "attention, fastest on CPU), tiny, small or paper (~0.5M parameters); the default of "
+                         "--variant dispatch and --agents independent is their config's")
     tr.add_argument("--num-envs", type=positive, default=None, help="environments side by side (default 32)")
     tr.add_argument("--num-steps", type=positive, default=None, help="steps per rollout (default 32)")
     tr.add_argument("--epochs", type=positive, default=None, help="PPO epochs per rollout (default 2)")
@@ -81,9 +81,9 @@ def add_parser(sub) -> None:
 def default_model(config_cls: type, given: dict) -> str:
     """The network of a ``wfbench train`` without ``--model``: the scale-free one where the trainer trains it.
 
-    That is PPO's and IMPALA's joint network (issue #44); ``--variant dispatch``,
-    ``--agents independent`` and the trainer that does not train it (hindsight learning) keep
-    their config's default. The older networks stay available by name (``--model small``).
+    That is the joint network of PPO, IMPALA and hindsight learning (issue #44); ``--variant
+    dispatch`` and ``--agents independent`` keep their config's default. The older networks
+    stay available by name (``--model small``).
     """
     from wfbench.policies.neural.scalefree import ARCH
 

@@ -61,6 +61,14 @@ learner itself acting after each action, in copies of the environment that meet 
 same future (:meth:`Trainer.learner_values`): the values of the policy that will act on
 them, which is how the shipped ``hindsight-ppo`` improved ``ppo-joint``'s workforce head.
 
+The network is the paper's (a preset, observation version 1) or the scale-free one
+(``model="scalefree"``, observation version 2, ``wfbench train``'s default): the features,
+noise, samples and log-probabilities go through :mod:`wfbench.policies.neural.scalefree`'s
+helpers, which tell the two apart (for a preset the computation of before). The
+scale-free dispatch picks among the k nearest eligible people of each choosing facility:
+a label naming someone else is left out of the loss (:func:`outside_candidates`) and
+counted (``labels_outside_k``, ``outside_k_share`` in the log; docs/rl.md).
+
 Checkpoints have the keys every trainer's have (:func:`wfbench.train.toolkit.run_checkpoint`,
 ``algo: hindsight``), so ``hindsight:RUN/best.pt`` loads one as a policy (``ppo:RUN/best.pt``,
 the alias, too) and ``wfbench train --algo ppo --init RUN/best.pt`` fine-tunes it with PPO. ``RUN/best.pt``
@@ -85,8 +93,9 @@ from wfbench.core.kpis import SCORE
 from wfbench.core.lookahead import copy_state, fork, fork_index
 from wfbench.core.simulator import Simulator
 from wfbench.policies.composite import Composite
-from wfbench.policies.neural.dist import env_action, gumbel, log_prob_entropy, noise_shapes, positioning_weights, sample
-from wfbench.policies.neural.model import OBS_KEYS, WorkforceNet, featurize, obs_to_torch
+from wfbench.policies.neural import scalefree
+from wfbench.policies.neural.dist import env_action, gumbel, log_prob_entropy, positioning_weights
+from wfbench.policies.neural.model import OBS_KEYS
 from wfbench.policies.oracle.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
 from wfbench.policies.oracle.planner import Planner
 from wfbench.train import toolkit
@@ -105,9 +114,11 @@ WORKFORCE_TARGETS = ("action", "values", "improve")
 TRAIN_PARAMS = ("all", "heads")
 # who rolls the workforce actions forward for their values: the planner's base kernels, or the learner itself
 VALUE_ROLLOUTS = ("planner", "learner")
-# the parameters of each decision's head in WorkforceNet
+# the parameters of each decision's head in WorkforceNet, and in the scale-free network (observation version 2)
 HEAD_MODULES = {"dispatch": ("ptr_q", "ptr_k", "ptr_noop", "dist_scale"), "workforce": ("wf_head",),
                 "positioning": ("pos_head",)}
+SCALEFREE_HEAD_MODULES = {"dispatch": ("ptr_q", "ptr_mem", "ptr_k", "pair", "noop", "alpha"),
+                          "workforce": ("wf_head",), "positioning": ("pos_mem", "pos_head")}
 
 
 @dataclass
@@ -115,7 +126,7 @@ class HindsightConfig(toolkit.BaseConfig):
     """Every setting of a run (the shared ones in :class:`wfbench.train.toolkit.BaseConfig`)."""
 
     variant: str = "joint"  # the teacher gives all three decisions
-    model: str = "cpu"  # wfbench.policies.neural.model.PRESETS
+    model: str = "cpu"  # wfbench.policies.neural.model.PRESETS, or "scalefree" (`wfbench train`'s default)
     steps: int = 200_000  # environment steps collected in all (B per simulator step)
     num_envs: int = 16  # B
     num_steps: int = 32  # T: steps per stored sequence
@@ -144,6 +155,7 @@ class HindsightConfig(toolkit.BaseConfig):
     value_every: int = 10  # "learner": steps between two scored states
     value_samples: int = 1  # "learner": roll-forwards per action (common noise across the actions)
     oracle: dict = field(default_factory=dict)  # Planner settings (dispatch_horizon, workforce_every, ...)
+    scalefree_ok = True  # hindsight learning trains the scale-free network (--model scalefree), as PPO does
 
     @property
     def chunk_steps(self) -> int:
@@ -239,6 +251,31 @@ def oracle_labels(label: dict[str, np.ndarray], obs: dict[str, np.ndarray]) -> t
     return d, w, p, int(bad.sum())
 
 
+def outside_candidates(x: dict[str, torch.Tensor], labels: torch.Tensor) -> torch.Tensor:
+    """(B, M) bool: the choosing facilities whose dispatch label names someone outside their k candidates.
+
+    ``x``: the scale-free network's features (:func:`wfbench.policies.neural.scalefree.featurize`),
+    ``labels`` (B, M) people (N: nobody). The network cannot pick such a person, so the
+    imitation loss leaves these labels out (:func:`scalefree_label_log_probs`) and the log counts them.
+    """
+    named = (labels < x["per_in"].shape[-2]) & x["choose"]
+    among = ((x["cand"] == labels[..., None]) & x["cand_valid"]).any(-1)
+    return named & ~among
+
+
+def scalefree_label_log_probs(model, out: dict, x: dict, acts: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """Per head, the log-probability (rows,) of the labels under the scale-free network's distributions.
+
+    Dispatch: the sum over the choosing facilities of each row, without the labels outside
+    their k candidates (:func:`outside_candidates`: no candidate list expresses them).
+    """
+    heads = scalefree.head_log_probs(model, out, x, acts)
+    lp, fits = model.dispatch_label_log_probs(out, x, acts["dispatch"])
+    rows = x["choose"].nonzero(as_tuple=True)[0]
+    dispatch = lp.new_zeros(x["choose"].shape[0]).index_add(0, rows, lp * fits)
+    return {"dispatch": dispatch, "workforce": heads["workforce"][0], "positioning": heads["positioning"][0]}
+
+
 class Dataset:
     """The aggregated sequences: a FIFO ring of at most ``capacity`` sequences of T steps (CPU tensors)."""
 
@@ -282,7 +319,8 @@ class Trainer:
         self.batch_gen = torch.Generator().manual_seed(c.seed * 7919 + 1)  # minibatch draws
         self.mix_rng = np.random.default_rng([c.seed, 0x4D1])  # oracle-or-learner draws
         self.value_gen = torch.Generator(device=self.run.device).manual_seed(c.seed * 7919 + 2)  # roll-forward noise
-        self.model = WorkforceNet(self.run.network).to(self.run.device)
+        self.model = toolkit.build_model(self.run.network).to(self.run.device)
+        self.obs_keys = scalefree.OBS_KEYS_V2 if scalefree.obs_version(self.model) == 2 else OBS_KEYS
         self.opt = torch.optim.Adam(self.trainable(), lr=c.lr)
         self.data = Dataset(max(c.dataset_steps // c.num_steps, c.num_envs), c.num_steps)
         self.iteration, self.episode, self.seed_cursor = 0, 0, 0
@@ -298,7 +336,8 @@ class Trainer:
         """The parameters the update trains (``train_params``); the others are frozen (requires_grad False)."""
         if self.run.config.train_params == "all":
             return list(self.model.parameters())
-        names = {m for h in HEADS if getattr(self.run.config, f"{h}_weight") > 0 for m in HEAD_MODULES[h]}
+        modules = SCALEFREE_HEAD_MODULES if scalefree.obs_version(self.model) == 2 else HEAD_MODULES
+        names = {m for h in HEADS if getattr(self.run.config, f"{h}_weight") > 0 for m in modules[h]}
         keep = []
         for name, param in self.model.named_parameters():
             param.requires_grad_(name.split(".")[0] in names)
@@ -346,6 +385,9 @@ class Trainer:
         values, scored, logp_old = [], [], []
         stats = {"agree_dispatch": [], "agree_workforce": [], "oracle_share": [], "invalid_labels": 0,
                  "label_hires": 0, "label_releases": 0}
+        scale_free = scalefree.obs_version(self.model) == 2
+        if scale_free:  # the scale-free dispatch chooses among k candidates: labels outside them are not learned
+            stats |= {"label_dispatches": 0, "labels_outside_k": 0}
         episodes, trail = [], []
         for _ in range(T):
             if self.sim.done:
@@ -390,7 +432,13 @@ class Trainer:
             starts.append(self.starts.cpu())
             for k, v in zip(HEADS, (self._padded_dispatch(ld), lw, lp), strict=True):
                 labels[k].append(torch.from_numpy(v))
-            choosing = x["dispatch_mask"][..., :N].any(-1).cpu().numpy()
+            if scale_free:
+                choosing = x["choose"].cpu().numpy()
+                named = torch.from_numpy(ld).to(dev)
+                stats["label_dispatches"] += int(((named < N) & x["choose"]).sum())
+                stats["labels_outside_k"] += int(outside_candidates(x, named).sum())
+            else:
+                choosing = x["dispatch_mask"][..., :N].any(-1).cpu().numpy()
             if choosing.any():
                 stats["agree_dispatch"].append(float((mine["dispatch"] == ld)[choosing].mean()))
             stats["agree_workforce"].append(float((mine["workforce"] == lw).mean()))
@@ -414,7 +462,7 @@ class Trainer:
             self.timing["oracle"] += t2 - t1 - values_s
             self.timing["values"] += values_s
             self.timing["simulator"] += t4 - t3
-        chunk = {k: torch.stack([r[k] for r in raws], 1) for k in OBS_KEYS}  # (B, T, ...)
+        chunk = {k: torch.stack([r[k] for r in raws], 1) for k in self.obs_keys}  # (B, T, ...)
         chunk["starts"] = torch.stack(starts, 1)
         chunk["dispatch"] = torch.stack(labels["dispatch"], 1).to(torch.int16)
         chunk["workforce"] = torch.stack(labels["workforce"], 1).to(torch.int8)
@@ -494,12 +542,12 @@ class Trainer:
             score += reward
             if k == c.value_horizon - 1 or self.value_fork.done:
                 break
-            x = featurize(obs_to_torch(obs, dev), self.run.network.coord_scale)
+            x = scalefree.features(self.model, scalefree.raw_tensors(self.model, obs, dev))
             with toolkit.autocast(dev, self.run.amp):
                 out, state = self.model(x, state, starts)
             noise = {key: gumbel(shape, self.value_gen, dev)[noise_row]
-                     for key, shape in noise_shapes(B * S, M, N).items()}
-            acts = sample(out, x, noise)
+                     for key, shape in scalefree.noise_shapes(self.model, B * S, M, N).items()}
+            acts = scalefree.sample(self.model, out, x, noise)
             action = env_action(acts, M)
         return score.reshape(B, S, A)
 
@@ -508,11 +556,14 @@ class Trainer:
         """The weighted negative log-likelihood of the labels on a time-major batch of sequences."""
         c = self.run.config
         T, S = batch["starts"].shape
-        raw = {k: batch[k].flatten(0, 1) for k in OBS_KEYS}
-        x = featurize(raw, self.run.network.coord_scale)
+        raw = {k: batch[k].flatten(0, 1) for k in self.obs_keys}
+        x = scalefree.features(self.model, raw)
         with toolkit.autocast(self.run.device, self.run.amp):
             out, _ = self.model(x, (batch["h"], batch["c"]), batch["starts"])
         acts = {k: batch[k].flatten(0, 1).long() for k in HEADS}
+        scale_free = scalefree.obs_version(self.model) == 2
+        if scale_free:
+            logps = scalefree_label_log_probs(self.model, out, x, acts)
         # a step counts once the LSTM state is trustworthy: after the burn-in, or from an episode start on
         t_idx = torch.arange(T, device=batch["starts"].device)[:, None]
         valid = (t_idx >= c.burn_in) | (torch.cummax(batch["starts"], 0).values > 0)
@@ -525,7 +576,7 @@ class Trainer:
                 temperature = c.improve_temperature if c.workforce_target == "improve" else None
                 nll = self.values_loss(out[k], x["workforce_mask"], batch, valid, temperature)
             else:
-                logp, _, _ = log_prob_entropy({k: out[k]}, x, acts)
+                logp = logps[k] if scale_free else log_prob_entropy({k: out[k]}, x, acts)[0]
                 nll = -(logp * valid).sum() / denom
             loss = loss + getattr(c, f"{k}_weight") * nll
             stats[f"nll_{k}"] = nll.item()
@@ -653,6 +704,9 @@ class Trainer:
                           "collect_steps_per_s": per_iter / collect_s, "env_steps_per_s": sps,
                           "invalid_labels": sum(coll["invalid_labels"]), "label_hires": sum(coll["label_hires"]),
                           "label_releases": sum(coll["label_releases"])}
+                if "labels_outside_k" in coll:  # the scale-free network: dispatch labels its k candidates miss
+                    stats["labels_outside_k"] = sum(coll["labels_outside_k"])
+                    stats["outside_k_share"] = stats["labels_outside_k"] / max(sum(coll["label_dispatches"]), 1)
                 for k in ("agree_dispatch", "agree_workforce", "oracle_share"):
                     if coll[k]:
                         stats[k] = float(np.mean(coll[k]))
@@ -661,7 +715,7 @@ class Trainer:
                                             "nll_positioning", "grad_norm"))
                 out.scalars("charts", stats, ("beta", "dataset_steps", "collect_steps_per_s", "env_steps_per_s",
                                               "invalid_labels", "agree_dispatch", "agree_workforce", "oracle_share",
-                                              "label_hires", "label_releases"))
+                                              "label_hires", "label_releases", "labels_outside_k", "outside_k_share"))
                 record = {"update": self.iteration, "global_step": self.run.global_step, "beta": beta,
                           "loss": stats["loss"], "episodes": episodes}
                 if c.eval_every and self.iteration % c.eval_every == 0:
