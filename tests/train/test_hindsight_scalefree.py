@@ -6,7 +6,8 @@
 - the scale-free dispatch chooses among the k nearest eligible people: a label naming
   someone else is left out of the imitation loss (a row whose labels are all outside adds
   nothing) and counted in the run's statistics, as many as the stored features show;
-- a heads-only run moves the scale-free heads it trains and nothing else;
+- a heads-only run moves the scale-free heads it trains and nothing else; across worlds
+  the stored observations are version 2's (the context too), padded to the largest world;
 - the command line trains it, and ``wfbench train --algo hindsight`` without ``--model`` trains it too.
 """
 
@@ -103,6 +104,19 @@ def test_a_heads_only_run_moves_only_the_scalefree_heads_it_trains(tmp_path):
     assert moved == set(SCALEFREE_HEAD_MODULES["workforce"]), moved
     names = {n.split(".")[0] for n, _ in tr.model.named_parameters()}
     assert {m for ms in SCALEFREE_HEAD_MODULES.values() for m in ms} <= names
+
+
+def test_across_worlds_it_stores_the_version_2_observation_padded(tmp_path):
+    tr = Trainer(_cfg(tmp_path, scenario="paper-64", scenarios="small,table2-g32-f25-s10", steps=432, iter_steps=16,
+                      grad_steps=1, batch_seqs=2), progress=False, log=False)
+    stats = tr.train()
+    assert all(np.isfinite(v) for v in stats.values()), stats
+    assert tr.world.name == "table2-g32-f25-s10-v1", "after small's 200 steps, the next world"
+    data = tr.data.data
+    assert data["context"].shape[2] == scalefree.N_CONTEXT and data["facilities"].shape[2] == 50
+    small = data["facility_mask"][:2]  # the first chunk is small's: 8 slots, padded to 50
+    assert small[..., :8].any() and not small[..., 8:].any()
+    assert set(data["dispatch"][:2, :, 8:].unique().tolist()) == {50}, "a padded facility's label is the no-op"
 
 
 def test_the_command_line_trains_it_and_by_default(tmp_path):
