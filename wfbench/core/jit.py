@@ -309,7 +309,13 @@ class DigestLocator(caching._CacheLocator):
 
 # -- the line on a cold start ----------------------------------------------------------------------
 class _ColdCompileNotice(event.Listener):
-    """Prints one line before the first compilation of one of our functions; records how long it took."""
+    """Prints one line before the first compilation of one of our functions; records how long it took.
+
+    A subclass says something else in that line through :meth:`first_line`, and records
+    nothing when ``records_times`` is False (the sandbox's child, whose cache dies with it).
+    """
+
+    records_times = True  # keep this machine's compile time beside the cache (TIMES_FILE)
 
     def __init__(self):
         self.first: str | None = None  # qualified name of the first function of ours compiled
@@ -339,11 +345,14 @@ class _ColdCompileNotice(event.Listener):
             self.first = ours[0]
             cache = getattr(ev.data["dispatcher"], "_cache", None)
             path = getattr(cache, "cache_path", None)
-            self.times_path = Path(path) / TIMES_FILE if path else None
+            self.times_path = Path(path) / TIMES_FILE if path and self.records_times else None
             self.factor = load_factor()
-            where = f" ({path})" if path else ""
-            print(f"wfbench: compiling the simulator core once, {self._estimate()}; cached afterwards{where}",
-                  file=sys.stderr, flush=True)
+            print(self.first_line(path), file=sys.stderr, flush=True)
+
+    def first_line(self, path: str | None) -> str:
+        """The line printed before the first compilation (``path``: numba's cache folder of it, if any)."""
+        where = f" ({path})" if path else ""
+        return f"wfbench: compiling the simulator core once, {self._estimate()}; cached afterwards{where}"
 
     def _estimate(self) -> str:
         """``~N s (how N was found)``: the idle time here (else on the development VM) times the load factor."""

@@ -36,7 +36,6 @@ import os
 import resource
 import stat
 import sys
-import time
 import traceback
 from collections import deque
 from typing import Any
@@ -86,23 +85,12 @@ class SandboxCompileNotice(jit._ColdCompileNotice):
     evaluator's own cache (which it copies from) holds the kernel.
     """
 
-    def on_start(self, ev):
-        ours = self._ours(ev)
-        if ours is None:
-            return
-        self.depth += 1
-        if self.depth > 1:
-            return
-        self.started = time.perf_counter()
-        if self.first is None:
-            self.first = ours[0]
-            self.factor = jit.load_factor()
-            print(f"wfbench: compiling {ours[0]} inside the sandbox, {self._estimate()}; the compiled code is thrown "
-                  "away with the sandbox (its cache lives in the sandbox's /tmp), so every sandbox of this policy "
-                  "compiles it again unless the evaluator's own cache holds it", file=sys.stderr, flush=True)
+    records_times = False  # nothing to record: the sandbox's files die with it
 
-    def _record(self) -> None:  # nothing to record: the sandbox's files die with it
-        return
+    def first_line(self, path: str | None) -> str:
+        return (f"wfbench: compiling {self.first} inside the sandbox, {self._estimate()}; the compiled code is thrown "
+                "away with the sandbox (its cache lives in the sandbox's /tmp), so every sandbox of this policy "
+                "compiles it again unless the evaluator's own cache holds it")
 
 
 def install_notice() -> None:
