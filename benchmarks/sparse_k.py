@@ -35,6 +35,7 @@ from wfbench.solvers.facility_location import greedy_open, local_search, p_media
 from wfbench.solvers.lap import knn_manhattan, lap_min, lap_sparse
 
 from wfbench import Simulator
+from wfbench.core.observe import FAC_DOWNTIME, FAC_X, FAC_Y, PER_X, PER_Y
 from wfbench.harness.budget import machine, machine_line
 
 
@@ -43,8 +44,8 @@ def dispatch_instance(O, hp):
     if reqs.size == 0 or people.size == 0:
         return None
     C = K.assignment_costs(0, O, hp, reqs, people)
-    xy_r = O.facilities[0][reqs][:, [K.FAC_X, K.FAC_Y]]
-    xy_p = O.personnel[0][people][:, [K.PER_X, K.PER_Y]]
+    xy_r = O.facilities[0][reqs][:, [FAC_X, FAC_Y]]
+    xy_p = O.personnel[0][people][:, [PER_X, PER_Y]]
     return C, xy_r, xy_p
 
 
@@ -74,9 +75,9 @@ def pmedian_instance(O, hp):
     sites = np.flatnonzero(O.facility_mask[0] == 1)
     if sites.size < 2:
         return None
-    down = O.facilities[0][sites][:, K.FAC_DOWNTIME]
+    down = O.facilities[0][sites][:, FAC_DOWNTIME]
     w = hp[K.HP_FLOOR] + ((1.0 - hp[K.HP_REQW]) * down / down.max() if down.max() > 0 else 0.0)
-    xy = O.facilities[0][sites][:, [K.FAC_X, K.FAC_Y]]
+    xy = O.facilities[0][sites][:, [FAC_X, FAC_Y]]
     h = int(((O.personnel_mask[0] == 1) & (O.under_notice[0] == 0)).sum())
     return xy, np.asarray(w, dtype=np.float64) * np.ones(sites.size), min(h + 1, sites.size)
 

@@ -60,7 +60,7 @@ GROUPS = {
 }
 
 D, O, K = (("wfbench/core/dynamics.py", "wfbench/core/placement.py"), ("wfbench/core/observe.py",),
-           ("policies/kernels.py",))
+           ("policies/kernels/dispatch.py", "policies/kernels/workforce.py", "policies/kernels/positioning.py"))
 
 
 @dataclass(frozen=True)

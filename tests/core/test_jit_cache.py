@@ -98,8 +98,8 @@ def test_the_digest_covers_every_numba_module_and_what_it_imports():
     numba_modules = [p for p in sources() if uses_numba(p)]
     names = {module_name(p) for p in numba_modules}
     # the modules with compiled code at the time of writing, and wherever they moved
-    assert {"wfbench.core.dynamics", "wfbench.core.observe", "wfbench.core.rng", "wfbench.policies.kernels",
-            "wfbench.policies.rollout", "wfbench.solvers.lap"} <= names
+    assert {"wfbench.core.dynamics", "wfbench.core.observe", "wfbench.core.rng", "wfbench.policies.kernels.act",
+            "wfbench.policies.kernels.dispatch", "wfbench.policies.rollout", "wfbench.solvers.lap"} <= names
     for path in numba_modules:
         expected = ast_closure(path.resolve())
         assert {Path(p) for p in jit.dependencies(path)} == expected, path
@@ -110,7 +110,8 @@ def test_the_digest_covers_every_numba_module_and_what_it_imports():
             assert jit.is_ours(path), path
     rollout = {p.relative_to(ROOT).as_posix() for p in map(Path, jit.dependencies(ROOT / "policies/rollout.py"))}
     assert {"wfbench/core/dynamics.py", "wfbench/core/observe.py", "wfbench/core/state.py", "wfbench/core/rng.py",
-            "policies/kernels.py", "solvers/lap.py"} <= rollout
+            "policies/kernels/act.py", "policies/kernels/dispatch.py", "policies/kernels/workforce.py",
+            "policies/kernels/positioning.py", "policies/kernels/common.py", "solvers/lap.py"} <= rollout
 
 
 def test_every_cached_function_of_ours_uses_the_digest_locator():

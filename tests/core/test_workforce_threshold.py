@@ -42,7 +42,7 @@ def test_threshold__lets_go_below_045_and_hires_above_08(pur, kind):
     a = decide(pur)
     got = "hire" if a in HIRES else "let-go" if a in LET_GOS else "nothing" if a == 0 else f"code {a}"
     assert got == kind, (f"utilization {pur}: the threshold heuristic did {got!r}, expected {kind!r} "
-                         "(let go below 0.45, hire above 0.8; HP_DEFAULTS in policies/kernels.py)")
+                         "(let go below 0.45, hire above 0.8; HP_DEFAULTS in policies/kernels/common.py)")
 
 
 @pytest.mark.parametrize("pur", [0.1, 0.95])

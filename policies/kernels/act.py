@@ -1,0 +1,104 @@
+"""All three decisions of one environment by their rule codes: what ``Policy.act`` and the rollouts call.
+
+Part of :mod:`wfbench.policies.kernels`; the branch of :func:`act_env` for a rule is
+where a new rule's code meets its kernel (``docs/design.md``, "Adding things").
+"""
+
+from __future__ import annotations
+
+from numba import njit
+from wfbench.policies.kernels.common import (
+    D_ASSIGN,
+    D_ASSIGN_SPARSE,
+    D_INVERSE,
+    D_NEAREST,
+    D_RANDOM,
+    HP_EPS,
+    HP_NOISE,
+    P_FACILITY,
+    P_FACILITY_SPARSE,
+    P_GAUSSIAN,
+    P_RANDOM,
+    P_SPATIAL,
+    W_EPSILON,
+    W_RANDOM,
+    W_STAFFING,
+    W_THRESHOLD,
+)
+from wfbench.policies.kernels.dispatch import (
+    dispatch_assignment,
+    dispatch_assignment_sparse,
+    dispatch_inverse_distance,
+    dispatch_nearest,
+    dispatch_random,
+)
+from wfbench.policies.kernels.positioning import (
+    observe_history,
+    positioning_facility,
+    positioning_facility_sparse,
+    positioning_random,
+    positioning_spatial,
+)
+from wfbench.policies.kernels.workforce import workforce_random, workforce_staffing, workforce_threshold
+
+
+@njit(cache=True, inline="always")
+def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
+    """Fill the three decisions of environment b for the given codes (``hp`` has a row per decision).
+
+    ``lazy`` (the compiled rollout, where all three decisions are built in) skips the
+    spatial positioning weights on steps whose workforce action is the no-op: the step
+    does not read them then, and the demand history they come from is still updated, so
+    the episode is the same. ``Policy.act`` always fills them (another agent may hire).
+
+    Callers compile this without numba's runtime (see ``wfbench.core.dynamics.step_env``): the
+    heuristic and random kernels work in the scratch arrays of the policy state, and the
+    solver kernels, which allocate, are compiled with ``_nrt=True`` set explicitly.
+    """
+    dc = codes[0]
+    if dc == D_NEAREST:
+        dispatch_nearest(b, O, dispatch[b], S.req_buf[b], S.per_buf[b])
+    elif dc == D_INVERSE:
+        dispatch_inverse_distance(b, O, dispatch[b], S.keys[b, 0], t, S.used_buf[b], S.w_buf[b])
+    elif dc == D_RANDOM:
+        dispatch_random(b, O, dispatch[b], S.keys[b, 0], t, S.used_buf[b])
+    elif dc == D_ASSIGN:
+        dispatch_assignment(b, O, dispatch[b], hp[0])
+    elif dc == D_ASSIGN_SPARSE:
+        dispatch_assignment_sparse(b, O, dispatch[b], hp[0])
+    else:
+        dispatch[b, :] = O.personnel.shape[1]
+    wc = codes[1]
+    hw = hp[1]
+    if wc == W_THRESHOLD:
+        workforce[b] = workforce_threshold(b, O, S, hw, S.keys[b, 1], t, 0.0)
+    elif wc == W_EPSILON:
+        workforce[b] = workforce_threshold(b, O, S, hw, S.keys[b, 1], t, hw[HP_EPS])
+    elif wc == W_RANDOM:
+        workforce[b] = workforce_random(b, O, S.keys[b, 1], t)
+    elif wc == W_STAFFING:
+        workforce[b] = workforce_staffing(b, O, S, hw, S.keys[b, 1], t)
+    else:
+        workforce[b] = 0
+    pc = codes[2]
+    hpp = hp[2]
+    if pc == P_SPATIAL or pc == P_GAUSSIAN:
+        if lazy and workforce[b] == 0:
+            observe_history(b, O, S, hpp)
+        else:
+            noise = hpp[HP_NOISE] if pc == P_GAUSSIAN else 0.0
+            positioning_spatial(b, O, S, hpp, positioning[b], S.keys[b, 2], t, noise)
+    elif pc == P_RANDOM:
+        positioning_random(b, O, positioning[b], S.keys[b, 2], t)
+    elif pc == P_FACILITY:
+        positioning_facility(b, O, S, hpp, positioning[b], t)
+    elif pc == P_FACILITY_SPARSE:
+        positioning_facility_sparse(b, O, S, hpp, positioning[b], t)
+    else:
+        positioning[b, :, :] = 0.0
+
+
+@njit(cache=True, _nrt=False)  # see act_env
+def act_batch(O, S, codes, hp, dispatch, workforce, positioning, t):
+    for b in range(O.facilities.shape[0]):
+        act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t[b], False)
