@@ -27,7 +27,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from wfbench.train.toolkit import score_worlds  # noqa: E402
+from wfbench.train.scoring import score_worlds  # noqa: E402
 from wfbench.train.worlds import world_set  # noqa: E402
 
 

@@ -5,7 +5,7 @@
 
 Each run's ``best.pt`` (chosen by its own trainer on its selection seeds) is scored on
 public seeds it was not selected on (``--seeds``, default 1010-1019), on every world it
-was trained on, in the suite's normalized score (:func:`wfbench.train.toolkit.score_worlds`).
+was trained on, in the suite's normalized score (:func:`wfbench.train.scoring.score_worlds`).
 The shipped pick is the seed with the median score (:func:`wfbench.analysis.aggregate.median_seed`,
 the rule fixed before any test seed was run; docs/suite.md, "Learned methods over training
 seeds"). Writes each run's file under its name in ``wfbench.policies.registry.SEED_RUNS``
@@ -28,7 +28,7 @@ from wfbench.policies.registry import LEARNED, SEED_RUNS, member_spec, parse_mem
 from wfbench import policies
 from wfbench.analysis.aggregate import median_seed
 from wfbench.core.seeds import SEED_SETS, resolve_seeds
-from wfbench.train.toolkit import score_worlds
+from wfbench.train.scoring import score_worlds
 from wfbench.train.worlds import world_set
 
 OUT = Path(__file__).resolve().parent.parent / "policies" / "neural" / "checkpoints"

@@ -20,8 +20,8 @@ import pytest
 import torch
 from wfbench.policies.neural import scalefree
 
-from wfbench.train import toolkit
 from wfbench.train.ppo import TrainConfig, Trainer
+from wfbench.train.precision import amp_dtype, autocast
 
 
 def _trainer(tmp_path, model: str, amp) -> Trainer:
@@ -60,7 +60,7 @@ def test_amp__one_ppo_update_under_cpu_autocast_has_finite_losses_near_float32(t
     # the heads stay float32 under autocast
     x = scalefree.features(tr.model, {k: v[:1] for k, v in roll["raw"].items()})
     x = {k: v.flatten(0, 1) for k, v in x.items()}
-    with torch.no_grad(), toolkit.autocast(tr.run.device, dtype):
+    with torch.no_grad(), autocast(tr.run.device, dtype):
         out, _ = tr.net(x, tuple(s for s in roll["init_state"]), roll["starts"][:1])
     assert out["value"].dtype == torch.float32 and out["dispatch"].dtype == torch.float32
     assert out["workforce"].dtype == torch.float32
@@ -95,12 +95,12 @@ def test_amp__the_lstm_runs_in_float32_outside_autocast(tmp_path, model):
 
 def test_amp__float32_on_cpu_bf16_on_cuda_by_default():
     cpu, cuda = torch.device("cpu"), torch.device("cuda")
-    assert toolkit.amp_dtype(cpu, True) is None
-    assert toolkit.amp_dtype(cuda, True) is torch.bfloat16
-    assert toolkit.amp_dtype(cuda, False) is None
-    assert toolkit.amp_dtype(cpu, False, "float16") is torch.float16
-    assert toolkit.amp_dtype(cuda, True, None) is None
+    assert amp_dtype(cpu, True) is None
+    assert amp_dtype(cuda, True) is torch.bfloat16
+    assert amp_dtype(cuda, False) is None
+    assert amp_dtype(cpu, False, "float16") is torch.float16
+    assert amp_dtype(cuda, True, None) is None
     with pytest.raises(ValueError, match="allowed: auto, bfloat16, float16"):
-        toolkit.amp_dtype(cpu, True, "float8")
-    assert not toolkit.autocast(cpu, None)._enabled  # the float32 path: no autocast at all
-    assert toolkit.autocast(cpu, torch.bfloat16)._enabled
+        amp_dtype(cpu, True, "float8")
+    assert not autocast(cpu, None)._enabled  # the float32 path: no autocast at all
+    assert autocast(cpu, torch.bfloat16)._enabled

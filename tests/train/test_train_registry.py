@@ -8,12 +8,12 @@ from wfbench.policies.neural import ALIAS, CHECKPOINT_ALGORITHMS
 from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED
 
 from wfbench import policies
+from wfbench.train.config import BaseConfig
 from wfbench.train.impala import ImpalaConfig
 from wfbench.train.impala import Trainer as ImpalaTrainer
 from wfbench.train.ppo import TrainConfig
 from wfbench.train.ppo import Trainer as PPOTrainer
 from wfbench.train.registry import ALGORITHMS, DEFAULT_ALGORITHM, get_algorithm
-from wfbench.train.toolkit import BaseConfig
 
 
 def test_registry__names_configs_and_trainers_agree_with_the_checkpoint_prefixes():

@@ -3,7 +3,7 @@
 ``"nsw"`` is the step's ``NSW_t`` (:mod:`wfbench.core.kpis`), the number an episode's score
 averages, and what every agent of the PettingZoo environment gets; ``"nsw-no-cost"`` is the
 paper's dispatch-only reward, ``sqrt(u_utilization * u_downtime)`` (a dispatcher cannot change
-the headcount). A trainer's shaping sits on top (:mod:`wfbench.train.toolkit`;
+the headcount). A trainer's shaping sits on top (:mod:`wfbench.train.collection`;
 ``docs/design.md``, "Metrics, utilities and NSW").
 """
 

@@ -7,13 +7,13 @@ those of the PPO trainer (:mod:`wfbench.train.ppo`, ``docs/rl.md``); what differ
 acts with which parameters, and how the learner corrects for it. The network is the
 paper's (a preset of :mod:`wfbench.policies.neural.model`, observation version 1) or the
 scale-free one (``model="scalefree"``, :mod:`wfbench.policies.neural.scalefree`, version 2):
-:func:`wfbench.train.toolkit.build_model` picks the class, and the features and log-probabilities go through
+:func:`wfbench.train.config.build_model` picks the class, and the features and log-probabilities go through
 ``scalefree``'s helpers, which tell the two apart (for a preset the same computation as
 before the scale-free network existed)::
 
     actor:   its own copy of the network, refreshed from the learner every K updates
              T steps of the B environments of a Simulator (staggered episodes, partial reset;
-             the toolkit's Collector, as PPO's rollout)
+             the Collector, as PPO's rollout)
              -> a rollout: T + 1 observations, the actions, the behaviour log-probabilities mu,
                 the shaped rewards, the episode ends, the LSTM state at the start, the
                 version (the learner update whose parameters acted)
@@ -51,7 +51,7 @@ V-trace (section 4.1 of the paper), per environment, for t = T-1 down to 0, with
 On-policy (pi = mu) with rho_bar, c_bar >= 1 and lambda = 1, v_t is the n-step return
 bootstrapped from V(x_T), i.e. GAE(lambda = 1)'s return (``tests/train/test_impala.py`` checks it).
 
-Checkpoints have the keys every trainer's have (:func:`wfbench.train.toolkit.run_checkpoint`,
+Checkpoints have the keys every trainer's have (:func:`wfbench.train.checkpoints.run_checkpoint`,
 ``algo: impala``), so ``impala:RUN/best.pt`` loads one as a policy (``ppo:RUN/best.pt``, the
 alias, too). ``best.pt`` is chosen on the **public** seeds (``eval_seeds``, a part of
 1000-1049), never on the test seeds.
@@ -76,7 +76,13 @@ from torch import nn
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.backends import require_ray
 from wfbench.policies.neural import scalefree
-from wfbench.train import toolkit
+from wfbench.train.checkpoints import init_weights, load_run, run_checkpoint, save_run
+from wfbench.train.collection import Collector
+from wfbench.train.config import ActorCriticConfig, build_model, check_ints, check_numbers
+from wfbench.train.outputs import RunOutputs
+from wfbench.train.precision import autocast
+from wfbench.train.record import start_run, write_run_config
+from wfbench.train.scoring import deployable, score_public
 
 MODES = ("async", "sync")
 OPTIMIZERS = ("adam", "rmsprop")
@@ -86,8 +92,8 @@ RAY_ADDRESS = re.compile(r"local|auto|(ray://)?[^\s/]+:\d+")
 
 
 @dataclass
-class ImpalaConfig(toolkit.ActorCriticConfig):
-    """Every setting of an IMPALA run (the shared ones in :class:`wfbench.train.toolkit.ActorCriticConfig`)."""
+class ImpalaConfig(ActorCriticConfig):
+    """Every setting of an IMPALA run (the shared ones in :class:`wfbench.train.config.ActorCriticConfig`)."""
 
     variant: str = "joint"  # joint only (the paper trains joint IMPALA)
     model: str = "cpu"  # wfbench.policies.neural.model.PRESETS, or "scalefree" (the scale-free network)
@@ -112,9 +118,9 @@ class ImpalaConfig(toolkit.ActorCriticConfig):
             raise ValueError(f"mode {self.mode!r} is not allowed; allowed: {', '.join(MODES)}")
         if self.optimizer not in OPTIMIZERS:
             raise ValueError(f"optimizer {self.optimizer!r} is not allowed; allowed: {', '.join(OPTIMIZERS)}")
-        toolkit.check_ints(self, ("queue_size", "sync_every", "ray_actors"))
-        toolkit.check_numbers(self, ("vtrace_lambda", "rms_alpha"), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
-        toolkit.check_numbers(self, ("rho_bar", "c_bar", "eps"), lambda v: v > 0.0, "a number > 0")
+        check_ints(self, ("queue_size", "sync_every", "ray_actors"))
+        check_numbers(self, ("vtrace_lambda", "rms_alpha"), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
+        check_numbers(self, ("rho_bar", "c_bar", "eps"), lambda v: v > 0.0, "a number > 0")
         if self.c_bar > self.rho_bar:
             raise ValueError(f"c_bar = {self.c_bar} > rho_bar = {self.rho_bar} is not allowed; allowed: "
                              "c_bar <= rho_bar (the paper's assumption)")
@@ -197,7 +203,7 @@ class Actor:
 
     ``index`` of ``count``: the thread path has one actor (0 of 1); the Ray path ``ray_actors``,
     each on its own share of the training seeds and with its own random generator
-    (:class:`wfbench.train.toolkit.Collector`, which holds the simulator, the seeds and the
+    (:class:`wfbench.train.collection.Collector`, which holds the simulator, the seeds and the
     return normalizer).
     """
 
@@ -209,7 +215,7 @@ class Actor:
             p.requires_grad_(False)
         self.version = -1  # the learner update whose parameters this copy holds
         # with stagger False the B episodes end together and are reset in place (never a fresh batch)
-        self.env = toolkit.Collector(cfg, scenario, device, staggered=cfg.stagger, index=index, count=count, amp=amp)
+        self.env = Collector(cfg, scenario, device, staggered=cfg.stagger, index=index, count=count, amp=amp)
 
     @property
     def seed_cursor(self) -> int:
@@ -251,7 +257,7 @@ class RemoteActor:
 
     def __init__(self, cfg: ImpalaConfig, index: int, meta: dict | None, scenario: ScenarioConfig):
         torch.set_num_threads(cfg.threads)
-        model = toolkit.build_model(cfg.network_config())
+        model = build_model(cfg.network_config())
         self.actor = Actor(cfg, scenario, model, torch.device("cpu"), index, cfg.ray_actors)
         if meta is not None:  # resume: this actor's return normalizer, generator and seed cursor
             self.actor.restore(meta)
@@ -284,9 +290,9 @@ class Trainer:
 
     def __init__(self, config: ImpalaConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True, amp: str | torch.dtype | None = "auto"):
-        self.run = toolkit.start_run(config, progress, log, amp)
+        self.run = start_run(config, progress, log, amp)
         c = config
-        self.model = toolkit.build_model(self.run.network).to(self.run.device)
+        self.model = build_model(self.run.network).to(self.run.device)
         if c.optimizer == "adam":
             self.opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, eps=c.eps)
         else:
@@ -295,7 +301,7 @@ class Trainer:
         self.lags: list[int] = []  # the policy lag of every update, in order
         self.timing = {"update": 0.0, "wait": 0.0}
         if c.init and resume is None:
-            toolkit.init_weights(self)
+            init_weights(self)
         # the thread path's actor, here; the Ray path's live in Ray workers (started by train())
         self.actor = None if c.address else Actor(c, self.run.scenario, self.model, self.run.device, amp=self.run.amp)
         self.n_actors = c.ray_actors if c.address else 1
@@ -330,7 +336,7 @@ class Trainer:
         T, B = roll["logp"].shape
         raw = {k: v.flatten(0, 1) for k, v in roll["raw"].items()}  # (T + 1) * B rows, time major
         x = scalefree.features(self.model, raw)
-        with toolkit.autocast(self.run.device, self.run.amp):
+        with autocast(self.run.device, self.run.amp):
             out, _ = self.model(x, roll["init_state"], roll["starts"])
         values = out["value"].float().view(T + 1, B)
         n = T * B  # the last step's rows only give the bootstrap value
@@ -364,25 +370,25 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return toolkit.deployable(self.model, self.run.config.variant, mode, name=f"impala-{self.run.config.variant}")
+        return deployable(self.model, self.run.config.variant, mode, name=f"impala-{self.run.config.variant}")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
-        return toolkit.score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
+        return score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
 
     def checkpoint(self) -> dict:
         """The shared checkpoint keys (``algo: impala``; ``impala:PATH`` loads it), the actors' counts summed."""
         metas = [m for m in self.actor_metas if m is not None]
         # episodes run and training seeds taken, all actors together
-        return toolkit.run_checkpoint(self, "impala", self.update, episode=sum(m["episode"] for m in metas),
+        return run_checkpoint(self, "impala", self.update, episode=sum(m["episode"] for m in metas),
                                       seed_cursor=sum(m["seed_cursor"] for m in metas))
 
     def save(self, path: Path, full: bool = True) -> Path:
         # each actor's return normalizer, generator and seed cursor
-        return toolkit.save_run(self, path, full, actors=list(self.actor_metas), lags=list(self.lags))
+        return save_run(self, path, full, actors=list(self.actor_metas), lags=list(self.lags))
 
     def _load(self, path) -> None:
-        ckpt = toolkit.load_run(self, path, "impala")
+        ckpt = load_run(self, path, "impala")
         self.update, self.lags = ckpt["update"], list(ckpt.get("lags", []))
         metas = ckpt.get("actors") or [{k: ckpt[k] for k in ("seed_cursor", "episode", "ret_std", "generator")}]
         if len(metas) != self.n_actors:  # each actor's seeds are every n-th of the window: n cannot change
@@ -474,11 +480,11 @@ class Trainer:
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        toolkit.write_run_config(self.run, self.model, algo="impala")
+        write_run_config(self.run, self.model, algo="impala")
         how = f"ray x{c.ray_actors}" if c.address else c.mode
         stats: dict = {}
         start, start_step = time.perf_counter(), self.run.global_step
-        with toolkit.RunOutputs(self, "update", f"impala {how} {self.run.scenario.name}", stop * per_update,
+        with RunOutputs(self, "update", f"impala {how} {self.run.scenario.name}", stop * per_update,
                                 self.update * per_update, cleanup=self._stop_actors) as out:
             if c.mode == "async" and not c.address and stop > self.update:
                 self._start_actor(stop - self.update)

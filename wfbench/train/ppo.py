@@ -10,7 +10,7 @@ The loop, per update::
              T of their steps, so the LSTM is rerun from the state it had at the rollout's start);
              clipped policy objective, clipped value loss, entropy bonus, global gradient clipping
 
-The rollout is the toolkit's (:class:`wfbench.train.toolkit.Collector`, shared with
+The rollout is the collector's (:class:`wfbench.train.collection.Collector`, shared with
 IMPALA's actor). Episodes (``stagger``, the default for ``joint``) are staggered by partial reset: the
 first episode of environment b is cut after (b + 1) / B of the horizon, and from then on
 every environment that reaches the horizon is reset alone onto the next seed of the
@@ -74,7 +74,14 @@ import torch
 from wfbench import policies
 from wfbench.policies.neural import scalefree
 from wfbench.policies.neural.model import agent_set_config
-from wfbench.train import memory, toolkit
+from wfbench.train import memory
+from wfbench.train.checkpoints import init_weights, load_run, run_checkpoint, save_run
+from wfbench.train.collection import Collector
+from wfbench.train.config import ActorCriticConfig, build_model, check_ints, check_numbers, network_config
+from wfbench.train.outputs import RunOutputs
+from wfbench.train.precision import autocast
+from wfbench.train.record import start_run, write_run_config
+from wfbench.train.scoring import deployable, score_public
 
 AGENTS = ("joint", "independent")
 VARIANTS = {
@@ -85,8 +92,8 @@ REWARDS = {"joint": "nsw", "dispatch": "nsw-no-cost"}  # the variant's reward (w
 
 
 @dataclass
-class TrainConfig(toolkit.ActorCriticConfig):
-    """Every setting of a PPO run (the shared ones in :class:`wfbench.train.toolkit.ActorCriticConfig`)."""
+class TrainConfig(ActorCriticConfig):
+    """Every setting of a PPO run (the shared ones in :class:`wfbench.train.config.ActorCriticConfig`)."""
 
     agents: str = "joint"  # AGENTS: one network for all decisions, or one per decision (independent)
     epochs: int = 2
@@ -106,9 +113,9 @@ class TrainConfig(toolkit.ActorCriticConfig):
         if self.agents == "independent" and self.variant != "joint":
             raise ValueError(f"agents 'independent' needs variant 'joint' (variant {self.variant!r} has one "
                              "decision, so one agent)")
-        toolkit.check_ints(self, ("epochs", "minibatches"))
-        toolkit.check_ints(self, ("value_warmup",), least=0)
-        toolkit.check_numbers(self, ("gae_lambda",), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
+        check_ints(self, ("epochs", "minibatches"))
+        check_ints(self, ("value_warmup",), least=0)
+        check_numbers(self, ("gae_lambda",), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
         if self.num_envs % self.minibatches:
             raise ValueError(f"num_envs = {self.num_envs} must be a multiple of minibatches = {self.minibatches}")
 
@@ -119,7 +126,7 @@ class TrainConfig(toolkit.ActorCriticConfig):
                 raise ValueError("agents 'independent' with model 'scalefree' is not allowed; allowed: agents joint "
                                  "(the scale-free network decides the three decisions together)")
             return agent_set_config(self.model, VARIANTS[self.variant], **self.model_overrides)
-        return toolkit.network_config(self.model, VARIANTS[self.variant], self.model_overrides)
+        return network_config(self.model, VARIANTS[self.variant], self.model_overrides)
 
 
 class Trainer:
@@ -127,11 +134,11 @@ class Trainer:
 
     def __init__(self, config: TrainConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True, amp: str | torch.dtype | None = "auto", update_envs: int | str | None = "auto"):
-        self.run = run = toolkit.start_run(config, progress, log, amp)
+        self.run = run = start_run(config, progress, log, amp)
         c = config
         self.decisions = VARIANTS[c.variant]
         independent = c.agents == "independent"
-        self.model = toolkit.build_model(run.network, independent).to(run.device)
+        self.model = build_model(run.network, independent).to(run.device)
         # the agents: their heads, and the parameters each one's gradient is clipped over
         if independent:
             self.agents = {d: (d,) for d in self.decisions}
@@ -147,15 +154,15 @@ class Trainer:
         # the heuristic parts of the dispatch variant keep per-environment memory: they reset with the batch
         self.staggered = c.stagger and c.variant == "joint"
         helper = (lambda: policies.Composite("none", "threshold", "spatial")) if c.variant == "dispatch" else None
-        self.env = toolkit.Collector(c, run.scenario, run.device, reward=REWARDS[c.variant], staggered=self.staggered,
+        self.env = Collector(c, run.scenario, run.device, reward=REWARDS[c.variant], staggered=self.staggered,
                                      fresh_batches=True, helper=helper, amp=run.amp)
         self.update = 0
         self.timing = self.env.timing  # simulator, obs_to_tensor, forward (the collector's), update
         self.timing["update"] = 0.0
         if c.init and resume is None:
-            toolkit.init_weights(self)
+            init_weights(self)
         if resume is not None:
-            ckpt = toolkit.load_run(self, resume, "ppo")
+            ckpt = load_run(self, resume, "ppo")
             if "value_optimizer" in ckpt:
                 self.vopt.load_state_dict(ckpt["value_optimizer"])
             self.env.restore(ckpt)
@@ -200,7 +207,7 @@ class Trainer:
                                 self.values, model=self.model)
         self.run.global_step += T * self.sim.B
         t0 = time.perf_counter()
-        with torch.no_grad(), toolkit.autocast(self.run.device, self.run.amp):
+        with torch.no_grad(), autocast(self.run.device, self.run.amp):
             x = scalefree.features(self.model, {k: v[T] for k, v in roll["raw"].items()})
             out, _ = self.net(x, self.env.state, roll["starts"][T][None])
             next_value = self.values(out)
@@ -240,7 +247,7 @@ class Trainer:
                 x = {k: v[:, idx].flatten(0, 1) for k, v in feats.items()}
                 acts = {k: roll[k][:, idx].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
                 state = tuple(s[:, idx] for s in roll["init_state"])
-                with toolkit.autocast(self.run.device, self.run.amp):
+                with autocast(self.run.device, self.run.amp):
                     out, _ = self.net(x, state, roll["starts"][:-1, idx])
                 if scalefree.obs_version(self.model) == 1:  # the heads this network has (the dispatch variant: one)
                     acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
@@ -302,7 +309,7 @@ class Trainer:
             x = {k: v[:, sub].flatten(0, 1) for k, v in feats.items()}
             acts = {k: roll[k][:, sub].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
             state = tuple(s[:, sub] for s in roll["init_state"])
-            with toolkit.autocast(self.run.device, self.run.amp):
+            with autocast(self.run.device, self.run.amp):
                 out, _ = self.net(x, state, roll["starts"][:-1, sub])
             if scalefree.obs_version(self.model) == 1:
                 acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
@@ -341,18 +348,18 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return toolkit.deployable(self.model, self.run.config.variant, mode, name=f"ppo-{self.run.config.variant}")
+        return deployable(self.model, self.run.config.variant, mode, name=f"ppo-{self.run.config.variant}")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
-        return toolkit.score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
+        return score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
 
     def checkpoint(self) -> dict:
-        return toolkit.run_checkpoint(self, "ppo", self.update, episode=self.env.episode,
+        return run_checkpoint(self, "ppo", self.update, episode=self.env.episode,
                                       seed_cursor=self.env.seed_cursor)
 
     def save(self, path: Path, full: bool = True) -> Path:
-        return toolkit.save_run(self, path, full, value_optimizer=self.vopt.state_dict(), **self.env.meta())
+        return save_run(self, path, full, value_optimizer=self.vopt.state_dict(), **self.env.meta())
 
     # -- the loop -----------------------------------------------------------------------------
     def train(self, updates: int | None = None) -> dict:
@@ -361,10 +368,10 @@ class Trainer:
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        toolkit.write_run_config(self.run, self.model)
+        write_run_config(self.run, self.model)
         stats: dict = {}
         start, start_step = time.perf_counter(), self.run.global_step
-        with toolkit.RunOutputs(self, "update", f"ppo {c.variant} {self.run.scenario.name}", stop * per_update,
+        with RunOutputs(self, "update", f"ppo {c.variant} {self.run.scenario.name}", stop * per_update,
                                 self.update * per_update) as out:
             while self.update < stop:
                 roll = self.rollout()

@@ -2,7 +2,7 @@
 
 Importing this module imports no torch: the command line reads :data:`ALGORITHMS` for
 ``--algo`` and its help. A new algorithm is one module under ``wfbench/train/`` with a
-config dataclass (built on :class:`wfbench.train.toolkit.BaseConfig`) and a ``Trainer``
+config dataclass (built on :class:`wfbench.train.config.BaseConfig`) and a ``Trainer``
 class, plus one row here and its name in :data:`wfbench.policies.neural.CHECKPOINT_ALGORITHMS` (the
 policy layer cannot import this one; ``tests/train/test_train_registry.py`` checks the two agree).
 Every checkpoint records its algorithm (``algo``) and loads as the policy ``NAME:PATH``;

@@ -1,11 +1,11 @@
 """A training run from its settings, the same from Python and from ``wfbench train``: :func:`fit`.
 
 :func:`fit` takes an algorithm's name and the settings of its config (the fields of
-:class:`wfbench.train.toolkit.BaseConfig` and the algorithm's own), names the run folder
+:class:`wfbench.train.config.BaseConfig` and the algorithm's own), names the run folder
 when none is given (``runs/ALGO-VARIANT-SCENARIO``), checks a resumed run against its
 checkpoint, trains, and leaves ``best.pt`` in the folder after every run: the weights an
 evaluation on the public seeds chose, or the last weights when none ran
-(:func:`wfbench.train.toolkit.save_unselected_best`). ``wfbench train`` is a shell over it,
+(:func:`wfbench.train.checkpoints.save_unselected_best`). ``wfbench train`` is a shell over it,
 so a run from Python and the same run from the command line write the same files.
 
 This module imports no torch until :func:`fit` runs (``wfbench --help`` stays fast).
@@ -75,7 +75,7 @@ def fit(algo: str | None = None, *, resume: str | Path | None = None, progress: 
         SettingsError: a setting the algorithm does not have or does not allow, or a
             checkpoint that cannot be resumed with these settings; nothing is trained.
     """
-    from wfbench.train.toolkit import save_unselected_best
+    from wfbench.train.checkpoints import save_unselected_best
 
     try:
         config, algorithm = _config(algo, resume, settings)

@@ -17,7 +17,7 @@ training seed of its own world, so every rollout holds every world in the same
 proportion and no world's share of the update depends on the dice. Episodes of worlds
 with different horizons end at different steps; each ends at its own.
 
-The per-world reward normalization is the collector's (:class:`wfbench.train.toolkit.Collector`).
+The per-world reward normalization is the collector's (:class:`wfbench.train.collection.Collector`).
 """
 
 from __future__ import annotations
