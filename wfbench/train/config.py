@@ -80,7 +80,7 @@ class BaseConfig:
         check_ints(self, ("eval_every",), least=0)
         if self.model == scalefree.ARCH and not self.scalefree_ok:
             raise ValueError(f"model 'scalefree' is not trained by {type(self).__module__.rsplit('.', 1)[-1]}; "
-                             "allowed: --algo ppo or impala (or a model preset: tiny, small, paper, cpu)")
+                             "allowed: --algo ppo, impala or hindsight (or a model preset: tiny, small, paper, cpu)")
         self.check()
         if self.scenarios:
             scenario = world_set(self.scenarios)
