@@ -21,7 +21,7 @@ the cache index and discards the index when it differs) is a digest of:
 
 So an edit of any file (a comment included: the digest is of the bytes) recompiles
 exactly the functions whose modules depend on it, on their next call (editing
-``kernels.py`` recompiles the policies and the rollout, not the simulator core). The
+a file of ``policies/kernels/`` recompiles the policies and the rollout, not the simulator core). The
 imports are found by a scan of the module-level ``import`` and ``from ... import``
 lines, cheap enough for every start-up; a test checks that the scan finds what
 Python's ``ast`` finds in every module of the three packages.
