@@ -15,10 +15,11 @@ import html
 import io
 import json
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
-from wfbench.leaderboard.store import KPI_COLUMNS, Store, scrub_paths
+from wfbench.leaderboard.rows import KPI_COLUMNS, scrub_paths
 from wfbench.leaderboard.tracks import Track
 from wfbench.policies import get
 
@@ -99,7 +100,7 @@ def add_budget(rec: dict, sub, mine: pd.DataFrame, max_decision_ms: float | None
         left_out.append(f"{rec['name']}: {rec['over_budget']}")
 
 
-def ranking(store: Store, track: Track, baseline: str = "heuristic", max_decision_ms: float | None = None,
+def ranking(store: Any, track: Track, baseline: str = "heuristic", max_decision_ms: float | None = None,
             max_cpu_s: float | None = None) -> Ranking:
     """Rank the complete submissions of ``track`` by mean NSW over its test seeds.
 
@@ -114,7 +115,7 @@ def ranking(store: Store, track: Track, baseline: str = "heuristic", max_decisio
     difference to ``baseline`` is taken over the seeds both have; incomplete and failed
     submissions are listed after the ranked ones, with their status and reason. No
     absolute path of the submitter's machine reaches the table (policy specs and reasons
-    show a file's name only, :func:`~wfbench.leaderboard.store.scrub_paths`); an entry stored
+    show a file's name only, :func:`~wfbench.leaderboard.rows.scrub_paths`); an entry stored
     without a fingerprint (an older wfbench) has ``fingerprint`` ``"legacy"``.
     """
     rows, refused = store.results(track)

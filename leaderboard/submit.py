@@ -43,7 +43,8 @@ from pathlib import Path
 from typing import Any
 
 from joblib.externals.loky.backend.context import get_context
-from wfbench.leaderboard.store import ROW_COLUMNS, NameTaken, Store, Submission, scrub_paths
+from wfbench.leaderboard.rows import ROW_COLUMNS, Entry, NameTaken, scrub_paths
+from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.tracks import SuiteTrack, Track, get_track
 from wfbench.policies import registry as _registry
 from wfbench.policies import tuned as _tuned
@@ -59,6 +60,7 @@ from wfbench.harness.guard import (
     PolicyLoadError,
     check_act_timeout,
     load_policy,
+    one_line,
 )
 from wfbench.harness.runner import results_frame
 
@@ -73,7 +75,7 @@ class SubmitError(Exception):
 
 @dataclass(frozen=True)
 class Outcome:
-    submission: Submission
+    submission: Entry
     status: str  # complete | failed
     reason: str  # one line; empty when complete
     new_rows: int
@@ -207,11 +209,6 @@ def _where(exc: BaseException) -> str:
     return f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
 
 
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
-
-
 def _child(conn, policy_spec: str, configs, backend, workers, address, chunk_size, memory_mb,
            act_timeout_s) -> None:
     """Runs in the child process: load the policy, then stream finished rows to the parent.
@@ -245,7 +242,7 @@ def _child(conn, policy_spec: str, configs, backend, workers, address, chunk_siz
         conn.send(("load_error", exc.message, exc.trace))
         return
     except BaseException as exc:  # noqa: BLE001 - anything the user's import raises is a load error
-        conn.send(("load_error", f"cannot load policy {policy_spec!r}: {_one_line(exc)}{_where(exc)}",
+        conn.send(("load_error", f"cannot load policy {policy_spec!r}: {one_line(exc)}{_where(exc)}",
                    traceback.format_exc()))
         return
     if loaded.guard is not None and getattr(loaded.policy, "reads_trace", False):
@@ -261,13 +258,13 @@ def _child(conn, policy_spec: str, configs, backend, workers, address, chunk_siz
             conn.send(("load_error", str(exc), ""))
             return
         except Exception as exc:  # noqa: BLE001 - the policy's params() raised
-            conn.send(("load_error", f"policy {policy_spec!r}: its params() raised {_one_line(exc)}{_where(exc)}",
+            conn.send(("load_error", f"policy {policy_spec!r}: its params() raised {one_line(exc)}{_where(exc)}",
                        traceback.format_exc()))
             return
     try:
         budget = policy_budget(policy_spec, loaded.policy)
     except (OSError, ValueError) as exc:  # a checkpoint or tuned file that went away since it loaded
-        budget = {"kind": "other", "error": _one_line(exc)}
+        budget = {"kind": "other", "error": one_line(exc)}
     conn.send(("ready", fingerprint, detail, budget))
     msg = conn.recv()
     if msg[0] != "run":
@@ -294,7 +291,7 @@ def _child(conn, policy_spec: str, configs, backend, workers, address, chunk_siz
         conn.send(("error", f"the policy ran out of memory (limit {memory_mb} MiB)", traceback.format_exc()))
     except BaseException as exc:  # noqa: BLE001 - report any failure of the evaluation
         shutdown_pools(kill_workers=True)
-        conn.send(("error", f"{_one_line(exc)}{_where(exc)}", traceback.format_exc()))
+        conn.send(("error", f"{one_line(exc)}{_where(exc)}", traceback.format_exc()))
 
 
 class RemainingTime:
@@ -447,7 +444,7 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
     action = "resumed"
     bar = None
     clock: RemainingTime | None = None
-    sub: Submission | None = None
+    sub: Entry | None = None
     new_rows = 0
     status, reason, trace = "failed", "", ""
     child_ends = False  # the child said done or error and exits by itself
@@ -544,7 +541,7 @@ def _what(tr: Track | SuiteTrack) -> str:
     return "(scenario, seed) episodes" if isinstance(tr, SuiteTrack) else "seeds"
 
 
-def _check_taken(existing: Submission, tr: Track | SuiteTrack, name: str, policy: str, fingerprint: str,
+def _check_taken(existing: Entry, tr: Track | SuiteTrack, name: str, policy: str, fingerprint: str,
                  detail: dict[str, Any] | None) -> None:
     """Raise the one-line SubmitError when ``name`` is taken by another fingerprint or track version."""
     how = ("pass --replace to evaluate this policy under that name (the old entry's rows are kept in the store's "

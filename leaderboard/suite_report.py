@@ -22,12 +22,10 @@ checkpoint) is shown but not ranked beside its method's row, and named as the pi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from wfbench.leaderboard import report
 from wfbench.leaderboard.report import (
     BUDGET_HEADER,
     FORMATS,
@@ -36,14 +34,12 @@ from wfbench.leaderboard.report import (
     add_budget,
     budget_cells,
     budget_note,
-    check_format,
     entry_record,
     page,
     png_data,
     reads_future,
 )
-from wfbench.leaderboard.store import Store
-from wfbench.leaderboard.tracks import SuiteTrack, Track, get_track
+from wfbench.leaderboard.tracks import SuiteTrack
 from wfbench.policies.registry import parse_member, shipped_member
 
 from wfbench.analysis.aggregate import STATISTICS, aggregate_suite, over_seeds, pool_seeds, seed_scores
@@ -69,7 +65,7 @@ def normalized_rows(rows: pd.DataFrame, track: SuiteTrack) -> tuple[pd.DataFrame
     return out, problems
 
 
-def ranking(store: Store, track: SuiteTrack, baseline: str = "heuristic", max_decision_ms: float | None = None,
+def ranking(store: Any, track: SuiteTrack, baseline: str = "heuristic", max_decision_ms: float | None = None,
             max_cpu_s: float | None = None, reps: int = REPS) -> Ranking:
     """Rank the complete entries of a suite track by the IQM of their normalized score over the held-out scenarios.
 
@@ -354,43 +350,3 @@ def render_html(r: Ranking, header: list[str], rows: list[list[str]], ref: list[
     if tr:
         extra.append((SEEDS_TITLE, "seeds", th, tr))
     return page(r, caption(r), header, rows, ref, figures, extra)
-
-
-@dataclass(frozen=True)
-class Board:
-    """What :func:`show` made: the text and the notes beside it."""
-
-    text: str
-    refused: list[str]  # stored rows the ranking could not use, one line each (warnings)
-    left_out: list[str]  # complete entries the budget left unranked, one line each
-
-
-def show(track: str | Track | SuiteTrack, db: Any = None, fmt: str = "table", baseline: str = "heuristic",
-         max_decision_ms: float | None = None, max_cpu_s: float | None = None) -> Board:
-    """A track's board as ``wfbench leaderboard show`` prints it.
-
-    Ranks and renders with :mod:`wfbench.leaderboard.report`, or, for a suite track
-    (:class:`wfbench.leaderboard.tracks.SuiteTrack`), with this module's :func:`ranking` and :func:`render`.
-
-    Args:
-        track: a track name or object.
-        db: the store (a path, a :class:`wfbench.leaderboard.store.Store`, or ``None`` for the default one);
-            never created.
-        fmt: ``table``, ``md``, ``csv`` or ``html`` (:data:`wfbench.leaderboard.report.FORMATS`).
-        baseline: the entry the paired differences are taken to.
-        max_decision_ms: rank only entries whose p99 wall time per decision is at most this.
-        max_cpu_s: rank only entries that used at most this many CPU seconds per episode.
-
-    Returns:
-        The :class:`Board`.
-
-    Raises:
-        ValueError: an unknown track or format.
-        wfbench.leaderboard.store.StoreError: no store at ``db``.
-    """
-    tr = get_track(track) if isinstance(track, str) else track
-    check_format(fmt)
-    store = db if isinstance(db, Store) else Store(db, create=False)  # showing never creates a store
-    rank, draw = (ranking, render) if isinstance(tr, SuiteTrack) else (report.ranking, report.render)
-    r = rank(store, tr, baseline=baseline, max_decision_ms=max_decision_ms, max_cpu_s=max_cpu_s)
-    return Board(draw(r, fmt), list(r.refused), list(r.left_out))

@@ -26,7 +26,7 @@ What the tables hold and why:
 - ``jobs``: the queue, one per submission, with the lease and the fence
   (:mod:`~wfbench.leaderboard.hosted.queue`).
 - ``rows``: one per (submission, scenario, seed index), with the KPIs, counters and
-  budget columns of :mod:`wfbench.leaderboard.store` and the real seed, which no method
+  budget columns of :mod:`wfbench.leaderboard.rows` and the real seed, which no method
   returns for a test-phase submission.
 - ``hidden_seeds``: each track's hidden test seed lists (:mod:`~wfbench.leaderboard.hosted.hidden`).
 - ``secrets``: the board's key secret, from which the opaque per-episode keys handed to
@@ -53,9 +53,8 @@ from typing import Any
 import pandas as pd
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
-from wfbench.leaderboard import store as local_store
 from wfbench.leaderboard.hosted import hidden
-from wfbench.leaderboard.store import BUDGET_ROW_COLUMNS, KPI_COLUMNS, ROW_COLUMNS
+from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, KPI_COLUMNS, ROW_COLUMNS, Entry
 from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, Track
 
 from wfbench import __version__
@@ -952,7 +951,7 @@ class BoardView:
                                     f"{s.hidden_version}, not the current {hidden_version}; refused")
             else:
                 keep.append(s)
-        self._subs = [local_store.Submission(
+        self._subs = [Entry(
             s.id, s.track, names[s.id], s.entry, s.account, track.hash, _STATUS[s.state], s.reason, False,
             s.package_sha.removeprefix("sha256:")[:16], json.dumps({"package": s.package_sha, "entry": s.entry}),
             "") for s in keep]
@@ -979,7 +978,7 @@ class BoardView:
             "scenario": frame["scenario"].to_numpy(),
         }, index=pd.RangeIndex(len(frame)))
 
-    def submissions(self, track: str | None = None) -> list[local_store.Submission]:
+    def submissions(self, track: str | None = None) -> list[Entry]:
         """The entries of this phase (``track``: accepted for Store's signature; the view holds one track)."""
         return list(self._subs)
 

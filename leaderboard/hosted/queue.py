@@ -63,7 +63,7 @@ from wfbench.leaderboard.hosted.db import (
     rows,
     submissions,
 )
-from wfbench.leaderboard.store import KPI_COLUMNS
+from wfbench.leaderboard.rows import KPI_COLUMNS
 
 DEFAULT_LEASE_S = 60.0
 FINAL_STATES = ("done", "failed")

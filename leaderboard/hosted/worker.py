@@ -81,12 +81,12 @@ from wfbench.leaderboard.hosted.queue import (
     release,
     write_rows,
 )
-from wfbench.leaderboard.store import KPI_COLUMNS, ROW_COLUMNS
+from wfbench.leaderboard.rows import KPI_COLUMNS, ROW_COLUMNS
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import BUDGET_COLUMNS, machine, machine_line
 from wfbench.harness.evaluation import summarize
-from wfbench.harness.guard import PolicyError
+from wfbench.harness.guard import PolicyError, one_line
 
 DEFAULT_CHUNK = 5  # seeds per evaluator call and per stored transaction
 JOB_TIME_S = 3600.0  # worker seconds one upload may use, per scenario of its track, over every attempt
@@ -118,7 +118,7 @@ def warm_builtins() -> None:
             if not getattr(policy, "reads_trace", False):
                 warm_cache(policy, ScenarioConfig.preset("small"))
         except Exception as exc:  # noqa: BLE001 - a cold start for that one's sandboxes, not a dead worker
-            print(f"wfbench worker: cannot warm the numba cache for {name!r}: {_one_line(exc)}; its sandboxes "
+            print(f"wfbench worker: cannot warm the numba cache for {name!r}: {one_line(exc)}; its sandboxes "
                   "compile it", file=sys.stderr, flush=True)
 
 
@@ -147,11 +147,6 @@ def check_sandbox() -> None:
     from wfbench.harness.isolation import sandbox
 
     sandbox.check_sandbox()
-
-
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
 def _start_time(pid: int) -> int | None:
@@ -210,7 +205,7 @@ def failure_reason(exc: BaseException) -> str:
     if isinstance(reason, str) and reason:
         return reason
     if isinstance(exc, PolicyError):
-        return exc.message.splitlines()[0] if exc.message else _one_line(exc)
+        return exc.message.splitlines()[0] if exc.message else one_line(exc)
     text = str(exc).strip().splitlines()
     return text[0] if text else type(exc).__name__
 
@@ -309,7 +304,7 @@ class Worker:
             try:
                 state = self.run_one()
             except sa.exc.OperationalError as exc:  # the database went away for a while: its job's lease expires
-                self.say(f"database error: {_one_line(exc.orig or exc)}; trying again in {poll_s:g} s")
+                self.say(f"database error: {one_line(exc.orig or exc)}; trying again in {poll_s:g} s")
                 state = None
             if state == "requeued":  # a fault of this machine's: give it a moment before the next claim
                 handled += 1

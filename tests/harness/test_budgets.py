@@ -5,21 +5,13 @@ from __future__ import annotations
 
 import json
 import math
-import sqlite3
 import time
 
 import numpy as np
 import pytest
 import torch
 from wfbench.leaderboard.report import ranking, render
-from wfbench.leaderboard.store import (
-    _RESULT_COLUMNS_2,
-    _SUBMISSION_COLUMNS_2,
-    APPLICATION_ID,
-    Store,
-    _audit_schema,
-    row_digest,
-)
+from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.submit import submit
 from wfbench.leaderboard.tracks import Track
 from wfbench.policies.solver import DEFAULT_TIME_LIMIT_S, AssignmentDispatch
@@ -153,36 +145,24 @@ def test_ranking_within_a_budget_leaves_out_what_exceeds_it_and_says_why(tmp_pat
     assert "ranked only within the budget of at most 10 ms per decision (p99)" in text
     assert [x.loc["fast", "rank"] for x in [ranking(store, TINY, max_cpu_s=1).table.set_index("name")]] == [2]
     # a measurement edited in the store no longer matches its row's digest
-    store.conn.execute("UPDATE results SET cpu_s = 0.001 WHERE seed = 0 AND submission_id = "
-                       "(SELECT id FROM submissions WHERE name = 'slow-but-good')")
+    with store.engine.begin() as c:
+        c.exec_driver_sql("UPDATE rows SET cpu_s = 0.001 WHERE seed = 0 AND submission_id = "
+                          "(SELECT id FROM submissions WHERE name = 'slow-but-good')")
     assert any("do not match its digest" in m for m in store.results(TINY)[1])
 
 
-def test_a_schema_2_store_is_upgraded_in_place_and_its_rows_stay_valid_without_a_budget(tmp_path):
+def test_rows_stored_before_budgets_stay_valid_and_show_no_measurement(tmp_path):
+    from tests.leaderboard.test_leaderboard import TINY as STORED  # the track the schema-4 store holds
+    from tests.leaderboard.test_schema4_import import write_schema4
+
     path = tmp_path / "old.sqlite"
-    schema_2 = (f"CREATE TABLE submissions (id INTEGER PRIMARY KEY,{_SUBMISSION_COLUMNS_2}, UNIQUE (track, name));"
-                f"CREATE TABLE results (submission_id INTEGER NOT NULL,{_RESULT_COLUMNS_2}, "
-                f"PRIMARY KEY (submission_id, seed));{_audit_schema(_SUBMISSION_COLUMNS_2, _RESULT_COLUMNS_2, 'seed')}"
-                f"PRAGMA application_id = {APPLICATION_ID}; PRAGMA user_version = 2;")
-    old = _rows(0.5, p99=1.0, cpu=1.0)[0]
-    for c in (*BUDGET_COLUMNS, "machine"):
-        del old[c]
-    with sqlite3.connect(path) as c:
-        c.executescript(schema_2)
-        c.execute("INSERT INTO submissions (id, track, name, policy, submitter, track_hash, wfbench_version, "
-                  "created_at, status, fingerprint) VALUES (1, ?, 'old', 'heuristic', 'me', ?, '0', 't', 'complete', "
-                  "'f')", (TINY.name, TINY.hash))
-        c.execute("INSERT INTO results VALUES (1, 0, ?, ?, 'heuristic', 'me', '0', 't', 10.0, 0.5, 0.1, 0.5, 40, 0, ?, "
-                  "'f')", (TINY.name, TINY.hash, row_digest("old", TINY.name, TINY.hash, "heuristic", "me", "0", 0,
-                                                              old, "f")))
+    write_schema4(path)  # its legacy entry 'old' has no budget on its rows and states none
     store = Store(path)
-    columns = {r[1] for r in store.conn.execute("PRAGMA table_info(results)")}
-    assert store.conn.execute("PRAGMA user_version").fetchone()[0] == 4 and set(BUDGET_COLUMNS) < columns
-    assert "budget" in {r[1] for r in store.conn.execute("PRAGMA table_info(audit_submissions)")}
-    rows, refused = store.results(TINY)
-    assert refused == [] and rows["nsw"].tolist() == [0.5] and rows[list(BUDGET_COLUMNS)].isna().all().all()
-    r = ranking(store, TINY)
-    assert r.table.loc[0, "cost"] == "not recorded"
+    rows, _ = store.results(STORED)
+    old = rows[rows["name"] == "old"]
+    assert len(old) == 4 and old[list(BUDGET_COLUMNS)].isna().all().all() and old["machine"].isna().all()
+    r = ranking(store, STORED)
+    assert r.table.set_index("name").loc["old", "cost"] == "not recorded"
     assert "| - | - | - | not recorded |" in render(r, "md"), "no measurement: dashes, not zeros"
     store.close()
 

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from contextlib import closing
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,12 @@ TINY = Track(
     test_seeds=(0, 1, 2, 3),
     description="a small track for the tests",
 )
+
+
+def integrity(path) -> str:
+    """SQLite's own check of a board file."""
+    with closing(sqlite3.connect(path)) as c:
+        return c.execute("PRAGMA integrity_check").fetchone()[0]
 
 
 def _fast(**kw):
@@ -96,7 +103,7 @@ def test_a_misbehaving_policy_fails_alone(db, name, reason):
     assert after[after["name"] == "good"].equals(before[before["name"] == "good"]), "other entries untouched"
     assert store.find(TINY.name, "good").status == good.status == "complete"
     assert store.find(TINY.name, "bad").status == "failed"
-    assert store.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    assert integrity(db) == "ok"
 
 
 def test_unloadable_policy_is_a_user_error_and_stores_nothing(db):
@@ -136,7 +143,7 @@ def test_kill_minus_9_loses_no_finished_seed_and_resume_completes(db, tmp_path):
             if db.exists():
                 try:
                     with sqlite3.connect(db, timeout=5) as c:
-                        n = c.execute("SELECT COUNT(*) FROM results").fetchone()[0]
+                        n = c.execute("SELECT COUNT(*) FROM rows").fetchone()[0]
                 except sqlite3.OperationalError:
                     n = 0
             if n >= 1:
@@ -147,7 +154,7 @@ def test_kill_minus_9_loses_no_finished_seed_and_resume_completes(db, tmp_path):
         os.killpg(proc.pid, signal.SIGKILL)  # parent and child, mid-run
         proc.wait()
     store = Store(db)
-    assert store.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    assert integrity(db) == "ok"
     rows, refused = store.results(TINY)
     kept = len(rows)
     assert refused == [] and kept >= 1
@@ -159,8 +166,8 @@ def test_kill_minus_9_loses_no_finished_seed_and_resume_completes(db, tmp_path):
 def test_rows_that_do_not_match_the_track_are_refused(db):
     submit(TINY, "heuristic", "h", db=db, **_fast())
     with sqlite3.connect(db) as c:
-        c.execute("UPDATE results SET seed = 77 WHERE seed = 1")
-        c.execute("UPDATE results SET nsw = 0.99 WHERE seed = 2")
+        c.execute("UPDATE rows SET seed = 77 WHERE seed = 1")
+        c.execute("UPDATE rows SET nsw = 0.99 WHERE seed = 2")
     rows, refused = Store(db).results(TINY)
     assert sorted(rows["seed"]) == [0, 3]
     assert any("seed 77 is not a test seed" in m for m in refused)
@@ -184,17 +191,25 @@ def test_store_refuses_foreign_and_newer_files(tmp_path):
     newer = tmp_path / "newer.sqlite"
     Store(newer).close()
     with sqlite3.connect(newer) as c:
+        c.execute("UPDATE board_meta SET value = '99' WHERE name = 'schema_version'")
+    with pytest.raises(StoreError, match="written by a newer wfbench \\(board schema 99"):
+        Store(newer)
+    newer_store = tmp_path / "newer-store.sqlite"  # a sqlite3 store of a schema after 4
+    with sqlite3.connect(newer_store) as c:
+        c.execute("CREATE TABLE submissions (id)")
+        c.execute("PRAGMA application_id = 1464222257")  # "WFB1"
         c.execute("PRAGMA user_version = 99")
     with pytest.raises(StoreError, match="written by a newer wfbench \\(store schema 99"):
-        Store(newer)
+        Store(newer_store)
 
 
 def test_full_disk_while_writing_loses_nothing(db):
     submit(TINY, "heuristic", "h", db=db, **_fast())
     store = Store(db)
     sub = store.find(TINY.name, "h")
-    pages = store.conn.execute("PRAGMA page_count").fetchone()[0]
-    store.conn.execute(f"PRAGMA max_page_count = {pages}")  # the "disk" is now full
+    with store.engine.connect() as c:  # the pool hands this connection to the next write
+        pages = c.exec_driver_sql("PRAGMA page_count").scalar()
+        c.exec_driver_sql(f"PRAGMA max_page_count = {pages}")  # the "disk" is now full
     rows = [{"seed": 1000 + i, "workforce_cost": 1.0, "utilization": 0.5, "downtime": 0.1, "nsw": 0.5,
              "episode_length": 60, "invalid_actions": 0, "pad": "x"} for i in range(400)]
     with pytest.raises(StoreError, match="the disk is full"):

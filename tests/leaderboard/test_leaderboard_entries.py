@@ -1,5 +1,5 @@
-"""Leaderboard entries are identified by what they run: fingerprints, --replace, withdraw, the audit tables,
-the upgrade of a schema-1 store, and an honest HTML board (issue #26)."""
+"""Leaderboard entries are identified by what they run: fingerprints, --replace, withdraw, the audit trail,
+legacy entries, and an honest HTML board (issue #26)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,14 @@ import sqlite3
 
 import pytest
 from wfbench.leaderboard.report import ORACLE_LABEL, nsw_figure, ranking, render
-from wfbench.leaderboard.store import APPLICATION_ID, KPI_COLUMNS, SCHEMA_VERSION, Store, row_digest, scrub_paths
+from wfbench.leaderboard.rows import KPI_COLUMNS, StoreError, row_digest, scrub_paths
+from wfbench.leaderboard.schema4 import APPLICATION_ID
+from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.submit import policy_fingerprint, submit
 from wfbench.leaderboard.tracks import TRACKS
 
-from tests.leaderboard.test_leaderboard import ROOT, TINY, _fast
+from tests.leaderboard.test_leaderboard import ROOT, TINY, _fast, integrity
+from tests.leaderboard.test_schema4_import import write_schema4
 from wfbench.cli import main
 
 POLICY = """
@@ -105,7 +108,7 @@ def test_an_edited_policy_is_refused_under_its_name_until_replaced(user_folder, 
     audit = store.audit(TINY.name)
     assert len(audit) == 4 and set(audit["action"]) == {"replaced"} and set(audit["fingerprint"]) == {sub.fingerprint}
     assert audit.set_index("seed")["nsw"].equals(before)
-    assert store.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    assert integrity(db) == "ok"
 
 
 @pytest.mark.slow
@@ -113,7 +116,8 @@ def test_the_same_policy_resumes_with_the_missing_seeds_only(db):
     first = submit(TINY, "tests.lb_policies:Slow", "slow", db=db, **_fast())
     assert first.status == "complete" and first.action == "new"
     with sqlite3.connect(db) as c:
-        c.execute("DELETE FROM results WHERE seed IN (1, 3)")  # as if the run had been killed before them
+        c.execute("DELETE FROM local_rows WHERE seed_index IN (1, 3)")  # as if the run had been killed before them
+        c.execute("DELETE FROM rows WHERE seed IN (1, 3)")
     again = submit(TINY, "tests.lb_policies:Slow", "slow", db=db, **_fast())
     assert (again.status, again.action, again.new_rows, again.stored_rows) == ("complete", "resumed", 2, 4)
     assert Store(db).audit().empty
@@ -218,45 +222,49 @@ def _schema_1_store(path, name="old", policy="heuristic", nsw=0.99):
                       (seed, TINY.name, TINY.hash, policy, nsw, d))
 
 
-def test_a_schema_1_store_is_upgraded_in_place_and_its_legacy_entry_re_evaluated(db):
+def test_a_store_before_schema_4_is_refused_with_one_line_and_left_as_it_was(db):
     _schema_1_store(db)
-    store = Store(db)  # opening upgrades it
-    assert store.conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
-    rows, refused = store.results(TINY)
-    assert refused == [] and len(rows) == 4 and set(rows["nsw"]) == {0.99}, "legacy rows stay valid"
+    before = db.read_bytes()
+    with pytest.raises(StoreError, match=r"is a store of schema 1, which this wfbench does not import \(it imports "
+                                         r"schema 4\); open it once with wfbench 0.x to upgrade it to schema 4 first$"):
+        Store(db)
+    assert db.read_bytes() == before
+
+
+def test_an_imported_legacy_entry_is_re_evaluated_on_resubmission(db):
+    write_schema4(db)  # its entry 'old' was stored without a fingerprint (random, nsw 0.3 + 0.01 x seed)
+    store = Store(db)
     old = store.find(TINY.name, "old")
     assert old.legacy and old.fingerprint == ""
     r = ranking(store, TINY)
-    assert r.table.loc[0, "fingerprint"] == "legacy" and "complete (legacy: no fingerprint)" in render(r, "md")
+    assert r.table.set_index("name").loc["old", "fingerprint"] == "legacy"
+    assert "complete (legacy: no fingerprint)" in render(r, "md")
+    before = set(store.results(TINY)[0].query("name == 'old'")["nsw"])
     store.close()
-    Store(db).close()  # opening again changes nothing
     # the first resubmission cannot tell whether the legacy rows are this code's: it evaluates every seed anew
-    out = submit(TINY, "heuristic", "old", db=db, **_fast())
+    out = submit(TINY, "random", "old", db=db, **_fast())
     assert (out.status, out.action, out.new_rows) == ("complete", "legacy", 4)
     store = Store(db)
     rows = store.results(TINY)[0]
-    assert 0.99 not in set(rows["nsw"]) and not store.find(TINY.name, "old").legacy
-    audit = store.audit(TINY.name)
-    assert len(audit) == 4 and set(audit["nsw"]) == {0.99} and audit["note"].str.contains("without a fingerprint").all()
+    assert not before & set(rows.query("name == 'old'")["nsw"]) and not store.find(TINY.name, "old").legacy
+    audit = store.audit(TINY.name).query("name == 'old'")
+    assert len(audit) == 4 and set(audit["nsw"]) == before
+    assert audit["note"].str.contains("without a fingerprint").all()
     # the next one resumes
-    assert submit(TINY, "heuristic", "old", db=db, **_fast()).action == "resumed"
+    assert submit(TINY, "random", "old", db=db, **_fast()).action == "resumed"
 
 
+def test_the_board_spells_the_kpi_table_in_its_rows_table(db):
+    import sqlalchemy as sa
 
-def test_the_store_spells_the_kpi_table_in_its_sql_and_an_old_store_gets_the_same_columns(db, tmp_path):
-    def columns(store, table):
-        return [(r[1], r[2]) for r in store.conn.execute(f"PRAGMA table_info({table})")]
+    store = Store(db)
+    columns = [c["name"] for c in sa.inspect(store.engine).get_columns("rows")]
+    assert [c for c in columns if c in KPI_COLUMNS] == list(KPI_COLUMNS)
+    # the KPI columns of schema 4, which an imported store's rows fill: a KPI added to wfbench/core/kpis.py needs a
+    # migration of the board's rows table, and the import a value for it
+    assert KPI_COLUMNS == ("workforce_cost", "utilization", "downtime", "nsw")
+    store.close()
 
-    fresh = Store(db)
-    old = tmp_path / "old.sqlite"
-    _schema_1_store(old)  # the KPI columns as schema 1 wrote them out by hand
-    upgraded = Store(old)
-    for table in ("results", "audit_results"):
-        assert columns(upgraded, table) == columns(fresh, table)
-        kpis = [c for c in columns(fresh, table) if c[0] in KPI_COLUMNS]
-        assert kpis == [(k, "REAL") for k in KPI_COLUMNS]
-    # the columns of schema 4: a KPI added to wfbench/core/kpis.py needs schema 5, whose migration adds its column
-    assert (SCHEMA_VERSION, KPI_COLUMNS) == (4, ("workforce_cost", "utilization", "downtime", "nsw"))
 
 @pytest.mark.slow
 def test_nsw_axis_starts_at_zero_and_oracles_look_apart(db):

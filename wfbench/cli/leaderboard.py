@@ -154,9 +154,8 @@ def run(args: argparse.Namespace) -> int:
                          "submission)")
     # the report is imported here: it loads scipy.stats, which slows every start of the command line
     from wfbench.leaderboard.report import check_format
-    from wfbench.leaderboard.store import Store, StoreError
+    from wfbench.leaderboard.store import Store, StoreError, show
     from wfbench.leaderboard.submit import SubmitError, describe, scenario_times, seed_builtins, seed_tracks, submit
-    from wfbench.leaderboard.suite_report import show
     from wfbench.leaderboard.tracks import TRACKS, get_track
 
     def track(name: str):

@@ -140,7 +140,7 @@ def load_policy(policy: Any, act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S
         raise PolicyLoadError(str(exc)) from None
     except Exception as exc:  # the user's module or constructor raised: name their line
         name = policy if isinstance(policy, str) else type(policy).__qualname__
-        raise PolicyError(f"policy {name!r} could not be loaded: {_what(exc)}{_at(exc.__traceback__)}",
+        raise PolicyError(f"policy {name!r} could not be loaded: {one_line(exc)}{_at(exc.__traceback__)}",
                           _format(exc)) from exc
     name = policy if isinstance(policy, str) else str(getattr(obj, "name", None) or type(obj).__qualname__)
     return LoadedPolicy(obj, name, None if builtin else Guard(name, timeout, _source_file(obj)))
@@ -167,11 +167,11 @@ class Guard:
                 "(act_timeout_s= in Python)", _format(exc)) from None
         except MemoryError as exc:
             where = _at(exc.__traceback__, source=self.source)
-            raise PolicyError(f"policy {self.name!r} ran out of memory in {what}{where} ({_what(exc)})",
+            raise PolicyError(f"policy {self.name!r} ran out of memory in {what}{where} ({one_line(exc)})",
                               _format(exc)) from exc
         except Exception as exc:  # noqa: BLE001 - anything the user's code raises is its failure
             where = _at(exc.__traceback__, source=self.source)
-            raise PolicyError(f"policy {self.name!r} failed in {what}{where}: {_what(exc)}",
+            raise PolicyError(f"policy {self.name!r} failed in {what}{where}: {one_line(exc)}",
                               _format(exc)) from exc
 
     def step(self, sim: Simulator, actions: Any, act: Callable[..., Any]) -> None:
@@ -181,10 +181,11 @@ class Guard:
         except (ActionError, TypeError, ValueError) as exc:  # np.asarray of garbage raises the latter two
             where = _defined_at(act)
             raise PolicyError(f"policy {self.name!r} returned a malformed action at step {sim.t}"
-                              f"{f' (its act is at {where})' if where else ''}: {_what(exc)}", _format(exc)) from exc
+                              f"{f' (its act is at {where})' if where else ''}: {one_line(exc)}", _format(exc)) from exc
 
 
-def _what(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
+    """``Type: first line of the message``: how a board and the guard name an exception in one line."""
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
