@@ -3,7 +3,7 @@
 :class:`Schema4Store` reads such a file as it is (never writing to it): its entries, its
 valid rows with the refused ones' messages, and its audit trail. The local board
 (:mod:`wfbench.leaderboard.store`) imports it once from these; docs/leaderboard.md#one-board.
-Stores of schemas 1 to 3 are upgraded to 4 by an earlier wfbench (0.x) first.
+Stores of schemas 1 to 3 are upgraded to 4 by an earlier wfbench (before issue #45) first.
 """
 
 from __future__ import annotations
@@ -34,7 +34,8 @@ def is_schema4(conn: sqlite3.Connection, path: Path) -> bool:
                          f"schema {SCHEMA_VERSION}): upgrade wfbench to read it")
     if version < SCHEMA_VERSION:
         raise StoreError(f"{path} is a store of schema {version}, which this wfbench does not import (it imports "
-                         f"schema {SCHEMA_VERSION}); open it once with wfbench 0.x to upgrade it to schema 4 first")
+                         f"schema {SCHEMA_VERSION}); open it once with an earlier wfbench (before issue #45) to "
+                         "upgrade it to schema 4 first")
     return True
 
 

@@ -157,7 +157,8 @@ class Store:
         except OSError as exc:
             raise StoreError(f"cannot read store {self.path}: {exc.strerror or exc}") from None
         if head and head != b"SQLite format 3\x00":
-            raise StoreError(f"{self.path} is not a wfbench store (not an SQLite database); pass --db with another path")
+            raise StoreError(f"{self.path} is not a wfbench store (not an SQLite database); pass --db with another "
+                             "path")
         try:
             conn = sqlite3.connect(self.path, timeout=30.0)
             try:
@@ -344,7 +345,7 @@ class Store:
         return self._write(f"the withdrawal of {name!r}", withdraw_)
 
     def audit(self, track: str | None = None) -> pd.DataFrame:
-        """The audit trail: one row per result of an entry off the board (or per such entry that had none), oldest first."""
+        """The audit trail: a row per result of an entry off the board (or per such entry without any), oldest first."""
         e, r, p = local_entries, hosted.rows, local_rows
         q = (sa.select(e.c.audit_id, submissions.c.track, submissions.c.name, submissions.c.entry.label("policy"),
                        e.c.fingerprint, submissions.c.state.label("status"), e.c.action, e.c.note, e.c.moved_at,

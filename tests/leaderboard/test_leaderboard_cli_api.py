@@ -5,9 +5,8 @@ from __future__ import annotations
 import pytest
 from wfbench.leaderboard import submit as submit_mod
 from wfbench.leaderboard.report import FORMATS
-from wfbench.leaderboard.store import Store
+from wfbench.leaderboard.store import Store, show
 from wfbench.leaderboard.submit import describe, seed_tracks, submit
-from wfbench.leaderboard.store import show
 from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, get_track
 
 from tests.leaderboard.test_leaderboard import TINY, _fast

@@ -226,7 +226,8 @@ def test_a_store_before_schema_4_is_refused_with_one_line_and_left_as_it_was(db)
     _schema_1_store(db)
     before = db.read_bytes()
     with pytest.raises(StoreError, match=r"is a store of schema 1, which this wfbench does not import \(it imports "
-                                         r"schema 4\); open it once with wfbench 0.x to upgrade it to schema 4 first$"):
+                                         r"schema 4\); open it once with an earlier wfbench \(before issue #45\) to "
+                                         r"upgrade it to schema 4 first$"):
         Store(db)
     assert db.read_bytes() == before
 
