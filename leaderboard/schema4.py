@@ -62,6 +62,12 @@ class Schema4Store:
     def close(self) -> None:
         self.conn.close()
 
+    def __enter__(self) -> Schema4Store:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     def table(self, name: str, order: str) -> list[dict[str, Any]]:
         """Every row of a table, as dicts, in ``order``."""
         return [dict(r) for r in self.conn.execute(f"SELECT * FROM {name} ORDER BY {order}")]

@@ -6,7 +6,7 @@ import json
 import sqlite3
 
 import pytest
-from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, ROW_COLUMNS, row_digest
+from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, ROW_COLUMNS, StoreError, row_digest
 from wfbench.leaderboard.tracks import TRACKS
 
 from tests.leaderboard.test_leaderboard import TINY
@@ -119,7 +119,8 @@ def test_a_schema4_store_is_imported_once_and_shows_the_same_board(tmp_path, cap
     db = tmp_path / "lb.sqlite"
     write_schema4(db)
     original = db.read_bytes()
-    before = show(TINY, Schema4Store(db), fmt)  # the schema-4 file read as it is, nothing written
+    with Schema4Store(db) as old:  # the schema-4 file read as it is, nothing written
+        before = show(TINY, old, fmt)
     assert db.read_bytes() == original
     first = _show(db, capsys, "--format", fmt)
     assert first.out.rstrip("\n") == before.text.rstrip("\n")
@@ -138,8 +139,8 @@ def test_the_import_keeps_entries_rows_and_the_audit_trail(tmp_path):
 
     db = tmp_path / "lb.sqlite"
     write_schema4(db)
-    old = Schema4Store(db)
-    old_subs, (old_rows, old_refused), old_audit = old.submissions(), old.results(TINY), old.audit()
+    with Schema4Store(db) as old:
+        old_subs, (old_rows, old_refused), old_audit = old.submissions(), old.results(TINY), old.audit()
     store = Store(db)
     assert [(s.name, s.policy, s.status, s.reason, s.builtin, s.fingerprint, s.fingerprint_detail, s.budget,
              s.legacy) for s in store.submissions(TINY.name)] == \
@@ -155,4 +156,27 @@ def test_the_import_keeps_entries_rows_and_the_audit_trail(tmp_path):
             "nsw", "digest"]
     assert audit[keep].equals(old_audit[keep])
     assert list(audit["action"].unique()) == ["withdrawn", "replaced"] and len(audit) == 6
+    store.close()
+
+
+def test_a_wal_store_is_imported_with_what_its_wal_holds(tmp_path):
+    from wfbench.leaderboard.store import Store
+
+    db = tmp_path / "lb.sqlite"
+    write_schema4(db)
+    with sqlite3.connect(db) as c:  # as wfbench wrote them: WAL, the last commit possibly still in the -wal file
+        assert c.execute("PRAGMA journal_mode=WAL").fetchone()[0] == "wal"
+    writer = sqlite3.connect(db)
+    writer.execute("PRAGMA wal_autocheckpoint=0")
+    writer.execute("UPDATE submissions SET reason = 'stopped' WHERE name = 'half'")
+    writer.commit()
+    assert db.with_name(db.name + "-wal").stat().st_size > 0
+    # the writer still holds the file: refused in one line, nothing changed
+    with pytest.raises(StoreError, match="cannot import store .*: database is locked; nothing was changed$"):
+        Store(db)
+    assert not db.with_name(db.name + ".schema4").exists()
+    writer.close()
+    store = Store(db)
+    assert store.find(TINY.name, "half").reason == "stopped"
+    assert store.imported_from == db.with_name(db.name + ".schema4")
     store.close()
