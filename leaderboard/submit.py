@@ -454,7 +454,7 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 reason = (f"exceeded the wall-time limit of {wall_time_s:g} s after "
-                          f"{len(done) + new_rows} of {len(units)} {_what(tr)}")
+                          f"{len(done) + new_rows} of {len(units)} {tr.unit_word}")
                 break
             if parent_conn.poll(min(remaining, 0.25)):
                 try:
@@ -528,17 +528,12 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
         raise SubmitError(f"the evaluation of {policy!r} could not start: {reason}")
     stored = len(store.done_units(sub.id))
     if status == "complete" and stored < len(units):
-        status, reason = "failed", f"only {stored} of {len(units)} {_what(tr)} were stored"
+        status, reason = "failed", f"only {stored} of {len(units)} {tr.unit_word} were stored"
     # the board shows the stored reason: no absolute path of the submitter's machine (the caller gets it whole)
     store.set_status(sub.id, status, scrub_paths(reason, os.getcwd()))
     return Outcome(store.find(tr.name, name), status, reason, new_rows, stored,  # type: ignore[arg-type]
                    time.perf_counter() - t0, trace, action,
                    clock.per_scenario() if clock is not None else {})
-
-
-def _what(tr: Track | SuiteTrack) -> str:
-    """What a track's units are called in a message: seeds, or (scenario, seed) episodes of a suite."""
-    return "(scenario, seed) episodes" if isinstance(tr, SuiteTrack) else "seeds"
 
 
 def _check_taken(existing: Entry, tr: Track | SuiteTrack, name: str, policy: str, fingerprint: str,
@@ -610,7 +605,7 @@ def describe(out: Outcome, track: Track | SuiteTrack, store_path: Any, hint: str
     legacy one, that the old rows are in the audit tables (:data:`MOVED`); a failed one
     says why and that its rows are kept for a resume. ``hint`` ends the failure's note.
     """
-    what = "(scenario, seed) episodes" if isinstance(track, SuiteTrack) else "seeds"
+    what = track.unit_word
     name = out.submission.name
     if out.status == "complete":
         return (f"{name} on {track.name}: complete, {out.stored_rows} {what} stored ({out.new_rows} new) "

@@ -43,6 +43,11 @@ class Track:
         """The scenarios a submission runs, by the ``scenario`` its rows store: ``""`` for this one."""
         return {"": self.config}
 
+    @property
+    def unit_word(self) -> str:
+        """What a message calls this track's units."""
+        return "seeds"
+
     def units(self) -> list[tuple[str, int]]:
         """What a complete entry has a row for: (scenario, seed) pairs, in order."""
         return [("", s) for s in self.test_seeds]
@@ -92,6 +97,11 @@ class SuiteTrack:
 
     def configs(self) -> dict[str, ScenarioConfig]:
         return {sc.id: sc.config for sc in self.suite.scenarios}
+
+    @property
+    def unit_word(self) -> str:
+        """What a message calls this track's units."""
+        return "(scenario, seed) episodes"
 
     def units(self) -> list[tuple[str, int]]:
         return [(sc.id, s) for sc in self.suite.scenarios for s in self.test_seeds]
