@@ -31,10 +31,10 @@ What the tables hold and why:
 - ``hidden_seeds``: each track's hidden test seed lists (:mod:`~wfbench.leaderboard.hosted.hidden`).
 - ``secrets``: the board's key secret, from which the opaque per-episode keys handed to
   policies are derived.
-- ``board_meta``: the schema's version and when each track's test phase ended.
+- ``board_meta``: when each track's test phase ended.
 
-A database made before a schema change is migrated in place by :meth:`Board.create`
-(:data:`SCHEMA_VERSION`; see :meth:`Board._migrate`).
+The schema changes through Alembic revisions (:mod:`~wfbench.leaderboard.hosted.migrations`),
+which :meth:`Board.create` runs on every start; a change to these tables needs a revision.
 """
 
 from __future__ import annotations
@@ -42,7 +42,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import re
 import secrets as _secrets
 import time
 from collections.abc import Mapping
@@ -53,7 +52,7 @@ from typing import Any
 import pandas as pd
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
-from wfbench.leaderboard.hosted import hidden
+from wfbench.leaderboard.hosted import hidden, migrations
 from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, KPI_COLUMNS, ROW_COLUMNS, Entry
 from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, Track
 
@@ -63,7 +62,6 @@ from wfbench.harness.budget import BUDGET_COLUMNS
 DEFAULT_DAILY_QUOTA = 5  # test-phase submissions per account per 24 h
 DEV_DAILY_QUOTA = 10  # dev-phase submissions per account per 24 h
 DEV_CONCURRENT = 2  # dev-phase jobs queued or running at once per account (the test phase: 1)
-SCHEMA_VERSION = 2  # 1: dedupe without the account, no fault/kind/spent_s/withdrawn (before issue #42)
 QUOTA_WINDOW_S = 24 * 3600.0
 LOG_BYTES = 64 * 1024  # what is kept of a submission's log (its end)
 STATES = ("queued", "running", "done", "failed")
@@ -175,7 +173,7 @@ secrets_table = sa.Table(
 
 board_meta = sa.Table(
     "board_meta", metadata,
-    sa.Column("name", sa.String(100), primary_key=True),  # schema_version, test_ended:TRACK
+    sa.Column("name", sa.String(100), primary_key=True),  # test_ended:TRACK (and schema_version before Alembic)
     sa.Column("value", sa.String(200), nullable=False),
 )
 
@@ -454,24 +452,16 @@ class Board:
         self.engine.dispose()
 
     def create(self) -> None:
-        """Create the tables and the key secret where they do not exist yet (safe to call on every start).
+        """Bring the schema to the head revision and make the key secret where there is none (safe on every start).
 
-        A database made by an earlier wfbench is migrated to :data:`SCHEMA_VERSION` first
-        (:meth:`_migrate`), in one transaction, whoever starts first (server or worker).
+        An empty database gets every revision; one made by an earlier wfbench is upgraded in
+        place, in one transaction, whoever starts first (server or worker); see
+        :func:`wfbench.leaderboard.hosted.migrations.upgrade`.
         """
-        if sa.inspect(self.engine).has_table("submissions"):
-            self._migrate()
         try:
-            metadata.create_all(self.engine)
-        except sa.exc.DBAPIError:  # another process (the server, a worker) created them at the same moment
-            metadata.create_all(self.engine)
-        try:
-            with self.engine.begin() as conn:
-                if conn.execute(sa.select(board_meta.c.name).where(board_meta.c.name == "schema_version")).first() \
-                        is None:
-                    conn.execute(board_meta.insert().values(name="schema_version", value=str(SCHEMA_VERSION)))
-        except sa.exc.IntegrityError:  # another process wrote it at the same time
-            pass
+            migrations.upgrade(self.engine)
+        except migrations.MigrationError as exc:
+            raise BoardError(str(exc)) from None
         try:
             with self.engine.begin() as conn:
                 if conn.execute(sa.select(secrets_table.c.name).where(secrets_table.c.name == KEY_SECRET)).first() \
@@ -479,83 +469,6 @@ class Board:
                     conn.execute(secrets_table.insert().values(name=KEY_SECRET, value=_secrets.token_hex(32)))
         except sa.exc.IntegrityError:  # another process made it at the same time
             pass
-
-
-    # -- migrations -------------------------------------------------------------------------------------------
-    def _migrate(self) -> None:
-        """Bring a database of schema version 1 (before issue #42) to version 2, keeping every row.
-
-        Version 2 adds the submissions' ``fault``, ``kind``, ``spent_s`` and ``withdrawn``
-        columns and replaces the dedupe key (package, entry, track, phase) by one with the
-        account. PostgreSQL alters the table in place, under an exclusive lock. SQLite
-        cannot drop a constraint, so the table is rebuilt the way SQLite documents
-        (foreign keys off, a new table, copy, drop, rename, ``foreign_key_check``), in one
-        ``BEGIN IMMEDIATE`` transaction. Old failures are classified from their reason:
-        "lost its worker" is the board's, anything else the policy's.
-        """
-        if is_sqlite(self.engine):
-            self._migrate_sqlite()
-        else:
-            self._migrate_postgres()
-
-    def _migrate_sqlite(self) -> None:
-        from sqlalchemy.schema import CreateIndex, CreateTable
-
-        raw = self.engine.raw_connection()
-        try:
-            cur = raw.cursor()
-            cur.execute("PRAGMA foreign_keys=OFF")  # not inside a transaction: SQLite ignores it there
-            cur.execute("BEGIN IMMEDIATE")
-            try:
-                old = [r[1] for r in cur.execute("PRAGMA table_info(submissions)").fetchall()]
-                if "fault" not in old:
-                    ddl = str(CreateTable(submissions).compile(dialect=self.engine.dialect))
-                    cur.execute(re.sub(r"CREATE TABLE submissions\b", "CREATE TABLE submissions_v2", ddl, count=1))
-                    cols = ", ".join(old)
-                    cur.execute(f"INSERT INTO submissions_v2 ({cols}) SELECT {cols} FROM submissions")
-                    cur.execute("DROP TABLE submissions")
-                    cur.execute("ALTER TABLE submissions_v2 RENAME TO submissions")
-                    for index in submissions.indexes:
-                        cur.execute(str(CreateIndex(index).compile(dialect=self.engine.dialect)))
-                    broken = cur.execute("PRAGMA foreign_key_check").fetchall()
-                    if broken:
-                        raise BoardError(f"migrating the board's database broke {len(broken)} foreign keys; nothing "
-                                         "was changed")
-                    self._classify_old(cur.execute("SELECT id, reason FROM submissions WHERE state = 'failed'")
-                                       .fetchall(), lambda sql, p: cur.execute(sql, p), "?")
-                cur.execute("COMMIT")
-            except BaseException:
-                cur.execute("ROLLBACK")
-                raise
-            finally:
-                cur.execute("PRAGMA foreign_keys=ON")
-        finally:
-            raw.close()
-
-    def _migrate_postgres(self) -> None:
-        with self.engine.begin() as conn:
-            conn.execute(sa.text("LOCK TABLE submissions IN ACCESS EXCLUSIVE MODE"))
-            cols = set(conn.execute(sa.text("SELECT column_name FROM information_schema.columns WHERE table_name = "
-                                            "'submissions' AND table_schema = current_schema()")).scalars())
-            if "fault" in cols:
-                return
-            for ddl in ("ADD COLUMN fault VARCHAR(8) NOT NULL DEFAULT ''",
-                        "ADD COLUMN kind VARCHAR(20) NOT NULL DEFAULT ''",
-                        "ADD COLUMN spent_s DOUBLE PRECISION NOT NULL DEFAULT 0",
-                        "ADD COLUMN withdrawn DOUBLE PRECISION",
-                        "DROP CONSTRAINT IF EXISTS same_package_once",
-                        "ADD CONSTRAINT same_package_per_account UNIQUE (account_id, package_sha, entry, track, "
-                        "phase)"):
-                conn.execute(sa.text(f"ALTER TABLE submissions {ddl}"))
-            failed = conn.execute(sa.text("SELECT id, reason FROM submissions WHERE state = 'failed'")).all()
-            self._classify_old(failed, lambda sql, p: conn.exec_driver_sql(sql, p), "%s")
-
-    @staticmethod
-    def _classify_old(failed: Any, execute: Any, mark: str) -> None:
-        for sub_id, reason in failed:
-            board = str(reason).startswith(LOST)
-            execute(f"UPDATE submissions SET fault = {mark}, kind = {mark} WHERE id = {mark}",
-                    ("board" if board else "policy", BOARD_FAULT if board else kind_of_reason(str(reason)), sub_id))
 
     def track(self, name: str) -> Track | SuiteTrack:
         """The track ``name``, or BoardError naming those there are."""
