@@ -9,6 +9,7 @@ phase and a queued submission, their rows, and an ended test phase.
 from __future__ import annotations
 
 import sqlite3
+import threading
 from pathlib import Path
 
 import sqlalchemy as sa
@@ -129,3 +130,29 @@ def test_the_first_revision_upgrades_to_head_with_its_rows(db_url):
     assert (sub.name, sub.state, sub.fault, sub.kind, sub.spent_s) == ("p", "failed", "policy", "out of memory", 0.0)
     assert differences(board.engine) == []
     board.close()
+
+
+def test_a_server_and_workers_starting_together_migrate_once(db_url):
+    """Each start calls Board.create(); four at once on an empty database all end at head, with one key secret."""
+    boards = [Board(db_url, tracks={"tiny": TINY}) for _ in range(4)]
+    errors = []
+
+    def start(board):
+        try:
+            board.create()
+        except Exception as exc:  # noqa: BLE001 - collected and asserted below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=start, args=(b,)) for b in boards]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    with boards[0].engine.connect() as conn:
+        assert migrations.current(conn) == HEAD
+        assert conn.exec_driver_sql("SELECT count(*) FROM alembic_version").scalar() == 1
+        assert conn.exec_driver_sql("SELECT count(*) FROM secrets").scalar() == 1
+    assert differences(boards[0].engine) == []
+    for b in boards:
+        b.close()
