@@ -32,7 +32,10 @@ RUNS = [("ppo-general", "small", 1), ("solver-tuned", "small", 2), ("heuristic",
 TIMES = ("decision_ms_p50", "decision_ms_p99", "cpu_s")  # measured, not computed: every other column is compared
 SHIPPED = ("wfbench/policies/tuned/__init__.py", "wfbench/policies/tuned/solver-paper-64.json",
            "wfbench/policies/neural/checkpoints/ppo-general.pt", "wfbench/core/data/real-benelux-sites.csv",
-           "wfbench/reproduce/paper.toml", "wfbench/scenarios/suite-v1.json")
+           "wfbench/reproduce/paper.toml", "wfbench/scenarios/suite-v1.json",
+           # the hosted board's Alembic environment: it upgrades a board's database at every start
+           "wfbench/leaderboard/hosted/migrations/env.py", "wfbench/leaderboard/hosted/migrations/script.py.mako",
+           "wfbench/leaderboard/hosted/migrations/versions/r0001_first_schema.py")
 
 CHILD = """
 import sys
