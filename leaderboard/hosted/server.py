@@ -1,38 +1,12 @@
-"""The web server of a hosted board (``wfbench serve``): the upload API, the boards and submissions, as JSON and HTML.
+"""The web server of a hosted board (``wfbench serve``): the app over a board's database.
 
-:func:`create_app` makes a FastAPI app over a :class:`wfbench.leaderboard.hosted.db.Board`;
-``wfbench serve`` runs it under uvicorn. The server never runs a policy: it stores the
-package and queues the submission, and ``wfbench worker`` evaluates it in the sandbox.
-
-An upload (``POST /api/submissions``, multipart: ``package``, ``track``, ``phase``, and
-optionally ``name`` and ``entry``) is answered, in this order:
-
-- 401 without a valid ``Authorization: Bearer TOKEN`` (checked before the body is read);
-- 413 when the body is larger than the package limit: a declared ``Content-Length`` is
-  refused before anything is read, and the body is counted while it streams in, so a
-  chunked upload is cut off at the limit rather than stored first and measured after;
-- 400 with a one-line reason for a bad form or a package :func:`wfbench.harness.isolation.package.inspect`
-  refuses (zip-slip, zip bomb, no manifest, ...), an unknown track or phase;
-- 429 when the account is over its phase's quota (jobs at once, N a day);
-- 201 with ``{id, state, url}`` for a new submission, 200 for the same package, entry,
-  track and phase already submitted by the same account (it is not evaluated twice).
-
-An owner lists their submissions with ``GET /api/submissions`` and withdraws one with
-``DELETE /api/submissions/{id}`` (the same bearer token): it leaves the board and its
-queued job is cancelled.
-
-What a reader sees of a submission depends on its phase: a development-phase submission
-shows its log and its per-seed rows (the seeds are public), a test-phase one only its
-state, reason and aggregate; no answer or page carries a hidden seed or a per-seed row of
-the test phase. While a track's test phase runs, a test-phase failure's reason is only its
-word of :data:`~wfbench.leaderboard.hosted.db.FAILURE_KINDS` (the policy's own text could
-carry what it saw), except to an admin account's token.
-
-The routes are ``APIRouter`` modules of :mod:`wfbench.leaderboard.hosted.api`, with the board
-and the account as dependencies and a pydantic model for every JSON answer. The database
-calls are synchronous (SQLAlchemy); the handlers that stream a body are ``async`` and run
-those calls in Starlette's thread pool, the others are plain functions, which FastAPI runs
-there itself.
+:func:`create_app` wires the routers of :mod:`wfbench.leaderboard.hosted.api` over a
+:class:`~wfbench.leaderboard.hosted.db.Board`. The server never runs a policy: it stores
+the package and queues the submission, and ``wfbench worker`` evaluates it in the
+sandbox. Every refusal is one line, ``{"detail": ...}`` for the API and a small page for
+a browser. What each route answers, in which order an upload is refused, and what a
+reader sees of a test-phase submission: docs/leaderboard.md, "The server's code and its
+API document".
 """
 
 from __future__ import annotations
