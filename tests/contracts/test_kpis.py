@@ -18,6 +18,7 @@ from wfbench.core.reward import REWARDS, step_reward
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("wfbench", "policies", "leaderboard", "solvers")
 TABLE = ROOT / "wfbench" / "core" / "kpis.py"
+REVISIONS = ROOT / "leaderboard" / "hosted" / "migrations" / "versions"  # the hosted board's Alembic revisions
 # where the utility columns may be named: defined (state), computed (dynamics), made a reward (reward)
 REWARD_HOMES = {ROOT / "wfbench" / "core" / name for name in ("reward.py", "dynamics.py", "state.py")}
 # a fork rebuilds the state's metrics row of the step it starts from out of the observed KPIs (the utilities are
@@ -69,7 +70,8 @@ def test_kpis__the_detectors_find_a_planted_copy():
 def test_kpis__no_module_writes_the_kpi_list_again():
     found = []
     for path in _our_modules():
-        if path == TABLE:
+        # an Alembic revision writes out the schema of its day: it must not follow the table when a KPI changes
+        if path == TABLE or REVISIONS in path.parents:
             continue
         found += [f"{path.relative_to(ROOT)}:{line}" for line in restated_kpi_lists(path.read_text())]
     assert not found, ("these lines write out the KPI names again; import KPI_NAMES (or KPI_LABELS, KPIS) from "
