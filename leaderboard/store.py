@@ -30,6 +30,7 @@ from sqlalchemy.engine import Connection
 from wfbench.leaderboard import report, suite_report
 from wfbench.leaderboard.hosted import db as hosted
 from wfbench.leaderboard.hosted.db import Board, accounts, kind_of_reason, packages, submissions
+from wfbench.leaderboard.hosted.migrations import NewerBoardError, check_known
 from wfbench.leaderboard.rows import (
     BUDGET_ROW_COLUMNS,
     KPI_COLUMNS,
@@ -179,10 +180,12 @@ class Store:
     def _open_board(self) -> Board:
         board = Board(self.path)
         try:
-            version = self._board_version(board)
-            if version is not None and version > hosted.SCHEMA_VERSION:
-                raise StoreError(f"{self.path} was written by a newer wfbench (board schema {version}; this wfbench "
-                                 f"reads up to {hosted.SCHEMA_VERSION}): upgrade wfbench to read it")
+            try:
+                with board.engine.connect() as conn:
+                    check_known(conn)
+            except NewerBoardError as exc:
+                raise StoreError(f"{self.path} was written by a newer wfbench (board schema {exc.revision}; this "
+                                 f"wfbench reads up to {exc.head}): upgrade wfbench to read it") from None
             board.create()
             local_metadata.create_all(board.engine)
             with board.engine.begin() as conn:
@@ -194,15 +197,6 @@ class Store:
             board.close()
             raise
         return board
-
-    @staticmethod
-    def _board_version(board: Board) -> int | None:
-        if not sa.inspect(board.engine).has_table("board_meta"):
-            return None
-        with board.engine.begin() as conn:
-            value = conn.execute(sa.select(hosted.board_meta.c.value)
-                                 .where(hosted.board_meta.c.name == "schema_version")).scalar()
-        return int(value) if value is not None else None
 
     def _import(self) -> None:
         """Import the schema-4 store at :attr:`path` into a new board there, in one transaction; keep the old file."""

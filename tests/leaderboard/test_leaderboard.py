@@ -191,8 +191,8 @@ def test_store_refuses_foreign_and_newer_files(tmp_path):
     newer = tmp_path / "newer.sqlite"
     Store(newer).close()
     with sqlite3.connect(newer) as c:
-        c.execute("UPDATE board_meta SET value = '99' WHERE name = 'schema_version'")
-    with pytest.raises(StoreError, match="written by a newer wfbench \\(board schema 99"):
+        c.execute("UPDATE alembic_version SET version_num = '9999'")  # a revision of a later wfbench
+    with pytest.raises(StoreError, match="written by a newer wfbench \\(board schema 9999; this wfbench reads up to "):
         Store(newer)
     newer_store = tmp_path / "newer-store.sqlite"  # a sqlite3 store of a schema after 4
     with sqlite3.connect(newer_store) as c:

@@ -25,6 +25,15 @@ class MigrationError(Exception):
     """A migration left the database inconsistent (it was rolled back)."""
 
 
+class NewerBoardError(MigrationError):
+    """The database is at a revision these migrations do not know: a newer wfbench wrote it."""
+
+    def __init__(self, revision: str, head: str):
+        super().__init__(f"board schema {revision} was written by a newer wfbench (this one reads up to {head}); "
+                         "upgrade wfbench to open it")
+        self.revision, self.head = revision, head
+
+
 def config(connection: Connection | None = None, metadata: sa.MetaData | None = None) -> Config:
     """Alembic's configuration of the board: these revisions, run on ``connection`` (compared with ``metadata``)."""
     cfg = Config()
@@ -42,6 +51,7 @@ def upgrade(engine: Engine, revision: str = "head") -> None:
     off while a table is rebuilt and checked before the commit (:class:`MigrationError`).
     """
     with _transaction(engine) as conn:
+        check_known(conn)
         legacy = pre_alembic_revision(conn)
         if legacy is not None:
             command.stamp(config(conn), legacy)
@@ -58,6 +68,21 @@ def current(conn: Connection) -> str | None:
     from alembic.runtime.migration import MigrationContext
 
     return MigrationContext.configure(conn).get_current_revision()
+
+
+def check_known(conn: Connection) -> None:
+    """:class:`NewerBoardError` if the database is at a revision these migrations do not have."""
+    from alembic.script import ScriptDirectory
+    from alembic.util import CommandError
+
+    revision = current(conn)
+    if revision is None:
+        return
+    script = ScriptDirectory.from_config(config(conn))
+    try:
+        script.get_revision(revision)
+    except CommandError:
+        raise NewerBoardError(revision, script.get_current_head()) from None
 
 
 def pre_alembic_revision(conn: Connection) -> str | None:
