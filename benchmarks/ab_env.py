@@ -17,12 +17,11 @@ if len(sys.argv) != 2:
 sys.path.insert(0, sys.argv[1])
 
 import wfbench  # noqa: E402
-from wfbench.core.config import ScenarioConfig  # noqa: E402
 from wfbench.harness.bench import _pettingzoo_rate  # noqa: E402
 
 if not wfbench.__file__.startswith(sys.argv[1]):
     sys.exit(f"wfbench was imported from {wfbench.__file__}, not from {sys.argv[1]}")
-config = ScenarioConfig.resolve("paper-64")
+config = wfbench.scenario("paper-64")
 _pettingzoo_rate(config, 200)  # loads (or compiles) the kernels
 print(f"{sys.argv[1]}: PettingZoo step, random actions, {max(_pettingzoo_rate(config, 3000) for _ in range(3)):,.0f} "
       "steps/s")

@@ -16,10 +16,10 @@ from numba import njit
 from wfbench.policies import get
 from wfbench.policies.kernels import act_env
 
-from wfbench.core.config import ScenarioConfig
 from wfbench.core.dynamics import reset_env, step_env
 from wfbench.core.observe import observe_env
 from wfbench.core.simulator import Simulator
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 @njit(_nrt=False)
@@ -35,7 +35,7 @@ def _episodes(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning, full
 def main() -> None:
     B = int(sys.argv[1]) if len(sys.argv) > 1 else 256
     repeats = int(sys.argv[2]) if len(sys.argv) > 2 else 6
-    config = ScenarioConfig.resolve("paper-64")
+    config = resolve_scenario("paper-64")
     sim = Simulator(config, list(range(B)), keep_series=True)
     dispatch = np.full((B, sim.M), sim.N, dtype=np.int64)
     workforce = np.zeros(B, dtype=np.int64)

@@ -17,6 +17,7 @@ from numba import njit
 
 from wfbench.core.placement import gauss_table, heat_factors, heat_row, place_hire, positioning_weights
 from wfbench.core.simulator import Simulator
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 @njit
@@ -45,7 +46,7 @@ def run_pruned(S, Tr, P, W, out):
         out[i] = place_hire(0, S, Tr, P, positioning_weights(0, S, W[i]))
 
 
-sim = Simulator("paper-64", [0])
+sim = Simulator(resolve_scenario("paper-64"), [0])
 sim.reset()
 noop = {"dispatch": np.full((1, sim.M), sim.N), "workforce": np.zeros(1, np.int64),
         "positioning": np.zeros((1, 2, sim.M))}

@@ -22,11 +22,11 @@ import numpy as np  # noqa: E402
 from wfbench.policies import get  # noqa: E402
 from wfbench.policies.rollout import rollout_parallel  # noqa: E402
 
-from wfbench.core.config import ScenarioConfig  # noqa: E402
 from wfbench.core.simulator import Simulator  # noqa: E402
 from wfbench.harness.runner import run_batch  # noqa: E402
+from wfbench.scenarios.resolve import resolve_scenario
 
-config = ScenarioConfig.resolve("paper-64")
+config = resolve_scenario("paper-64")
 run_batch("heuristic", config, [0], threads=1)  # loads (or compiles) the kernels
 rates = []
 for B, threads in ((1, 1), (1024, 1), (1024, 2)):

@@ -25,13 +25,14 @@ import json, sys, time
 from wfbench.policies import get
 from wfbench.policies.rollout import rollout
 from wfbench.core.simulator import Simulator
+from wfbench.scenarios.resolve import resolve_scenario
 B, counts = int(sys.argv[1]), [int(t) for t in sys.argv[2].split(",")]
 seeds = list(range(B))
-warm = Simulator("paper-64", [0], keep_series=False)
+warm = Simulator(resolve_scenario("paper-64"), [0], keep_series=False)
 rollout(warm, *get("heuristic").compiled_plan([0], warm.M, warm.N), threads=1)  # loads the kernel
 out = {}
 for threads in counts:
-    sim = Simulator("paper-64", seeds, keep_series=False)
+    sim = Simulator(resolve_scenario("paper-64"), seeds, keep_series=False)
     best = float("inf")
     for _ in range(3):
         plan = get("heuristic").compiled_plan(seeds, sim.M, sim.N)

@@ -35,10 +35,11 @@ from wfbench import policies
 from wfbench.core.observation_v2 import observe_v2
 from wfbench.core.simulator import Simulator
 from wfbench.harness.budget import machine, machine_line
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def batch(scenario: str, B: int, steps: int) -> dict:
-    sim = Simulator(scenario, list(range(1000, 1000 + B)), keep_series=False, threads=1)
+    sim = Simulator(resolve_scenario(scenario), list(range(1000, 1000 + B)), keep_series=False, threads=1)
     obs = sim.reset()
     pol = policies.get("heuristic")
     pol.reset(list(range(1000, 1000 + B)))

@@ -20,8 +20,9 @@ import time
 
 import numpy as np
 
-from wfbench import ScenarioConfig, Simulator, policies
+from wfbench import Simulator, policies
 from wfbench.core.belief import Belief
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def main() -> None:
@@ -32,7 +33,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=400)
     ap.add_argument("--repeat", type=int, default=20)
     args = ap.parse_args()
-    cfg = ScenarioConfig.resolve(args.scenario)
+    cfg = resolve_scenario(args.scenario)
     sim = Simulator(cfg, [args.seed])
     obs = sim.reset()
     pol = policies.get("heuristic")

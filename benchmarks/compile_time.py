@@ -6,7 +6,7 @@ Each measurement runs in a fresh child process with an empty numba cache (a new
 temporary ``WFBENCH_CACHE_DIR`` and ``NUMBA_CACHE_DIR``), so everything it uses is
 compiled from scratch:
 
-- ``simulator``: ``Simulator("paper-64", [0])``: reset, ``step_observe``, ``step``,
+- ``simulator``: ``Simulator(resolve_scenario("paper-64"), [0])``: reset, ``step_observe``, ``step``,
   ``observe`` (what an environment compiles);
 - ``rollout``: ``wfbench.policies.rollout.rollout`` of the heuristic on ``paper-64``, one seed,
   one thread (the compiled whole-episode rollout with the built-in kernels; what
@@ -54,9 +54,10 @@ class Timer(event.Listener):
 event.register("numba:compile", Timer())
 target = sys.argv[1]
 import numpy as np
+from wfbench.scenarios.resolve import resolve_scenario
 if target in ("simulator", "both"):
     from wfbench.core.simulator import Simulator
-    sim = Simulator("paper-64", [0])
+    sim = Simulator(resolve_scenario("paper-64"), [0])
     sim.reset()
     M, N = sim.M, sim.N
     a = {"dispatch": np.full((1, M), N, dtype=np.int64), "workforce": np.zeros(1, dtype=np.int64),
@@ -68,7 +69,7 @@ if target in ("rollout", "both"):
     from wfbench.policies import get
     from wfbench.policies.rollout import rollout
     from wfbench.core.simulator import Simulator
-    sim = Simulator("paper-64", [0], keep_series=False)
+    sim = Simulator(resolve_scenario("paper-64"), [0], keep_series=False)
     rollout(sim, *get("heuristic").compiled_plan([0], sim.M, sim.N), threads=1)
 wall = time.perf_counter() - t_start
 print("RESULT " + json.dumps({"wall_s": wall, "cpu_s": time.process_time(), "functions": times}))

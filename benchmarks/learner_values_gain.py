@@ -26,7 +26,7 @@ from wfbench.policies.neural.dist import gumbel, noise_shapes, sample
 from wfbench.policies.neural.model import featurize, obs_to_torch
 from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED
 
-from wfbench.core.config import ScenarioConfig
+from wfbench.scenarios.resolve import resolve_scenario
 from wfbench.train.hindsight import HindsightConfig, Trainer
 
 
@@ -42,7 +42,7 @@ def main() -> None:
     ap.add_argument("--horizon", type=int, default=120)
     ap.add_argument("--seed", type=int, default=5)
     a = ap.parse_args()
-    steps = ScenarioConfig.resolve(a.scenario).horizon
+    steps = resolve_scenario(a.scenario).horizon
     if a.states * a.every >= steps:  # every scored time within the first episode: a finished one has no future
         ap.error(f"--states {a.states} x --every {a.every} = {a.states * a.every} is not allowed; allowed: fewer "
                  f"than the episode's {steps} steps of {a.scenario}")

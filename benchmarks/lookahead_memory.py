@@ -19,6 +19,7 @@ import tracemalloc
 from wfbench.policies.lookahead import Rollout
 
 from wfbench import ScenarioConfig, Simulator, policies
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def measure(config: ScenarioConfig, K: int, seed: int, steps: int) -> tuple[int, int]:
@@ -46,7 +47,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--k", default="1,2,4,8,16")
     args = ap.parse_args()
-    config = ScenarioConfig.resolve(args.scenario)
+    config = resolve_scenario(args.scenario)
     print(f"{config.name}, seed {args.seed}, {args.steps} steps, H=80, R=20")
     print(f"{'K':>3s} {'held after act 1 (MB)':>22s} {'peak above it (MB)':>19s} {'held per fork row (kB)':>23s}")
     measure(config, 1, args.seed, 2)  # compiled code and caches loaded once, outside what is measured

@@ -23,6 +23,7 @@ import torch
 from wfbench import policies
 from wfbench.core.simulator import Simulator
 from wfbench.harness.budget import machine, machine_line
+from wfbench.scenarios.resolve import resolve_scenario
 
 SCENARIOS = ["small", "paper-64", "large", "city"]
 
@@ -37,7 +38,7 @@ def largest_allocation(policy, obs: dict, calls: int) -> int:
 
 def measure(network: str, scenario: str, steps: int, warmup: int, profiled: int, seed: int = 1000) -> dict:
     pol = policies.get(network)
-    sim = Simulator(scenario, [seed], keep_series=False, threads=1)
+    sim = Simulator(resolve_scenario(scenario), [seed], keep_series=False, threads=1)
     obs = sim.reset()
     pol.reset([seed])
     times = []

@@ -30,13 +30,14 @@ import time
 import numpy as np
 
 from wfbench import policies
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def run_chunk(args):
     name, scenario, seeds = args
-    from wfbench import ScenarioConfig, Simulator
+    from wfbench import Simulator
 
-    config = ScenarioConfig.resolve(scenario)
+    config = resolve_scenario(scenario)
     pol = policies.get(name)
     start = time.perf_counter()
     if getattr(pol, "reads_trace", False):

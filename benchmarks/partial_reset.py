@@ -26,6 +26,8 @@ import time
 
 import numpy as np
 
+from wfbench.scenarios.resolve import resolve_scenario
+
 
 def median_time(fn, repeats: int) -> float:
     fn()  # warm-up (binds the compiled entry point)
@@ -47,9 +49,9 @@ def main() -> None:
     args = ap.parse_args()
 
     import wfbench
-    from wfbench import ScenarioConfig, Simulator
+    from wfbench import Simulator
 
-    config = ScenarioConfig.resolve(args.scenario)
+    config = resolve_scenario(args.scenario)
     print(f"{config.name}: M={config.max_facilities} N={config.max_personnel} horizon={config.horizon}; "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
           f"keep_series={args.series}; median of {args.repeats}")

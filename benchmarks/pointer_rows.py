@@ -37,8 +37,8 @@ import torch
 from wfbench.policies.neural.model import manhattan
 from wfbench.policies.registry import get
 
-from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import machine, machine_line
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def pointer_width(network: str) -> int:
@@ -76,7 +76,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
     torch.set_num_threads(1)
-    config = ScenarioConfig.resolve(args.scenario)
+    config = resolve_scenario(args.scenario)
     B, M, N, d = args.batch, config.max_facilities, config.max_personnel, pointer_width(args.network)
     gen = torch.Generator().manual_seed(0)
     q, k = torch.randn(B, M, d, generator=gen), torch.randn(B, N, d, generator=gen)

@@ -21,8 +21,9 @@ import time
 import numpy as np
 from wfbench.policies.lookahead import BUDGETS, Rollout
 
-from wfbench import ScenarioConfig, Simulator, policies
+from wfbench import Simulator, policies
 from wfbench.core.seeds import resolve_seeds
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def play(pol, config, seed, steps=None):
@@ -46,7 +47,7 @@ def main() -> None:
     ap.add_argument("--presets", default=",".join(BUDGETS))
     ap.add_argument("--steps", type=int, default=None, help="play only the first STEPS steps (cost alone)")
     args = ap.parse_args()
-    config = ScenarioConfig.resolve(args.scenario)
+    config = resolve_scenario(args.scenario)
     seeds = resolve_seeds(args.seeds)
     base = {s: play(policies.get("solver-tuned"), config, s, args.steps) for s in seeds}
     b = np.array([base[s][0] for s in seeds])

@@ -30,6 +30,7 @@ from wfbench.solvers import facility_location
 from wfbench import policies
 from wfbench.core.observe import make_obs
 from wfbench.harness.bench import machine
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def random_obs(M: int, N: int, n_active: int, n_req: int, n_people: int, seed: int = 0, grid: int = 64):
@@ -151,7 +152,7 @@ def episodes(n_seeds: int, slow_seeds: int, slow_steps: int):
         print(f"episodes paper-64 x{n_seeds} {name:<20s} {rate:12,.0f} env-steps/s", flush=True)
     for name in ("nearest", "assignment-scipy", "assignment-milp", "assignment-lp"):
         pol = policies.get(f"{name}+threshold+spatial")
-        sim = Simulator("paper-64", list(range(slow_seeds)), keep_series=False)
+        sim = Simulator(resolve_scenario("paper-64"), list(range(slow_seeds)), keep_series=False)
         obs = sim.reset()
         pol.reset(sim.seeds)
         t0 = time.perf_counter()

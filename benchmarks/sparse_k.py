@@ -37,6 +37,7 @@ from wfbench.solvers.lap import knn_manhattan, lap_min, lap_sparse
 from wfbench import Simulator
 from wfbench.core.observe import FAC_DOWNTIME, FAC_X, FAC_Y, PER_X, PER_Y
 from wfbench.harness.budget import machine, machine_line
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def dispatch_instance(O, hp):
@@ -97,7 +98,7 @@ def main() -> None:
     ks = [int(k) for k in args.ks.split(",")]
     print(f"machine: {machine_line(machine())}; {args.scenario} seed {args.seed}, steps 0-{args.steps - 1} "
           f"every {args.every}", flush=True)
-    sim = Simulator(args.scenario, [args.seed])
+    sim = Simulator(resolve_scenario(args.scenario), [args.seed])
     sim.reset()
     pol = get("solver")
     pol.reset([args.seed])

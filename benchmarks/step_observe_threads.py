@@ -30,6 +30,7 @@ from wfbench.core.entrypoints import bind
 from wfbench.core.observe import observe_env
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import METRICS
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 @njit(_nrt=False)
@@ -96,12 +97,13 @@ def main() -> None:
     args = ap.parse_args()
     counts = sorted({int(t) for t in args.threads.split(",")})
     seeds = list(range(args.batch))
-    variants = {f"{t} thread{'s' if t > 1 else ''}": Simulator(args.scenario, seeds, keep_series=False, threads=t)
+    config = resolve_scenario(args.scenario)
+    variants = {f"{t} thread{'s' if t > 1 else ''}": Simulator(config, seeds, keep_series=False, threads=t)
                 for t in counts}
     if args.prange:
         for t in counts:
             if t > 1:
-                variants[f"{t} threads, prange"] = PrangeSimulator(args.scenario, seeds, keep_series=False, threads=t)
+                variants[f"{t} threads, prange"] = PrangeSimulator(config, seeds, keep_series=False, threads=t)
     actions = random_actions(next(iter(variants.values())), 32, workforce=not args.no_workforce)
     for sim in variants.values():
         sim.reset()

@@ -48,7 +48,7 @@ from wfbench.policies.tunable import Param
 from wfbench.solvers.staffing_mpc import StaffingInstance, plan_staffing
 
 from wfbench.core.actions import AGENTS
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.observation_v2 import W
 from wfbench.core.observe import FAC_REQUESTING, FAC_X, FAC_Y, PER_HOME_X, PER_HOME_Y, PER_LEVEL
 from wfbench.core.state import EMPTY, ONBOARDING
@@ -107,7 +107,7 @@ class MPC:
     reads_trace = False
 
     def __init__(self, base: Any, forecast: str = "rates", H: int = DEFAULTS["H"], R: int = DEFAULTS["R"],
-                 window: int = DEFAULTS["window"], scenario: str | ScenarioConfig | None = None,
+                 window: int = DEFAULTS["window"], scenario: ScenarioConfig | None = None,
                  shortfall_cost: float = SHORTFALL_COST, action_cost: float = ACTION_COST,
                  capacity_scale: float = 1.0, node_limit: int = NODE_LIMIT, name: str | None = None):
         if not getattr(base, "compiled", False):
@@ -122,7 +122,7 @@ class MPC:
         self.capacity_scale = TUNABLE["capacity_scale"].check(capacity_scale, "capacity_scale")
         self.node_limit = knob("node_limit", node_limit)
         self.name = name or f"mpc-{forecast}"
-        self.config = None if scenario is None else ScenarioConfig.resolve(scenario)
+        self.config = None if scenario is None else require_config(scenario, f"{self.name} scenario=")
         self.timing: dict[str, float] = {}
         self.last: list[Any] = []  # the last solve's SolveResult per environment
 
@@ -151,9 +151,9 @@ class MPC:
         return MPC(self.base, forecast=self.forecast, scenario=self.config, node_limit=self.node_limit,
                    name=name or self.name, **values)
 
-    def set_world(self, config: str | ScenarioConfig) -> None:
+    def set_world(self, config: ScenarioConfig) -> None:
         """The world's public parameters (the evaluator calls it before ``reset``); ``rates`` needs them."""
-        self.config = ScenarioConfig.resolve(config)
+        self.config = require_config(config, f"{self.name}.set_world")
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         self._seeds = seeds_array(seeds)

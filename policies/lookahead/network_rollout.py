@@ -51,7 +51,7 @@ class NetworkRollout(RolloutBase):
     """
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
-                 budget: str = DEFAULT_BUDGET, scenario: str | ScenarioConfig | None = None, seed: int = 0,
+                 budget: str = DEFAULT_BUDGET, scenario: ScenarioConfig | None = None, seed: int = 0,
                  name: str | None = None):
         if not (hasattr(base, "model") and set(getattr(base, "decisions", ())) == set(AGENTS)):
             raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a network deciding dispatch, "

@@ -38,7 +38,7 @@ from wfbench.policies.protocol import as_obs, seeds_array
 
 from wfbench.core.actions import AGENTS
 from wfbench.core.belief import Belief, config_from_observation
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 
 # budget presets: (K, H, R), named by the decision time they aim at per env-step on paper-64 (one core);
 # docs/policies.md ("Lookahead policies") has the measured cost of each
@@ -82,7 +82,7 @@ class RolloutBase:
     reads_trace = False
 
     def __init__(self, base: Any, K: int | None, H: int | None, R: int | None, budget: str,
-                 scenario: str | ScenarioConfig | None, seed: int, name: str):
+                 scenario: ScenarioConfig | None, seed: int, name: str):
         k0, h0, r0 = globals()["budget"](budget)
         self.K = knob("K", k0 if K is None else K)
         self.H = knob("H", h0 if H is None else H)
@@ -90,7 +90,7 @@ class RolloutBase:
         self.base = base
         self.seed = int(seed)
         self.name = name
-        self.config = None if scenario is None else ScenarioConfig.resolve(scenario)
+        self.config = None if scenario is None else require_config(scenario, f"{name} scenario=")
         self.belief: Belief | None = None
         self.last_scores: np.ndarray | None = None  # (B, 7) mean score per workforce action at the last decision
         self.timing: dict[str, float] = {}
@@ -98,13 +98,13 @@ class RolloutBase:
     def settings(self) -> dict[str, int]:
         return {"K": self.K, "H": self.H, "R": self.R}
 
-    def set_world(self, config: str | ScenarioConfig) -> None:
+    def set_world(self, config: ScenarioConfig) -> None:
         """The public config of the world (optional: without it the model comes from the first observation).
 
         The evaluator calls it before ``reset`` with the scenario's public parameters
         (:func:`wfbench.harness.runner.public_world`); it replaces ``scenario=``.
         """
-        self.config = ScenarioConfig.resolve(config)
+        self.config = require_config(config, f"{self.name}.set_world")
 
 
 class Rollout(RolloutBase):
@@ -114,14 +114,14 @@ class Rollout(RolloutBase):
         base: a composite of built-in kernels (``Composite.compiled``), e.g. ``policies.get("solver-tuned")``.
         K, H, R: the knobs (:data:`KNOBS`), integers >= 1; None takes the ``budget`` preset's.
         budget: a preset of :data:`BUDGETS` for the knobs not given.
-        scenario: the public config of the world (a name, a path or a config); None: from
+        scenario: the public config of the world (a :class:`ScenarioConfig`); None: from
             :meth:`set_world` (the evaluator's), else built from the first observation.
         seed: the policy's own seed, mixed into its belief keys.
         name: the policy's name.
     """
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
-                 budget: str = DEFAULT_BUDGET, scenario: str | ScenarioConfig | None = None, seed: int = 0,
+                 budget: str = DEFAULT_BUDGET, scenario: ScenarioConfig | None = None, seed: int = 0,
                  name: str | None = None):
         if not getattr(base, "compiled", False):
             raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "

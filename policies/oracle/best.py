@@ -22,7 +22,7 @@ from wfbench.policies.oracle.rollout import roll_forward
 from wfbench.policies.protocol import seeds_array
 
 from wfbench.core.actions import AGENTS, validate_actions
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import METRICS
 
@@ -99,9 +99,9 @@ class BestInHindsight:
     def __repr__(self) -> str:
         return f"BestInHindsight({self.name!r}, {len(self.candidates)} candidates)"
 
-    def attach(self, config: str | ScenarioConfig) -> None:
+    def attach(self, config: ScenarioConfig) -> None:
         """Tell it the scenario (the runner does, before ``reset``, for policies that read the trace)."""
-        self.config = ScenarioConfig.resolve(config)
+        self.config = require_config(config, f"{type(self).__name__}.attach")
 
     # -- playing the candidates ------------------------------------------------------------------
     def reset(self, seeds: int | Sequence[int]) -> None:

@@ -53,7 +53,7 @@ class _OraclePart:
         for part in mine.values():
             part.planner = planner
 
-    def attach(self, config: str | ScenarioConfig) -> None:
+    def attach(self, config: ScenarioConfig) -> None:
         self.planner.attach(config)
 
     def reset(self, seeds: int | Sequence[int]) -> None:

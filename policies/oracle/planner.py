@@ -30,7 +30,7 @@ from wfbench.policies.oracle.workforce import workforce_candidates
 from wfbench.policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
 
 from wfbench.core.actions import AGENTS
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.lookahead import copy_state, fork
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import EMPTY, IDLE, RETURNING
@@ -101,9 +101,9 @@ class Planner:
         self.base[decision] = (int(code), np.asarray(hp, dtype=np.float64).copy(), int(seed))
 
     # -- protocol ------------------------------------------------------------------------------
-    def attach(self, config: str | ScenarioConfig) -> None:
+    def attach(self, config: ScenarioConfig) -> None:
         """Tell the planner the scenario (the runner does, before ``reset``, for policies that read the trace)."""
-        self.config = ScenarioConfig.resolve(config)
+        self.config = require_config(config, f"{type(self).__name__}.attach")
         self._reset_seeds = None
 
     def reset(self, seeds: int | Sequence[int]) -> None:

@@ -29,6 +29,44 @@ def test_unknown_config_field_lists_the_fields():
         ScenarioConfig.preset("paper-64").replace(sped=2)
 
 
+def _name_at_the_core():
+    """What is inward of the edges, each handed a scenario's name instead of its config (docs/design.md)."""
+    from wfbench import policies
+    from wfbench.core.belief import Belief, PublicModel
+    from wfbench.core.bound import score_upper_bound
+    from wfbench.envs.parallel import WorkforceCore
+
+    return [("Simulator", lambda: Simulator("small", [0])),
+            ("Belief", lambda: Belief("small")),
+            ("PublicModel.from_config", lambda: PublicModel.from_config("small")),
+            ("score_upper_bound", lambda: score_upper_bound("small", 2)),
+            ("WorkforceCore", lambda: WorkforceCore("small", None)),
+            ("BestInHindsight.attach", lambda: policies.get("oracle").attach("small"))]
+
+
+@pytest.mark.parametrize("index", range(6))
+def test_a_name_given_to_the_core_is_one_typeerror_naming_the_resolver(index):
+    owner, call = _name_at_the_core()[index]
+    with pytest.raises(TypeError) as raised:
+        call()
+    message = str(raised.value)
+    assert "\n" not in message
+    assert message.startswith(f"{owner} takes a ScenarioConfig, got str 'small'")
+    assert message.endswith("e.g. wfbench.scenario('small')")
+
+
+def test_the_public_resolver_gives_the_config_the_core_takes():
+    import wfbench
+
+    assert wfbench.scenario("small") is ScenarioConfig.preset("small")
+    from wfbench.scenarios.suites import SUITES
+
+    assert wfbench.scenario("paper-64-v1") is SUITES["suite-v1"].scenario("paper-64-v1").config
+    config = ScenarioConfig.preset("small")
+    assert wfbench.scenario(config) is config
+    assert Simulator(wfbench.scenario("small"), [0]).config is config
+
+
 def test_bad_schedule():
     with pytest.raises(ValueError, match="amplitude must be in"):
         RateSchedule(kind="seasonal", amplitude=1.5)

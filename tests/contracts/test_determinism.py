@@ -12,6 +12,7 @@ from wfbench import ScenarioConfig, Simulator, trace
 from wfbench.harness.budget import results_only
 from wfbench.harness.evaluation import evaluate
 from wfbench.harness.runner import run_batch
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def digest(series: np.ndarray) -> str:
@@ -39,7 +40,7 @@ def test_seed_alone_equals_seed_in_batch_of_64(policy):
 def test_compiled_rollout_equals_python_step_loop(policy):
     seeds = [3, 4, 5]
     compiled = run_batch(policy, "paper-64", seeds, keep_series=True)
-    sim = Simulator("paper-64", seeds)
+    sim = Simulator(resolve_scenario("paper-64"), seeds)
     obs = sim.reset()
     p = get(policy)
     p.reset(seeds)
@@ -52,7 +53,7 @@ def test_compiled_rollout_equals_python_step_loop(policy):
 def test_step_observe_equals_step_then_observe():
     """The environments' fused, bound call gives the same rewards, observations and state."""
     seeds = [1, 2]
-    a, b = Simulator("paper-64", seeds), Simulator("paper-64", seeds)
+    a, b = Simulator(resolve_scenario("paper-64"), seeds), Simulator(resolve_scenario("paper-64"), seeds)
     obs_a, obs_b = a.reset(), b.reset()
     p, q = get("random"), get("random")
     p.reset(seeds)

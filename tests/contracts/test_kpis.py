@@ -14,6 +14,7 @@ import pytest
 
 from wfbench.core.kpis import BY_NAME, KPI_NAMES, KPIS, MEASURED, METRICS, SCORE, UTILITIES, kpi_score
 from wfbench.core.reward import REWARDS, step_reward
+from wfbench.scenarios.resolve import resolve_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("wfbench", "policies", "leaderboard", "solvers")
@@ -118,7 +119,7 @@ def test_kpis__every_frame_and_store_reads_the_table():
 def test_reward__no_cost_is_the_geometric_mean_of_the_other_two_utilities():
     from wfbench import Simulator
 
-    sim = Simulator("small", [3, 4])
+    sim = Simulator(resolve_scenario("small"), [3, 4])
     sim.reset()
     none = {"dispatch": np.full((2, sim.M), sim.N), "workforce": np.zeros(2, dtype=int),
             "positioning": np.zeros((2, 2, sim.M))}
@@ -140,7 +141,7 @@ def test_kpis__the_welfare_is_the_cube_root_of_the_product_bit_for_bit():
     """Why the KPI table has no weight per utility: the welfare, read as weights, would round differently."""
     from wfbench import Simulator
 
-    sim = Simulator("small", list(range(8)))
+    sim = Simulator(resolve_scenario("small"), list(range(8)))
     sim.reset()
     rng = np.random.default_rng(0)
     rows = []

@@ -66,7 +66,7 @@ def _scores(policy, scenario, seeds):
 
 def _check_never_exceeded(scenario, seeds, oracle_seeds):
     """Every built-in and adversarial policy on ``seeds``, the oracles (slower) on ``oracle_seeds``."""
-    bound = score_upper_bound(scenario, seeds)
+    bound = score_upper_bound(wfbench.scenario(scenario), seeds)
     runs = [(p, seeds) for p in BUILTIN + _adversaries()] + [(p, oracle_seeds) for p in _oracles()]
     for policy, run_seeds in runs:
         score = _scores(policy, scenario, run_seeds)
@@ -108,14 +108,14 @@ def test_bound__each_step_of_the_argument_holds_on_the_series(scenario, n):
 
 def test_bound__is_below_the_trivial_bound_by_a_margin():
     for scenario in ["small", "paper-64", "nonstationary"]:
-        bound = score_upper_bound(scenario, 50)
+        bound = score_upper_bound(wfbench.scenario(scenario), 50)
         assert np.all(bound < 0.98), (scenario, bound.max())
         assert np.all(bound > 0.5), (scenario, bound.min())  # not vacuous the other way: the heuristic scores ~0.6-0.7
 
 
 def test_bound__is_a_pure_function_of_the_seed():
-    all_five = score_upper_bound("small", 5)
-    assert score_upper_bound("small", [3])[0] == all_five[3]
+    all_five = score_upper_bound(wfbench.scenario("small"), 5)
+    assert score_upper_bound(wfbench.scenario("small"), [3])[0] == all_five[3]
     assert np.array_equal(score_upper_bound(ScenarioConfig.preset("small"), [0, 1, 2, 3, 4]), all_five)
 
 
@@ -183,7 +183,7 @@ def test_bound__holds_against_the_best_policies_on_the_new_scenarios(scenario):
     seed (tests/policies/test_oracles.py), so its seed covers them all; the suite's reproduction checks every
     policy against the bound on every scenario and seed it runs (docs/suite.md)."""
     seeds = list(range(3))
-    bound = score_upper_bound(scenario, seeds)
+    bound = score_upper_bound(wfbench.scenario(scenario), seeds)
     assert np.all((bound > 0.5) & (bound < 0.98)), (scenario, bound)
     if scenario in ORACLE_CHECKED:
         oracle = _scores("oracle", scenario, [0])

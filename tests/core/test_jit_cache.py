@@ -154,9 +154,10 @@ def test_digests_follow_imports_only():
 # -- end to end: edit a copy, see new numbers ----------------------------------------------------------------
 SCRIPT = """
 import numpy as np
+from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import IDLE
-sim = Simulator("small", [0, 1])
+sim = Simulator(ScenarioConfig.preset("small"), [0, 1])
 S = sim.state
 S.per_status[:, :4] = IDLE   # four idle people in each environment, nobody under notice
 S.per_leave[:, :4] = -1
@@ -228,21 +229,23 @@ def test_editing_a_function_inlined_from_another_file_recompiles(tmp_path):
 
 @pytest.mark.parametrize("value", [0, -1, 1.5, "2"])
 def test_simulator_threads_must_be_a_positive_integer(value):
+    from wfbench.core.config import ScenarioConfig
     from wfbench.core.simulator import Simulator
 
     with pytest.raises(ValueError, match="threads"):
-        Simulator("small", [0], threads=value)
+        Simulator(ScenarioConfig.preset("small"), [0], threads=value)
 
 
 def test_step_observe_gives_the_same_bits_on_one_and_two_threads():
     import numpy as np
 
+    from wfbench.core.config import ScenarioConfig
     from wfbench.core.simulator import Simulator
 
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.fail("numba has one thread here; this test needs NUMBA_NUM_THREADS >= 2")
     seeds = list(range(9))
-    sims = [Simulator("small", seeds, threads=t) for t in (1, 2)]
+    sims = [Simulator(ScenarioConfig.preset("small"), seeds, threads=t) for t in (1, 2)]
     rng = np.random.default_rng(3)
     for sim in sims:
         sim.reset()

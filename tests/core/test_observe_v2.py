@@ -91,7 +91,7 @@ def test_twin_world__version_2_and_the_scalefree_inputs_are_the_same_bits(scenar
     torch = pytest.importorskip("torch")
     from wfbench.policies.neural import model, scalefree
 
-    config = ScenarioConfig.resolve(scenario)
+    config = wfbench.scenario(scenario)
     obs = run_heuristic(config)
     assert (obs["t"] > 0).all() and obs["facility_mask"].any() and obs["personnel_mask"].any()
     assert obs["facilities"][..., FAC_XY].any() and obs["personnel"][..., PER_XY].any(), "nothing to scale"
@@ -120,7 +120,7 @@ def test_twin_world__version_2_and_the_scalefree_inputs_are_the_same_bits(scenar
 @pytest.mark.parametrize("k", [2, 4])
 @pytest.mark.parametrize("scenario", ["paper-64", "small"])
 def test_twin_world__is_what_a_simulator_at_k_runs(scenario, k):
-    config = ScenarioConfig.resolve(scenario)
+    config = wfbench.scenario(scenario)
     twin = scaled_world(config, k)
     sim = Simulator(twin, SEEDS, keep_series=False)
     assert (sim.params.grid_w, sim.params.grid_h) == (k * config.grid_width, k * config.grid_height)
@@ -140,7 +140,7 @@ def test_twin_world__is_what_a_simulator_at_k_runs(scenario, k):
 @pytest.mark.parametrize("scenario", ["paper-64", "small"])
 def test_twin_simulator__shows_the_same_travel_time_range(scenario, k):
     """End to end: the twin's own simulator (its own trace) places things over the same extent in travel time."""
-    config = ScenarioConfig.resolve(scenario)
+    config = wfbench.scenario(scenario)
     obs, obs_twin = run_heuristic(config, steps=20), run_heuristic(scaled_world(config, k), steps=20)
     fac_twin = obs_twin["facilities"][..., FAC_XY][obs_twin["facility_mask"] > 0]
     assert fac_twin.max() > config.grid_width - 1, "the twin's facilities never leave the original grid"
@@ -156,7 +156,7 @@ def test_twin_simulator__shows_the_same_travel_time_range(scenario, k):
 
 
 def test_twin_world__not_a_power_of_two_is_equal_to_rounding():
-    config = ScenarioConfig.resolve("small")
+    config = wfbench.scenario("small")
     obs = run_heuristic(config)
     v2, v2_twin = observe_v2(obs), observe_v2(twin_observation(obs, config, 3))
     for key in ("facilities", "personnel", "context"):
@@ -288,7 +288,7 @@ def test_make_vec_of_workforce_v1_replays_the_single_envs():
 
 def test_workforce_v1_is_workforce_v0_in_travel_time():
     """The same episode through both ids: v0 shows what it showed before, v1 is observe_v2 of it, in its space."""
-    config = ScenarioConfig.resolve("small").replace(speed=1.5, horizon=120)
+    config = wfbench.scenario("small").replace(speed=1.5, horizon=120)
     v0 = gymnasium.make("wfbench/Workforce-v0", scenario=config).unwrapped
     v1 = gymnasium.make("wfbench/Workforce-v1", scenario=config).unwrapped
     assert (v0.obs_version, v1.obs_version) == (1, 2)
@@ -318,7 +318,7 @@ def test_workforce_v1_is_workforce_v0_in_travel_time():
 @pytest.mark.parametrize("scenario", ["small", "nonstationary", "surge-64", "churn-64"])
 def test_version_2_bounds_hold_over_a_whole_episode(scenario):
     """The heuristics through a whole episode (hiring, letting go, schedules): every row in the space."""
-    config = ScenarioConfig.resolve(scenario)
+    config = wfbench.scenario(scenario)
     space = spaces.Dict(shared_spaces(config, 2))
     sim = Simulator(config, SEEDS, keep_series=False, threads=1)
     obs = sim.reset()
@@ -369,7 +369,7 @@ def test_sb3_policy_of_a_version_2_model_reads_version_2():
                 policy_kwargs={"features_extractor_class": EntitySetExtractor}, device="cpu", seed=0)
     pol = SB3Policy(model, "small")
     assert pol.observation_version == 2
-    sim = Simulator("small", SEEDS, keep_series=False)
+    sim = Simulator(wfbench.scenario("small"), SEEDS, keep_series=False)
     obs = sim.reset()
     pol.reset(sim.seeds)
     for _ in range(3):

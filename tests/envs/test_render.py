@@ -9,12 +9,13 @@ from wfbench import Simulator
 from wfbench.cli import main
 from wfbench.core.state import EMPTY, SERVICING, TO_FACILITY
 from wfbench.envs.render import FACILITY_COLORS, LEVEL_COLORS, Renderer, render_rgb, save_gif
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 @pytest.fixture(scope="module")
 def running():
     """A ``small`` episode 60 steps into the heuristic policy: requests open, people on jobs."""
-    sim = Simulator("small", [4])
+    sim = Simulator(resolve_scenario("small"), [4])
     obs = sim.reset()
     policy = get("heuristic")
     policy.reset([4])
@@ -76,7 +77,7 @@ def test_render__markers_follow_the_state(running):
 
 
 def test_render__render_rgb_redraws_the_changing_state(running):
-    sim = Simulator("small", [5])
+    sim = Simulator(resolve_scenario("small"), [5])
     obs = sim.reset()
     first = render_rgb(sim)
     assert first.dtype == np.uint8 and first.shape[2] == 3 and first.shape[1] > first.shape[0], "map plus legend"
@@ -96,7 +97,7 @@ def test_render__render_rgb_redraws_the_changing_state(running):
 
 def test_save_gif__keeps_every_frame_and_its_colours(running, tmp_path):
     r = Renderer(running.config)
-    sim = Simulator("small", [6])
+    sim = Simulator(resolve_scenario("small"), [6])
     obs = sim.reset()
     policy = get("heuristic")
     policy.reset([6])

@@ -41,7 +41,7 @@ def refusing(monkeypatch):
 
 @pytest.fixture(scope="module")
 def batch():
-    sim = wfbench.Simulator("small", [0, 1, 2])
+    sim = wfbench.Simulator(wfbench.scenario("small"), [0, 1, 2])
     obs = sim.reset()
     h = policies.get("heuristic")
     h.reset([0, 1, 2])

@@ -14,6 +14,7 @@ from wfbench.harness.isolation import child as sandbox_child
 from wfbench.harness.isolation import sandbox
 from wfbench.harness.isolation.wire import Decoder, Kind, array_text, encode, text_array
 from wfbench.harness.runner import public_world, run_batch
+from wfbench.scenarios.resolve import resolve_scenario
 
 SMALL = ScenarioConfig.preset("small").replace(horizon=6)
 
@@ -53,7 +54,7 @@ def test_the_runner_hands_the_public_config_before_reset_and_nothing_else():
 
 def test_public_world_is_a_copy_with_every_law_of_the_world():
     for name in ("paper-64", "surge-64", "clustered-64", "real-benelux"):
-        config = ScenarioConfig.resolve(name)
+        config = resolve_scenario(name)
         world = public_world(config)
         assert world == config and world is not config
 

@@ -18,6 +18,7 @@ from wfbench.policies.neural.policy import NetworkPolicy
 
 from wfbench import policies
 from wfbench.core.simulator import Simulator
+from wfbench.scenarios.resolve import resolve_scenario
 
 SEEDS = [11, 12, 13]
 
@@ -30,7 +31,7 @@ def with_blocks() -> NetworkPolicy:
 
 def driven(scenario: str, steps: int):
     """Observations of ``SEEDS`` on ``scenario`` along the heuristic's episode (many open requests on large)."""
-    sim = Simulator(scenario, SEEDS, keep_series=False, threads=1)
+    sim = Simulator(resolve_scenario(scenario), SEEDS, keep_series=False, threads=1)
     obs = sim.reset()
     drive = policies.get("heuristic")
     drive.reset(SEEDS)

@@ -16,6 +16,7 @@ from wfbench.policies.neural.policy import POLICY_SEED
 
 from wfbench import policies
 from wfbench.core.simulator import Simulator
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def loop_picks(logits, valid, cand, rows, R, N):
@@ -83,7 +84,7 @@ def full_noise(policy, seeds, B, M, N, steps):
 def test_the_noise_read_is_the_noise_of_a_full_draw(name):
     pol = policies.get(name)
     seeds = [3, 4, 5]
-    sim = Simulator("paper-64", seeds, keep_series=False, threads=1)
+    sim = Simulator(resolve_scenario("paper-64"), seeds, keep_series=False, threads=1)
     obs = sim.reset()
     pol.reset(seeds)
     steps, read_rows = 12, 0

@@ -8,12 +8,13 @@ from wfbench.policies.decisions import DECISIONS, LABELS, OTHERS
 from wfbench.policies.rules import CODES, HP_BY_NAME, HYPERPARAMETERS, RULES, code
 
 from wfbench.core.actions import AGENTS
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 def test_rules__codes_count_from_each_decisions_no_op():
     from wfbench import Simulator
 
-    sim = Simulator("small", [5])
+    sim = Simulator(resolve_scenario("small"), [5])
     sim.reset()
     obs = sim.observe()
     does_nothing = {"dispatch": sim.N, "workforce": 0, "positioning": 0.0}

@@ -21,7 +21,7 @@ from wfbench.core.simulator import Simulator  # noqa: E402
 
 def busy_batch(scenario="paper-64", seeds=(3, 4, 5, 6), steps=60):
     """An observation of a few environments run a while by the heuristic, many requests open."""
-    sim = Simulator(scenario, list(seeds), keep_series=False, threads=1)
+    sim = Simulator(wfbench.scenario(scenario), list(seeds), keep_series=False, threads=1)
     obs = sim.reset()
     pol = policies.get("heuristic")
     pol.reset(list(seeds))

@@ -85,7 +85,7 @@ def test_assignment_with_more_requests_than_people():
 
 def test_dispatch_methods_agree_on_a_real_episode():
     """On every step of a heuristic run, each assignment method picks a dispatch of the same cost."""
-    sim = Simulator("paper-64", [2, 3])
+    sim = Simulator(wfbench.scenario("paper-64"), [2, 3])
     obs = sim.reset()
     driver = get("heuristic")
     driver.reset([2, 3])
@@ -232,7 +232,7 @@ def test_sparse_decisions_against_the_dense_ones_along_an_episode():
     Positioning (a solve every step): the let-go map is the dense rule's bit for bit; the
     hire map is the same on at least 90% of the steps (measured: 100 of 100; 47 dispatch steps checked).
     """
-    sim = Simulator("paper-64", [3])
+    sim = Simulator(wfbench.scenario("paper-64"), [3])
     sim.reset()
     pol = get("solver")
     pol.reset([3])

@@ -40,4 +40,4 @@ def test_anything_else_is_refused_in_one_line():
                                         r"AECEnv, or a function of no arguments that makes one$"):
         check_env("wfbench/Workforce-v0")
     with pytest.raises(TypeError, match=r"^check_env got Simulator; allowed"):
-        check_env(lambda: wfbench.Simulator("small", [0]))
+        check_env(lambda: wfbench.Simulator(wfbench.scenario("small"), [0]))

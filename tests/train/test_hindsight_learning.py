@@ -47,10 +47,10 @@ def test_labels_are_the_oracles_action_in_the_learners_state(tmp_path):
     assert all(s >= 1_000_000 for s in seeds)  # training seeds only
 
     oracle = policies.get("oracle-planner")  # the registry's planner composite, built independently of the trainer
-    oracle.attach("small")
+    oracle.attach(wfbench.scenario("small"))
     oracle.reset(seeds)
     planner = oracle.parts["dispatch"].planner
-    sim = wfbench.Simulator("small", seeds)
+    sim = wfbench.Simulator(wfbench.scenario("small"), seeds)
     obs = sim.reset()
     learner_steps_off_label = 0
     for step in trail:
@@ -179,11 +179,11 @@ def test_bad_config_raises_a_clear_error(tmp_path, change, words):
 
 def test_workforce_values_are_the_planners_scores_and_its_choice_their_argmax():
     oracle = policies.get("nearest+oracle+oracle")
-    oracle.attach("small")
+    oracle.attach(wfbench.scenario("small"))
     seeds = [1_000_000, 1_000_001, 1_000_002]
     oracle.reset(seeds)
     planner = oracle.parts["workforce"].planner
-    sim = wfbench.Simulator("small", seeds)
+    sim = wfbench.Simulator(wfbench.scenario("small"), seeds)
     obs = sim.reset()
     scored = acted = 0
     while not sim.done and int(obs["t"][0]) < 120:

@@ -23,7 +23,6 @@ from wfbench.policies.neural.model import WorkforceNet, model_config  # noqa: E4
 import wfbench  # noqa: E402
 from wfbench import policies  # noqa: E402
 from wfbench.cli import main  # noqa: E402
-from wfbench.core.config import ScenarioConfig  # noqa: E402
 from wfbench.train import ray_actors  # noqa: E402
 from wfbench.train.impala import Actor, ImpalaConfig, Trainer  # noqa: E402
 from wfbench.train.ppo import VARIANTS  # noqa: E402
@@ -44,7 +43,7 @@ def local_ray():
 def test_impala_ray__actors_take_disjoint_training_seeds():
     cfg = ImpalaConfig(scenario="small", model="tiny", seed=3)
     model = WorkforceNet(model_config("tiny", VARIANTS["joint"]))
-    scenario = ScenarioConfig.resolve("small")
+    scenario = wfbench.scenario("small")
 
     def taken(index, count, sizes):
         actor = Actor(cfg, scenario, model, torch.device("cpu"), index, count)

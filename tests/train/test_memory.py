@@ -21,7 +21,7 @@ from wfbench.train.ppo import TrainConfig, Trainer
 
 
 def _obs(scenario: str, B: int):
-    sim = wfbench.Simulator(scenario, list(range(B)))
+    sim = wfbench.Simulator(wfbench.scenario(scenario), list(range(B)))
     obs = sim.reset()
     h = policies.get("heuristic")
     h.reset(list(range(B)))

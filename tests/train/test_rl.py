@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def _mid_episode_obs(scenario, seeds, steps=60):
     """An observation after ``steps`` heuristic steps: open requests, busy people, empty slots."""
-    sim = wfbench.Simulator(scenario, seeds)
+    sim = wfbench.Simulator(wfbench.scenario(scenario), seeds)
     obs = sim.reset()
     h = policies.get("heuristic")
     h.reset(seeds)
@@ -414,7 +414,7 @@ def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
 
     pols = {m: policies.get(f"ppo-joint@{m}") for m in ("sample", "greedy", "greedy-dispatch")}
     seeds = [1000, 1001, 1002, 1003]
-    sim = Simulator("paper-64", seeds)
+    sim = Simulator(wfbench.scenario("paper-64"), seeds)
     obs = sim.reset()
     for p in pols.values():
         p.reset(seeds)

@@ -12,14 +12,14 @@ from wfbench.policies.composite import Composite
 
 from wfbench import policies
 from wfbench.cli import main
-from wfbench.core.config import ScenarioConfig
 from wfbench.envs.parallel import resolve_fixed
 from wfbench.harness.evaluation import evaluate
+from wfbench.scenarios.resolve import resolve_scenario
 from wfbench.tune import check_tuning_seeds, search_space, tune
 from wfbench.tune import search as tune_mod
 
 SEEDS = "public:3"
-SMALL = ScenarioConfig.resolve("small").replace(horizon=60)
+SMALL = resolve_scenario("small").replace(horizon=60)
 FEW = {"workforce.high": None, "workforce.cooldown": (2, 40), "positioning.request_weight": None}
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.observation_v2 import WORLD_DYNAMIC, WORLD_FEATURES, world_parameters
 from wfbench.core.observe import (
     FAC_DOWNTIME,
@@ -93,7 +93,7 @@ class PublicModel(NamedTuple):
     @classmethod
     def from_config(cls, config: ScenarioConfig) -> PublicModel:
         """The public model of ``config``: every rate schedule, the layout and the lifetimes."""
-        c = ScenarioConfig.resolve(config)
+        c = require_config(config, "PublicModel.from_config")
         rate = c.churn_schedule.multipliers(c.horizon) / c.churn_interval
         rate[0] = 0.0
         cum = np.ascontiguousarray(np.cumsum(rate[: c.horizon]), dtype=np.float64)
@@ -490,7 +490,7 @@ class Belief:
     """What a policy knows of B episodes, from their observations alone; simulators sampled from it.
 
     Args:
-        config: the scenario's public config (a name, a path or a :class:`ScenarioConfig`):
+        config: the scenario's public :class:`ScenarioConfig`:
             the model the unobserved is drawn from (:class:`PublicModel`).
 
     Use: :meth:`reset` with the seeds (or opaque keys) the policy was reset with,
@@ -498,8 +498,8 @@ class Belief:
     (a fork of some rows, reused) and :meth:`sample_into` at each decision.
     """
 
-    def __init__(self, config: str | ScenarioConfig):
-        self.config = ScenarioConfig.resolve(config)
+    def __init__(self, config: ScenarioConfig):
+        self.config = require_config(config, "Belief")
         self.model = PublicModel.from_config(self.config)
         self.B = 0
         self.H: History | None = None

@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.rng import STREAM_FAILURE, STREAM_REPAIR, exponential, uniform
 from wfbench.core.trace import trace as make_trace
 
@@ -319,16 +319,16 @@ def bound_parts(config: ScenarioConfig, seed: int) -> BoundParts:
     return BoundParts(min(holder, per_step), per_step, t_star, wc, pur, a, afd_sum, afd_sum / T)
 
 
-def score_upper_bound(config: ScenarioConfig | str, seeds: int | Iterable[int]) -> np.ndarray:
+def score_upper_bound(config: ScenarioConfig, seeds: int | Iterable[int]) -> np.ndarray:
     """Per seed, a score that no policy can exceed (``docs/hindsight.md``, "The upper bound").
 
     Args:
-        config: a :class:`ScenarioConfig` or a preset name.
+        config: a :class:`ScenarioConfig` (a name is resolved by :func:`wfbench.scenario`).
         seeds: ``n`` for seeds ``0..n-1``, or a sequence of seeds.
 
     Returns:
         ``(len(seeds),)`` float64: the bound of each seed, in seed order.
     """
-    config = ScenarioConfig.resolve(config)
+    config = require_config(config, "score_upper_bound")
     seeds = range(int(seeds)) if isinstance(seeds, (int, np.integer)) else seeds
     return np.array([bound_parts(config, int(s)).bound for s in seeds], dtype=np.float64)

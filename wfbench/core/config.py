@@ -4,8 +4,9 @@ Every field is checked on construction; a bad value raises ``ValueError`` naming
 field, the value and what is allowed. Presets (``PRESETS``, built from the
 data in :mod:`wfbench.core.presets`) are looked up by name with
 :meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON. A scenario's
-name (preset, suite id or file) is resolved by :mod:`wfbench.scenarios.resolve`, also
-as :meth:`ScenarioConfig.resolve`.
+name (preset, suite id or file) is resolved where it enters wfbench, by
+:func:`wfbench.scenario` (:mod:`wfbench.scenarios.resolve`); the core takes configs
+(:func:`require_config`, ``docs/design.md``, "Names resolved where they enter").
 See ``docs/model.md`` for what each field means in the model.
 
 Fields added after the leaderboard began hashing ``to_dict()`` (``OMITTED_AT_DEFAULT``:
@@ -169,19 +170,6 @@ class ScenarioConfig:
             raise ValueError(f"unknown scenario {name!r}; available: {', '.join(PRESETS)}")
         return PRESETS[name]
 
-    @classmethod
-    def resolve(cls, scenario: str | Path | ScenarioConfig) -> ScenarioConfig:
-        """A preset name, a suite's scenario id (``paper-64-v1``), a .toml/.json path, or a config.
-
-        The one scenario grammar, :func:`wfbench.scenarios.resolve.resolve_scenario` (this
-        method is its face on the class, for the core's own string edge: :class:`Simulator`).
-        """
-        if isinstance(scenario, ScenarioConfig):
-            return scenario
-        from wfbench.scenarios.resolve import resolve_scenario  # the suites' ids live above the core
-
-        return resolve_scenario(scenario)
-
     # -- serialization ---------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """The fields as plain data; those of ``OMITTED_AT_DEFAULT`` only when not at their default."""
@@ -242,3 +230,17 @@ class ScenarioConfig:
 
 # name -> config; the presets' fields are data in wfbench.core.presets (it imports nothing of the config)
 PRESETS: dict[str, ScenarioConfig] = {name: ScenarioConfig(name=name, **f) for name, f in PRESET_FIELDS.items()}
+
+
+def require_config(value: object, owner: str) -> ScenarioConfig:
+    """``value`` when it is a :class:`ScenarioConfig`; the core takes configs, never names.
+
+    Raises:
+        TypeError: anything else, in one line naming ``owner`` and the public resolver
+            that turns a name into a config where it enters (:func:`wfbench.scenario`).
+    """
+    if isinstance(value, ScenarioConfig):
+        return value
+    example = f"wfbench.scenario({value!r})" if isinstance(value, str) else "wfbench.scenario(name)"
+    raise TypeError(f"{owner} takes a ScenarioConfig, got {type(value).__name__} {value!r}; "
+                    f"resolve a scenario name where it enters, e.g. {example}")

@@ -18,7 +18,7 @@ from numba import njit
 
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.core.actions import AGENTS, ActionError, validate_actions
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.dynamics import reset_batch, reset_env
 from wfbench.core.entrypoints import bind, run_split
 from wfbench.core.observation_v2 import WorldKey
@@ -68,8 +68,8 @@ class Simulator:
     """B independent episodes of one scenario, stepped together by the compiled core.
 
     Args:
-        scenario: a :class:`ScenarioConfig`, or a scenario's name (a preset, a suite's id such as
-            ``paper-64-v1`` or a .toml/.json path), resolved once here by :meth:`ScenarioConfig.resolve`.
+        scenario: a :class:`ScenarioConfig`; a name (a preset, a suite's id such as ``paper-64-v1``
+            or a .toml/.json path) is resolved where it enters, by :func:`wfbench.scenario`.
         seeds: one episode per seed.
         keep_series: keep the per-step metrics of every step (``state.series``).
         threads: threads that :meth:`step`, :meth:`observe` and :meth:`step_observe`
@@ -79,9 +79,9 @@ class Simulator:
             environment, runs in the calling thread alone.
     """
 
-    def __init__(self, scenario: str | ScenarioConfig, seeds: Sequence[int], keep_series: bool = True,
+    def __init__(self, scenario: ScenarioConfig, seeds: Sequence[int], keep_series: bool = True,
                  threads: int | None = None):
-        self.config = ScenarioConfig.resolve(scenario)
+        self.config = require_config(scenario, "Simulator")
         if threads is not None and not (type(threads) is int and threads >= 1):
             raise ValueError(f"threads = {threads!r} is not allowed; allowed: None or an integer >= 1")
         self.threads = threads

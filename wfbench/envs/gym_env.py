@@ -36,6 +36,7 @@ from wfbench.envs.spaces import (
     split_joint,
     versioned,
 )
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 class _Base(gym.Env):
@@ -49,7 +50,7 @@ class _Base(gym.Env):
         self.observation_kind = check_option("observation", observation, OBSERVATIONS)
         self.info_kind = check_option("info", info, INFOS)
         self._window: HumanWindow | None = None
-        self.core = WorkforceCore(scenario, fixed)
+        self.core = WorkforceCore(resolve_scenario(scenario), fixed)  # a name enters here (gymnasium.make)
         self.config = self.core.config
         self.render_mode = render_mode
         self.reward_kind = reward

@@ -20,7 +20,7 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils import parallel_to_aec, wrappers
 
 from wfbench.core.actions import AGENTS, ActionError, actions_in_range, validate_actions
-from wfbench.core.config import ScenarioConfig
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.kpis import KPI_NAMES
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
@@ -47,6 +47,7 @@ from wfbench.envs.spaces import (
 from wfbench.policies import DECISIONS, get
 from wfbench.policies.registry import names
 from wfbench.policies.tuned import is_tuned_spec
+from wfbench.scenarios.resolve import resolve_scenario
 
 _INFO_METRICS = tuple((k, METRICS.index(k)) for k in KPI_NAMES)
 _FLAT_METRICS = tuple(f"metric_{k}" for k in KPI_NAMES)
@@ -81,8 +82,8 @@ class WorkforceCore:
     :func:`wfbench.core.actions.validate_actions`, which converts it or names the bad index.
     """
 
-    def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None):
-        self.config = ScenarioConfig.resolve(scenario)
+    def __init__(self, scenario: ScenarioConfig, fixed: dict[str, Any] | None):
+        self.config = require_config(scenario, "WorkforceCore")
         self.fixed = resolve_fixed(fixed)
         self.sim: Simulator | None = None
         self.obs: dict[str, np.ndarray] | None = None
@@ -200,7 +201,7 @@ class WorkforceParallelEnv(ParallelEnv):
             raise ValueError("positioning='flat' is not allowed with actions='shared', whose positioning is already "
                              "flat (2M levels of the shared MultiDiscrete); allowed: positioning='flat' with "
                              "actions='own'")
-        self.core = WorkforceCore(scenario, fixed)
+        self.core = WorkforceCore(resolve_scenario(scenario), fixed)  # a name enters here (parallel_env, env)
         self.config = self.core.config
         self.render_mode = render_mode
         self.possible_agents = [a for a in AGENTS if a not in self.core.fixed]

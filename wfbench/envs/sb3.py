@@ -25,6 +25,7 @@ from wfbench.core.observation_v2 import observe_v2
 from wfbench.core.state import N_WORKFORCE_ACTIONS
 from wfbench.envs.spaces import POSITIONING_LEVELS
 from wfbench.envs.vector import WorkforceVectorEnv
+from wfbench.scenarios.resolve import resolve_scenario
 
 _N_STATUS = 6  # personnel status codes, wfbench.core.state.EMPTY..RETURNING
 
@@ -190,7 +191,7 @@ class SB3Policy:
         if kind not in ("workforce", "dispatch"):
             raise ValueError(f"kind {kind!r} is not allowed; allowed: workforce, dispatch")
         self.model, self.kind, self.name = model, kind, name
-        self.config = ScenarioConfig.resolve(config)
+        self.config = resolve_scenario(config)  # a user's edge: the model and the scenario it plays
         self.M, self.N = self.config.max_facilities, self.config.max_personnel
         self.decisions = ("dispatch", "workforce", "positioning") if kind == "workforce" else ("dispatch",)
         self._keys = tuple(model.observation_space.spaces)

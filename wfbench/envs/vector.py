@@ -24,6 +24,7 @@ from wfbench.core.reward import check_reward, step_reward
 from wfbench.core.simulator import Simulator
 from wfbench.envs.gym_env import DispatchEnv, WorkforceEnv
 from wfbench.envs.spaces import POSITIONING_LEVELS, flatten_batch, split_joint, versioned
+from wfbench.scenarios.resolve import resolve_scenario
 
 KINDS = {"workforce": WorkforceEnv, "dispatch": DispatchEnv}
 AUTORESET_MODES = {  # the autoreset_mode option: a name, the AutoresetMode or its value
@@ -57,6 +58,7 @@ class WorkforceVectorEnv(VectorEnv):
         check_reward(reward)
         if kind == "workforce" and fixed:
             raise ValueError("kind='workforce' learns every decision; fix decisions with kind='dispatch'")
+        scenario = resolve_scenario(scenario)  # a name enters here (gymnasium.make_vec, WorkforceVecEnv)
         single = (DispatchEnv(scenario, fixed=fixed, observation=observation, obs_version=obs_version)
                   if kind == "dispatch" else WorkforceEnv(scenario, observation=observation, obs_version=obs_version))
         self.observation_kind = observation

@@ -21,6 +21,7 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_NAMES
 from wfbench.core.simulator import Simulator
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
+from wfbench.scenarios.resolve import resolve_scenario
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ def simulate(policy: Any = "heuristic", scenario: str | Path | ScenarioConfig = 
         policy: a registry name, a ``module:attr`` entry point or a policy object
             (anything :func:`~wfbench.harness.guard.load_policy` takes).
         scenario: a preset name, a suite's scenario id, a config file or a config
-            (:meth:`ScenarioConfig.resolve`).
+            (:func:`wfbench.scenario`, resolved once here).
         seed: the episode's seed.
         steps: stop after this many steps (default: the whole horizon).
         render: write an animated GIF of the episode here (its folder must exist).
@@ -66,7 +67,7 @@ def simulate(policy: Any = "heuristic", scenario: str | Path | ScenarioConfig = 
     """
     from tqdm.auto import tqdm
 
-    config = ScenarioConfig.resolve(scenario)
+    config = resolve_scenario(scenario)
     for name, value, least in (("seed", seed, 0), ("steps", steps, 1), ("every", every, 1)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least):
             raise ValueError(f"{name} = {value!r} is not allowed; allowed: an integer >= {least}")

@@ -86,7 +86,7 @@ def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | 
         for i, k in enumerate(rows_kpi):
             ax = axes[i, j]
             if BY_NAME[k].better == "band":
-                ax.axhspan(*utilization_band(ScenarioConfig.resolve("paper-64")), color="0.9", zorder=0)
+                ax.axhspan(*utilization_band(ScenarioConfig.preset("paper-64")), color="0.9", zorder=0)
             if FIGURE3_REFERENCE in bands and FIGURE3_REFERENCE not in ms:
                 ref = bands[FIGURE3_REFERENCE][i][1]
                 ax.plot(np.arange(ref.size), ref, color="0.35", ls="--", lw=1,

@@ -12,6 +12,7 @@ from wfbench.core.kpis import SCORE
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies.registry import LINEUPS
 from wfbench.reproduce.common import Output, Progress, write
+from wfbench.scenarios.resolve import resolve_scenario
 
 GAP_SCENARIOS = ("small", "paper-64", "nonstationary", "table2-g32-f25-s10")
 GAP_METHODS = LINEUPS["gap"]  # the registry's lineups
@@ -43,12 +44,13 @@ def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None
     seeds = list(range(runs))
     records, rows, per_seed = [], [], {}
     for scenario in scenarios:
+        config = resolve_scenario(scenario)  # once: the evaluations and the bound share it
         for m in GAP_METHODS:
             if progress:
                 progress(f"{scenario}: {m}")
-            per_seed[scenario, m] = evaluate(m, scenario, seeds, backend=backend, workers=workers,
+            per_seed[scenario, m] = evaluate(m, config, seeds, backend=backend, workers=workers,
                                              address=address)[SCORE].to_numpy()
-        per_seed[scenario, "bound"] = score_upper_bound(scenario, seeds)
+        per_seed[scenario, "bound"] = score_upper_bound(config, seeds)
         for m in (*GAP_METHODS, "bound"):
             x = per_seed[scenario, m]
             ci = bootstrap_ci(x)

@@ -20,6 +20,7 @@ from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
 from wfbench.harness.evaluation import evaluate
 from wfbench.reproduce.common import DIRECTION, Output, Progress, write
 from wfbench.reproduce.paper import table2_nsw_cost
+from wfbench.scenarios.resolve import resolve_scenario
 
 TREND_KPIS = (SCORE, *reversed(MEASURED))
 """The KPIs whose trends are counted, in the order of the rows and panels: the score, then the measured ones."""
@@ -97,8 +98,6 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     downtime. Writes table2.md, table2.csv (every KPI per cell), table2_trends.csv
     (the counts per KPI and trend) and the figure table2.png / table2.svg.
     """
-    from wfbench.core.config import ScenarioConfig
-
     paper = table2_nsw_cost()
     seeds = list(range(runs))
     values: dict[str, dict[tuple[int, int, int], float]] = {k: {} for k in TREND_KPIS}
@@ -115,7 +114,7 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
                 rec.update({kpi: float(df[kpi].mean()), f"{kpi}_q25": df[kpi].quantile(0.25),
                             f"{kpi}_q75": df[kpi].quantile(0.75)})
             records.append({**rec, "paper_nsw_cost": paper[grid][k]})
-    cell_config = ScenarioConfig.resolve(table2_name(TABLE2_GRIDS[0], *TABLE2_CELLS[0]))
+    cell_config = resolve_scenario(table2_name(TABLE2_GRIDS[0], *TABLE2_CELLS[0]))
     target = cell_config.target_utilization
     better = {k: better_text(k, target) for k in TREND_KPIS}
     nsw = values[SCORE]

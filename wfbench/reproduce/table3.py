@@ -90,10 +90,11 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
             run_or_say(num, policy, parts(policy), "", paper_cell)
     if oracle_rows:
         from wfbench.core.bound import score_upper_bound
+        from wfbench.core.config import ScenarioConfig
 
         if progress:
             progress("bound")
-        bound = score_upper_bound("paper-64", seeds)
+        bound = score_upper_bound(ScenarioConfig.preset("paper-64"), seeds)
         q25, q75 = np.percentile(bound, [25, 75])
         rows.append(["B", "Upper bound", "(proven, any policy)", "", *["-"] * (len(KPI_NAMES) - 1),
                      format_kpi(float(bound.mean()), q25, q75), "(not in the paper)"])

@@ -21,6 +21,7 @@ from wfbench.core.actions import AGENTS, ActionError, validate_actions
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.policies import Policy, get
+from wfbench.scenarios.resolve import resolve_scenario
 
 FILLER = "heuristic"  # the decisions a checked policy does not make
 
@@ -124,7 +125,7 @@ def check_policy(policy: Any, scenario: str | ScenarioConfig = "small", seeds: S
         ValueError: ``seeds``, ``steps`` or ``scenario`` is not allowed.
         Exception: what the policy's own ``reset`` or ``act`` raises, as it is (its traceback ends in your code).
     """
-    config = ScenarioConfig.resolve(scenario)
+    config = resolve_scenario(scenario)
     seeds = [int(s) for s in seeds]
     if not seeds or any(s < 0 for s in seeds):
         raise ValueError(f"seeds={seeds!r} is not allowed; allowed: one or more integers >= 0")

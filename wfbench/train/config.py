@@ -17,6 +17,7 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.core.seeds import SEED_SETS, resolve_seeds
 from wfbench.policies.neural import scalefree
 from wfbench.policies.neural.model import AgentSet, WorkforceNet, model_config
+from wfbench.scenarios.resolve import resolve_scenario
 from wfbench.train.worlds import WorldSet, world_set
 
 DECISIONS = ("dispatch", "workforce", "positioning")  # the heads of the joint network, in the simulator's order
@@ -88,7 +89,7 @@ class BaseConfig:
                 raise ValueError(f"scenarios {self.scenarios!r} with variant {self.variant!r}: training across worlds "
                                  "is for the joint network; allowed: variant joint")
         else:
-            scenario = ScenarioConfig.resolve(self.scenario)
+            scenario = resolve_scenario(self.scenario)
         if not set(resolve_seeds(self.eval_seeds)) <= set(SEED_SETS["public"]):
             raise ValueError(f"eval_seeds {self.eval_seeds!r}: checkpoints are selected on the public seeds "
                              "(1000-1049) only, never on test seeds")
