@@ -2,10 +2,10 @@
 
 Importing ``wfbench`` loads the simulator core (``ScenarioConfig``, ``Simulator``,
 ``trace``) and registers the Gymnasium ids by their string entry points. The names of
-the layers above the core (``scenario``, the one resolver of scenario names, ``evaluate``,
-``compare``, ``simulate``, ``env``, ``parallel_env``) are imported on first use, so
-importing the core never pulls in ``policies`` or the application layer
-(``docs/design.md``, layers).
+the layers above the core (``scenario``, the one resolver of scenario names;
+``Execution``, where episodes run; ``evaluate``, ``compare``, ``simulate``, ``env``,
+``parallel_env``) are imported on first use, so importing the core never pulls in
+``policies`` or the application layer (``docs/design.md``, layers).
 """
 
 __version__ = "0.1.0"
@@ -45,7 +45,8 @@ for _env_id, _entry in ENV_IDS.items():
         _gymnasium.register(id=_env_id, entry_point=_entry, vector_entry_point=VECTOR_ENTRY_POINTS[_env_id],
                             disable_env_checker=False, kwargs=ENV_KWARGS.get(_env_id, {}))
 
-_LAZY = {"scenario": "wfbench.scenarios.resolve:resolve_scenario", "evaluate": "wfbench.harness.evaluation",
+_LAZY = {"scenario": "wfbench.scenarios.resolve:resolve_scenario", "Execution": "wfbench.harness.backends",
+         "evaluate": "wfbench.harness.evaluation",
          "evaluate_suite": "wfbench.harness.suite",
          "compare": "wfbench.harness.compare", "simulate": "wfbench.harness.simulate", "env": "wfbench.envs",
          "parallel_env": "wfbench.envs"}
@@ -67,6 +68,6 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
-    "ActionError", "ENV_IDS", "RateSchedule", "ScenarioConfig", "Simulator", "compare", "env", "evaluate",
+    "ActionError", "ENV_IDS", "Execution", "RateSchedule", "ScenarioConfig", "Simulator", "compare", "env", "evaluate",
     "evaluate_suite", "parallel_env", "scenario", "simulate", "trace", "__version__",
 ]

@@ -12,6 +12,7 @@ from wfbench.analysis.plots import figure_format
 from wfbench.cli import main
 from wfbench.core.kpis import kpi_score
 from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS
+from wfbench.harness.backends import Execution
 from wfbench.harness.compare import compare, plot_comparison
 from wfbench.reproduce.figure3 import FIGURE3_METHODS, figure3, figure3_methods
 from wfbench.reproduce.table2 import TREND_KPIS, table2, table2_trend_counts, table2_trends_per_kpi
@@ -123,7 +124,7 @@ def _trend_counts_by_hand(v: dict, kpi: str, target: float) -> dict[str, tuple[i
 
 def test_table2_reports_the_trends_per_kpi(tmp_path):
     """One run per cell (cheap); the counts are checked against a count by hand of the same means."""
-    result = table2(tmp_path, runs=1, backend="serial")
+    result = table2(tmp_path, runs=1, execution=Execution())
     cells = pd.read_csv(tmp_path / "table2.csv")
     counts = pd.read_csv(tmp_path / "table2_trends.csv")
     assert set(counts["kpi"]) == set(TREND_KPIS) and len(counts) == 3 * len(TREND_KPIS)
@@ -168,7 +169,7 @@ def test_figure3_draws_every_kind_of_method(tmp_path):
         assert set(learned_names()) <= set(methods) and set(learned_names()) <= set(LEARNED)
     assert methods == tuple(m for m in FIGURE3_METHODS if m in methods), "in the groups' order"
     # cheap: one method of three groups, two episodes (the learned ones: docs/reproduction.md's full run)
-    result = figure3(tmp_path, runs=2, backend="serial", methods=("random", "heuristic-tuned", "oracle-dispatch"))
+    result = figure3(tmp_path, runs=2, execution=Execution(), methods=("random", "heuristic-tuned", "oracle-dispatch"))
     assert _is_png(tmp_path / "figure3.png", 40_000)
     svg = _svg(tmp_path / "figure3.svg")
     for text in ("random", "heuristic-tuned", "oracle-dispatch", "Solvers and tuned", "Hindsight oracles",

@@ -8,6 +8,7 @@ import pytest
 
 import wfbench.reproduce.frontier as target
 from wfbench.cli import main
+from wfbench.harness.backends import Execution
 from wfbench.reproduce import suite as suite_target
 from wfbench.scenarios import get_suite, normalize
 
@@ -19,11 +20,11 @@ def run(tmp_path_factory):
     """A suite run of two policies on seeds 0-3 of small, then the frontier on seeds 1-2 of its train split."""
     suite_out = tmp_path_factory.mktemp("suite")
     suite_target.suite(suite_out, seeds=[0, 1, 2, 3], policies=("heuristic", "random"), scenarios=["small"],
-                       backend="serial", **FAST)
+                       execution=Execution(), **FAST)
     out = tmp_path_factory.mktemp("frontier")
     steps = []
     result = target.frontier(out, seeds=[1, 2], policies=["heuristic", "random", "solver"], scenarios=["small"],
-                             split="train", reuse=[suite_out], backend="serial", progress=steps.append, **FAST)
+                             split="train", reuse=[suite_out], execution=Execution(), progress=steps.append, **FAST)
     return suite_out, out, result, steps
 
 

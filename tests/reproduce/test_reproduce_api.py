@@ -6,11 +6,12 @@ import pandas as pd
 import pytest
 
 from wfbench.cli import main
+from wfbench.harness.backends import Execution
 from wfbench.reproduce import output_folder, parse_methods, reproduce
 
 
 def test_the_command_and_the_function_write_the_same_files(tmp_path, capsys):
-    api = reproduce("figure3", tmp_path / "api" / "deep", runs=1, backend="serial", methods="random, random")
+    api = reproduce("figure3", tmp_path / "api" / "deep", runs=1, execution=Execution(), methods="random, random")
     assert main(["reproduce", "figure3", "--methods", "random,random", "--runs", "1", "--backend", "serial",
                  "--out", str(tmp_path / "cli" / "deep"), "--no-progress"]) == 0
     assert api.text in capsys.readouterr().out
@@ -42,7 +43,7 @@ def test_an_output_path_that_is_a_file_is_refused_alike(tmp_path, capsys):
     file = tmp_path / "taken"
     file.write_text("x")
     with pytest.raises(ValueError, match="exists and is not a folder") as api:
-        reproduce("table3", file, runs=1, backend="serial")
+        reproduce("table3", file, runs=1, execution=Execution())
     assert main(["reproduce", "table3", "--out", str(file), "--runs", "1", "--backend", "serial"]) == 2
     assert capsys.readouterr().err == f"wfbench: error: --{api.value}\n"
     with pytest.raises(ValueError, match="cannot create the folder"):

@@ -8,7 +8,8 @@ import pytest
 
 from wfbench.cli import main
 from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS
-from wfbench.harness.evaluation import evaluate
+from wfbench.harness.backends import Execution
+from wfbench.harness.evaluation import evaluate, results_only
 from wfbench.reproduce.table2 import table2_trends
 
 # identical numbers from the serial, process and Ray backends: tests/harness/test_backends_script.py, which
@@ -20,6 +21,31 @@ def test_backend_errors():
         evaluate("heuristic", "small", 2, backend="gpu")
     with pytest.raises(ValueError, match="address='auto' only applies to backend 'ray'"):
         evaluate("heuristic", "small", 2, backend="serial", address="auto")
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"backend": "gpu"}, "unknown backend 'gpu'; available: serial, process, ray"),
+    ({"address": "auto"}, "address='auto' only applies to backend 'ray'"),
+    ({"workers": 0}, r"workers = 0 is not allowed; allowed: None or an integer >= 1"),
+    ({"threads": 1.5}, r"threads = 1.5 is not allowed; allowed: None or an integer >= 1"),
+    ({"chunk_size": True}, r"chunk_size = True is not allowed; allowed: None or an integer >= 1"),
+    ({"progress": "yes"}, r"progress = 'yes' is not allowed; allowed: True or False"),
+])
+def test_an_execution_is_checked_once_when_it_is_made(options, message):
+    with pytest.raises(ValueError, match=message):
+        Execution(**options)
+    with pytest.raises(ValueError, match=message):
+        Execution().replace(**options)
+
+
+def test_evaluate_takes_one_execution_or_its_keywords_not_both():
+    run = Execution(threads=1, chunk_size=1)
+    by_value = evaluate("heuristic", "small", 3, execution=run)
+    by_keywords = evaluate("heuristic", "small", 3, backend="serial", threads=1)
+    assert by_value.attrs["budget"]["chunks"] == 3 and by_keywords.attrs["budget"]["chunks"] == 1
+    assert results_only(by_value).equals(results_only(by_keywords)), "a chunk size moves no number"
+    with pytest.raises(ValueError, match=r"^threads, workers given beside execution=; allowed: execution= alone"):
+        evaluate("heuristic", "small", 2, execution=run, workers=2, threads=1)
 
 
 @pytest.mark.slow
@@ -90,7 +116,7 @@ def test_table2_trend_counting_by_hand():
 def test_reproduce_gap_draws_the_methods_and_the_bound(tmp_path):
     from wfbench.reproduce.gap import gap
 
-    result = gap(tmp_path, runs=3, backend="serial", scenarios=("small", "paper-64"))
+    result = gap(tmp_path, runs=3, execution=Execution(), scenarios=("small", "paper-64"))
     df = pd.read_csv(tmp_path / "gap.csv")
     assert set(df["method"]) == {"heuristic", "solver", "oracle", "bound"} and set(df["scenario"]) == {"small",
                                                                                                       "paper-64"}

@@ -8,6 +8,7 @@ import pytest
 import wfbench
 import wfbench.reproduce.suite as target
 from wfbench.cli import main
+from wfbench.harness.backends import Execution
 from wfbench.scenarios import normalize
 
 POLICIES = ("random", "heuristic", "oracle")
@@ -18,7 +19,7 @@ FAST = {"reps": 200, "poi_reps": 20}
 def first(tmp_path_factory):
     out = tmp_path_factory.mktemp("suite")
     steps = []
-    result = target.suite(out, seeds=[0, 1], policies=POLICIES, scenarios=["small"], backend="serial",
+    result = target.suite(out, seeds=[0, 1], policies=POLICIES, scenarios=["small"], execution=Execution(),
                           progress=steps.append, **FAST)
     return out, result, steps
 
@@ -72,7 +73,7 @@ def test_suite__a_rerun_reads_the_cache_and_writes_the_same_files(first, monkeyp
         raise AssertionError("a cached (policy, scenario) ran again")
 
     monkeypatch.setattr(target, "_run", refuse)
-    again = target.suite(out, seeds=[0, 1], policies=POLICIES, scenarios=["small"], backend="serial", **FAST)
+    again = target.suite(out, seeds=[0, 1], policies=POLICIES, scenarios=["small"], execution=Execution(), **FAST)
     after = {p.name: p.read_bytes() for p in again.files if p.suffix in (".csv", ".md", ".svg")}
     assert after.keys() == before.keys()
     for name in after:
@@ -85,7 +86,7 @@ def test_suite__other_seeds_are_not_taken_from_the_cache(first, monkeypatch):
     ran = []
     real = target._run
     monkeypatch.setattr(target, "_run", lambda policy, *a: (ran.append(policy), real(policy, *a))[1])
-    target.suite(out, seeds=[0], policies=("random",), scenarios=["small"], backend="serial", **FAST)
+    target.suite(out, seeds=[0], policies=("random",), scenarios=["small"], execution=Execution(), **FAST)
     assert ran == ["random", "bound"]
 
 

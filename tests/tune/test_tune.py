@@ -13,6 +13,7 @@ from wfbench.policies.composite import Composite
 from wfbench import policies
 from wfbench.cli import main
 from wfbench.envs.parallel import resolve_fixed
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.scenarios.resolve import resolve_scenario
 from wfbench.tune import check_tuning_seeds, search_space, tune
@@ -25,7 +26,7 @@ FEW = {"workforce.high": None, "workforce.cooldown": (2, 40), "positioning.reque
 
 def _run(tmp_path, trials, db="study.db", **kw):
     kw.setdefault("params", FEW)
-    return tune("heuristic", SMALL, trials, seeds=SEEDS, study_db=tmp_path / db, threads=1,
+    return tune("heuristic", SMALL, trials, seeds=SEEDS, study_db=tmp_path / db, execution=Execution(threads=1),
                 out=kw.pop("out", tmp_path / "tuned.json"), **kw)
 
 
@@ -257,7 +258,8 @@ def test_tune_writes_the_command_s_default_file(tmp_path, monkeypatch, capsys):
     api.mkdir(), cli.mkdir()
     monkeypatch.chdir(api)
     few = "workforce.high,workforce.cooldown=2:40"
-    r = tune("heuristic", SMALL, 1, seeds=SEEDS, params=few, study_db=tmp_path / "api.db", threads=1)
+    serial = Execution(threads=1)
+    r = tune("heuristic", SMALL, 1, seeds=SEEDS, params=few, study_db=tmp_path / "api.db", execution=serial)
     assert r.path == tune_mod.default_out("heuristic", SMALL.name) == Path(f"tuned-heuristic-{SMALL.name}.json")
     monkeypatch.chdir(cli)
     assert main(["tune", "heuristic", "--scenario", str(cfg), "--trials", "1", "--seeds", SEEDS, "--params",
@@ -269,5 +271,5 @@ def test_tune_writes_the_command_s_default_file(tmp_path, monkeypatch, capsys):
         [{k: made[0][k] for k in ("params", "searched", "scenario", "study_name")}] * 2
     assert tune_mod.default_out("heuristic", "suite-v1:train").name == "tuned-heuristic-suite-v1-train.json"
     monkeypatch.chdir(tmp_path)
-    tune("heuristic", SMALL, 1, seeds=SEEDS, params=few, study_db=tmp_path / "api.db", threads=1, out=False)
+    tune("heuristic", SMALL, 1, seeds=SEEDS, params=few, study_db=tmp_path / "api.db", execution=serial, out=False)
     assert not list(tmp_path.glob("*.json")), "out=False writes no file"

@@ -7,6 +7,7 @@ from wfbench.policies import registry
 
 from wfbench import policies
 from wfbench.cli import main
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.harness.suite import evaluate_suite
 from wfbench.scenarios import get_suite, normalize
@@ -20,7 +21,8 @@ FEW = {"workforce.high": None, "workforce.cooldown": (2, 40)}
 def _run(tmp_path, trials=3, scenarios=TWO, **kw):
     kw.setdefault("params", FEW)
     kw.setdefault("seeds", "public:2")
-    return tune("heuristic", trials=trials, scenarios=scenarios, study_db=tmp_path / "study.db", threads=1,
+    return tune("heuristic", trials=trials, scenarios=scenarios, study_db=tmp_path / "study.db",
+                execution=Execution(threads=1),
                 out=kw.pop("out", tmp_path / "tuned.json"), **kw)
 
 

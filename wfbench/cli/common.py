@@ -194,11 +194,16 @@ def add_policy_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--traceback", action="store_true", help="when the policy fails, print the whole trace")
 
 
-def check_backend_args(args: argparse.Namespace) -> None:
-    from wfbench.harness.backends import check_backend
+def check_backend_args(args: argparse.Namespace, progress: bool = False):
+    """The run's :class:`~wfbench.harness.backends.Execution` of ``--backend``, ``--workers`` and ``--address``.
+
+    A bad one is a usage error, found before anything runs.
+    """
+    from wfbench.harness.backends import Execution
 
     try:
-        check_backend(args.backend, args.address)
+        return Execution(backend=args.backend, workers=getattr(args, "workers", None), address=args.address,
+                         progress=progress)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
 

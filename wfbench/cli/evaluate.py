@@ -48,15 +48,14 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("--sandbox evaluates one scenario; it does not go with --suite or --split")
         return run_suite(args)
     config = resolve_scenario(args.scenario or "paper-64")
-    check_backend_args(args)
+    execution = check_backend_args(args, progress=not args.no_progress)
     out = check_writable(args.out, "--out") if args.out else None
     seeds = seed_list(args)
     if args.sandbox:
         df = run_sandboxed(args.policy, config, seeds, args.act_timeout)
     else:
         try:  # evaluate loads the policy once; a spec that names none is a usage error
-            df = evaluate(args.policy, config, seeds, backend=args.backend, workers=args.workers,
-                          address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout)
+            df = evaluate(args.policy, config, seeds, act_timeout_s=args.act_timeout, execution=execution)
         except PolicyLoadError as exc:
             raise UsageError(str(exc)) from None
     if out:

@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         check_target(args.target)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    check_backend_args(args)
+    execution = check_backend_args(args)
     kwargs = {}
     try:
         methods = parse_methods(args.methods, args.target, "--methods")
@@ -82,8 +82,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         runs = args.runs if args.runs is not None else (1 if args.target == "verify" else 50)
-        result = reproduce(args.target, out, runs=runs, backend=args.backend, workers=args.workers,
-                           address=args.address, progress=step, **kwargs)
+        result = reproduce(args.target, out, runs=runs, execution=execution, progress=step, **kwargs)
     finally:
         if bar:
             bar.close()

@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         scenario = resolve_scenario(given)  # resolved once, here; tune() records it by its name
         where = slug = scenario.name
         judge = f"--scenario {given}"
-    check_backend_args(args)
+    execution = check_backend_args(args, progress=not args.no_progress)
     try:
         seeds = check_tuning_seeds(args.seeds)
     except ValueError as exc:
@@ -96,9 +96,8 @@ def run(args: argparse.Namespace) -> int:
     command = "wfbench " + shlex.join(args.argv)
     try:
         r = tune(args.policy, scenario, args.trials, seeds=seeds, params=args.params, study_db=args.study_db,
-                 study_name=args.study_name, backend=args.backend, workers=args.workers, address=args.address,
-                 sampler_seed=args.sampler_seed, out=out, name=args.name, progress=not args.no_progress,
-                 command=command, scenarios=scenarios)
+                 study_name=args.study_name, execution=execution, sampler_seed=args.sampler_seed, out=out,
+                 name=args.name, command=command, scenarios=scenarios)
     except KeyboardInterrupt:
         print(f"wfbench: interrupted; the finished trials are kept in {args.study_db} (study "
               f"{args.study_name or default_study_name(args.policy, args.scenarios or scenario.name)!r}): run the "

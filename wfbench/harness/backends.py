@@ -28,6 +28,7 @@ import math
 import os
 import socket
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
 
 from joblib.externals.loky import FIRST_COMPLETED, get_reusable_executor, wait
 from joblib.externals.loky.backend.utils import kill_process_tree
@@ -49,6 +50,48 @@ def check_backend(backend: str, address: str | None = None) -> None:
         raise ValueError(f"address={address!r} only applies to backend 'ray', not {backend!r}")
     if backend == "ray":
         require_ray("backend 'ray'")
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where and how a run's episodes are played: one value, checked once when it is made.
+
+    The orchestrators (:func:`wfbench.evaluate`, :func:`wfbench.tune.tune`,
+    :mod:`wfbench.reproduce`) take it as one argument and hand it down unchanged; none of
+    these options changes a number (``docs/design.md``, "One Execution value").
+
+    Args:
+        backend: ``serial``, ``process`` or ``ray`` (the module docstring).
+        workers: processes or Ray tasks of a parallel backend; ``None``: all cores.
+        address: the Ray cluster to join (``backend="ray"`` only); ``None``: a local one.
+        threads: numba threads of a compiled rollout on ``serial``; ``None``: all cores.
+        chunk_size: seeds per batch; ``None``: all seeds on ``serial``, an even split otherwise.
+        progress: show a progress bar.
+
+    Raises:
+        ValueError: an unknown backend, an address without Ray, a count that is not an
+            integer >= 1; one line naming what is allowed.
+    """
+
+    backend: str = "serial"
+    workers: int | None = None
+    address: str | None = None
+    threads: int | None = None
+    chunk_size: int | None = None
+    progress: bool = False
+
+    def __post_init__(self) -> None:
+        check_backend(self.backend, self.address)
+        for name in ("workers", "threads", "chunk_size"):
+            value = getattr(self, name)
+            if value is not None and (type(value) is not int or value < 1):
+                raise ValueError(f"{name} = {value!r} is not allowed; allowed: None or an integer >= 1")
+        if not isinstance(self.progress, bool):
+            raise ValueError(f"progress = {self.progress!r} is not allowed; allowed: True or False")
+
+    def replace(self, **changes) -> Execution:
+        """A copy with ``changes``, checked again."""
+        return replace(self, **changes)
 
 
 def require_ray(what: str) -> None:

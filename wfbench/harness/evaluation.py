@@ -30,22 +30,25 @@ from tqdm.auto import tqdm
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.core.seeds import resolve_seeds
-from wfbench.harness.backends import BACKENDS, check_backend, run_chunks
+from wfbench.harness.backends import BACKENDS, Execution, run_chunks
 from wfbench.harness.budget import BUDGET_COLUMNS, policy_budget, results_only
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, LoadedPolicy, load_policy
 from wfbench.harness.runner import BatchResult, results_frame
 from wfbench.policies.registry import warn_if_trained_elsewhere
 from wfbench.scenarios.resolve import resolve_scenario
 
-__all__ = ["BACKENDS", "BUDGET_COLUMNS", "KPI_LABELS", "KPI_NAMES", "evaluate", "format_kpi", "resolve_seeds",
-           "results_only", "summarize"]
+__all__ = ["BACKENDS", "BUDGET_COLUMNS", "KPI_LABELS", "KPI_NAMES", "Execution", "evaluate", "format_kpi",
+           "resolve_seeds", "results_only", "summarize"]
+# evaluate's keywords that one Execution replaces, at their defaults
+LOOSE = {"backend": "serial", "workers": None, "threads": None, "progress": False, "address": None}
 
 
 def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,
              backend: str = "serial",
              workers: int | None = None, threads: int | None = None, progress: bool = False,
              return_series: bool = False, address: str | None = None,
-             act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S) -> pd.DataFrame | tuple[pd.DataFrame, np.ndarray]:
+             act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S,
+             execution: Execution | None = None) -> pd.DataFrame | tuple[pd.DataFrame, np.ndarray]:
     """Score ``policy`` on ``scenario`` over ``seeds``; one row per seed, in seed order.
 
     Args:
@@ -70,6 +73,9 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
         address: Ray cluster address for ``backend="ray"``.
         act_timeout_s: time limit in seconds of each ``reset`` and ``act`` call of a
             policy that is not a built-in registry name; ``None`` or 0 for no limit.
+        execution: ``backend``, ``workers``, ``threads``, ``progress`` and ``address`` (and a
+            chunk size) as one :class:`~wfbench.harness.backends.Execution`, as the
+            orchestrators pass them; give it or those keywords, not both.
 
     Returns:
         The DataFrame (columns ``seed``, the KPIs, utilities, ``episode_length``, the
@@ -78,24 +84,26 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
         ``wfbench.core.state.METRICS``.
 
     Raises:
-        ValueError: a bad scenario, seed list, backend or limit;
+        ValueError: a bad scenario, seed list, backend or limit, or ``execution`` beside
+            one of the keywords it replaces;
             :class:`wfbench.harness.guard.PolicyLoadError` (a ValueError) for a spec that names
             no policy.
         wfbench.harness.guard.PolicyError: the policy raised, hung past ``act_timeout_s`` or
             returned a malformed action; its message names the policy, file and line.
     """
+    given = {"backend": backend, "workers": workers, "threads": threads, "progress": progress, "address": address}
+    run = one_execution(execution, given)
     config = resolve_scenario(scenario)
     seed_list = resolve_seeds(seeds)
-    check_backend(backend, address)
     loaded = load_policy(policy, act_timeout_s)
     warn_if_trained_elsewhere(loaded.policy, config.name)  # once, here: a worker's warning would repeat or be lost
     bar = None
-    if progress:
+    if run.progress:
         bar = tqdm(total=len(seed_list), desc=f"{loaded.name} on {config.name}", unit="episode", leave=False)
     results: list[BatchResult] = []
     try:
-        for r in run_chunks(loaded, config, seed_list, backend=backend, workers=workers, address=address,
-                            keep_series=return_series, threads=threads):
+        for r in run_chunks(loaded, config, seed_list, backend=run.backend, workers=run.workers, address=run.address,
+                            chunk_size=run.chunk_size, keep_series=return_series, threads=run.threads):
             results.append(r)
             if bar:
                 bar.update(len(r.seeds))
@@ -107,11 +115,29 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
     rank = np.argsort(df["seed"].map(order).to_numpy(), kind="stable")
     df = df.iloc[rank].reset_index(drop=True)
     df.attrs.update(scenario=config.name, policy=loaded.name,
-                    budget=budget_record(results, loaded, policy, backend, workers, threads))
+                    budget=budget_record(results, loaded, policy, run.backend, run.workers, run.threads))
     if return_series:
         series = np.concatenate([r.series for r in results if r.series is not None], axis=0)
         return df, series[rank]
     return df
+
+
+def one_execution(execution: Execution | None, given: dict[str, Any]) -> Execution:
+    """The run's :class:`Execution`: ``execution``, or one made of the loose keywords ``given``.
+
+    Raises:
+        ValueError: ``execution`` beside a loose keyword not at its default (:data:`LOOSE`),
+            or a bad option (:class:`Execution`'s check).
+    """
+    if execution is None:
+        return Execution(**given)
+    if not isinstance(execution, Execution):
+        raise ValueError(f"execution = {execution!r} is not allowed; allowed: an Execution or None")
+    loose = sorted(k for k, v in given.items() if v != LOOSE[k])
+    if loose:
+        raise ValueError(f"{', '.join(loose)} given beside execution=; allowed: execution= alone, or the keywords "
+                         f"{', '.join(LOOSE)} without it")
+    return execution
 
 
 def budget_record(results: Sequence[BatchResult], loaded: LoadedPolicy, spec: Any, backend: str,

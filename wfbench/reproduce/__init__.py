@@ -23,12 +23,13 @@ import wfbench.reproduce.suite as suite
 import wfbench.reproduce.table2 as table2
 import wfbench.reproduce.table3 as table3
 import wfbench.reproduce.verify as verify
-from wfbench.reproduce.common import Output, Progress
+from wfbench.harness.backends import Execution
+from wfbench.reproduce.common import PROCESS, Output, Progress
 
 TARGETS = {"table2": table2.table2, "table3": table3.table3, "figure3": figure3.figure3, "gap": gap.gap,
            "suite": suite.suite, "verify": verify.verify,
            "frontier": frontier.frontier}
-"""``wfbench reproduce TARGET``: each called as ``target(out, runs=, backend=, workers=, address=, progress=)``."""
+"""``wfbench reproduce TARGET``: each called as ``target(out, runs=, execution=, progress=)``."""
 
 SIZES = {"table2": table2.size, "table3": table3.size, "figure3": figure3.size, "gap": gap.size, "suite": suite.size,
          "verify": lambda **_: None,  # verify: as many as the folder has pieces (a bar without a total)
@@ -86,8 +87,8 @@ def output_folder(out: str | Path, what: str = "out") -> Path:
     return path
 
 
-def reproduce(target: str, out: str | Path = "results", runs: int = 50, backend: str = "process",
-              workers: int | None = None, address: str | None = None, progress: Progress = None,
+def reproduce(target: str, out: str | Path = "results", runs: int = 50, execution: Execution = PROCESS,
+              progress: Progress = None,
               methods: str | Sequence[str] | None = None, **kwargs: Any) -> Output:
     """Regenerate one target into ``out``, as ``wfbench reproduce TARGET`` does.
 
@@ -98,9 +99,8 @@ def reproduce(target: str, out: str | Path = "results", runs: int = 50, backend:
         target: ``table2``, ``table3``, ``figure3``, ``gap`` or ``suite`` (:data:`TARGETS`).
         out: the output folder.
         runs: episodes per cell or row.
-        backend: ``serial``, ``process`` or ``ray``.
-        workers: processes or Ray tasks.
-        address: Ray cluster address.
+        execution: where the evaluations run (:class:`~wfbench.harness.backends.Execution`;
+            default a pool of processes); the numbers do not depend on it.
         progress: called with the name of each evaluation as it starts.
         methods: figure3 only: the policies to draw (default the paper's and ours).
         **kwargs: the suite target's options (``seeds``, ``policies``, ``scenarios``, ``networks``).
@@ -113,8 +113,7 @@ def reproduce(target: str, out: str | Path = "results", runs: int = 50, backend:
     if parsed is not None:
         kwargs["methods"] = parsed
     folder = output_folder(out)
-    return TARGETS[target](folder, runs=runs, backend=backend, workers=workers, address=address, progress=progress,
-                           **kwargs)
+    return TARGETS[target](folder, runs=runs, execution=execution, progress=progress, **kwargs)
 
 
 __all__ = ["Output", "SIZES", "TARGETS", "check_target", "output_folder", "parse_methods", "reproduce",

@@ -8,11 +8,16 @@ from pathlib import Path
 
 import pandas as pd
 
+from wfbench.harness.backends import Execution
+
 DIRECTION = ("Direction: our NSW is a welfare in [0, 1] (docs/metrics.md), higher is better; the paper's NSW "
              "column is a cost, lower is better. Compare orderings and trends, not values.")
 
 Progress = Callable[[str], None] | None
 """Called with the name of each evaluation as it starts (a progress bar's step)."""
+
+PROCESS = Execution(backend="process")
+"""The targets' default execution: a pool of processes over all cores (numbers do not depend on it)."""
 
 
 @dataclass

@@ -8,9 +8,10 @@ import numpy as np
 import pandas as pd
 
 from wfbench.core.kpis import KPI_LABELS, MEASURED
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies.registry import LEARNED, LINEUPS, learned_names
-from wfbench.reproduce.common import Output, Progress, write
+from wfbench.reproduce.common import PROCESS, Output, Progress, write
 
 # the methods of Figure 3, in groups drawn side by side; the paper's figure has the first group and PPO. The
 # learned group holds every network of the registry (wfbench.policies.registry.LEARNED), drawn where it is shipped
@@ -42,8 +43,7 @@ def size(methods: tuple[str, ...] | None = None) -> int:
     return len(figure3_methods() if methods is None else methods)
 
 
-def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
-            address: str | None = None, progress: Progress = None,
+def figure3(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
             methods: tuple[str, ...] | None = None) -> Output:
     """Per-step KPI bands over the episode: the paper's methods beside the solver, tuned, RL and oracle ones.
 
@@ -73,8 +73,7 @@ def figure3(out: Path, runs: int = 50, backend: str = "process", workers: int | 
     for m in dict.fromkeys([*methods, *([FIGURE3_REFERENCE] if len(grouped) > 1 else [])]):
         if progress:
             progress(m)
-        _, series = evaluate(m, "paper-64", seeds, backend=backend, workers=workers, address=address,
-                             return_series=True)
+        _, series = evaluate(m, "paper-64", seeds, return_series=True, execution=execution)
         bands[m] = []
         for k in rows_kpi:
             q = np.percentile(series[:, :, METRICS.index(k)].astype(np.float64), [25, 50, 75], axis=0)

@@ -26,7 +26,8 @@ from wfbench.analysis.aggregate import AGGREGATE_NOTE, aggregate_suite
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
-from wfbench.reproduce.common import Output, Progress, write
+from wfbench.harness.backends import Execution
+from wfbench.reproduce.common import PROCESS, Output, Progress, write
 from wfbench.reproduce.suite import _cache_path, _run, _store
 from wfbench.reproduce.suite import family as suite_family
 from wfbench.scenarios import SuiteScenario, get_suite, normalize
@@ -125,9 +126,9 @@ def verdicts(table: pd.DataFrame, budgets: Sequence[float] = BUDGETS_MS) -> list
     return out
 
 
-def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
-             address: str | None = None, progress: Progress = None, seeds: str | Sequence[int] | None = None,
-             policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, split: str = "heldout",
+def frontier(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
+             seeds: str | Sequence[int] | None = None, policies: Sequence[str] | None = None,
+             scenarios: Sequence[str] | None = None, split: str = "heldout",
              reuse: Sequence[str | Path] = DEFAULT_REUSE, suite_name: str = "suite-v1", reps: int = 5000,
              poi_reps: int = 1000, **_: object) -> Output:
     """Held-out IQM against decision cost per policy, the figure, and the verdict at each budget (module docstring).
@@ -135,9 +136,7 @@ def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int |
     Args:
         out: the output folder (pieces played here are kept in its ``cache/``).
         runs: seeds 0..runs-1 when ``seeds`` is not given.
-        backend: how missing pieces are played (:func:`wfbench.evaluate`).
-        workers: processes or Ray tasks.
-        address: Ray cluster address.
+        execution: how missing pieces are played (:class:`~wfbench.harness.backends.Execution`).
         progress: called with the name of each piece as it is read or played.
         seeds: the seeds (a set name or a list).
         policies: the policies (default :func:`default_policies`).
@@ -163,7 +162,7 @@ def frontier(out: Path, runs: int = 50, backend: str = "process", workers: int |
             df = find_piece(folders, name, sc, seed_list)
             if df is None:
                 try:
-                    df, wall_s = _run(name, sc, seed_list, backend, workers, address)
+                    df, wall_s = _run(name, sc, seed_list, execution)
                 except Exception as exc:  # noqa: BLE001 - a long run reports a failing piece and goes on
                     failures.append([sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]])
                     continue

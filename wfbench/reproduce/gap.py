@@ -9,9 +9,10 @@ import pandas as pd
 
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies.registry import LINEUPS
-from wfbench.reproduce.common import Output, Progress, write
+from wfbench.reproduce.common import PROCESS, Output, Progress, write
 from wfbench.scenarios.resolve import resolve_scenario
 
 GAP_SCENARIOS = ("small", "paper-64", "nonstationary", "table2-g32-f25-s10")
@@ -23,8 +24,7 @@ def size(scenarios: tuple[str, ...] = GAP_SCENARIOS) -> int:
     return len(scenarios) * len(GAP_METHODS)
 
 
-def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
-        address: str | None = None, progress: Progress = None,
+def gap(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
         scenarios: tuple[str, ...] = GAP_SCENARIOS) -> Output:
     """What deployable policies leave on the table: heuristic, solver, hindsight oracle and the proven bound.
 
@@ -48,8 +48,7 @@ def gap(out: Path, runs: int = 50, backend: str = "process", workers: int | None
         for m in GAP_METHODS:
             if progress:
                 progress(f"{scenario}: {m}")
-            per_seed[scenario, m] = evaluate(m, config, seeds, backend=backend, workers=workers,
-                                             address=address)[SCORE].to_numpy()
+            per_seed[scenario, m] = evaluate(m, config, seeds, execution=execution)[SCORE].to_numpy()
         per_seed[scenario, "bound"] = score_upper_bound(config, seeds)
         for m in (*GAP_METHODS, "bound"):
             x = per_seed[scenario, m]

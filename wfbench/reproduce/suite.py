@@ -33,10 +33,11 @@ from wfbench.analysis.aggregate import (
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies.registry import LINEUPS
 from wfbench.reproduce import provenance
-from wfbench.reproduce.common import Output, Progress, write
+from wfbench.reproduce.common import PROCESS, Output, Progress, write
 from wfbench.scenarios import Suite, SuiteScenario, get_suite, normalize
 
 BUILTIN = LINEUPS["suite"]  # the built-ins every suite run plays (the registry's lineups say why these)
@@ -118,8 +119,7 @@ def _store(path: Path, df: pd.DataFrame, policy: str, scenario: SuiteScenario, s
     path.with_suffix(".json").write_text(json.dumps(meta))
 
 
-def _run(policy: str, scenario: SuiteScenario, seeds: list[int], backend: str, workers: int | None,
-         address: str | None) -> tuple[pd.DataFrame, float]:
+def _run(policy: str, scenario: SuiteScenario, seeds: list[int], execution: Execution) -> tuple[pd.DataFrame, float]:
     from wfbench.policies.registry import ScenarioMismatchWarning
 
     t0 = time.perf_counter()
@@ -130,7 +130,7 @@ def _run(policy: str, scenario: SuiteScenario, seeds: list[int], backend: str, w
     else:
         with warnings.catch_warnings():  # the networks run zero-shot on purpose: the mismatch is the point
             warnings.simplefilter("ignore", ScenarioMismatchWarning)
-            df = evaluate(policy, scenario.config, seeds, backend=backend, workers=workers, address=address)
+            df = evaluate(policy, scenario.config, seeds, execution=execution)
     return df, time.perf_counter() - t0
 
 
@@ -186,18 +186,17 @@ def _figure_scaling(scaling: pd.DataFrame, path_stem: Path) -> list[Path]:
     return files
 
 
-def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
-          address: str | None = None, progress: Progress = None, seeds: str | Sequence[int] | None = None,
-          policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, networks: bool = True,
-          suite_name: str = "suite-v1", reps: int = 5000, poi_reps: int = 1000) -> Output:
+def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
+          seeds: str | Sequence[int] | None = None, policies: Sequence[str] | None = None,
+          scenarios: Sequence[str] | None = None, networks: bool = True, suite_name: str = "suite-v1",
+          reps: int = 5000, poi_reps: int = 1000) -> Output:
     """Every policy on every scenario of the suite, normalized and aggregated, with the bound and oracle checks.
 
     Args:
         out: the output folder (its ``cache/`` keeps each finished (policy, scenario) result).
         runs: seeds 0..runs-1 when ``seeds`` is not given.
-        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluate`).
-        workers: processes or Ray tasks.
-        address: Ray cluster address.
+        execution: where the evaluations run (:class:`~wfbench.harness.backends.Execution`;
+            numbers do not depend on it).
         progress: called with the name of each evaluation as it starts.
         seeds: the seeds (a set name such as ``"test"`` or a list); default ``range(runs)``.
         policies: the policies (default :func:`default_policies`); the bound is always added, and so are
@@ -228,7 +227,7 @@ def suite(out: Path, runs: int = 50, backend: str = "process", workers: int | No
             df = _cached(path, sc, seed_list)
             if df is None:
                 try:
-                    df, wall_s = _run(name, sc, seed_list, backend, workers, address)
+                    df, wall_s = _run(name, sc, seed_list, execution)
                 except Exception as exc:  # noqa: BLE001 - a long run reports a failing pair and goes on
                     failures.append((sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]))
                     continue

@@ -17,8 +17,9 @@ import pandas as pd
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES, MEASURED, SCORE, better_text, kpi_score
 from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS, table2_name
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
-from wfbench.reproduce.common import DIRECTION, Output, Progress, write
+from wfbench.reproduce.common import DIRECTION, PROCESS, Output, Progress, write
 from wfbench.reproduce.paper import table2_nsw_cost
 from wfbench.scenarios.resolve import resolve_scenario
 
@@ -89,8 +90,7 @@ def size() -> int:
     return len(TABLE2_GRIDS) * len(TABLE2_CELLS)
 
 
-def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
-           address: str | None = None, progress: Progress = None) -> Output:
+def table2(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None) -> Output:
     """20 cells: heuristic dispatch, no hiring or letting go, ``runs`` seeds each; the paper's trends checked.
 
     The trends are counted for NSW and for each KPI alone (:func:`wfbench.core.kpis.better_text`
@@ -107,7 +107,7 @@ def table2(out: Path, runs: int = 50, backend: str = "process", workers: int | N
             name = table2_name(grid, f, s)
             if progress:
                 progress(name)
-            df = evaluate("fixed-workforce", name, seeds, backend=backend, workers=workers, address=address)
+            df = evaluate("fixed-workforce", name, seeds, execution=execution)
             rec = {"grid": grid, "facilities": f, "personnel": s, "scenario": name, "runs": runs}
             for kpi in KPI_NAMES:
                 values.setdefault(kpi, {})[grid, f, s] = float(df[kpi].mean())

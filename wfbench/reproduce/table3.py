@@ -13,9 +13,10 @@ import pandas as pd
 
 from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate, format_kpi, summarize
 from wfbench.policies.registry import LEARNED, LINEUPS, learned_names, parts
-from wfbench.reproduce.common import DIRECTION, Output, Progress, write
+from wfbench.reproduce.common import DIRECTION, PROCESS, Output, Progress, write
 from wfbench.reproduce.paper import table3_rows
 
 # our policy for each of the paper's rows (the learned ones: docs/rl.md)
@@ -43,9 +44,9 @@ def size() -> int:
     return len(paper) + len(SOLVER_ROWS) + len(TUNED_ROWS) + len(learned) + len(ORACLE_ROWS) + 1
 
 
-def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | None = None,
-           address: str | None = None, progress: Progress = None, solver_rows: bool = True,
-           oracle_rows: bool = True, tuned_rows: bool = True, learned_rows: bool = True) -> Output:
+def table3(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
+           solver_rows: bool = True, oracle_rows: bool = True, tuned_rows: bool = True,
+           learned_rows: bool = True) -> Output:
     """The paper's rows 1-4 (exactly its combinations), the solver rows and the RL rows 5-7.
 
     Beyond the paper, rows T1-T2: the heuristic and solver composites tuned on the public
@@ -64,7 +65,7 @@ def table3(out: Path, runs: int = 50, backend: str = "process", workers: int | N
     def run(num: str, policy: str, cells: tuple[str, ...], paper_text: str, paper_cell: str) -> None:
         if progress:
             progress(policy)
-        summ = summarize(evaluate(policy, "paper-64", seeds, backend=backend, workers=workers, address=address))
+        summ = summarize(evaluate(policy, "paper-64", seeds, execution=execution))
         rows.append([num, *cells, *[format_kpi(*summ[k]) for k in KPI_NAMES], paper_cell])
         records.append({"row": num, "policy": policy, **{k: summ[k][0] for k in KPI_NAMES},
                         **{f"{k}_q25": summ[k][1] for k in KPI_NAMES}, **{f"{k}_q75": summ[k][2] for k in KPI_NAMES},

@@ -23,6 +23,7 @@ import pandas as pd
 
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import resolve_seeds
+from wfbench.harness.backends import Execution
 from wfbench.harness.budget import results_only
 from wfbench.reproduce.common import Output, Progress
 from wfbench.scenarios import SuiteScenario, get_suite
@@ -115,8 +116,8 @@ def pieces(folder: Path, policies: Sequence[str] | None = None, scenarios: Seque
     return out
 
 
-def recompute(policy: str, scenario: SuiteScenario, seeds: Sequence[int], backend: str = "serial",
-              workers: int | None = None) -> pd.DataFrame:
+def recompute(policy: str, scenario: SuiteScenario, seeds: Sequence[int],
+              execution: Execution | None = None) -> pd.DataFrame:
     """The rows ``policy`` gives now on ``seeds`` of ``scenario`` (the bound: its score column alone)."""
     from wfbench.harness.evaluation import evaluate
     from wfbench.policies.registry import ScenarioMismatchWarning
@@ -127,7 +128,7 @@ def recompute(policy: str, scenario: SuiteScenario, seeds: Sequence[int], backen
         return pd.DataFrame({"seed": list(seeds), SCORE: score_upper_bound(scenario.config, list(seeds))})
     with warnings.catch_warnings():  # the networks run zero-shot on purpose, as in the suite run
         warnings.simplefilter("ignore", ScenarioMismatchWarning)
-        return evaluate(policy, scenario.config, list(seeds), backend=backend, workers=workers, progress=False)
+        return evaluate(policy, scenario.config, list(seeds), execution=execution or Execution())
 
 
 def differences(committed: pd.DataFrame, now: pd.DataFrame) -> list[str]:
@@ -162,19 +163,17 @@ class Verdict:
     provenance: dict | None
 
 
-def verify(out: Path, runs: int = 1, backend: str = "serial", workers: int | None = None,
-           address: str | None = None, progress: Progress = None, seeds: Sequence[int] | None = None,
-           policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None,
-           suite_name: str = "suite-v1", sample: Sequence[tuple[str, str, int]] | None = None,
-           **_: object) -> Output:
+def verify(out: Path, runs: int = 1, execution: Execution | None = None, progress: Progress = None,
+           seeds: Sequence[int] | None = None, policies: Sequence[str] | None = None,
+           scenarios: Sequence[str] | None = None, suite_name: str = "suite-v1",
+           sample: Sequence[tuple[str, str, int]] | None = None, **_: object) -> Output:
     """Recompute pieces of the suite run in ``out`` and compare them bit for bit; the text lists each piece.
 
     Args:
         out: the suite run's folder (its ``cache/``); nothing is written into it.
         runs: without ``seeds``, the first ``runs`` seeds of each piece.
-        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.evaluate`); results do not depend on it.
-        workers: processes or Ray tasks.
-        address: unused (the Ray address of the other targets' signature).
+        execution: where the pieces are played again (default serial); results do not depend
+            on it. Its Ray address is not used: the pieces run on a local Ray instance.
         progress: called with the name of each piece as it starts.
         seeds: the seeds to play again (a set name or a list; each must be in the piece).
         policies: narrow the pieces to these policies (default: all of the folder).
@@ -185,7 +184,7 @@ def verify(out: Path, runs: int = 1, backend: str = "serial", workers: int | Non
     Returns:
         The :class:`Output` (``files`` empty) with ``verdicts`` (a list of :class:`Verdict`) set.
     """
-    del address
+    execution = (execution or Execution()).replace(address=None, progress=False)
     suite = get_suite(suite_name)
     if sample is not None:
         todo = []
@@ -208,7 +207,7 @@ def verify(out: Path, runs: int = 1, backend: str = "serial", workers: int | Non
         if progress:
             progress(f"{piece.scenario.id}: {piece.policy}")
         t0 = time.perf_counter()
-        now = recompute(piece.policy, piece.scenario, chosen, backend=backend, workers=workers)
+        now = recompute(piece.policy, piece.scenario, chosen, execution)
         committed = piece.rows()
         diffs = differences(committed[committed["seed"].isin(chosen)], now)
         v = Verdict(piece.policy, piece.scenario.id, chosen, diffs, time.perf_counter() - t0,

@@ -1,9 +1,10 @@
 """Scenario names: one grammar, resolved once where a name enters wfbench.
 
 Every command and function that takes a scenario takes the same names
-(``docs/scenarios.md``, "Naming a scenario"), resolved here and nowhere else; what is
-inward of the edge (the evaluator, the backends and their workers, the simulator, the
-trainers' worlds) is handed the :class:`ScenarioConfig`.
+(``docs/scenarios.md``, "Naming a scenario"), resolved here and nowhere else, once, where
+the name enters (``wfbench.scenario`` is :func:`resolve_scenario`); what is inward of the
+edge (the evaluator, the backends and their workers, the simulator, the trainers' worlds)
+is handed the :class:`ScenarioConfig` and refuses a name (``docs/design.md``).
 
 One scenario (:func:`resolve_scenario`):
 

@@ -27,6 +27,7 @@ from tqdm.auto import tqdm
 from wfbench import __version__
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.seeds import PUBLIC, TEST, TRAIN_START, describe, resolve_seeds
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies import get
 from wfbench.policies import tuned as tuned_file
@@ -194,9 +195,8 @@ def _space_attr(space: dict[str, Param]) -> dict[str, dict[str, Any]]:
 def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int = 100,
          seeds: int | str | Iterable[int] = "public",
          params: str | Iterable[str] | Mapping[str, Any] | None = None, study_db: str | Path = DEFAULT_DB,
-         study_name: str | None = None, backend: str = "serial", workers: int | None = None,
-         threads: int | None = None, address: str | None = None, sampler_seed: int = 0,
-         out: str | Path | Literal[False] | None = None, name: str | None = None, progress: bool = False,
+         study_name: str | None = None, execution: Execution | None = None, sampler_seed: int = 0,
+         out: str | Path | Literal[False] | None = None, name: str | None = None,
          command: str | None = None, scenarios: str | WorldSet | None = None) -> TuneResult:
     """Search ``policy``'s tunable parameters for the highest mean NSW over ``seeds``.
 
@@ -214,16 +214,14 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
             (:func:`search_space`); default all that the policy declares.
         study_db: the SQLite file that holds the study.
         study_name: the study's name in it (default ``POLICY@SCENARIO``, :func:`default_study_name`).
-        backend: where each trial's evaluation runs (:func:`wfbench.harness.evaluation.evaluate`).
-        workers: processes or Ray tasks of a parallel backend.
-        threads: numba threads of the serial backend.
-        address: Ray cluster address.
+        execution: where each trial's evaluation runs (backend, workers, threads, address,
+            chunk size; :class:`~wfbench.harness.backends.Execution`), and with its
+            ``progress`` a bar over the trials; ``None``: serial, all cores, no bar.
         sampler_seed: seed of the TPE sampler.
         out: write the tuned-policy file here (.json or .toml); ``None`` (default): to
             ``tuned-POLICY-SCENARIO.json`` in the current folder, as ``wfbench tune`` does
             (:func:`default_out`); ``False``: do not write.
         name: the tuned policy's name (default ``POLICY-tuned``).
-        progress: show a progress bar over the trials.
         command: the command that made it, recorded in the file.
         scenarios: instead of ``scenario``, the worlds to tune across (:func:`tuning_worlds`:
             ``"suite-v1:train"`` or comma-separated training scenarios); each trial's score
@@ -245,6 +243,10 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
     if isinstance(sampler_seed, bool) or not isinstance(sampler_seed, int) or sampler_seed < 0:
         raise ValueError(f"sampler_seed = {sampler_seed!r}: allowed: a whole number >= 0")
     check_scenario_args(scenario, scenarios)
+    run = Execution() if execution is None else execution
+    if not isinstance(run, Execution):
+        raise ValueError(f"execution = {execution!r} is not allowed; allowed: an Execution or None")
+    each = run.replace(progress=False)  # the bar is over the trials, not over each trial's episodes
     worlds: list[TuningWorld] | None = None
     if scenarios is not None:
         worlds = tuning_worlds(scenarios)
@@ -299,13 +301,11 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
         values = {k: _suggest(trial, k, p) for k, p in space.items()}
         candidate = base.with_params(values, name=f"{tuned_name}#{trial.number}")
         if worlds is None:
-            df = evaluate(candidate, config, seed_list, backend=backend, workers=workers, threads=threads,
-                          address=address, act_timeout_s=None)
+            df = evaluate(candidate, config, seed_list, act_timeout_s=None, execution=each)
             return float(df["nsw"].mean())
         per_world = {}
         for w in worlds:
-            df = evaluate(candidate, w.config, seed_list, backend=backend, workers=workers, threads=threads,
-                          address=address, act_timeout_s=None)
+            df = evaluate(candidate, w.config, seed_list, act_timeout_s=None, execution=each)
             per_world[w.name] = float(normalize(float(df["nsw"].mean()), w.name, w.suite))
         trial.set_user_attr("world_scores", per_world)
         return float(np.mean(list(per_world.values())))
@@ -317,7 +317,7 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
     remaining = max(0, trials - done_before)
     if remaining:
         bar = tqdm(total=trials, initial=done_before, desc=f"tune {policy} on {scenario_name}", unit="trial",
-                   disable=not progress, leave=False)
+                   disable=not run.progress, leave=False)
 
         def on_trial(st: optuna.Study, trial: optuna.trial.FrozenTrial) -> None:
             if trial.state == optuna.trial.TrialState.COMPLETE:
