@@ -135,16 +135,18 @@ def positioning_per_step(repeats):
 
 
 def episodes(n_seeds: int, slow_seeds: int, slow_steps: int):
+    from wfbench.core.config import ScenarioConfig
     from wfbench.core.simulator import Simulator
     from wfbench.harness.runner import run_batch
 
     rows = []
+    paper = ScenarioConfig.preset("paper-64")
     for name in ("heuristic", "solver-dispatch", "solver-workforce", "solver-positioning", "solver"):
-        run_batch(name, "paper-64", [0, 1])
+        run_batch(name, paper, [0, 1])
         best = float("inf")
         for _ in range(3):
             t0 = time.perf_counter()
-            r = run_batch(name, "paper-64", list(range(n_seeds)))
+            r = run_batch(name, paper, list(range(n_seeds)))
             best = min(best, time.perf_counter() - t0)
         rate = float(r.steps.sum()) / best
         rows.append({"bench": "episodes", "size": f"paper-64 x {n_seeds} seeds", "method": name,

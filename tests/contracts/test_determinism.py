@@ -14,6 +14,8 @@ from wfbench.harness.evaluation import evaluate
 from wfbench.harness.runner import run_batch
 from wfbench.scenarios.resolve import resolve_scenario
 
+PAPER = ScenarioConfig.preset("paper-64")
+
 
 def digest(series: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(series).tobytes()).hexdigest()
@@ -30,16 +32,16 @@ def test_trace_is_a_pure_function():
 
 @pytest.mark.parametrize("policy", ["heuristic", "heuristic-stochastic", "random", "solver"])
 def test_seed_alone_equals_seed_in_batch_of_64(policy):
-    batch = run_batch(policy, "paper-64", list(range(64)), keep_series=True, threads=2)
+    batch = run_batch(policy, PAPER, list(range(64)), keep_series=True, threads=2)
     for seed in (0, 17, 63):
-        alone = run_batch(policy, "paper-64", [seed], keep_series=True, threads=1)
+        alone = run_batch(policy, PAPER, [seed], keep_series=True, threads=1)
         assert np.array_equal(alone.series[0], batch.series[seed]), f"seed {seed} differs alone vs in batch"
 
 
 @pytest.mark.parametrize("policy", ["heuristic", "heuristic-stochastic", "random", "solver"])
 def test_compiled_rollout_equals_python_step_loop(policy):
     seeds = [3, 4, 5]
-    compiled = run_batch(policy, "paper-64", seeds, keep_series=True)
+    compiled = run_batch(policy, PAPER, seeds, keep_series=True)
     sim = Simulator(resolve_scenario("paper-64"), seeds)
     obs = sim.reset()
     p = get(policy)
@@ -96,9 +98,9 @@ def test_backends_agree():
 
 
 def test_same_bits_in_another_process():
-    here = digest(run_batch("heuristic", "paper-64", [11], keep_series=True).series)
-    code = ("import hashlib, numpy as np; from wfbench.harness.runner import run_batch; "
-            "s = run_batch('heuristic', 'paper-64', [11], keep_series=True).series; "
+    here = digest(run_batch("heuristic", PAPER, [11], keep_series=True).series)
+    code = ("import hashlib, numpy as np; from wfbench import ScenarioConfig; from wfbench.harness.runner import "
+            "run_batch; s = run_batch('heuristic', ScenarioConfig.preset('paper-64'), [11], keep_series=True).series; "
             "print(hashlib.sha256(np.ascontiguousarray(s).tobytes()).hexdigest())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == here
