@@ -104,6 +104,22 @@ LOOKAHEAD.update({
 })
 
 
+# tuned on suite-v1's training split, public seeds 1000-1004 (issue #43; docs/policies.md, "mpc"): a preset field
+# "tuned:FILE" names the tuned-policy file under policies/tuned/, whose base is the untuned lookahead
+LOOKAHEAD.update({
+    "mpc-rates-tuned-train": ("mpc-rates", "tuned:mpc-rates-suite-v1-train.json", "mpc-rates with its knobs, prices "
+                              "and capacity scale tuned on suite-v1's training split (wfbench tune)"),
+    "mpc-ma-tuned-train": ("mpc-ma", "tuned:mpc-ma-suite-v1-train.json", "mpc-ma with its knobs, prices and "
+                           "capacity scale tuned on suite-v1's training split (wfbench tune)"),
+})
+
+
+def _lookahead_file(name: str) -> Path | None:
+    """The tuned-policy file a tuned lookahead reads, or None."""
+    preset = LOOKAHEAD[name][1]
+    return _tuned.TUNED_DIR / preset[6:] if preset.startswith("tuned:") else None
+
+
 def lookahead_names() -> list[str]:
     """The deployable lookahead policies (:data:`LOOKAHEAD`), asked for by name."""
     return list(LOOKAHEAD)
@@ -113,6 +129,9 @@ def _lookahead(name: str) -> Any:
     from wfbench.policies.lookahead import make
 
     base, preset, _ = LOOKAHEAD[name]
+    if preset.startswith("tuned:"):
+        path = _lookahead_file(name)
+        return _tuned.build(_tuned.read(path), get(base), path)
     if preset.startswith("mpc:"):
         from wfbench.policies.lookahead import mpc
 
@@ -367,7 +386,8 @@ def parse_spec(spec: str) -> PolicySpec:
     if spec in TUNED:
         return PolicySpec(spec, "tuned", name=spec, path=str(_tuned.TUNED_DIR / TUNED[spec][0]))
     if spec in LOOKAHEAD:  # issue #43
-        return PolicySpec(spec, "lookahead", name=spec)
+        tuned = _lookahead_file(spec)
+        return PolicySpec(spec, "lookahead", name=spec, path="" if tuned is None else str(tuned))
     name, at, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
     if name in LEARNED:
         return PolicySpec(spec, "learned", name=name, path=str(CHECKPOINT_DIR / LEARNED[name][0]),
@@ -527,6 +547,8 @@ def parts(name: str) -> tuple[str, str, str]:
         return tuple(f"{p} (tuned)" for p in parts(base))
     if name in LEARNED_PARTS:
         return LEARNED_PARTS[name]
+    if name in LOOKAHEAD and LOOKAHEAD[name][1].startswith("tuned:"):
+        return tuple(f"{p} (tuned)" for p in parts(LOOKAHEAD[name][0]))
     if name in LOOKAHEAD:  # issue #43: the base's parts, its workforce rolled out or planned (mpc)
         d, w, pos = parts(LOOKAHEAD[name][0])
         if LOOKAHEAD[name][1].startswith("mpc:"):

@@ -114,3 +114,19 @@ def test_its_solves_are_limited_in_work_not_time(monkeypatch):
     assert seen and set(seen) == {(None, mpc.NODE_LIMIT)}
     with pytest.raises(ValueError, match="mpc knob node_limit = 0 is not allowed"):
         MPC(pol.base, node_limit=0)
+
+
+def test_the_tuned_presets_load_their_shipped_files():
+    import json
+
+    for kind in ("rates", "ma"):
+        name = f"mpc-{kind}-tuned-train"
+        spec = parse_spec(name)
+        assert name in LOOKAHEAD and name not in names() and spec.kind == "lookahead"
+        shipped = json.loads(spec.file.read_text())
+        assert spec.file.name == f"mpc-{kind}-suite-v1-train.json" and shipped["base"] == f"mpc-{kind}"
+        assert shipped["scenario"] == "suite-v1:train" and all(1000 <= s <= 1049 for s in shipped["seeds"])
+        pol = policies.get(name)
+        assert isinstance(pol, MPC) and pol.name == name and pol.forecast == kind
+        assert pol.params() == shipped["params"]
+        assert all(p.endswith("(tuned)") for p in parts(name))
