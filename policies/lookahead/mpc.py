@@ -1,37 +1,12 @@
 """Model predictive control: a rolling-horizon staffing MILP on a forecast, re-solved every R steps (issue #43).
 
 Every ``R`` steps, for each environment, :class:`MPC` solves
-:func:`wfbench.solvers.staffing_mpc.plan_staffing` (HiGHS): hires and let-goes per level over
-the next ``H`` steps, with the hire and notice delays as lags, covering the forecast demand
-at the target utilization at the least payroll plus a price on shortfall. It plays the
-plan's actions step by step until the next solve (an action the mask refuses is skipped).
-
-- **Demand** (requests per step) comes from the forecast, named apart:
-  ``rates`` (``mpc-rates``): the public model of the scenario, handed by the evaluator with
-  ``set_world`` (``wfbench.harness.runner.public_world``): the expected active facilities
-  (lifetimes and arrivals under the churn schedule) times the failure rate under the
-  request schedule, from ``t`` on; ``ma`` (``mpc-ma``): the moving average of the new
-  requests observed over the last ``window`` steps, held flat (no model of demand at all).
-- **Capacity** of a productive person of level l (requests per step): ``rho q_l / T``, the
-  target utilization ``rho`` times the fix probability over the person-steps of one visit,
-  ``T = service_time + 2 * travel``, the travel the mean distance from the active facilities
-  to the nearest home over the speed, averaged over the episode's solves so far (read off
-  the present headcount alone it swings the plan: fewer people, longer trips, hire back).
-  These are the operation's own parameters (the observation's ``world`` key), known to
-  both kinds.
-- **Who is productive, and when**: read from the observations (status, notice), the ends of
-  onboarding and notice from when each was seen to start (``hire_delay``, ``notice_delay``).
-- **Positioning on forecast demand**: row 0 (where a hire is based) weights each active
-  facility by its forecast demand over the retained people within reach of it (the heat
-  map's width), so hires go where demand per person is highest; row 1 (whom to let go) the
-  inverse. Under ``rates`` every active facility has the same forecast (failures and
-  lifetimes are memoryless); under ``ma`` a facility's own observed requests over the window.
-- **Dispatch** is the base's assignment (``solver-tuned-train``'s compiled kernels).
-- **Tunable** (:attr:`MPC.tunable`, ``wfbench tune mpc-rates --scenarios suite-v1:train``): the
-  knobs, the MILP's two prices and a scale on the capacity model; each solve is limited in
-  branch-and-bound nodes, not seconds, so a plan never depends on the machine's speed.
-
-Nothing here reads the trace, a seed's generator or the true state.
+:func:`wfbench.solvers.staffing_mpc.plan_staffing` (HiGHS, a node limit per solve) over the
+next ``H`` steps and plays the plan's workforce actions; dispatch is the base's assignment.
+The demand forecast is named apart: ``rates`` (``mpc-rates``, the world's public model from
+``set_world``) or ``ma`` (``mpc-ma``, a moving average of observed requests). Its knobs, the
+MILP's prices and a capacity scale are tunable (:attr:`MPC.tunable`). Nothing here reads the
+trace, a seed's generator or the true state. The model in full: ``docs/policies.md``, "mpc".
 """
 
 from __future__ import annotations

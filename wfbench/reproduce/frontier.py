@@ -1,16 +1,11 @@
 """The verdict as score against compute: held-out IQM per policy beside what its decisions cost (issue #43).
 
-``wfbench reproduce frontier`` plays (or reads from a suite run's pieces) every chosen policy
-on a split's scenarios and writes, per policy, the IQM of the normalized score with its 95%
-stratified bootstrap interval beside three costs: the evaluator's decision time p50 (ms per
-env-step), the CPU milliseconds per env-step (CPU seconds over env-steps: observe, decide and
-simulate) and the CPU seconds per episode. Then, at each budget of :data:`BUDGETS_MS`, the best
-deployable policy of the OR side (heuristics, solvers, lookaheads) and of the learned side
-(networks) that stay within it. docs/suite.md ("Score against compute") reads the output.
-
-Pieces are found first under ``out/cache`` and then in the ``reuse`` folders (a suite run's
-``cache/``), and a piece whose seeds include the chosen ones is cut to them; missing pieces
-are played and stored under ``out/cache`` as the suite stores them.
+``wfbench reproduce frontier`` reads a suite run's pieces (``out/cache``, then the ``reuse``
+folders; a piece with more seeds is cut to the chosen ones) and plays what is missing. It
+writes, per policy, the IQM of the normalized score with its interval beside the decision
+time p50, CPU ms per env-step and CPU s per episode, and the best deployable policy of the OR
+and learned sides within each budget of :data:`BUDGETS_MS`. docs/suite.md, "Score against
+compute", explains the columns and holds the committed run.
 """
 
 from __future__ import annotations
