@@ -18,6 +18,7 @@ from wfbench.policies import registry
 import wfbench.reproduce.suite as target
 from wfbench.analysis.aggregate import median_seed, pool_seeds, score_matrix, seed_scores
 from wfbench.cli import main
+from wfbench.harness.backends import Execution
 
 SOURCE = registry.CHECKPOINT_DIR / "ppo-joint-paper-64.pt"
 FAST = {"reps": 200, "poi_reps": 20}
@@ -124,7 +125,7 @@ def test_pooled_runs_make_a_members_x_seeds_by_scenarios_matrix():
 @pytest.fixture()
 def suite_run(members, tmp_path):
     result = target.suite(tmp_path, seeds=[0, 1], policies=("heuristic", "ppo-general"), scenarios=["small"],
-                          backend="serial", **FAST)
+                          execution=Execution(backend="serial"), **FAST)
     return tmp_path, result
 
 
@@ -165,7 +166,8 @@ def test_reproduce_suite_checks_every_member_against_the_bound(members, tmp_path
         return df, wall
 
     monkeypatch.setattr(target, "_run", above)
-    target.suite(tmp_path, seeds=[0], policies=("ppo-general",), scenarios=["small"], backend="serial", **FAST)
+    target.suite(tmp_path, seeds=[0], policies=("ppo-general",), scenarios=["small"],
+                 execution=Execution(backend="serial"), **FAST)
     checks = pd.read_csv(tmp_path / "suite-checks.csv").iloc[0]
     assert not bool(checks["bound_holds"]) and json.loads(checks["above_bound"]) == {"ppo-general#seed0": 1}
 

@@ -22,8 +22,7 @@ torch = pytest.importorskip("torch")
 
 from wfbench.policies.neural import scalefree  # noqa: E402
 
-import wfbench  # noqa: E402
-from wfbench import policies  # noqa: E402
+from tests.train.scalefree_checks import assert_trained_and_plays  # noqa: E402
 from wfbench.train.hindsight import (  # noqa: E402
     SCALEFREE_HEAD_MODULES,
     HindsightConfig,
@@ -53,21 +52,8 @@ def test_hindsight_trains_the_scalefree_network_deterministically_and_deploys_it
     assert a.iteration == 3
     assert all(np.isfinite(v) for v in stats.values()), stats
     assert stats["labels_outside_k"] >= 0 and 0.0 <= stats["outside_k_share"] <= 1.0
-    torch.manual_seed(a.run.config.seed)
-    fresh = scalefree.ScaleFreeNet(a.run.network).state_dict()  # the run's initial parameters (seeded as start_run)
-    assert any(not torch.equal(p, fresh[n]) for n, p in a.model.state_dict().items()), "the parameters did not move"
-
     b, _ = _train(tmp_path / "b")
-    for (n, p), q in zip(a.model.state_dict().items(), b.model.state_dict().values(), strict=True):
-        assert torch.equal(p, q), n
-
-    path = a.save(tmp_path / "a.pt", full=False)
-    ckpt = torch.load(path, weights_only=False)
-    assert ckpt["algo"] == "hindsight" and ckpt["obs_version"] == 2 and ckpt["model_config"]["arch"] == "scalefree"
-    pol = policies.get(f"hindsight:{path}")
-    assert scalefree.obs_version(pol.model) == 2 and pol.observation_version == 2
-    df = wfbench.evaluate(f"hindsight:{path}", "small", seeds=[1000], backend="serial")
-    assert len(df) == 1 and df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()
+    assert_trained_and_plays(a, b, "hindsight", tmp_path)
 
 
 def test_labels_outside_the_k_candidates_are_counted_and_left_out_of_the_loss(tmp_path):

@@ -21,8 +21,7 @@ torch = pytest.importorskip("torch")
 
 from wfbench.policies.neural import scalefree  # noqa: E402
 
-import wfbench  # noqa: E402
-from wfbench import policies  # noqa: E402
+from tests.train.scalefree_checks import assert_trained_and_plays  # noqa: E402
 from wfbench.train.hindsight import HindsightConfig  # noqa: E402
 from wfbench.train.impala import ImpalaConfig, RemoteActor, Trainer  # noqa: E402
 
@@ -50,21 +49,8 @@ def test_impala_trains_the_scalefree_network_deterministically_and_deploys_it(tm
     for s in stats:
         if s["policy_lag"] == 0:  # the learner rescores the actor's actions with the actor's parameters
             assert s["abs_log_rho"] < 1e-4, s
-    torch.manual_seed(a.run.config.seed)
-    fresh = scalefree.ScaleFreeNet(a.run.network).state_dict()  # the run's initial parameters (seeded as start_run)
-    assert any(not torch.equal(p, fresh[n]) for n, p in a.model.state_dict().items()), "the parameters did not move"
-
     b, _ = _train(tmp_path, "b")
-    for (n, p), q in zip(a.model.state_dict().items(), b.model.state_dict().values(), strict=True):
-        assert torch.equal(p, q), n
-
-    path = a.save(tmp_path / "a.pt", full=False)
-    ckpt = torch.load(path, weights_only=False)
-    assert ckpt["algo"] == "impala" and ckpt["obs_version"] == 2 and ckpt["model_config"]["arch"] == "scalefree"
-    pol = policies.get(f"impala:{path}")
-    assert scalefree.obs_version(pol.model) == 2 and pol.observation_version == 2
-    df = wfbench.evaluate(f"impala:{path}", "small", seeds=[1000], backend="serial")
-    assert len(df) == 1 and df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()
+    assert_trained_and_plays(a, b, "impala", tmp_path)
 
 
 def test_the_ray_paths_actor_builds_the_scalefree_network(tmp_path):
