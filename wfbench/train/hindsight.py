@@ -1,81 +1,13 @@
 """Hindsight learning: the joint model trained by imitation of the hindsight oracle, DAgger-style (one file).
 
-After Sinclair et al., "Hindsight Learning for MDPs with Exogenous Inputs" (ICML 2023):
-the exogenous future of a training episode (failures, repairs, arrivals) is a pure
-function of its seed, so on *training* seeds a planner may read it and say what it
-would do; the network, which never reads it, learns to do the same from what it
-observes. The teacher (``teacher``) is the full ``oracle`` of ``docs/hindsight.md`` (one
-:class:`~wfbench.policies.oracle.planner.Planner` deciding dispatch, workforce and
-positioning by exact look-ahead), or ``nearest+oracle+oracle``: the oracle's workforce
-and positioning planned beside nearest-first dispatch.
-
-The loop, per iteration i::
-
-    collect: T-step chunks of B environments of a Simulator on train seeds (synchronized
-             episodes; a new Simulator on the next B seeds when they end). Per step:
-               label  = planner.act(obs)          the oracle's joint action in this state
-               learner = network(obs), sampled     (the LSTM state carried step to step)
-               action = label with probability beta_i, else the learner's (per environment)
-               planner.record(action); sim.step_observe(action)
-    aggregate: each environment's chunk (T steps of raw observations, episode starts,
-             the labels, the LSTM state at the chunk's first step) goes into a FIFO
-             dataset of at most ``dataset_steps`` steps
-    train:   ``grad_steps`` Adam steps on minibatches of ``batch_seqs`` whole sequences
-             sampled from the dataset; the LSTM is rerun from each sequence's stored
-             state (as ``wfbench.train.ppo`` does), the first ``burn_in`` steps only
-             warm it up (unless an episode starts within them); the loss is the
-             negative log-probability of the label under each head's masked
-             distribution (``wfbench.policies.neural.dist.log_prob_entropy``), a weight per head
-
-``beta_i = beta0 * beta_decay ** i``: with the defaults iteration 0 follows the oracle
-alone and later ones mostly the learner, so the states the network is trained on are
-the states its own policy visits (DAgger), while every label is still the oracle's.
-
-How the oracle is asked about the learner's state: the planner keeps a *shadow*
-simulator of the episode and steps it with the joint action it is told through
-``record``; ``act`` checks (bit for bit) that the shadow shows the observation it is
-given, then plans from the shadow's state by forking it. Recording the action the
-episode really took (the mixture's, not the oracle's) keeps the shadow on the
-learner's trajectory, so ``act`` answers for the learner's state. Its base kernels
-(nearest dispatch, spatial averaging) keep memory built from observations only, so
-that memory is the one it would have in this episode too. ``tests/train/test_hindsight_learning.py``
-replays the executed actions through a fresh oracle and checks every label.
-
-Labels are the oracle's actions as the network's heads express them: the dispatch row
-as it is (sanitized: a pick the masks forbid, which the oracle never makes, would
-become the no-op and is counted), the workforce code as it is (the oracle decides every
-``workforce_every`` steps and takes the no-op in between, so the network learns the
-per-step rate of its decisions), and for positioning the facility of largest weight in
-each row of the oracle's map (its own maps put weight 1 on one facility).
-
-With ``workforce_target="values"`` or ``"improve"`` the workforce head learns instead
-from the planner's *hindsight action values* (``Planner.workforce_values``: each
-allowed action's roll-forward score minus the no-op's, at every step the planner
-scores them): ``values`` maximizes their expectation under the head's distribution
-(Hindsight MAC), ``improve`` fits the learner's own distribution at collection time
-tilted by ``exp(value / improve_temperature)`` (a bounded step of policy improvement).
-``train_params="heads"`` trains only the heads with a weight, so a PPO network given
-as ``init`` keeps its encoder, memory and dispatch (docs/hindsight-learning.md,
-"Hindsight action values"). ``value_rollout="learner"`` computes the values with the
-learner itself acting after each action, in copies of the environment that meet the
-same future (:meth:`Trainer.learner_values`): the values of the policy that will act on
-them, which is how the shipped ``hindsight-ppo`` improved ``ppo-joint``'s workforce head.
-
-The network is the paper's (a preset, observation version 1) or the scale-free one
-(``model="scalefree"``, observation version 2, ``wfbench train``'s default): the features,
-noise, samples and log-probabilities go through :mod:`wfbench.policies.neural.scalefree`'s
-helpers, which tell the two apart (for a preset the computation of before). The
-scale-free dispatch picks among the k nearest eligible people of each choosing facility:
-a label naming someone else is left out of the loss (:func:`outside_candidates`) and
-counted (``labels_outside_k``, ``outside_k_share`` in the log; docs/rl.md).
-
-Checkpoints have the keys every trainer's have (:func:`wfbench.train.toolkit.run_checkpoint`,
-``algo: hindsight``), so ``hindsight:RUN/best.pt`` loads one as a policy (``ppo:RUN/best.pt``,
-the alias, too) and ``wfbench train --algo ppo --init RUN/best.pt`` fine-tunes it with PPO. ``RUN/best.pt``
-is the iterate with the highest mean NSW on the **public** seeds (``eval_seeds``; test
-seeds are refused), sampled mode. Resume restores the weights, the optimizer, the random
-states and the counters, not the dataset (it restarts empty, like PPO's episodes).
-On CPU a run is deterministic given ``seed``.
+After Sinclair et al. (ICML 2023): on training seeds the oracle's
+:class:`~wfbench.policies.oracle.planner.Planner` (``teacher``) labels every state the episode
+visits, while each environment follows the label with probability ``beta_i`` and the network
+otherwise; the labels go into a FIFO dataset and the network is fitted to them by masked
+log-likelihood per head. ``workforce_target`` and ``value_rollout`` learn the workforce head
+from hindsight action values instead. :class:`Trainer` is the entry point; checkpoints load as
+``hindsight:RUN/best.pt``. The loop, the shadow simulator, the labels and the settings:
+``docs/hindsight-learning.md``; the scale-free network's k-nearest labels: ``docs/rl.md``.
 """
 
 from __future__ import annotations

@@ -1,60 +1,12 @@
 """IMPALA for the joint model: an actor with lagging parameters, a learner with V-trace (one file).
 
-Espeholt et al. 2018, "IMPALA: Scalable Distributed Deep-RL with Importance Weighted
-Actor-Learner Architectures". The network, the observation -> tensor step, the action
-distributions, the reward shaping, the checkpoints and the public-seed selection are
-those of the PPO trainer (:mod:`wfbench.train.ppo`, ``docs/rl.md``); what differs is who
-acts with which parameters, and how the learner corrects for it. The network is the
-paper's (a preset of :mod:`wfbench.policies.neural.model`, observation version 1) or the
-scale-free one (``model="scalefree"``, :mod:`wfbench.policies.neural.scalefree`, version 2):
-:func:`wfbench.train.config.build_model` picks the class, and the features and log-probabilities go through
-``scalefree``'s helpers, which tell the two apart (for a preset the same computation as
-before the scale-free network existed)::
-
-    actor:   its own copy of the network, refreshed from the learner every K updates
-             T steps of the B environments of a Simulator (staggered episodes, partial reset;
-             the Collector, as PPO's rollout)
-             -> a rollout: T + 1 observations, the actions, the behaviour log-probabilities mu,
-                the shaped rewards, the episode ends, the LSTM state at the start, the
-                version (the learner update whose parameters acted)
-    learner: one gradient step per rollout
-             rerun the network on the T + 1 steps from the stored LSTM state -> log pi, V
-             V-trace (below) with rho = pi / mu -> value targets v_s and advantages
-             loss = -rho_t A_t log pi  +  vf_coef * (v_s - V)^2 / 2  -  ent_coef * entropy
-             Adam or RMSProp, global gradient clipping; every K updates publish the parameters
-
-Two modes (``mode``):
-
-- ``async``: the actor is a thread that puts rollouts into a bounded queue
-  (``queue_size``) while the learner updates; the actor picks up the newest published
-  parameters before each rollout. The policy lag (learner update - the version that
-  acted) comes from the queue and from K; it depends on the timing of the two threads, so
-  this mode is **not** deterministic.
-- ``sync``: the same actor and learner called in turn in one thread; the lag is exactly
-  ``update mod K`` (0, 1, ..., K - 1, 0, ...). Deterministic on CPU given ``seed``.
-
-With ``address`` set (``"local"``, ``"auto"``, ``"ray://host:port"``) the actors are
-``ray_actors`` Ray actors instead of the thread (:class:`RemoteActor`, on this machine or
-a cluster; the plumbing is in :mod:`wfbench.train.ray_actors`, imported only then, so Ray
-stays optional). Each is an :class:`Actor` on CPU with its own Simulator on its own share
-of the training seeds, making the same rollouts; the learner stays in this process. Like
-``async``, such a run is **not** deterministic.
-
-V-trace (section 4.1 of the paper), per environment, for t = T-1 down to 0, with
-``rho_t = min(rho_bar, pi/mu)``, ``c_t = lambda * min(c_bar, pi/mu)`` and
-``gamma_t = gamma * (1 - done_t)`` (no bootstrap across an episode's end)::
-
-    delta_t = rho_t * (r_t + gamma_t V(x_{t+1}) - V(x_t))
-    v_t     = V(x_t) + delta_t + gamma_t c_t (v_{t+1} - V(x_{t+1}))      (v_T = V(x_T), the bootstrap)
-    A_t     = rho_t * (r_t + gamma_t v_{t+1} - V(x_t))
-
-On-policy (pi = mu) with rho_bar, c_bar >= 1 and lambda = 1, v_t is the n-step return
-bootstrapped from V(x_T), i.e. GAE(lambda = 1)'s return (``tests/train/test_impala.py`` checks it).
-
-Checkpoints have the keys every trainer's have (:func:`wfbench.train.checkpoints.run_checkpoint`,
-``algo: impala``), so ``impala:RUN/best.pt`` loads one as a policy (``ppo:RUN/best.pt``, the
-alias, too). ``best.pt`` is chosen on the **public** seeds (``eval_seeds``, a part of
-1000-1049), never on the test seeds.
+After Espeholt et al. 2018. The network, the featurizing, the rewards, the checkpoints and the
+public-seed selection are the PPO trainer's (:mod:`wfbench.train.ppo`); what differs is who acts
+with which parameters and how the learner corrects for it (:func:`vtrace`). ``mode="sync"`` is
+deterministic on CPU given ``seed``; ``async`` (an actor thread and a bounded queue) and Ray
+actors (``address`` set, :mod:`wfbench.train.ray_actors`) are not. Checkpoints load as
+``impala:RUN/best.pt``. The method, V-trace's formulas, the modes and the settings:
+``docs/impala.md``.
 """
 
 from __future__ import annotations

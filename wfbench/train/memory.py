@@ -1,23 +1,12 @@
 """What a PPO update holds in memory, as a function of the batch and the network (issue #44).
 
-The rollout's own tensors are small (the raw observation of paper-64 is a few KiB per
-env-step). What grows is the update: a minibatch of B / ``minibatches`` environments
-with all T of their steps is one forward pass whose activations autograd keeps for the
-backward pass, so the memory is ``B / minibatches * T`` rows times the bytes a row saves.
-For the ``paper`` network that is the attention blocks' per-entity activations, about
-``28 * (M + N) * d`` floats a block for ff = 2 (each attention call keeps its normalized
-inputs, q, k, v, its output and the feed-forward's 2 * ff * d wide hidden rows) and the
-cross-attention's ``heads * M * N`` additive bias twice a block: on paper-64
-(M = N = 50 slots), d = 64, heads 4, two blocks, about 2.3 MB a row, so 36 MB per
-environment of B at T = 32 with two minibatches. The heads count little (the attention
-kernel does not keep its (M, N) weights on CPU, nor CUDA's fused kernels; the math kernel
-does). The scale-free network keeps about 50 KB a row on paper-64.
-
-:func:`row_bytes` is the estimate (float32, fitted to the bytes autograd saves, measured
-with ``torch.autograd.graph.saved_tensors_hooks`` on CPU at small sizes; within 15% of them,
-tests/train/test_memory.py). :func:`update_envs` bounds the update: the environments of
-one forward and backward pass, so that a minibatch larger than the memory at hand is run
-in chunks whose gradients add up (``wfbench.train.ppo.Trainer``, ``update_envs``).
+What grows is the update: a minibatch is one forward pass whose activations autograd keeps, so
+its memory is ``B / minibatches * T`` rows times the bytes a row saves. :func:`row_bytes` is that
+estimate (float32, fitted to the bytes autograd saves on CPU at small sizes, within 15%:
+tests/train/test_memory.py); :func:`update_envs` bounds the environments of one forward and
+backward pass, so that a larger minibatch runs in chunks whose gradients add up
+(``wfbench.train.ppo.Trainer``). The measurements and the per-row formula:
+``docs/performance.md``, "Memory of paper at B = 4096".
 """
 
 from __future__ import annotations

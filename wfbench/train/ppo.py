@@ -1,64 +1,13 @@
 """PPO for the paper's joint model, driving the batched simulator directly (one readable file).
 
-The loop, per update::
-
-    rollout: T steps of the B environments of a Simulator
-             observation -> tensors (wfbench.policies.neural.model.featurize, no loop over environments)
-             network forward (no grad) -> sample actions (wfbench.policies.neural.dist) -> sim.step_observe
-    returns: GAE(gamma, lambda) on the shaped rewards, the value of the last observation bootstrapped
-    update:  epochs x minibatches of whole sequences (a minibatch is a set of environments with all
-             T of their steps, so the LSTM is rerun from the state it had at the rollout's start);
-             clipped policy objective, clipped value loss, entropy bonus, global gradient clipping
-
-The rollout is the collector's (:class:`wfbench.train.collection.Collector`, shared with
-IMPALA's actor). Episodes (``stagger``, the default for ``joint``) are staggered by partial reset: the
-first episode of environment b is cut after (b + 1) / B of the horizon, and from then on
-every environment that reaches the horizon is reset alone onto the next seed of the
-``train`` set (``wfbench.core.seeds``) with ``Simulator.reset(indices, seeds)``, so a rollout
-mixes every phase of the episode. The ``dispatch`` variant (whose heuristic parts keep
-per-environment memory that resets with the batch) and ``stagger=False`` run synchronized
-episodes: the B environments end together and a new Simulator is made on the next B
-training seeds. Either way the LSTM state is reset where an episode starts (the
-``starts`` flags) and the returns do not bootstrap across an episode's end. Only whole
-episodes are logged (``episode/*``), not the cut first ones.
-
-Rewards (documented in docs/rl.md):
-
-- ``joint``: ``(NSW_t - offset) * scale`` with offset 0.7 and scale 10 (the per-step NSW
-  of the scenario, workforce cost included; reward ``"nsw"`` of :mod:`wfbench.core.reward`),
-  divided by a running standard deviation of the discounted return (the usual return normalization).
-- ``dispatch``: the same with NSW_t without its workforce-cost term, the geometric mean
-  of the utilization and downtime utilities, ``sqrt(u_PUR * u_AFD)`` (reward
-  ``"nsw-no-cost"``, the paper's dispatch-only model); the network has only the dispatch head, the heuristic
-  workforce (``threshold``) and positioning (``spatial``) rules make the other decisions.
-
-Agents (``agents``): ``joint`` (the default) is the paper's joint model, one network and
-one critic for the three decisions. ``independent`` is the multi-agent reading of the
-PettingZoo environment (``wfbench.envs.parallel``): one network per decision
-(:class:`wfbench.policies.neural.model.AgentSet`), no shared parameter, each seeing the whole
-observation and each with its own critic; the agents share the environment's reward (the
-step's NSW, as every PettingZoo agent gets it), and each has its own GAE advantage and
-clipped ratio on its own head's log-probability (independent PPO). Their losses are
-summed and their gradients clipped per agent, which is the same as three PPO updates side
-by side. A trained set is saved and loaded like a joint network (``ppo:RUN/best.pt``).
-
-Value warm-up (``value_warmup``): the first updates fit the value heads alone, the policy
-frozen; for fine-tuning (``init``) a network whose value head never learned (a
-hindsight-learned one, :mod:`wfbench.train.hindsight`).
-
-Checkpoints: ``RUN/checkpoints/update_<n>.pt`` every ``checkpoint_every`` updates,
-``RUN/latest.pt`` (also on Ctrl-C) and ``RUN/best.pt``: the checkpoint with the highest
-mean NSW on the **public** seeds (``eval_seeds``, a part of 1000-1049; never the test
-seeds), scored through ``wfbench.evaluate`` in the checkpoint's default (sampled) mode.
-Each checkpoint records the seeds it was selected on.
-
-Same code on CPU and CUDA; on CUDA the forward passes run under bf16 autocast (the
-heads, the value and the LSTM in fp32; ``Trainer(config, amp=...)`` picks another dtype,
-or autocast on CPU, as tests/train/test_amp.py does) and ``compile=True`` wraps the
-network in ``torch.compile``. On CUDA a minibatch too large for half the GPU's memory is
-run in chunks of ``update_envs`` environments whose gradients add up
-(:meth:`Trainer._chunked_step`, :mod:`wfbench.train.memory`); on CPU the whole minibatch.
-On CPU a run is deterministic given ``seed``.
+:class:`Trainer` runs rollouts (the :class:`~wfbench.train.collection.Collector`, staggered
+episodes by partial reset for ``joint``), GAE on the shaped rewards and clipped PPO updates of
+whole sequences, the LSTM rerun from each rollout's stored state. ``agents="independent"`` trains
+one network and critic per decision (:class:`~wfbench.policies.neural.model.AgentSet`);
+``value_warmup`` fits the value heads alone first. ``best.pt`` is chosen on public seeds. Same
+code on CPU (deterministic given ``seed``) and CUDA (bf16 autocast, ``compile``, minibatches in
+chunks of ``update_envs``, :mod:`wfbench.train.memory`). The loop, the rewards, the checkpoints and
+the settings: ``docs/rl.md``, "The trainer" and "Independent agents".
 """
 
 from __future__ import annotations

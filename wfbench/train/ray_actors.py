@@ -1,31 +1,13 @@
 """The IMPALA trainer's actors as Ray actors (``ImpalaConfig.address`` set): the learner's side of the plumbing.
 
-Imported only by :meth:`wfbench.train.impala.Trainer.train` when ``address`` is set, so Ray
-stays an optional dependency (the ``ray`` extra). What runs where::
-
-    this process (the learner): the network being trained, the optimizer, V-trace, the
-        checkpoints and the public-seed scores; every K updates it publishes its parameters,
-        a CPU state_dict, with ray.put (one object in the object store per version)
-    ray_actors Ray actors (impala.RemoteActor, each `threads` CPUs, anywhere in the cluster):
-        an impala.Actor on CPU with its own copy of the network and its own Simulator of
-        num_envs environments on its own share of the training seeds;
-        rollout(version, params) loads the parameters when the version is new, makes one
-        rollout and returns it, pickled back: T + 1 observations, actions, log mu, rewards,
-        episode ends, the LSTM state, the version that acted, the actor's index and resume state
-
-Each actor has one rollout in flight. When the learner takes a finished one (the first to
-finish, whichever actor made it), it asks that actor for the next at once, with the newest
-published parameters, and then learns on the one it took; so the actors step their
-simulators while the learner computes its gradients. The lag of an update (learner updates
-done minus the version that acted) then depends on how fast each actor is relative to the
-learner: the run is not deterministic.
-
-Ray: ``address="local"`` starts a Ray instance on this machine (no dashboard, at least one
-CPU per actor) and ``"auto"``, ``"ray://HOST:PORT"`` or ``"HOST:PORT"`` join a running cluster;
-either way this process disconnects at the end of ``train()`` (a started instance is shut
-down, a cluster keeps running). A connection this process already had (``ray.init`` called
-before) is used as it is and left open. Every node must be able to import this version of
-wfbench (its Python environment), as for the ``ray`` evaluation backend.
+Imported only by :meth:`wfbench.train.impala.Trainer.train` when ``address`` is set, so Ray stays
+an optional dependency (the ``ray`` extra). The learner stays in this process and publishes its
+parameters with ``ray.put``; each :class:`~wfbench.train.impala.RemoteActor` runs an
+:class:`~wfbench.train.impala.Actor` with its own Simulator on its share of the training seeds and
+has one rollout in flight, so the lag depends on timing and the run is not deterministic.
+``address="local"`` starts (and shuts down) a Ray instance; ``"auto"`` or ``"ray://HOST:PORT"``
+join a cluster, whose every node must import this version of wfbench. What travels where, the
+schedule and the end of a run: ``docs/impala.md``, "Ray: actors on a cluster".
 """
 
 from __future__ import annotations

@@ -1,14 +1,11 @@
 """A training run from its settings, the same from Python and from ``wfbench train``: :func:`fit`.
 
-:func:`fit` takes an algorithm's name and the settings of its config (the fields of
-:class:`wfbench.train.config.BaseConfig` and the algorithm's own), names the run folder
-when none is given (``runs/ALGO-VARIANT-SCENARIO``), checks a resumed run against its
-checkpoint, trains, and leaves ``best.pt`` in the folder after every run: the weights an
-evaluation on the public seeds chose, or the last weights when none ran
-(:func:`wfbench.train.checkpoints.save_unselected_best`). ``wfbench train`` is a shell over it,
-so a run from Python and the same run from the command line write the same files.
-
-This module imports no torch until :func:`fit` runs (``wfbench --help`` stays fast).
+:func:`fit` takes an algorithm's name and its config's settings, names the run folder when none
+is given (``runs/ALGO-VARIANT-SCENARIO``), checks a resumed run against its checkpoint, trains,
+and leaves ``best.pt`` after every run (the last weights when no evaluation ran:
+:func:`wfbench.train.checkpoints.save_unselected_best`). ``wfbench train`` is a shell over it, so
+both write the same files. This module imports no torch until :func:`fit` runs (``wfbench
+--help`` stays fast). ``docs/rl.md``, "The command line".
 """
 
 from __future__ import annotations

@@ -1,23 +1,12 @@
 """Training across worlds: several scenarios in one batch (domain randomization, docs/rl.md "Generalists").
 
-``--scenarios`` names the worlds as every command does (:mod:`wfbench.scenarios.resolve`):
-a suite's split (``suite-v1:train``), scenario names (``paper-64,small``, a suite id such
-as ``paper-64-v1`` or a .toml/.json path), or both, comma-separated. A suite's held-out
-scenarios are refused: they are never trained or tuned on.
-
-:class:`Worlds` puts one :class:`~wfbench.core.simulator.Simulator` per world behind the
-face of one batched simulator: ``B`` environments, the slot counts of the largest world
-(``M``, ``N``), one observation in which a smaller world's rows are padded with empty,
-masked slots (the network is built for any number of slots: an empty slot is masked
-everywhere), and one action split back per world (the dispatch no-op, column ``N``, is
-mapped to each world's own ``N``). The draw is **stratified**: the ``B`` environments are
-dealt to the worlds as evenly as possible (``B = 128`` on the eight training scenarios
-of ``suite-v1``: 16 each) and an environment whose episode ends is reset onto a fresh
-training seed of its own world, so every rollout holds every world in the same
-proportion and no world's share of the update depends on the dice. Episodes of worlds
-with different horizons end at different steps; each ends at its own.
-
-The per-world reward normalization is the collector's (:class:`wfbench.train.collection.Collector`).
+``--scenarios`` names the worlds as every command does (:mod:`wfbench.scenarios.resolve`): a
+suite's split (``suite-v1:train``), scenario names, or both; held-out scenarios are refused.
+:class:`Worlds` puts one :class:`~wfbench.core.simulator.Simulator` per world behind the face of
+one batched simulator: observations padded to the largest world's slots (empty slots masked),
+actions split back per world, and a stratified deal of the ``B`` environments (:func:`deal`), each
+reset onto fresh training seeds of its own world. The per-world reward normalization is the
+collector's. Why stratified, and the padding: ``docs/rl.md``, "How a run spans several worlds".
 """
 
 from __future__ import annotations
