@@ -1,24 +1,13 @@
 """Where episodes run: this process, a pool of processes, or a Ray cluster.
 
-:func:`run_chunks` splits the seeds into chunks, runs each chunk as one batch
+:func:`run_chunks` splits the seeds into chunks, runs each as one batch
 (:func:`wfbench.harness.runner.run_batch`) on the chosen backend and yields each
-:class:`~wfbench.harness.runner.BatchResult` as soon as it is finished, in completion order.
-Every environment is independent and all its randomness is indexed by its seed, so
-the numbers for a seed do not depend on the backend, the chunking or the order (a
-test runs all three backends and compares).
-
-- ``serial``: this process; a chunk of built-in compiled policies uses all cores
-  through numba threads.
-- ``process``: loky's reusable pool of ``workers`` processes (joblib's process
-  backend). Its workers are fresh interpreters that never re-import ``__main__``, so
-  it works from a script without an ``if __name__ == "__main__":`` guard and from a
-  notebook, and the policy travels by cloudpickle: a class defined in ``__main__`` or
-  a notebook cell goes by value. The pool outlives one evaluation (workers exit after
-  five idle minutes) so the rows of a table share it.
-- ``ray``: Ray tasks. ``address`` joins an existing cluster (``"auto"`` or
-  ``"ray://host:10001"``); without it a local Ray instance is started. The policy
-  object travels by cloudpickle too: a class from an importable module goes by
-  reference, so every node must be able to import that module.
+:class:`~wfbench.harness.runner.BatchResult` in completion order; :class:`Execution` is the one
+value that says where and how. Every environment's randomness is indexed by its seed, so no
+number depends on the backend, the chunking or the order (a test runs all three and compares).
+``serial`` is this process, ``process`` loky's reusable pool (no ``__main__`` guard needed; the
+policy travels by cloudpickle) and ``ray`` Ray tasks (``address`` joins a cluster, whose nodes
+must import the policy's module). ``docs/design.md``, "One Execution value".
 """
 
 from __future__ import annotations

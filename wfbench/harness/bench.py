@@ -1,28 +1,12 @@
 """``wfbench bench``: env-steps per second of the core and of the environment shells.
 
-Measures, after a warm-up run that loads the compiled code:
-
-- the compiled rollout with the heuristic policy in the loop, B = 1, 64, 1024, on one
-  thread and on all cores: whole episodes (reset, observe, act, step) of a batch whose
-  traces are already built;
-- ``evaluate.run_batch`` end to end at B = 1024 on all cores: the same plus building
-  the 1,024 traces and the state in Python;
-- ``Simulator.step_observe`` with random actions (drawn before the clock starts), B =
-  1024, on one thread and on all cores (the batch split over threads);
-- the Python batched loop (``Simulator.step`` + ``policy.act``), B = 64;
-- PettingZoo ``parallel_env().step()`` and Gymnasium ``step()`` with random actions. The
-  actions are sampled from the action spaces before the clock starts (1,000 of them,
-  cycled), so the rate is the environment's, not gymnasium's sampler's.
-
-Each measurement is taken in several rounds (``--rounds``), the rounds interleaved; the
-best, median and worst round are reported. Prints the machine and the measurements;
-``--json`` writes them to a file.
-
-Every run also times two fixed loops, one in Python and one compiled, before and after
-the measurements. They do the same work on every machine and every run, so they show
-the machine's speed at the time: on a shared virtual machine it drifts (by up to 2.5x
-minute to minute on the development VM), and two runs compare only when their
-reference times do.
+After a warm-up run, it measures the compiled rollout (heuristic, B = 1, 64, 1024, one thread
+and all cores), ``run_batch`` end to end, ``Simulator.step_observe``, the Python batched loop and
+the PettingZoo and Gymnasium ``step``, with actions drawn before the clock starts. Rounds are
+interleaved (``--rounds``) and each row reports its best, median and worst round; ``--json``
+writes them to a file. Two fixed reference loops, timed before and after, show the machine's
+speed at the time, so two runs compare only when their reference times do. How it measures and
+the numbers: ``docs/performance.md``, "wfbench bench".
 """
 
 from __future__ import annotations

@@ -1,30 +1,12 @@
 """What a result cost: the machine it ran on, and what the policy cost before it ran.
 
-Every evaluation row carries three measurements (:data:`BUDGET_COLUMNS`, taken by
-:func:`wfbench.harness.runner.run_batch` in the process that ran the chunk):
-
-- ``decision_ms_p50``, ``decision_ms_p99``: wall-clock milliseconds of one decision of
-  one environment. A policy stepped from Python is timed around each batched ``act``
-  call; a call for B environments counts as B decisions of ``call time / B`` each, and
-  the two quantiles are over the steps of the chunk. A composite of built-in kernels
-  runs whole episodes in one compiled rollout, where no single decision can be timed:
-  its number is the rollout's CPU time over its environment-steps (observe, decide and
-  simulate together, so an upper bound on the decision alone; CPU time, so the threads
-  it ran on do not divide it), the same for both quantiles. ``reset`` and ``attach``
-  are not counted: a policy that plans at ``reset`` (the ``oracle``) shows that work in
-  ``cpu_s`` only.
-- ``cpu_s``: CPU seconds of the process (all its threads) to evaluate the chunk, per
-  episode: building the simulator and traces, the policy and the simulation.
-
-Time numba spends loading or compiling code (a cold cache, a worker's first chunk) is
-left out of all three, like the act timeout leaves it out (:mod:`wfbench.harness.guard`): it is
-paid once per process, not per decision. The columns are measurements, not results:
-they vary from run to run and are never part of a comparison of results
-(:func:`results_only`).
-
-:func:`machine` describes where the chunk ran; :func:`policy_budget` what the policy
-itself states about its cost: a network's training env-steps, wall time and hardware, a
-tuned file's trials, a solver-backed decision's time limit per solve.
+Every evaluation row carries :data:`BUDGET_COLUMNS` (``decision_ms_p50``, ``decision_ms_p99``,
+``cpu_s``), taken by :func:`wfbench.harness.runner.run_batch` where the chunk ran; numba's loading
+and compiling is left out. They are measurements, not results, and never part of a comparison
+of results (:func:`results_only`). :func:`machine` describes where a chunk ran;
+:func:`policy_budget` what the policy states about its own cost (training steps and hardware,
+tuning trials, a solver's time limit). How each policy family is timed: ``docs/leaderboard.md``,
+"What a result cost".
 """
 
 from __future__ import annotations

@@ -1,19 +1,12 @@
 """Evaluate a policy on a scenario over seeds: a DataFrame with one row per seed.
 
-All seeds of one call run as one batch (one compiled rollout for built-in composites,
-one batched ``act``/``step`` loop otherwise), or as one batch per worker on the
-parallel backends (:mod:`wfbench.harness.backends`). Results do not depend on the backend, on
-how seeds are split into batches, or on the number of threads: each environment is
-independent and all randomness is indexed by the seed. A user's policy runs through
-its guard (:mod:`wfbench.harness.guard`): its failures name its file and line, and each call
-has a time limit.
-
-Each row also says what it cost (the budget columns ``decision_ms_p50``,
-``decision_ms_p99`` and ``cpu_s``, measured where the chunk ran; :mod:`wfbench.harness.budget`
-defines them), and ``df.attrs["budget"]`` says where and how: the machine, the backend
-and workers, how decisions were timed, and what the policy states about its own cost.
-The budget columns are measurements, not results: compare results with
-:func:`wfbench.harness.budget.results_only`.
+:func:`evaluate` (``wfbench.evaluate``) checks the scenario and seeds and runs the seeds as
+batches on a backend (:mod:`wfbench.harness.backends`); no number depends on the backend, the
+batching or the threads. A user's policy runs through its guard (:mod:`wfbench.harness.guard`).
+Each row also carries the budget columns (:mod:`wfbench.harness.budget`), and
+``df.attrs["budget"]`` says where and how it ran; compare results with
+:func:`wfbench.harness.budget.results_only`. ``docs/design.md``, "One Execution value", and
+``docs/leaderboard.md``, "What a result cost".
 """
 
 from __future__ import annotations

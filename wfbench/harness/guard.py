@@ -1,32 +1,12 @@
 """Loading a policy once, and running a user's policy contained.
 
-:func:`load_policy` turns what the user passed (a registry name, a ``module:attr``
-entry point or a policy object) into a :class:`LoadedPolicy` once per evaluation; the
-object travels to the workers as it is (pickled by value where its class lives in
-``__main__`` or a notebook cell).
-
-Built-in registry policies are our own code and run as they are. Every other policy
-(an entry point or an object) runs through a :class:`Guard`:
-
-- an exception raised in its ``reset`` or ``act`` becomes a :class:`PolicyError` whose
-  message is one line naming the policy, the user's file and line and what was wrong,
-  with the whole traceback kept in ``PolicyError.trace`` (formatted where the policy
-  ran, so a worker process's trace survives the trip back);
-- an action the simulator refuses (:class:`~wfbench.core.actions.ActionError`) becomes a
-  :class:`PolicyError` naming the policy, the step and where its ``act`` is defined;
-- each ``reset`` and ``act`` call has a time limit (``act_timeout_s``, default
-  :data:`DEFAULT_ACT_TIMEOUT_S`, like a competition's act timeout): a call still running
-  then is interrupted and the evaluation fails with a line saying so. Time numba spends
-  loading or compiling (wfbench's kernels on a policy's first call into them, or the
-  policy's own ``@njit`` functions) does not count: the clock stops while numba holds
-  its compiler lock, so a cold cache does not fail a policy that is fast once loaded.
-
-The time limit is a ``SIGALRM`` timer, so it needs the main thread of a POSIX process
-(where the serial backend, loky workers, Ray tasks and the leaderboard's child run
-policies) and interrupts Python code: loops, sleeps, waits. Compiled code that never
-returns to the interpreter is not interrupted; the leaderboard's wall-time limit stops
-that. Elsewhere (another thread, Windows) the limit is not enforced and one warning
-says so.
+:func:`load_policy` turns a registry name, a ``module:attr`` entry point or a policy object into a
+:class:`LoadedPolicy` once per evaluation. Built-in registry policies run as they are; every other
+policy runs through a :class:`Guard`: its exceptions and refused actions become a one-line
+:class:`PolicyError` naming its file and line (the whole trace in ``PolicyError.trace``), and each
+``reset`` and ``act`` call has a time limit (``act_timeout_s``, a ``SIGALRM`` timer in the main
+thread; the clock stops while numba holds its compiler lock). What each failure says and the
+timer's limits: ``docs/leaderboard.md``, "When a policy fails"; ``docs/policies.md`` for authors.
 """
 
 from __future__ import annotations

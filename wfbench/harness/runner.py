@@ -1,25 +1,13 @@
 """One batch of full episodes, and the per-seed result rows.
 
-:func:`run_batch` runs every seed of a chunk as one batch: a composite of built-in
-kernels as one compiled rollout, any other policy through one batched ``reset`` /
-``act`` / ``step`` loop (a user's policy through its :class:`~wfbench.harness.guard.Guard`).
-A policy that declares ``reads_trace = True`` (a hindsight oracle, docs/hindsight.md) is
-handed the scenario with ``attach(config)`` before ``reset``; no other policy is. A policy
-that defines ``set_world(config)`` is handed the world's public parameters instead
-(:func:`public_world`: the scenario's config, which holds the laws of the world and no
-seed, key or trace) before ``reset``, in process and, through the sandbox's RESET
-message, in the sandbox; a policy without it is called exactly as before.
-Each environment is independent and all its randomness is indexed by its seed, so a
-seed's numbers do not depend on the batch it ran in. :func:`results_frame` turns
-finished batches into one row per seed. The compiled rollout of a registry name also
-leaves its episode totals of NSW in the totals cache
-(:mod:`wfbench.policies.oracle.cache`), where the ``oracle`` finds its compiled
-candidates' episodes instead of playing them again.
-
-A batch also measures what it cost, in the process that ran it: the wall time of each
-decision and the CPU seconds per episode (the budget columns, :mod:`wfbench.harness.budget`
-says how each policy family is timed), and the machine. These are measurements, not
-results: they differ from run to run.
+:func:`run_batch` runs every seed of a chunk as one batch: a composite of built-in kernels as one
+compiled rollout, any other policy through a batched ``reset`` / ``act`` / ``step`` loop (a user's
+through its :class:`~wfbench.harness.guard.Guard`). A policy with ``reads_trace = True`` gets
+``attach(config)`` before ``reset``; one with ``set_world`` gets :func:`public_world` (the laws of
+the world, no seed or trace). A compiled rollout of a registry name leaves its NSW totals in the
+oracle's totals cache. A batch also measures its cost (:mod:`wfbench.harness.budget`).
+:func:`results_frame` makes one row per seed. ``docs/hindsight.md``; ``docs/policies.md``, "The
+world's public parameters: set_world".
 """
 
 from __future__ import annotations

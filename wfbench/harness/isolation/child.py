@@ -1,31 +1,13 @@
 """The process inside the sandbox: loads a policy package and answers the evaluator over two pipes.
 
 Run as ``python -I -B -u -m wfbench.harness.isolation.child CONFIG`` by
-:mod:`wfbench.harness.isolation.sandbox` inside bubblewrap; ``CONFIG`` is JSON: the file descriptors
-of the two protocol pipes (``in``, ``out``), the ``entry`` point, the resource limits
-(``rlimits``: name -> value) and ``memory_mb`` for the messages. It closes every other
-descriptor, sets the limits on itself and sends STARTED, all before any of the package's
-code runs (``-I`` keeps the package off the import path until then, so no module of the
-package can shadow one of the child's); then it puts ``/policy`` on the path, loads the
-entry point, sends HELLO and serves RESET, ACT and BYE (:mod:`wfbench.harness.isolation.wire`) until
-BYE or the end of its input. A failure of the policy (an exception while loading, in
-``reset`` or in ``act``, or an action that cannot be sent) is answered with ERROR, a
-one-line reason naming the file and line inside the package, and the process exits.
-With ``"probe": true`` it stops after STARTED's work and prints :data:`PROBE_OK`
-(:func:`wfbench.harness.isolation.sandbox.check_sandbox`).
-
-It imports only what it needs (numpy and the wire format; numba is loaded anyway by the
-``wfbench`` package): the evaluator waits for it on every evaluation. Time is the
-evaluator's to measure: the child sends nothing about numba's compiling (the first reset
-and act have a warm-up allowance instead, ``Limits.warmup_s``).
-
-numba's cache starts warm (:class:`CacheCopies`): the evaluator mounts its own cache of
-the ``wfbench`` packages' compiled kernels read-only, and the child copies an entry into
-its own cache (``NUMBA_CACHE_DIR=/tmp/numba``, on the sandbox's tmpfs) when numba first
-reads it. The policy may spoil its copies; the evaluator never loads anything from the
-sandbox, and the next sandbox copies afresh. What numba compiles here (a kernel the
-evaluator's cache lacks) dies with the sandbox, and wfbench's line about compiling says
-so (:class:`SandboxCompileNotice`).
+:mod:`wfbench.harness.isolation.sandbox` inside bubblewrap. Before any of the package's code runs
+it closes every other descriptor, sets its rlimits and sends STARTED (``-I`` keeps the package
+off the import path until then, so it cannot shadow the child's modules); then it loads the entry
+point and serves RESET, ACT and BYE (:mod:`wfbench.harness.isolation.wire`), answering a policy's
+failure with a one-line ERROR. It sends nothing about time. :class:`CacheCopies` copies entries
+of the evaluator's read-only numba cache into the sandbox's own. ``docs/leaderboard.md``, "The
+sandbox's process and its pipes" and "numba's cache in the sandbox".
 """
 
 from __future__ import annotations

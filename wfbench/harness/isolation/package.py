@@ -1,20 +1,12 @@
 """Policy packages: a zip of a policy's code and checkpoint files with a manifest, checked before it is opened.
 
-A package is a zip archive (a wheel is one) holding the policy's top-level package
-folder or module file and, at the top, the manifest ``wfbench-policy.json``::
-
-    {"entry": "module:attr", "format": 1}
-
-``entry`` names the policy as ``wfbench evaluate --policy`` does (an object, a class or a
-factory). :func:`pack` makes one on the submitter's side, deterministically (sorted
-names, fixed timestamps and modes), so the same code gives the same bytes and the same
-:func:`content_hash`. A server reads uploads from strangers, so :func:`inspect` checks an
-archive without extracting it: its size, the number of members, every name (no absolute
-path, no ``..``: zip-slip), every type (no symlinks, devices or pipes), the sizes the
-headers declare (total and compression ratio: a zip bomb) and the manifest.
-:func:`unpack` checks again, then counts the bytes it actually writes while streaming and
-stops at the limit, so headers that lie about sizes get no further than honest ones.
-Every refusal is a :class:`PackageError`, one line saying what is wrong and what is allowed.
+A package is a zip (a wheel is one) holding the policy's package folder or module and, at the
+top, ``wfbench-policy.json`` (``{"entry": "module:attr", "format": 1}``). :func:`pack` makes one
+deterministically, so the same code gives the same bytes and :func:`content_hash`.
+:func:`inspect` checks an archive without extracting it (size, members, names: no zip-slip,
+types: no links or devices, declared sizes and ratio: no zip bomb, the manifest); :func:`unpack`
+checks again and counts the bytes it writes, so lying headers get no further. Every refusal is a
+one-line :class:`PackageError`. ``docs/leaderboard.md``, "Phases, seeds and keys".
 """
 
 from __future__ import annotations

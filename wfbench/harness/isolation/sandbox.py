@@ -1,57 +1,13 @@
 """Running someone else's policy package in a bubblewrap sandbox, as an ordinary policy of the evaluator.
 
-A hosted leaderboard runs code that strangers upload. :class:`SandboxPolicy` starts the
-package in a separate process, ``python -m wfbench.harness.isolation.child``, inside
-bubblewrap, and speaks to it over two pipes (:mod:`wfbench.harness.isolation.wire`: named arrays,
-never pickle). The simulator stays in the evaluator: the policy sees observations and
-opaque keys, never the scenario, the seeds or anything else of the host.
-
-What the sandbox allows:
-
-- **Files**: read-only, only what Python needs (the Python installation, the virtual
-  environment, the folders the ``wfbench`` packages are imported from, ``/usr`` and the
-  ``/lib`` folders, the dynamic linker's cache), the package read-only at ``/policy`` and
-  a size-capped tmpfs at ``/tmp`` (``HOME``). Nothing else: no database, no data folder
-  of a server, no home directory.
-- **Namespaces**: its own network (loopback only: no connection leaves it, no name
-  resolves), PID (it sees only its own processes, and they all die with it), IPC, UTS
-  and cgroup namespaces; a new session (no terminal to inject into); the environment
-  cleared. Run as root, bubblewrap sets the sandbox up privileged and the policy runs as
-  an unprivileged user of its own (a uid drawn from :data:`SANDBOX_UIDS`, via ``setpriv``,
-  with every capability dropped), so that the process limit means something and the
-  host's root owns nothing it can touch; run as
-  another user, bubblewrap makes an unprivileged user namespace (``--unshare-all``).
-- **Resources**: address space, CPU seconds, processes, file size, open files, no core
-  files (rlimits the child sets on itself before the package's code runs); the tmpfs
-  size; the bytes it may write to stdout and stderr (kept in :attr:`SandboxPolicy.log`).
-- **System calls**: a seccomp filter compiled by libseccomp's own Python bindings
-  (:func:`_seccomp_program`) and loaded by bubblewrap refuses ptrace, mounting, new
-  namespaces, bpf, perf events, the keyrings, userfaultfd and io_uring.
-- **Time**, enforced and measured from outside: each ``reset`` and ``act`` has
-  ``act_timeout_s``, the first of each ``warmup_s`` (numba compiling the policy's own
-  kernels), and a batch of episodes ``wall_time_s`` of the policy's time; past any, the
-  evaluator kills bubblewrap's process group and the PID namespace takes every process
-  with it. Nothing the child sends stops or extends a clock.
-- **Environment**: bubblewrap starts with :data:`BWRAP_ENV` and the child with
-  :func:`_child_env`, never the evaluator's environment, and the child keeps no descriptor
-  but its pipes and standard streams.
-
-Two exceptions, two culprits. :class:`SandboxUnavailable` is the set-up's fault (no
-bubblewrap, no seccomp bindings, Python or wfbench unreachable inside, a sandbox that died
-or hung before the child's STARTED handshake, when none of the package's code had run):
-one-line ``reason``, retry elsewhere. :class:`SandboxError` (a
-:class:`~wfbench.harness.guard.PolicyError`) is the policy's failure after the handshake
-(raised, timed out, out of memory, killed, a bad frame or action) with a one-line
-``reason``. :func:`evaluate_sandboxed` runs
-:func:`wfbench.harness.runner.run_batch` with a SandboxPolicy, so its rows are those of
-:func:`wfbench.harness.evaluation.evaluate` for the same policy, bit for bit, when the
-policy's decisions do not depend on its seeds.
-
-The opaque keys: ``reset`` gets, for each seed, the first 8 bytes of
-``HMAC-SHA256(key_secret, f"{key_context}:{seed}")`` (:func:`opaque_keys`) instead of the
-seed. A policy seeds its randomness from them as from seeds; it cannot tell which seed
-it plays (a hidden test seed stays hidden), and the same secret, context and seed give
-the same key, so a run is reproducible.
+:class:`SandboxPolicy` starts ``python -m wfbench.harness.isolation.child`` in bubblewrap and
+speaks to it over two pipes (:mod:`wfbench.harness.isolation.wire`, never pickle); the simulator
+stays in the evaluator, and the policy sees observations and :func:`opaque_keys` (HMAC-SHA256 of
+the seed), never the seeds. The sandbox: read-only binds of what Python needs, a capped tmpfs,
+its own namespaces (no network), its own uid as root, rlimits, a seccomp filter, clocks kept
+outside, a cleared environment. :class:`SandboxUnavailable` is the set-up's fault (before
+STARTED), :class:`SandboxError` the policy's. :func:`evaluate_sandboxed`; :func:`check_sandbox`.
+The rules and why: ``docs/leaderboard.md``, "The threat model".
 """
 
 from __future__ import annotations

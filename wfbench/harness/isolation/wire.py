@@ -1,28 +1,12 @@
 """The pipe protocol between the evaluator and a sandboxed policy: frames of named numpy arrays, never pickle.
 
-A sandboxed policy (:mod:`wfbench.harness.isolation.sandbox`) is someone else's code, so what it
-sends back is read as untrusted bytes: unpickling would run its code in the evaluator.
-A message is one frame::
-
-    header   magic b"WFB1", kind u8, count u16, body bytes u64   (little-endian)
-    count x  name length u16, name (ASCII identifier), dtype code u8, ndim u8,
-             shape u64 x ndim, data bytes u64, data (C order, little-endian)
-
-The dtypes are a fixed whitelist (:data:`DTYPES`): no objects, strings or structured
-types, nothing whose bytes could mean code. :class:`Decoder` checks every field against
-:class:`WireLimits` as soon as it has the bytes for it (a header that announces a body
-over the limit is refused before the body is read) and raises :class:`WireError`, one
-line, on anything else: an unknown kind, a bad name, a shape whose size does not match
-its byte count, bytes left over. Text (a reason, a traceback, the decision names) travels
-as a uint8 array of UTF-8 (:func:`text_array`, :func:`array_text`).
-
-Kinds: the child sends STARTED once its own Python is up (before any code of the package
-runs: a sandbox that dies before it is the board's fault, not the policy's), HELLO (its
-decisions and name) once loaded, READY after a reset, ACTION after an act and ERROR (a
-reason and a traceback) when the policy fails; the parent sends RESET (the opaque
-``keys``), ACT (the observation) and BYE. Nothing the child sends touches the parent's
-clocks: 8 and 9 (PAUSE and RESUME, which once stopped the act clock while numba compiled)
-are no kind any more, and a frame of either breaks the protocol.
+A sandboxed policy is someone else's code, so what it sends is read as untrusted bytes
+(unpickling would run its code in the evaluator). A frame is a ``WFB1`` header (kind, count,
+body bytes) and named arrays of a fixed dtype whitelist (:data:`DTYPES`); :class:`Decoder` checks
+each field against :class:`WireLimits` as soon as it has its bytes and raises a one-line
+:class:`WireError` on anything else. The kinds are STARTED, HELLO, READY, ACTION and ERROR from
+the child, RESET, ACT and BYE from the parent; nothing the child sends touches the parent's
+clocks. The layout: ``docs/leaderboard.md``, "The sandbox's process and its pipes".
 """
 
 from __future__ import annotations
