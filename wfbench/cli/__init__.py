@@ -1,24 +1,13 @@
 """The ``wfbench`` command line: one module per command, each adding its subparser and holding its handler.
 
-User mistakes (unknown policy or scenario, bad numbers, unwritable output) print one
-line saying what is wrong and what is allowed (an unknown name with the closest allowed
-ones, ``did you mean ...?``), and exit with status 2, as does a command whose optional
-extra is not installed (the line names the extra). wfbench's own warnings print as one
-line, ``wfbench: warning: ...``. A policy that
-fails (raises, overruns its act timeout, returns a malformed action) prints one line
-naming the policy, its file and line, and exits with status 1; ``--traceback`` prints
-the whole trace first. A reader that closes stdout early (``wfbench policies | head``)
-ends the command quietly with status 141, as a command stopped by SIGPIPE would.
-``module:attr`` policies are looked up in the current folder
-first, as ``python -m`` does.
-
-A command module has ``add_parser(subparsers)`` and ``run(args) -> int``; it imports
-what its handler needs inside ``run``, so ``wfbench --help`` stays fast. A command is a
-shell over the function of the same name, which Python calls alike (``evaluate``,
-``compare``, ``simulate`` and ``train`` over :func:`wfbench.evaluate`, :func:`wfbench.compare`,
-:func:`wfbench.simulate` and :func:`wfbench.train.fit`): it parses the flags, calls the
-function, prints what it returns and turns its refusals into one line. The shared
-argument types and :class:`UsageError` are in :mod:`wfbench.cli.common`.
+A command module has ``add_parser(subparsers)`` and ``run(args) -> int``, and imports what its
+handler needs inside ``run`` so that ``wfbench --help`` stays fast. A command is a shell over the
+Python function of the same name (:func:`wfbench.evaluate`, :func:`wfbench.compare`,
+:func:`wfbench.simulate`, :func:`wfbench.train.fit`): it parses the flags, calls it, prints what
+it returns and turns its refusals into one line. User mistakes exit 2 with one line (closest
+names, the missing extra), a failing policy exits 1, a closed stdout 141; ``module:attr`` is
+looked up in the current folder first. The shared argument types and :class:`UsageError`:
+:mod:`wfbench.cli.common`. ``docs/getting-started.md``.
 """
 
 from __future__ import annotations

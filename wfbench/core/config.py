@@ -1,18 +1,12 @@
 """Scenario configuration: a frozen, validated dataclass with named presets.
 
-Every field is checked on construction; a bad value raises ``ValueError`` naming the
-field, the value and what is allowed. Presets (``PRESETS``, built from the
-data in :mod:`wfbench.core.presets`) are looked up by name with
-:meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON. A scenario's
-name (preset, suite id or file) is resolved where it enters wfbench, by
-:func:`wfbench.scenario` (:mod:`wfbench.scenarios.resolve`); the core takes configs
-(:func:`require_config`, ``docs/design.md``, "Names resolved where they enter").
-See ``docs/model.md`` for what each field means in the model.
-
-Fields added after the leaderboard began hashing ``to_dict()`` (``OMITTED_AT_DEFAULT``:
-the facility ``layout``) are written by :meth:`ScenarioConfig.to_dict` only when they
-differ from their default, so the dict, the files and the hash of every scenario that
-does not use them stay what they were (``docs/scenarios.md``).
+Every field is checked on construction (a ``ValueError`` naming the field, the value and what is
+allowed). Presets (``PRESETS``, from :mod:`wfbench.core.presets`) are looked up with
+:meth:`ScenarioConfig.preset`; configs round-trip through TOML and JSON. Names are resolved where
+they enter (:mod:`wfbench.scenarios.resolve`); the core takes configs (:func:`require_config`).
+Fields in ``OMITTED_AT_DEFAULT`` are written by :meth:`ScenarioConfig.to_dict` only when they
+differ from their default, so older scenarios keep their hash. ``docs/model.md`` (the fields),
+``docs/scenarios.md``; ``docs/design.md``, "Names resolved where they enter".
 """
 
 from __future__ import annotations

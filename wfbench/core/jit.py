@@ -1,67 +1,13 @@
 """numba's on-disk cache for wfbench, keyed by every source file the compiled code depends on.
 
-numba's cache checks only the file of the cached function (numba's "Notes on caching":
-changes in symbols defined in another file are not seen). The compiled rollout in
-``policies/rollout.py`` inlines the step from ``wfbench/core/dynamics.py``, so after an edit
-of ``dynamics.py`` it kept running the old step. Module-level constants are frozen into
-compiled code the same way.
-
-This module fixes that for the packages ``wfbench`` and ``policies``. Importing it
-registers :class:`DigestLocator` in front of numba's cache locators. For a cached
-function in a file of these two packages, the locator's source stamp (numba keeps it in
-the cache index and discards the index when it differs) is a digest of:
-
-- the function's own file;
-- every in-project file (``wfbench``, ``policies``, ``solvers``) that file imports at
-  module level, and theirs, transitively (:func:`dependencies`). A compiled function
-  can only reach code and constants through the globals of its module, and those come
-  from module-level imports, so this closure is everything its machine code can
-  contain;
-- the numba, numpy and Python versions.
-
-So an edit of any file (a comment included: the digest is of the bytes) recompiles
-exactly the functions whose modules depend on it, on their next call (editing
-a file of ``policies/kernels/`` recompiles the policies and the rollout, not the simulator core). The
-imports are found by a scan of the module-level ``import`` and ``from ... import``
-lines, cheap enough for every start-up; a test checks that the scan finds what
-Python's ``ast`` finds in every module of the three packages.
-
-Where the cache lives does not change: ``WFBENCH_CACHE_DIR`` if set, else
-``NUMBA_CACHE_DIR`` if set, else ``__pycache__`` beside the sources, else numba's
-user-wide cache directory (a read-only installation). A stale entry is overwritten in
-place, so nothing accumulates. Functions of other libraries, and of ``solvers``, keep
-numba's own locators: ``solvers`` imports nothing of ours (the layering rule), and
-when a ``policies`` kernel inlines a solver, the digest of the kernel's module covers
-the solver's file. ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, replaces numba's list of
-locators and this one with it.
-
-Why a stamp per module and not one directory per digest of every core file: a stamp
-recompiles only what depends on the edit, leaves the cache where numba users look for
-it, and needs no clean-up of old directories (each edit would leave a full copy of the
-compiled core behind). The price: checkouts of different versions that share one cache
-directory (``WFBENCH_CACHE_DIR``) overwrite each other's entries, as with numba's own
-stamps.
-
-numba picks a function's locator when its ``@njit(cache=True)`` decorator runs, so this
-module must be imported before any module with cached functions: ``wfbench/__init__``
-imports it first (``wfbench.core.rng``, ``wfbench.core.observe`` and ``wfbench.core.simulator`` also do),
-and ``tests/core/test_jit_cache.py`` checks that every cached function of ours got this locator.
-
-The first compilation of one of our functions in a process prints one line to stderr,
-``wfbench: compiling the simulator core once, ~N s; cached afterwards (DIR)``, before it
-starts: numba reports a compilation only on a cache miss, so a warm run prints nothing.
-``N`` is honest about load: the idle-machine time of the same entry point (recorded in
-the cache directory by the last compile here, as its wall time divided by the load
-factor it ran under; else measured on the development VM, ``docs/performance.md``)
-times :func:`load_factor`, the one-minute load average plus one over the cores. The
-line says which: ``~45 s (on an idle 2-core VM)``, or ``~120 s (40 s on this machine
-idle, from its last compile, x3.0 for the current load)``. The process and Ray backends
-compile in the parent before their workers start (:func:`wfbench.harness.runner.prime`), so a
-pool prints the line once and does not compile the same code in every worker.
-
-This relies on numba internals that are not a public API (``numba.core.caching``:
-``_CacheLocator``, ``CacheImpl._locator_classes``; ``numba.core.event``'s
-``numba:compile`` event); ``tests/core/test_jit_cache.py`` pins each of them.
+numba's cache checks only the cached function's own file, so an edit of an inlined module
+(``dynamics.py`` in ``policies/rollout.py``) kept the old code running. Importing this module
+registers :class:`DigestLocator`, whose source stamp for a cached function of ``wfbench`` or
+``policies`` is a digest of its file, every in-project file it imports at module level,
+transitively (:func:`dependencies`), and the numba, numpy and Python versions. It must be imported
+before any module with cached functions (``wfbench/__init__`` imports it first). The first compile
+in a process prints one line with an estimate scaled by :func:`load_factor`. The design, the
+cache's place and the pinned numba internals: ``docs/performance.md``, "A cache that cannot lie".
 """
 
 from __future__ import annotations

@@ -1,24 +1,12 @@
 """Scenario names: one grammar, resolved once where a name enters wfbench.
 
-Every command and function that takes a scenario takes the same names
-(``docs/scenarios.md``, "Naming a scenario"), resolved here and nowhere else, once, where
-the name enters (``wfbench.scenario`` is :func:`resolve_scenario`); what is inward of the
-edge (the evaluator, the backends and their workers, the simulator, the trainers' worlds)
-is handed the :class:`ScenarioConfig` and refuses a name (``docs/design.md``).
-
-One scenario (:func:`resolve_scenario`):
-
-- a :class:`ScenarioConfig`: itself;
-- a path to a ``.toml`` or ``.json`` file (a string ending so, or a path object);
-- a preset name (``paper-64``; ``wfbench scenarios`` lists them);
-- a suite's versioned id (``paper-64-v1``; ``wfbench suite show suite-v1`` lists them):
-  that suite's scenario.
-
-Several worlds (:func:`resolve_worlds`, what ``--scenarios`` takes): comma-separated
-items, each one scenario as above, a suite id (``suite-v1``: all its scenarios) or a
-suite's split (``suite-v1:train``). A scenario a suite holds is named by its suite id
-(``paper-64`` is the world ``paper-64-v1``), so the logs, checkpoints and normalized
-scores of a world do not depend on how it was named.
+Every command and function that takes a scenario takes the same names, resolved here and nowhere
+else: :func:`resolve_scenario` (``wfbench.scenario``) takes a :class:`ScenarioConfig`, a ``.toml``
+or ``.json`` path, a preset name or a suite's versioned id (``paper-64-v1``);
+:func:`resolve_worlds` (what ``--scenarios`` takes) comma-separated scenarios, suite ids and
+splits (``suite-v1:train``), naming a suite's scenario by its suite id. What is inward of the
+edge is handed the config and refuses a name. The grammar: ``docs/scenarios.md``, "Naming a
+scenario"; why: ``docs/design.md``, "Names resolved where they enter".
 """
 
 from __future__ import annotations
