@@ -1,17 +1,11 @@
 """Whole episodes in compiled code for composites of built-in policies.
 
-``rollout`` resets every environment and runs it to the horizon: observe, act with
-the built-in kernels, step. It calls the same kernels as ``Simulator.step`` and
-``BuiltinDecision.act``, so its results are identical to stepping the policy through
-the Python API (a test checks this); it only removes the per-step Python overhead.
-
-Environments are independent, so the batch is split into contiguous ranges, one per
-thread (``wfbench.core.entrypoints.run_split``), without changing a bit of any result. The
-kernel takes its range and releases the GIL. It was a ``prange`` loop: numba then
-compiled the whole episode twice, once as the loop body and once more inside the
-parallel shell, and the shell took more compile time than the episode itself
-(docs/performance.md, "Cold start"). With one thread the kernel runs in the calling
-thread.
+``rollout`` resets every environment and runs it to the horizon (observe, act with the built-in
+kernels, step), calling the same kernels as ``Simulator.step`` and ``BuiltinDecision.act``, so
+its results equal stepping the policy through the Python API (a test checks it). The batch is
+split into contiguous ranges, one per thread (``wfbench.core.entrypoints.run_split``), without
+changing a bit; the kernel releases the GIL. Why not a ``prange`` loop: ``docs/performance.md``,
+"Cold start".
 """
 
 from __future__ import annotations

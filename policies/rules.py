@@ -1,24 +1,13 @@
 """The built-in decision rules in one table, and the hyper-parameters they read in another.
 
-A rule is a decision made by a compiled kernel of :mod:`wfbench.policies.kernels`. Its row
-in :data:`RULES` is everything the rest of wfbench knows about it: the decision it makes,
-its name (``Composite("nearest", "threshold", "spatial")``, ``wfbench policies``), how
-tables name it (the columns of Table 3) and the hyper-parameters a tuner may change, in
-the order the search space lists them. Its integer code, which the compiled kernels
-dispatch on, is its position among its decision's rows: each decision's first row is the
-no-op, code 0. :mod:`wfbench.policies.decisions` makes a policy of every row,
-:mod:`wfbench.policies.builtin` reads its tunable parameters and
-:mod:`wfbench.policies.kernels` its code.
-
-:data:`HYPERPARAMETERS` is the layout of the flat vector ``hp`` every kernel reads (one
-row per decision at run time, so a tuned value reaches the compiled rollout without a
-recompile): each field's default and, where a tuner may search it, its range
-(:class:`~wfbench.policies.tunable.Param`); a tuned-policy file or a search range outside
-it is refused, naming the range. The model-of-the-world fields (``speed``,
-``service_time``, ``fix_*``) have no range: they are the scenario's facts, not choices.
-
-A new rule is one row here (and rows for the new fields it reads), its kernel in
-:mod:`wfbench.policies.kernels` and the branch of ``act_env`` that calls it on its code.
+A row of :data:`RULES` is everything wfbench knows about a rule of :mod:`wfbench.policies.kernels`:
+its decision, its name, its label in tables and the hyper-parameters a tuner may change; its
+integer code is its position among its decision's rows (the no-op first, code 0).
+:data:`HYPERPARAMETERS` lays out the flat vector ``hp`` every kernel reads at run time (so a
+tuned value needs no recompile): each field's default and, where it may be searched, its range
+(:class:`~wfbench.policies.tunable.Param`); the model-of-the-world fields have none. A new rule is
+a row here, its kernel and the branch of ``act_env`` that calls it. ``docs/policies.md``,
+"Tuning".
 """
 
 from __future__ import annotations

@@ -1,18 +1,11 @@
 """Solver-backed decisions that call :mod:`solvers` from Python, one environment at a time.
 
-The registry's ``assignment`` dispatch runs compiled (:func:`wfbench.policies.kernels.dispatch_assignment`
-with the numba assignment solver). :class:`AssignmentDispatch` solves the same problem,
-with the same costs, through :func:`wfbench.solvers.assignment.solve`, so the exact, MILP and
-LP methods can be compared inside the simulator (``assignment-scipy``,
-``assignment-milp``, ``assignment-lp``, ``assignment-lp-osqp`` in the registry). A
-test checks that every method picks an assignment of the same total cost.
-
-Every solve has a stated time limit, ``time_limit_s`` (default
-:data:`DEFAULT_TIME_LIMIT_S`), passed to HiGHS (``milp``) and to cvxpy's solver
-(``lp``); scipy's exact method is polynomial and takes no limit. A solve stopped by
-the limit without an assignment fails the step with a message naming the limit; one
-stopped with an incumbent uses it. The leaderboard records the limit with the entry
-(:func:`wfbench.harness.budget.policy_budget`); docs/solvers.md, "Time limits".
+:class:`AssignmentDispatch` solves the compiled ``assignment`` dispatch's problem, with the same
+costs, through :func:`wfbench.solvers.assignment.solve`, so the exact, MILP and LP methods can be
+compared inside the simulator (``assignment-scipy``, ``-milp``, ``-lp``, ``-lp-osqp``; a test
+checks that they agree on the total cost). Every solve has a stated time limit,
+``time_limit_s`` (:data:`DEFAULT_TIME_LIMIT_S`), recorded by the leaderboard. ``docs/solvers.md``,
+"Solver-backed policies" and "Time limits".
 """
 
 from __future__ import annotations

@@ -1,15 +1,13 @@
 """Deployable lookahead policies (issue #43): they plan on worlds sampled from what they observe.
 
-- :mod:`wfbench.policies.lookahead.rollout`: rollout of a compiled base policy on K sampled
-  futures of H steps (:class:`Rollout`), with budget presets (:data:`BUDGETS`).
-- :mod:`wfbench.policies.lookahead.network_rollout`: the same with a trained network as the
-  base (:class:`NetworkRollout`), the network playing the sampled futures.
-- :mod:`wfbench.policies.lookahead.mpc`: a rolling-horizon staffing MILP on a forecast
-  (:class:`MPC`: ``mpc-rates`` on the public rates, ``mpc-ma`` on a moving average).
-
-The worlds come from :class:`wfbench.core.belief.Belief`: they agree with every observation
-and draw the unobserved from the public model under the policy's own keys. The oracles
-that read the true future are :mod:`wfbench.policies.oracle`.
+:mod:`~wfbench.policies.lookahead.rollout` rolls a compiled base policy forward on K sampled
+futures (:class:`Rollout`, :data:`BUDGETS`); :mod:`~wfbench.policies.lookahead.network_rollout`
+does it with a trained network as the base (:class:`NetworkRollout`);
+:mod:`~wfbench.policies.lookahead.mpc` solves a rolling-horizon staffing MILP on a forecast
+(:class:`MPC`). The worlds come from :class:`wfbench.core.belief.Belief`: they agree with every
+observation and draw the unobserved from the public model under the policy's own keys. The
+oracles that read the true future are :mod:`wfbench.policies.oracle`. ``docs/policies.md``,
+"Lookahead policies".
 """
 
 from typing import Any

@@ -1,22 +1,12 @@
 """Rollout with a trained network as the base: lookahead on top of a learned policy (issue #43).
 
-:class:`NetworkRollout` is :class:`~wfbench.policies.lookahead.rollout.Rollout` with a
-network (:class:`~wfbench.policies.neural.policy.NetworkPolicy` deciding all three
-decisions, e.g. ``scalefree-general``) in place of the compiled composite. At a workforce
-decision it scores the network's own workforce action and its allowed neighbours (the
-no-op, a hire or a let-go of each level) on the same K sampled worlds of H steps each
-(:class:`wfbench.core.belief.Belief`), with a copy of the network playing every later step
-of every world from the recurrent state it has now. The score is the mean over the K
-worlds of the sum of ``NSW_t`` over the steps; the network's action is scored first and
-wins ties. Dispatch and positioning are the network's.
-
-The rollouts step the batched simulator from Python and run the network on all rows of a
-decision at once (candidates x K per deciding environment), so a decision costs H forward
-passes of that batch: far more than the compiled roll-forward of a composite base
-(docs/policies.md has the measured cost). The copy's sampling noise is keyed by the seed
-the policy was reset with, its own seed, the step and the sample index k, so every
-candidate meets the same noise in world k (common random numbers) and nothing is read of
-the trace.
+:class:`NetworkRollout` is :class:`~wfbench.policies.lookahead.rollout.Rollout` with a network
+(a :class:`~wfbench.policies.neural.policy.NetworkPolicy` deciding all three decisions, e.g.
+``scalefree-general``) in place of the compiled composite: a copy of the network, from its
+recurrent state now, plays every later step of the K sampled worlds, and its sampling noise is
+keyed so that every candidate meets the same noise in world k (common random numbers). The
+futures step the batched simulator from Python, so a decision costs H forward passes. The
+method and its measured cost: ``docs/policies.md``, "rollout-scalefree-general".
 """
 
 from __future__ import annotations

@@ -1,27 +1,13 @@
 """Rollout of a compiled base policy on sampled futures: a deployable direct lookahead (issue #43).
 
-At a workforce decision, :class:`Rollout` scores the base's own workforce action and its
-neighbours (the no-op, a hire of each level, a let-go of each level: those the mask
-allows) by rolling each forward ``H`` steps in ``K`` worlds sampled from what the policy
-has observed (:class:`wfbench.core.belief.Belief`), with the base playing every later
-step (the compiled roll-forward, :func:`wfbench.policies.oracle.rollout.roll_forward`). The
-score of a candidate is the mean over the K worlds of the sum of ``NSW_t`` over the H
-steps (the episode objective's part in the window). All candidates meet the same K
-worlds (sample k of a step is one world whatever is played in it: common random
-numbers), so their differences are less noisy than their values. The base's choice is
-scored first and wins ties. Dispatch and positioning maps are the base's.
-
-It decides at every step where the base hires or lets go, and every ``R`` steps
-otherwise (a hire the base did not think of). Between decisions it plays the base.
-
-Nothing here reads the trace, the true state or the episode's seed: the belief's keys
-come from the seeds the policy is reset with, under a purpose of their own, as every
-policy keys its draws. The public model is the scenario's public config: the evaluator
-hands it over with :meth:`Rollout.set_world` before ``reset`` (``wfbench evaluate``, the
-sandbox and the hosted board alike; :func:`wfbench.harness.runner.public_world`), or it is
-given (``scenario=``); without either it is built from the step-0 observation
-(:func:`wfbench.core.belief.config_from_observation`: exact for a constant, uniform world
-such as paper-64).
+At a workforce decision, :class:`Rollout` scores the base's own workforce action and its allowed
+neighbours by the mean over ``K`` worlds sampled from what it observed
+(:class:`wfbench.core.belief.Belief`) of the NSW summed over ``H`` steps, the base playing every
+later step (:func:`wfbench.policies.oracle.rollout.roll_forward`); every candidate meets the same
+worlds, and the base's choice wins ties. It decides where the base hires or lets go and every
+``R`` steps otherwise. It reads no trace or seed: its public model comes from
+:meth:`Rollout.set_world`, ``scenario=`` or the first observation. ``docs/policies.md``,
+"Lookahead policies" and "The world's public parameters: set_world".
 """
 
 from __future__ import annotations
