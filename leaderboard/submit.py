@@ -1,29 +1,13 @@
 """Evaluate a policy on a track's test seeds in a child process and store one row per seed.
 
-The policy runs in a child process (a fresh interpreter started by loky: nothing of the
-parent leaks in, and ``__main__`` is not re-imported, so this works from a script
-without a ``__main__`` guard) with an address-space limit (``memory_mb``,
-``RLIMIT_AS``, inherited by its workers); the parent enforces the wall-time limit and
-is the only writer of the store. The child sends each finished chunk of seeds as soon
-as it is done and the parent commits it in one transaction, so an interruption loses
-at most the chunks in flight. A policy that cannot be loaded is a user error (nothing
-is stored); one that raises, returns malformed actions, overruns its act timeout
-(``act_timeout_s`` per ``reset``/``act`` call, :mod:`wfbench.harness.guard`), hangs past the
-wall-time limit, exhausts its memory or kills its process marks the submission
-``failed`` with a one-line reason naming its file and line, and every stored row and
-every other submission stay as they were.
-
-Every entry carries the fingerprint of its policy (:func:`policy_fingerprint`, the rule
-in docs/leaderboard.md): submitting the same name with the same fingerprint resumes
-with the seeds still missing; another fingerprint under a taken name is refused unless
-``replace`` is set, which moves the old entry to the store's audit tables and evaluates
-every seed anew.
-
-Every row carries what it cost (:mod:`wfbench.harness.budget`): the milliseconds per decision
-(p50, p99) and CPU seconds per episode measured where its chunk ran, and a line naming
-that machine, the backend and its workers; every entry carries what its policy states
-about its own cost (a network's training env-steps, wall time and hardware, a tuned
-file's trials, a solver-backed decision's time limit per solve).
+The policy runs in a fresh loky child (no ``__main__`` guard needed) with an address-space limit
+(``memory_mb``); the parent enforces the wall-time limit, is the only writer of the store and
+commits each finished chunk at once, so an interruption loses at most the chunks in flight. A
+policy that cannot be loaded is a user error (nothing stored); any other failure marks the
+submission ``failed`` with a one-line reason and leaves every stored row as it was. Entries carry
+the policy's fingerprint (:func:`policy_fingerprint`): the same one resumes, another is refused
+unless ``replace``. Rows carry their cost (:mod:`wfbench.harness.budget`). ``docs/leaderboard.md``,
+"Submitting" and "What identifies an entry".
 """
 
 from __future__ import annotations

@@ -1,23 +1,13 @@
 """The ranking of a suite track (``suite-v1``): the aggregate over scenarios, per split.
 
-Each stored row is one (scenario, seed) episode. Its NSW is normalized per scenario
-(:func:`wfbench.scenarios.normalize`: 0 the random policy, 1 the proven bound), and an
-entry's scores are aggregated per split by :func:`wfbench.analysis.aggregate.aggregate_suite`
-(rliable: IQM, mean and optimality gap with 95% stratified bootstrap intervals over the
-seeds within each scenario). Entries are ranked by the IQM over the held-out scenarios,
-which nobody trained or tuned on; the training scenarios' aggregate is shown beside it.
-Each entry's interval is computed with the same fixed seed and alone, so it does not
-change when other entries are added. Costs and the budget filter are those of
-:mod:`wfbench.leaderboard.report`.
-
-A learned method trained with several training seeds is entered as one entry per seed,
-each running the policy ``METHOD#seedK`` (:data:`wfbench.policies.registry.SEED_RUNS`). The seeds
-are not ranked one by one (one lucky run is not a result): the board adds the row
-``METHOD (N seeds)``, whose runs pool every seed's (a run is a (training seed, evaluation
-seed) pair, :func:`wfbench.analysis.aggregate.pool_seeds`), and ranks it by the held-out IQM with
-its interval like any entry; each seed's own scores are in a table of their own
-(:func:`seed_cells`). An entry of the shipped pick (``METHOD``, a copy of one seed's
-checkpoint) is shown but not ranked beside its method's row, and named as the pick.
+Each row's NSW is normalized per scenario (:func:`wfbench.scenarios.normalize`) and an entry's
+scores are aggregated per split by :func:`wfbench.analysis.aggregate.aggregate_suite` (IQM, mean
+and optimality gap with stratified bootstrap intervals, each entry alone with a fixed seed).
+Entries rank by the held-out IQM; costs and the budget filter are those of
+:mod:`wfbench.leaderboard.report`. A learned method entered once per training seed
+(``METHOD#seedK``) is ranked as one pooled row ``METHOD (N seeds)``
+(:func:`wfbench.analysis.aggregate.pool_seeds`), each seed in its own table (:func:`seed_cells`),
+the shipped pick shown but not ranked. ``docs/leaderboard.md``, "The suite track".
 """
 
 from __future__ import annotations

@@ -1,20 +1,12 @@
 """Tracks: a named scenario, or a suite of them, with a public (development) seed list and a fixed test seed list.
 
-The ranking uses only the test seeds. Tune on the public seeds; the test seeds are
-published too (this is a benchmark, not a competition with a hidden set), but a
-result that was tuned on them says so by being worthless. A track's definition (the
-whole scenario config, both seed lists and the schema version of the definition) is
-hashed; every stored result carries the hash, and results whose hash differs from the
-current definition are refused when read.
-
-A :class:`SuiteTrack` (``suite-v1``) evaluates a policy on every scenario of a suite
-(:mod:`wfbench.scenarios`) on its test seeds, one stored row per (scenario, seed); its
-hash is the suite's, and it is ranked by the aggregate of the normalized score over the
-held-out scenarios (:mod:`wfbench.analysis.aggregate`); a learned method entered once per training
-seed (``METHOD#seedK``) is ranked by the aggregate over its seeds
-(:mod:`wfbench.leaderboard.suite_report`). Both kinds name what a submission runs
-as :meth:`Track.units`, (scenario, seed) pairs, with scenario ``""`` for a one-scenario
-track.
+The ranking uses only the test seeds, which are published too: a result tuned on them says so by
+being worthless. A track's definition (the whole scenario config, both seed lists, the
+definition's schema version) is hashed; every stored result carries the hash, and results whose
+hash differs are refused when read. A :class:`SuiteTrack` (``suite-v1``) runs every scenario of a
+suite, has the suite's hash and is ranked by :mod:`wfbench.leaderboard.suite_report`. Both kinds
+name what a submission runs as :meth:`Track.units`, (scenario, seed) pairs (scenario ``""`` for
+one scenario). ``docs/leaderboard.md``, "Tracks"; ``docs/suite.md``.
 """
 
 from __future__ import annotations

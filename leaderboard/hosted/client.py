@@ -1,21 +1,13 @@
 """The client of a hosted board (``wfbench leaderboard upload``): pack, upload, follow the state, print the result.
 
-The package is made here the way the server reads it (:mod:`wfbench.harness.isolation.package`): a
-``module:attr`` entry point is packed from the current folder (:func:`~wfbench.harness.isolation.package.pack`:
-the same code gives the same bytes, so uploading it again is a dedupe hit on the server, not
-a second evaluation), a folder holding ``wfbench-policy.json`` is packed as it is, and a
-``.zip`` or ``.whl`` is sent as it is. Each is checked with
-:func:`~wfbench.harness.isolation.package.inspect` before it leaves, so a package the server would
-refuse is refused here with the same one-line reason and nothing is sent.
-
-``wfbench leaderboard mine`` lists an account's submissions (:meth:`Client.mine`,
-:func:`mine_lines`) and ``wfbench leaderboard withdraw --server URL --id ID`` withdraws one
-(:meth:`Client.withdraw`).
-
-Then the client polls the submission's JSON until its state is ``done`` or ``failed``,
-showing the state and the episodes done on a tqdm bar. Every refusal (the server's
-401/413/429/400 answers, a server that cannot be reached, a failed evaluation) is an
-:class:`UploadError` with one line, which the command prints.
+A ``module:attr`` entry point is packed from the current folder
+(:func:`~wfbench.harness.isolation.package.pack`: the same code gives the same bytes, so an
+upload again is a dedupe hit), a folder with ``wfbench-policy.json`` as it is, a ``.zip`` or
+``.whl`` sent as it is; each is checked with :func:`~wfbench.harness.isolation.package.inspect`
+before it leaves. The client then polls the submission until ``done`` or ``failed`` on a tqdm
+bar. :meth:`Client.mine` and :meth:`Client.withdraw` serve ``wfbench leaderboard mine`` and
+``withdraw``. Every refusal is a one-line :class:`UploadError`. ``docs/leaderboard.md``, "The
+hosted leaderboard".
 """
 
 from __future__ import annotations

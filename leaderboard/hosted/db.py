@@ -1,40 +1,13 @@
 """The hosted leaderboard's database: accounts, packages, submissions, the job queue and the result rows.
 
-One schema (SQLAlchemy Core) for SQLite, the default (a file, nothing to start), and
-PostgreSQL, for workers on more than one host (:func:`connect`). On SQLite every
-transaction starts with ``BEGIN IMMEDIATE`` (SQLAlchemy's documented pysqlite recipe): the
-file has a single writer at a time, which is what makes the queue's claim and fencing
-safe there (:mod:`wfbench.leaderboard.hosted.queue`), with WAL and a busy timeout so that
-writers wait for each other instead of failing. On PostgreSQL the queue locks rows
-(``FOR UPDATE SKIP LOCKED``) and a submission locks its account's row, so that two
-uploads of one account cannot both pass its quota.
-
-What the tables hold and why:
-
-- ``accounts``: a name and the sha256 of its token (the token itself is shown once, by
-  :meth:`Board.add_account`, and never stored).
-- ``packages``: policy packages by content hash (``sha256:<hex>``): the same bytes are
-  stored once.
-- ``submissions``: one per (account, package, entry, track, phase): an account submitting
-  the same again gets its first one back, neither evaluated nor counted again; another
-  account's identical bytes are that account's own entry (so nobody can squat the
-  built-ins). Its ``state`` (queued, running, done, failed) is always true; a failed one
-  has a one-line ``reason``, whose ``fault`` (the policy's or the board's) and ``kind``
-  (a word of :data:`FAILURE_KINDS`, all a test-phase reader sees) are stored beside it.
-  ``spent_s`` is the worker time it used, ``withdrawn`` when its owner took it off the
-  board. A test-phase submission records the hidden seed list's version.
-- ``jobs``: the queue, one per submission, with the lease and the fence
-  (:mod:`~wfbench.leaderboard.hosted.queue`).
-- ``rows``: one per (submission, scenario, seed index), with the KPIs, counters and
-  budget columns of :mod:`wfbench.leaderboard.rows` and the real seed, which no method
-  returns for a test-phase submission.
-- ``hidden_seeds``: each track's hidden test seed lists (:mod:`~wfbench.leaderboard.hosted.hidden`).
-- ``secrets``: the board's key secret, from which the opaque per-episode keys handed to
-  policies are derived.
-- ``board_meta``: when each track's test phase ended.
-
-The schema changes through Alembic revisions (:mod:`~wfbench.leaderboard.hosted.migrations`),
-which :meth:`Board.create` runs on every start; a change to these tables needs a revision.
+One schema (SQLAlchemy Core) for SQLite, the default, and PostgreSQL, for workers on more than
+one host (:func:`connect`). On SQLite every transaction is ``BEGIN IMMEDIATE`` (one writer at a
+time, which makes the queue's claims and fences safe there); on PostgreSQL the queue locks rows
+and a submission locks its account's row, so two uploads cannot both pass its quota.
+:class:`Board` is the API. The schema changes through Alembic revisions
+(:mod:`~wfbench.leaderboard.hosted.migrations`), which :meth:`Board.create` runs on every start: a
+change to these tables needs a revision. What each table holds: ``docs/leaderboard.md``, "The
+database and its migrations".
 """
 
 from __future__ import annotations

@@ -1,29 +1,12 @@
 """The two phases of a hosted track: development on the public seeds, test on hidden seeds held by the server.
 
-- ``dev``: the track's public seeds (1000-1049, :data:`wfbench.core.seeds.PUBLIC`); the
-  submission's log and per-seed rows are shown.
-- ``test``: :data:`DEFAULT_COUNT` seeds drawn with :mod:`secrets` from
-  ``[2**40, 2**62)``, a range no seed set of wfbench comes near, so no public seed, test
-  seed or training seed can be one of them by accident. They are stored by the server only;
-  nothing it serves names them, only their commitment (below) and their index.
-
-The list is versioned per track (version 1, 2, ... per track name) and tied to the track's
-hash: a change of the track's definition needs a new list, and a test-phase submission
-records the version it ran on. Its commitment, ``sha256:<hex>`` of the canonical JSON
-(sorted keys, no spaces) of ``{track, track_hash, version, seeds, salt}``, is published
-from the start; publishing the seeds and the salt later lets anyone check that the board
-ran on the list it committed to (:func:`verify`). The salt (128 random bits) keeps the
-commitment from being searched seed by seed. The seeds are JSON integers below 2**62:
-a verifier must read them as exact integers (Python's ``json`` does; JavaScript's
-``Number`` would not).
-
-A policy never sees a seed: the sandbox hands it opaque per-episode keys derived from a
-board secret and :func:`key_context` (:mod:`wfbench.harness.isolation.sandbox`).
-
-Ranking a phase with :mod:`wfbench.leaderboard.report` needs a track whose ``test_seeds``
-are what the rows carry as ``seed`` (:func:`board_track`): the public seeds on the dev
-board, and on the test board the seed *indices* 0..n-1, never the hidden seeds, because
-the reports print a track's first and last test seed in their caption.
+``dev`` runs the track's public seeds and shows the log and per-seed rows. ``test`` runs
+:data:`DEFAULT_COUNT` seeds drawn with :mod:`secrets` from ``[2**40, 2**62)``, far from every seed
+set of wfbench, stored by the server only. Each list is versioned per track and tied to its hash;
+its commitment (sha256 of canonical JSON with a salt) is published from the start, and
+:func:`verify` checks a revealed list against it. Policies see opaque keys
+(:func:`key_context`), never seeds; :func:`board_track` gives the reports the seed indices.
+``docs/leaderboard.md``, "Phases, seeds and keys".
 """
 
 from __future__ import annotations

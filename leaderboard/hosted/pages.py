@@ -1,17 +1,11 @@
 """The HTML pages of a hosted board: the home page, a track's board per phase, a submission, an error.
 
 A board is the local leaderboard's own page (:mod:`wfbench.leaderboard.report`, or
-:mod:`wfbench.leaderboard.suite_report` for a suite track) over the hosted database's rows
-(:meth:`Board.store_view`), so the hosted and the local boards rank, show costs and
-name oracles alike. The rows of a test phase carry the hidden seeds' *indices* as seeds
-(:func:`wfbench.leaderboard.hosted.hidden.board_track`): nothing on a page names a hidden
-seed. A one-scenario track's test board leaves out the per-seed KPI figure (its points
-are per-seed values) and keeps the tables of aggregates and the NSW chart; a suite's
-board shows only aggregates already. Every text a submitter chose (names, reasons, logs)
-is escaped.
-
-A submission's page refreshes itself every few seconds while it is queued or running,
-so a browser left on it sees the state move; it stops once the state is final.
+:mod:`wfbench.leaderboard.suite_report` for a suite track) over the hosted rows
+(:meth:`Board.store_view`), so both boards rank, show costs and name oracles alike; a test
+phase's rows carry seed indices, so no page names a hidden seed. Every text a submitter chose
+is escaped. A submission's page refreshes itself while it is queued or running.
+``docs/leaderboard.md``, "The hosted leaderboard".
 """
 
 from __future__ import annotations

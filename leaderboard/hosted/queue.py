@@ -1,41 +1,12 @@
 """The job queue in the board's database: claims with a lease, heartbeats, and fenced writes.
 
-A worker :func:`claim` s a job: a queued one, or a running one whose lease expired (its
-worker died or stalled). Each claim adds one to the job's ``fence`` and to the
-submission's ``attempts``; the claim remembers the fence it got. Every later write of
-that worker, :func:`heartbeat` (extend the lease), :func:`write_rows` and :func:`finish`,
-runs in one transaction that first updates the job's row *where the fence is still the
-claim's*. When another worker has claimed the job since (the first one was paused past
-its lease, or its heartbeats did not get through), that update matches nothing and the
-write is refused (:class:`LeaseLost`) before anything is written: a worker that comes
-back after its lease cannot write. Rows already written by an earlier holder stay (they
-are the same rows a clean run makes: the evaluation of a unit does not depend on who runs
-it), and the next holder runs only the missing (scenario, seed index) units, so a job is
-never lost and no row is written twice (the table's unique key refuses a duplicate in any
-case, and an insert skips one).
-
-How a claim stays exclusive: on PostgreSQL the candidate job row is taken with ``SELECT
-... FOR UPDATE SKIP LOCKED`` (concurrent claimers skip a row another is claiming instead
-of waiting on it, and never both take it), and the fenced update of a write locks the
-job's row, so a claim and a write of the same job are serialized. On SQLite every
-transaction is ``BEGIN IMMEDIATE`` (:func:`wfbench.leaderboard.hosted.db.connect`): one
-writer at a time does the same.
-
-Leases are measured on the database's clock where there is one (PostgreSQL's
-``clock_timestamp()``), so workers on hosts whose clocks differ agree on when a lease
-ends. A job whose lease expired after ``max_attempts`` claims is not claimed again: it
-is failed with the reason "lost its worker 3 times" (a policy that kills its worker
-every time must not keep the queue busy forever).
-
-Whose fault a failure is (issue #42): :func:`finish` stores the policy's own failures,
-which are final. A worker that hits a fault of the board's (the sandbox did not start, a
-full disk) hands the job back at once with :func:`release`: queued again, or, at its
-``max_attempts``-th claim, failed as the board's fault. A lost worker is the board's fault
-too. A board's failure runs again when its owner submits the same bytes
-(:meth:`wfbench.leaderboard.hosted.db.Board.submit`).
-
-Each write may also record the worker seconds the submission has used (``spent_s``,
-over every attempt): the worker's time budget per upload reads it back at the next claim.
+A worker :func:`claim` s a job (queued, or running with an expired lease), which raises the job's
+``fence``; every later write (:func:`heartbeat`, :func:`write_rows`, :func:`finish`) first updates
+the job's row where the fence is still the claim's, so a worker back after its lease is refused
+(:class:`LeaseLost`) before it writes. The next holder runs only the missing units. Claims are
+exclusive through ``FOR UPDATE SKIP LOCKED`` (PostgreSQL) or ``BEGIN IMMEDIATE`` (SQLite); leases
+use the database's clock. :func:`release` hands back a job the board failed; ``spent_s`` feeds
+the upload's time budget. ``docs/leaderboard.md``, "The queue" and "Whose fault a failure is".
 """
 
 from __future__ import annotations

@@ -1,22 +1,11 @@
 """``wfbench serve seed``: the built-in baselines on a hosted board, as submissions of the admin account 'wfbench'.
 
-The board's reports compare every entry with the entry named ``heuristic`` (the paired
-difference and its interval), so a board without the built-ins has those columns empty.
-:func:`seed` enters the built-ins of ``LINEUPS["leaderboard"]`` (what ``wfbench
-leaderboard seed`` enters on a local board) as ordinary submissions: each is a package
-whose entry wraps the registry name (:func:`builtin_package`), queued for the workers,
-who evaluate it in the sandbox like any upload. So the rows are those of the workers'
-wfbench, and a stochastic built-in (``random``, ``heuristic-stochastic``) draws from the
-opaque keys it is handed, not from the seeds: its rows differ from the local board's,
-which seeds it with the seeds themselves. A built-in that reads the trace (the hindsight
-oracle) is left out: the sandbox refuses it.
-
-Seeding again does nothing new: a built-in's package is the same bytes every time (its
-registry name and nothing else), and the board returns the submission the account
-``wfbench`` already made of the same package, entry, track and phase. Uploads are
-deduplicated per account (issue #42): another account that uploads a built-in's bytes
-gets an entry of its own, under its own name, and seeding still makes the board's. The
-quotas do not apply to the operator's built-ins.
+The reports compare every entry with ``heuristic``, so :func:`seed` enters the built-ins of
+``LINEUPS["leaderboard"]`` as ordinary submissions (:func:`builtin_package`: an entry wrapping the
+registry name), evaluated by the workers in the sandbox like any upload; a stochastic built-in
+draws from the opaque keys, so its rows differ from the local board's, and one that reads the
+trace is left out. Seeding again adds nothing (the same bytes), another account's upload of
+them is its own entry, and the quotas do not apply. ``docs/leaderboard.md``, "Starting one".
 """
 
 from __future__ import annotations

@@ -1,50 +1,13 @@
 """``wfbench worker --server DBURL``: evaluate queued submissions in the sandbox and store their rows, fenced.
 
-The loop: :func:`~wfbench.leaderboard.hosted.queue.claim` a job, unpack its package
-(:func:`wfbench.harness.isolation.package.unpack`, which re-checks it) into a temporary folder,
-run the units the submission still misses chunk by chunk through the evaluator
-(:func:`wfbench.harness.isolation.sandbox.evaluate_sandboxed`: the policy in bubblewrap, seeing
-observations and opaque keys only), store each chunk with
-:func:`~wfbench.leaderboard.hosted.queue.write_rows` and end the job with
-:func:`~wfbench.leaderboard.hosted.queue.finish`: ``done`` with the aggregate, or
-``failed`` with the sandbox's one-line reason. A thread renews the lease every third of
-it. Only the worker holds seeds; the database URL is all it needs, so any number of
-workers on any hosts that reach the database can run side by side.
-
-When the lease is lost (this worker was paused or cut off past it and another took the
-job), its next write is refused and it drops the job without touching it. On SIGTERM it
-stops at once, the sandbox with it: the lease runs out and another worker resumes with
-the units still missing. Without bubblewrap the worker refuses to start and says how to
-install it: it never runs a submission outside the sandbox.
-
-Before its first sandboxed evaluation the worker compiles (or, on a warm cache, loads)
-the built-ins' kernels in its own process (:func:`warm_builtins`): each sandbox copies
-the entries it needs from the worker's numba cache, mounted read-only, so a package
-that calls wfbench's compiled code starts warm instead of compiling for a minute in
-every chunk's sandbox.
-
-Whose fault a failure is (issue #42): the policy's own failures (it raised, ran past a
-time limit or its time budget, ran out of memory, returned a malformed action, or its
-package was refused) end the submission for good, with the reason and its word of
-:data:`~wfbench.leaderboard.hosted.db.FAILURE_KINDS`. A fault of the board's (the sandbox
-did not start, :class:`wfbench.harness.isolation.sandbox.SandboxUnavailable`; a full disk; any
-other error of the worker's own) hands the job back at once
-(:func:`~wfbench.leaderboard.hosted.queue.release`), up to the attempt limit; after a
-SandboxUnavailable the worker stops, since it cannot run any job.
-
-One upload holds a worker for at most its time budget: ``job_time_s`` (default
-:data:`JOB_TIME_S`) per scenario of its track, counted over every attempt (the seconds
-used are stored with each heartbeat and each chunk). Each chunk's sandbox gets as wall
-limit what is left of it, at most the sandbox's own ``wall_time_s``; a submission that
-has used it all fails "timed out". docs/leaderboard.md states the bound this gives.
-
-Each job is unpacked into a folder named after the worker's process (its pid and start
-time, :func:`unpack_prefix`); a worker removes, when it starts, the folders whose process
-is gone (:func:`stale_unpack_dirs`): what a SIGKILLed worker left.
-
-The evaluator is a parameter (default :func:`sandbox_evaluator`) with the signature of
-``evaluate_sandboxed``, so the queue's behaviour can be tested with a deterministic
-in-process evaluator; nothing outside the tests passes another.
+The loop: :func:`~wfbench.leaderboard.hosted.queue.claim` a job, unpack its package (re-checked),
+run the missing units chunk by chunk through
+:func:`wfbench.harness.isolation.sandbox.evaluate_sandboxed`, store each chunk
+(:func:`~wfbench.leaderboard.hosted.queue.write_rows`) and finish, a thread renewing the lease.
+The policy's failures are final; the board's hand the job back. :func:`warm_builtins` warms the
+numba cache the sandboxes copy from; :func:`stale_unpack_dirs` finds folders of killed workers.
+The evaluator is a parameter only so tests can pass a deterministic in-process one.
+``docs/leaderboard.md``, "The hosted leaderboard" (the queue, whose fault, an upload's cost).
 """
 
 from __future__ import annotations
