@@ -31,6 +31,7 @@ from wfbench.solvers.result import (
     check_method,
     check_time_limit,
     relative_gap,
+    without_highs_stray,
 )
 
 METHODS = ("exact", "milp", "lp")
@@ -123,8 +124,9 @@ def _milp(C, allowed, u, time_limit):
     options = {"disp": False}
     if time_limit is not None:
         options["time_limit"] = time_limit
-    res = milp(obj, integrality=np.ones(k), bounds=(0, 1), constraints=LinearConstraint(A, lb, np.ones(n + m)),
-               options=options)
+    with without_highs_stray():
+        res = milp(obj, integrality=np.ones(k), bounds=(0, 1), constraints=LinearConstraint(A, lb, np.ones(n + m)),
+                   options=options)
     return res, ii, jj, const
 
 

@@ -31,6 +31,7 @@ from wfbench.solvers.result import (
     check_method,
     check_time_limit,
     relative_gap,
+    without_highs_stray,
 )
 
 METHODS = ("milp", "lp", "local-search")
@@ -410,7 +411,8 @@ def _milp(C, f, p, time_limit):
     options: dict[str, Any] = {"disp": False}
     if time_limit is not None:
         options["time_limit"] = time_limit
-    return milp(obj, integrality=integrality, bounds=Bounds(0.0, 1.0), constraints=cons, options=options)
+    with without_highs_stray():
+        return milp(obj, integrality=integrality, bounds=Bounds(0.0, 1.0), constraints=cons, options=options)
 
 
 def _lp(C, f, p, lp_solver, time_limit):

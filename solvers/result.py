@@ -1,4 +1,4 @@
-"""The one result type every solver returns, and the input checks they share.
+"""The one result type every solver returns, the input checks they share, and HiGHS's stray output.
 
 ``solvers`` is pure optimization: arrays in, :class:`SolveResult` out. It imports
 nothing of the simulator, so OR users can take it alone.
@@ -7,8 +7,13 @@ nothing of the simulator, so OR users can take it alone.
 from __future__ import annotations
 
 import math
+import os
+import sys
+import tempfile
+import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -146,3 +151,54 @@ def check_time_limit(time_limit: float | None) -> float | None:
     if not (isinstance(time_limit, int | float) and math.isfinite(time_limit) and time_limit > 0):
         raise SolverInputError(f"time_limit = {time_limit!r} is not allowed; allowed: a number of seconds > 0, or None")
     return float(time_limit)
+
+
+# HiGHS (the copy inside scipy) prints this line with C's printf, past its own output_flag, when it repairs an
+# incumbent (ERGO-Code/HiGHS#2783): it reaches the user's terminal and logs in the middle of wfbench's output
+HIGHS_STRAY = b"HighsMipSolverData::transformNewIntegerFeasibleSolution tmpSolver.run();"
+_stdout_lock = threading.Lock()
+_stdout_users = 0
+_stdout_saved: tuple[int, Any] | None = None  # the real stdout's duplicate, the capture file
+
+
+@contextmanager
+def without_highs_stray() -> Iterator[None]:
+    """Run a HiGHS solve with the process's stdout (fd 1) caught, then pass on all but HiGHS's stray line.
+
+    Whatever else reached fd 1 meanwhile (another thread's output) is written on to the
+    real stdout when the last solve in flight ends: nothing is lost, only delayed. Threads
+    share one capture (a count of the solves in flight).
+    """
+    global _stdout_users, _stdout_saved
+    with _stdout_lock:
+        if _stdout_users == 0:
+            for stream in (sys.stdout, sys.__stdout__):
+                if stream is not None:
+                    try:
+                        stream.flush()
+                    except (OSError, ValueError):
+                        pass
+            try:
+                capture = tempfile.TemporaryFile()
+                real = os.dup(1)
+                os.dup2(capture.fileno(), 1)
+                _stdout_saved = (real, capture)
+            except OSError:  # no stdout (fd 1 closed) or nowhere to write (a sandbox): the solve runs as it is
+                _stdout_saved = None
+        _stdout_users += 1
+    try:
+        yield
+    finally:
+        with _stdout_lock:
+            _stdout_users -= 1
+            if _stdout_users == 0 and _stdout_saved is not None:
+                real, capture = _stdout_saved
+                _stdout_saved = None
+                os.dup2(real, 1)
+                os.close(real)
+                capture.seek(0)
+                kept = b"".join(line for line in capture.read().splitlines(keepends=True)
+                                if line.rstrip(b"\r\n") != HIGHS_STRAY)
+                capture.close()
+                while kept:
+                    kept = kept[os.write(1, kept):]

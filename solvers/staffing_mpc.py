@@ -24,6 +24,7 @@ from wfbench.solvers.result import (
     Timer,
     check_time_limit,
     relative_gap,
+    without_highs_stray,
 )
 
 
@@ -177,8 +178,9 @@ def plan_staffing(inst: StaffingInstance, time_limit: float | None = None, block
             options["time_limit"] = time_limit
         if node_limit is not None:
             options["node_limit"] = node_limit
-        res = milp(c, integrality=integrality, bounds=Bounds(np.zeros(n), upper),
-                   constraints=[LinearConstraint(A, np.asarray(lo), np.asarray(hi))], options=options)
+        with without_highs_stray():
+            res = milp(c, integrality=integrality, bounds=Bounds(np.zeros(n), upper),
+                       constraints=[LinearConstraint(A, np.asarray(lo), np.asarray(hi))], options=options)
     if res.x is None:
         if res.status == 1:  # a limit (time or nodes) before an incumbent: no actions (always feasible)
             z = np.zeros(n)

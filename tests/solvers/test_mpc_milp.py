@@ -65,3 +65,25 @@ def test_a_node_limit_keeps_the_optimum_here_and_bad_limits_are_refused():
     for bad in (0, -3, 2.5, True, "many"):
         with pytest.raises(SolverInputError, match=f"node_limit = {bad!r} is not allowed; allowed: an integer >= 1"):
             plan_staffing(inst, node_limit=bad)
+
+
+def test_the_plan_solves_inside_the_highs_stdout_filter(monkeypatch):
+    """HiGHS's stray printf (ERGO-Code/HiGHS#2783) is filtered around the MPC's solve, the same plan either way."""
+    import contextlib
+
+    from wfbench.solvers import staffing_mpc
+
+    inst = StaffingInstance(demand=[1, 1, 1, 1, 3, 3, 3, 3], capacity=[1, 1, 1], salary=SALARY, ready=novices(1, 8),
+                            paid=novices(1, 8), hire_delay=2, notice_delay=1, max_headcount=5)
+    filtered = plan_staffing(inst)
+    entered = []
+
+    @contextlib.contextmanager
+    def spy():
+        entered.append(1)
+        yield
+
+    monkeypatch.setattr(staffing_mpc, "without_highs_stray", spy)
+    plain = plan_staffing(inst)
+    assert entered == [1]
+    assert plain.solution.tolist() == filtered.solution.tolist() and plain.objective == filtered.objective

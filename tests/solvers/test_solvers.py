@@ -465,3 +465,47 @@ def test_p_median_sparse_on_k_nearest_lists_against_the_dense_heuristic():
         ref = C[dense].min(axis=0).sum()
         excess.append((C[sparse].min(axis=0).sum() - ref) / max(ref, 1e-12))
     assert np.mean(excess) < 0.005 and np.max(excess) < 0.05
+
+
+def test_highs_stray_line_is_dropped_and_other_output_kept(capfd):
+    """HiGHS's printf past output_flag does not reach stdout; anything else written meanwhile does, in order."""
+    import os
+    import threading
+
+    from wfbench.solvers.result import HIGHS_STRAY, without_highs_stray
+
+    print("before", flush=True)
+    with without_highs_stray():
+        os.write(1, HIGHS_STRAY + b"\n")
+        os.write(1, b"from C: kept\n")
+        other = threading.Thread(target=lambda: os.write(1, b"another thread: kept\n"))
+        other.start()
+        other.join()
+        with without_highs_stray():  # a solve in flight in another thread shares the capture
+            os.write(1, HIGHS_STRAY + b"\r\n")
+        os.write(1, b"no newline at the end")
+    print("\nafter", flush=True)
+    out = capfd.readouterr().out
+    assert "HighsMipSolverData" not in out
+    assert out == "before\nfrom C: kept\nanother thread: kept\nno newline at the end\nafter\n"
+
+
+def test_milp_solvers_run_under_the_stdout_filter(monkeypatch):
+    """The assignment and p-median MILPs solve inside without_highs_stray (the MPC's: test_mpc_milp)."""
+    import contextlib
+
+
+    calls = []
+
+    @contextlib.contextmanager
+    def spy():
+        calls.append(1)
+        yield
+
+    for mod in (assignment, facility_location):
+        monkeypatch.setattr(mod, "without_highs_stray", spy)
+    rng = np.random.default_rng(0)
+    assignment.solve(rng.random((4, 5)), method="milp")
+    assert len(calls) == 1
+    facility_location.solve_p_median(rng.random((6, 4)), 2, method="milp")
+    assert len(calls) == 2
