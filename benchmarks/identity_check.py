@@ -8,6 +8,9 @@ runs unchanged on the code before and after:
   composites, the oracles, the tuned files and the shipped networks) on every scenario
   of suite-v1: ``--seeds`` seeds each (default 10), ``city`` 1 seed, the planners
   and the hindsight oracle at most 4 (they look over the whole future);
+- each deployable lookahead (``wfbench.policies.registry.lookahead_names()``, asked for by
+  name and so not among the registered names above) on ``LOOKAHEAD_SCENARIOS``, one seed:
+  a rollout costs seconds to minutes an episode, and on ``city`` hours;
 - the reproduced tables (``wfbench reproduce table3|table2|gap``, CSV files);
 - short training runs of each trainer (PPO joint, dispatch and independent agents,
   IMPALA, hindsight learning): the weights of ``latest.pt`` and ``best.pt``, the
@@ -41,6 +44,9 @@ from pathlib import Path
 SLOW = {"oracle-planner", "oracle-dispatch", "oracle"}  # fewer seeds: they look over the whole future
 SLOW_SEEDS = 4
 ONE_SEED = {"city-v1"}  # 1,000 facilities and people: a seed of a network is minutes here
+# the lookaheads' scenarios: on these one seed of all eight takes about 4 minutes (the 100 ms preset on paper-64
+# 1.7 of them, a loaded VM); on large-v1 that preset alone is some 10 minutes an episode
+LOOKAHEAD_SCENARIOS = ("small-v1", "paper-64-v1")
 MAPPED = {"wfbench": "wfbench", "wfbench.policies": "policies", "wfbench.solvers": "solvers",
           "wfbench.leaderboard": "leaderboard"}
 
@@ -72,6 +78,13 @@ def policies() -> list[str]:
     return names()
 
 
+def lookaheads() -> list[str]:
+    """The deployable lookaheads of the code being captured (none in code from before issue #43)."""
+    from wfbench.policies import registry
+
+    return list(getattr(registry, "lookahead_names", list)())
+
+
 def scenarios() -> list[str]:
     from wfbench.scenarios import get_suite
 
@@ -95,6 +108,13 @@ TRAIN = {  # short runs of every trainer: a few updates, two public evaluations
 }
 
 
+def save_rows(df, path: Path) -> None:
+    """The per-seed rows less the budget columns, measurements that differ run to run (an older wfbench has none)."""
+    df = df.drop(columns=["decision_ms_p50", "decision_ms_p99", "cpu_s"], errors="ignore")
+    df.attrs.pop("budget", None)
+    df.to_pickle(path)
+
+
 def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | None = None) -> None:
     import pandas as pd
     import wfbench.policies
@@ -111,12 +131,16 @@ def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | No
             for name in policies():
                 t0 = time.perf_counter()
                 n = 1 if scenario in ONE_SEED else min(seeds, SLOW_SEEDS) if name in SLOW else seeds
-                df = wfbench.evaluate(name, scenario, list(range(n)), backend="serial", progress=False)
-                # the budget columns are measurements that differ run to run (an older wfbench has none)
-                df = df.drop(columns=["decision_ms_p50", "decision_ms_p99", "cpu_s"], errors="ignore")
-                df.attrs.pop("budget", None)
-                df.to_pickle(out / f"eval__{scenario}__{name}.pkl")
+                save_rows(wfbench.evaluate(name, scenario, list(range(n)), backend="serial", progress=False),
+                          out / f"eval__{scenario}__{name}.pkl")
                 print(f"evaluate {name:22s} {scenario:14s} {n} seeds {time.perf_counter() - t0:6.1f} s", flush=True)
+    if only is None or "lookahead" in only:
+        for scenario in [x for x in LOOKAHEAD_SCENARIOS if chosen is None or x in chosen]:
+            for name in lookaheads():
+                t0 = time.perf_counter()
+                save_rows(wfbench.evaluate(name, scenario, [0], backend="serial", progress=False),
+                          out / f"eval__{scenario}__{name}.pkl")
+                print(f"lookahead {name:22s} {scenario:14s} 1 seed {time.perf_counter() - t0:6.1f} s", flush=True)
     if only is None or "reproduce" in only:
         for target, runs in (("table3", "10"), ("table2", "4"), ("gap", "4")):
             t0 = time.perf_counter()
@@ -201,7 +225,7 @@ def main() -> int:
     c = sub.add_parser("capture")
     c.add_argument("out", type=Path)
     c.add_argument("--seeds", type=int, default=10, help="test seeds 0..N-1 per policy and scenario (default 10)")
-    c.add_argument("--only", default=None, help="comma-separated parts: evaluate, reproduce, train")
+    c.add_argument("--only", default=None, help="comma-separated parts: evaluate, lookahead, reproduce, train")
     c.add_argument("--scenarios", default=None, help="comma-separated suite-v1 ids (default: every scenario)")
     c.add_argument("--checkout", type=Path, default=None, help="capture the code of this checkout (a git worktree "
                    "of the commit before), not the installed one")
