@@ -1,12 +1,19 @@
 import os
 import shutil
+import sys
 import warnings
 
+import absl.logging
 import pytest
 
 import wfbench
 from wfbench import ScenarioConfig
 from wfbench.testing import ADVISORIES
+
+# rliable imports absl.logging, whose handler keeps the sys.stderr of the moment of its import: imported first inside
+# a test (the leaderboard's ranking imports rliable lazily), it kept that test's capture, closed after it, and a later
+# test whose served board logs wrote to a closed file. Imported here, it is pointed at the process's own stderr.
+absl.logging.get_absl_handler().python_handler.stream = sys.__stderr__
 
 # The checkers' advice wfbench does not follow on purpose (wfbench.testing.ADVISORIES: entity features are
 # (M, 7) and (N, 9) on purpose, docs/model.md). Only these are let through; any other warning in the checks fails.

@@ -88,3 +88,14 @@ def test_aggregate_suite__reports_each_split_separately():
     t = out["heldout"].table.set_index("policy")
     assert t.loc["x", "mean"] == pytest.approx(0.5 + 0.2 + 0.02)
     assert t.loc["x", "p_improve"] == 1.0
+
+
+def test_aggregate__leaves_the_root_logger_unconfigured(monkeypatch):
+    import logging
+
+    root = logging.getLogger()
+    monkeypatch.setattr(root, "handlers", [])  # as in a process that configured no logging
+    rng = np.random.default_rng(0)
+    aggregate({"a": rng.random((5, 2)), "b": rng.random((5, 2))}, baseline="b", reps=20, poi_reps=10,
+              profile_reps=5)
+    assert root.handlers == [], "rliable's absl log call would have run logging.basicConfig() on the root"

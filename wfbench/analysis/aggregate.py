@@ -13,6 +13,7 @@ policy's interval does not depend on the others, and nobody else's ``np.random``
 from __future__ import annotations
 
 import contextlib
+import logging
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -35,12 +36,24 @@ SPLIT_ORDER = ("train", "heldout")
 
 @contextlib.contextmanager
 def _seeded(seed: int) -> Iterator[None]:
+    """NumPy's global generator seeded for one rliable call, and the root logger left as the caller set it.
+
+    rliable logs through absl, whose log call runs ``logging.basicConfig()`` when the root logger has no
+    handler: that handler would hold whatever ``sys.stderr`` was then (a test's capture, a server's) for
+    good. A ``NullHandler`` on the root for the call's length keeps the root as it was.
+    """
     state = np.random.get_state()
+    root = logging.getLogger()
+    guard = logging.NullHandler() if not root.handlers else None
+    if guard is not None:
+        root.addHandler(guard)
     np.random.seed(seed)
     try:
         yield
     finally:
         np.random.set_state(state)
+        if guard is not None:
+            root.removeHandler(guard)
 
 
 @dataclass(frozen=True)
