@@ -34,15 +34,15 @@ from wfbench.leaderboard.hosted import queue
 from wfbench.leaderboard.hosted.db import Board
 from wfbench.leaderboard.hosted.server import create_app
 from wfbench.leaderboard.hosted.worker import aggregate
-from wfbench.leaderboard.tracks import Track
+from wfbench.leaderboard.tracks import scenario_track
 
 from tests.leaderboard.live_server import LiveServer  # a test helper: run from the checkout with python -m
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import machine, machine_line
 from wfbench.harness.isolation.package import archive
 
-TRACK = Track(name="bench", config=ScenarioConfig.preset("small"), public_seeds=tuple(range(1000, 1050)),
-              test_seeds=tuple(range(50)), description="the benchmark's track (no policy runs)")
+TRACK = scenario_track(name="bench", config=ScenarioConfig.preset("small"), public_seeds=tuple(range(1000, 1050)),
+                       test_seeds=tuple(range(50)), description="the benchmark's track (no policy runs)")
 
 
 def make_package(i: int, size: int) -> bytes:

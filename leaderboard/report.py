@@ -1,11 +1,12 @@
-"""Rankings of a track: text, markdown, CSV and a self-contained HTML page.
+"""The one ranking of every track, and its text, markdown, CSV and self-contained HTML page.
 
-Each entry shows what it cost beside what it scored: the milliseconds per decision
-(p50, p99), the CPU seconds per episode, the machine it ran on, and what its policy
-states about its own cost (training env-steps, wall time and hardware, tuning trials,
-solver time limits). A ranking can be restricted to a budget (``max_decision_ms``,
-``max_cpu_s``): entries over it, or with no measurement to compare, are listed unranked
-with the reason.
+A one-scenario track is a suite of one (:class:`~wfbench.leaderboard.tracks.Track`): every board
+ranks by the IQM of the normalized score over the held-out scenarios, or over all scenarios where
+none is held out (:attr:`Track.rank_split`), with stratified bootstrap intervals
+(:func:`wfbench.analysis.aggregate.aggregate_suite`). Learned methods' training seeds pool into one
+row; a table per scenario keeps each entry's KPIs, mean NSW and paired difference with intervals.
+Costs sit beside scores, and a budget (``max_decision_ms``, ``max_cpu_s``) unranks what is over it.
+``docs/leaderboard.md``, "How a board ranks: one rule for every track".
 """
 
 from __future__ import annotations
@@ -22,7 +23,9 @@ import pandas as pd
 from wfbench.leaderboard.rows import KPI_COLUMNS, scrub_paths
 from wfbench.leaderboard.tracks import Track
 from wfbench.policies import get
+from wfbench.policies.registry import parse_member, shipped_member
 
+from wfbench.analysis.aggregate import STATISTICS, aggregate_suite, over_seeds, pool_seeds, seed_scores
 from wfbench.analysis.stats import bootstrap_ci, paired_difference
 from wfbench.analysis.tables import markdown_table, text_table
 from wfbench.core.kpis import KPI_LABELS
@@ -30,17 +33,21 @@ from wfbench.harness.budget import budget_line
 from wfbench.harness.evaluation import format_kpi, summarize
 
 FORMATS = ("table", "md", "csv", "html")
+SPLIT_LABELS = {"heldout": "held out", "train": "training", "all": "all scenarios"}
+REPS = 2000  # bootstrap replications per entry and split (rliable's IQM costs about 0.6 ms each on 50 x 8 scores)
+SEED = 0  # the bootstrap's seed: the same rows give the same intervals to the last digit
 
 
 @dataclass
 class Ranking:
     track: Track
     baseline: str
-    table: pd.DataFrame  # one row per submission; ranked ones first
-    per_seed: pd.DataFrame  # the valid stored rows
+    table: pd.DataFrame  # one row per entry (and per learned method over its seeds); ranked ones first
+    per_seed: pd.DataFrame  # the valid stored rows, with split, scenario_id and normalized columns
     refused: list[str] = field(default_factory=list)
     budget: dict[str, float] = field(default_factory=dict)  # the limits asked for: max_decision_ms, max_cpu_s
     left_out: list[str] = field(default_factory=list)  # one line per complete entry the budget left unranked
+    scenarios: pd.DataFrame = field(default_factory=pd.DataFrame)  # one row per (scenario, shown entry)
 
 
 def entry_budget(mine: pd.DataFrame) -> dict[str, float | str]:
@@ -100,54 +107,212 @@ def add_budget(rec: dict, sub, mine: pd.DataFrame, max_decision_ms: float | None
         left_out.append(f"{rec['name']}: {rec['over_budget']}")
 
 
+def normalized_rows(rows: pd.DataFrame, track: Track) -> tuple[pd.DataFrame, list[str]]:
+    """``rows`` with ``scenario_id``, ``split`` and ``normalized`` columns; a message per scenario not normalized."""
+    of = dict(track.scenarios())
+    out = rows.assign(scenario_id=rows["scenario"].map(lambda k: of[k].id),
+                      split=rows["scenario"].map(lambda k: of[k].split), normalized=np.nan)
+    problems = []
+    for key, idx in out.groupby("scenario").groups.items():
+        try:
+            out.loc[idx, "normalized"] = track.normalized(str(key), out.loc[idx, "nsw"].to_numpy())
+        except ValueError as exc:  # no reference constants for this scenario's definition
+            problems.append(f"scenario {of[str(key)].id}: {exc}; its rows are shown, not ranked")
+    return out, problems
+
+
 def ranking(store: Any, track: Track, baseline: str = "heuristic", max_decision_ms: float | None = None,
-            max_cpu_s: float | None = None) -> Ranking:
-    """Rank the complete submissions of ``track`` by mean NSW over its test seeds.
+            max_cpu_s: float | None = None, reps: int = REPS) -> Ranking:
+    """Rank the complete entries of ``track`` by the IQM of their normalized score over its rank split.
 
-    With ``max_decision_ms`` (read against the entry's p99 milliseconds per decision)
-    or ``max_cpu_s`` (CPU seconds per episode), only the entries within that budget are
-    ranked; the others, and entries with no measurement (stored before budgets), stay
-    listed, unranked, with the reason, and :attr:`Ranking.left_out` names them.
+    The rank split is the held-out scenarios, or all of them where none is held out
+    (:attr:`~wfbench.leaderboard.tracks.Track.rank_split`). An entry is ranked when it is
+    deployable (wfbench's hindsight oracles read the future: their own unranked section),
+    complete (a valid, normalized row for every scenario and test seed) and within the budget,
+    if one is given: ``max_decision_ms`` is read against the entry's p99 milliseconds per
+    decision, ``max_cpu_s`` against its CPU seconds per episode; :attr:`Ranking.left_out`
+    names the entries over it. A learned method entered once per training seed
+    (``METHOD#seedK``) is ranked as one row ``METHOD (N seeds)`` over the pool of its runs.
+    ``baseline`` is the entry the probability of improvement and the paired NSW differences
+    are taken over. No absolute path of a submitter's machine reaches the table
+    (:func:`~wfbench.leaderboard.rows.scrub_paths`); an entry stored without a fingerprint
+    has ``fingerprint`` ``"legacy"``.
 
-    A submission is ranked when every test seed has a valid row and it is deployable.
-    wfbench's hindsight oracles (``reads_trace``) read the episode's future: they are
-    kept in a separate, unranked "not deployable" section as a reference. The paired
-    difference to ``baseline`` is taken over the seeds both have; incomplete and failed
-    submissions are listed after the ranked ones, with their status and reason. No
-    absolute path of the submitter's machine reaches the table (policy specs and reasons
-    show a file's name only, :func:`~wfbench.leaderboard.rows.scrub_paths`); an entry stored
-    without a fingerprint (an older wfbench) has ``fingerprint`` ``"legacy"``.
+    Returns:
+        The ranking: its table has per entry ``iqm_<split>`` (with ``_low`` and ``_high``),
+        ``mean_<split>`` and ``optimality_gap_<split>`` for each split present and the rank
+        split, ``p_improve_<split>`` over the baseline, the KPIs over its rows (mean, ``_q25``,
+        ``_q75``), ``nsw_ci_low``/``_high``, the paired ``diff`` to the baseline, and the costs.
     """
     rows, refused = store.results(track)
+    rows, problems = normalized_rows(rows, track)
+    refused = refused + problems
     subs = {s.name: s for s in store.submissions(track.name)}
-    n_test = len(track.test_seeds)
-    base = rows[rows["name"] == baseline].set_index("seed")["nsw"] if baseline in subs else pd.Series(dtype=float)
-    out = []
-    left_out: list[str] = []
+    n_units = len(track.units())
+    out, left_out, frames = [], [], {}
+    groups: dict[str, list[tuple[int, str, bool]]] = {}  # method -> (training seed, entry, complete) per member
     for name, sub in subs.items():
         mine = rows[rows["name"] == name]
+        complete = sub.status == "complete" and len(mine) == n_units and mine["normalized"].notna().all()
         rec = entry_record(name, sub, mine)
-        rec["ranked"] = rec["deployable"] and sub.status == "complete" and len(mine) == n_test
+        rec["ranked"] = rec["deployable"] and complete
+        method = _member_of(sub.policy)
+        rec["member_of"], rec["pick_of"], rec["seeds_of"], rec["members"] = method[0] if method else "", "", "", ""
+        if method:  # a training seed: ranked through its method's row
+            rec["ranked"] = False
+            groups.setdefault(method[0], []).append((method[1], name, complete))
         add_budget(rec, sub, mine, max_decision_ms, max_cpu_s, left_out)
-        if len(mine):
-            for k, (mean, q25, q75) in summarize(mine, KPI_COLUMNS).items():
-                rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = mean, q25, q75
-            ci = bootstrap_ci(mine["nsw"].to_numpy())
-            rec["nsw_ci_low"], rec["nsw_ci_high"] = ci.low, ci.high
-            common = mine.set_index("seed")["nsw"].align(base, join="inner")
-            if name != baseline and len(common[0]):
-                d = paired_difference(common[0].to_numpy(), common[1].to_numpy())
-                rec["diff"], rec["diff_low"], rec["diff_high"] = d
-                rec["common_seeds"] = len(common[0])
+        if complete and not method:
+            frames[name] = _frame(mine)
+        out.append(rec)
+    for rec in out:  # the shipped pick of a method whose seeds are entered: shown, named, not ranked twice
+        if rec["policy"] in groups:
+            rec["pick_of"], rec["ranked"] = rec["policy"], False
+    for method, members in groups.items():
+        rec, pooled = _method_record(method, sorted(members), subs, rows, max_decision_ms, max_cpu_s, left_out)
+        if pooled is not None:
+            frames[rec["name"]] = pooled
         out.append(rec)
     table = pd.DataFrame(out)
+    if frames:
+        table = _join_aggregates(table, frames, track, baseline, reps)
+    members_of = _members_of(table)
     if len(table):
-        table["_nsw"] = table.get("nsw", pd.Series(np.nan, index=table.index)).fillna(-np.inf)
-        table = table.sort_values(["ranked", "_nsw"], ascending=[False, False]).drop(columns="_nsw")
+        table = table.join(_entry_stats(rows, baseline, members_of), on="name")
+        key = table.get(f"iqm_{track.rank_split}", pd.Series(np.nan, index=table.index)).fillna(-np.inf)
+        table = table.assign(_key=key).sort_values(["ranked", "_key"], ascending=[False, False]).drop(columns="_key")
         table["rank"] = [i + 1 if r else None for i, r in enumerate(table["ranked"])]
         table = table.reset_index(drop=True)
+    scenarios = _scenario_stats(rows, table, track, baseline, members_of)
     limits = {k: v for k, v in (("max_decision_ms", max_decision_ms), ("max_cpu_s", max_cpu_s)) if v is not None}
-    return Ranking(track, baseline, table, rows, refused, limits, left_out)
+    return Ranking(track, baseline, table, rows, refused, limits, left_out, scenarios)
+
+
+def _frame(mine: pd.DataFrame) -> pd.DataFrame:
+    """An entry's rows as the aggregate reads them: scenario (its id), split, seed, normalized."""
+    return mine[["scenario_id", "split", "seed", "normalized"]].rename(columns={"scenario_id": "scenario"})
+
+
+def _join_aggregates(table: pd.DataFrame, frames: dict[str, pd.DataFrame], track: Track, baseline: str,
+                     reps: int) -> pd.DataFrame:
+    """``table`` with each aggregated entry's statistics per split, and over the rank split."""
+    def aggs_of(fr: dict[str, pd.DataFrame]) -> dict:
+        return aggregate_suite(fr, baseline=baseline if baseline in fr else None, seed=SEED, reps=reps,
+                               poi_reps=max(100, reps // 10), profile_reps=10)
+
+    aggs = aggs_of(frames)
+    if track.rank_split not in aggs:  # "all": the aggregate over every scenario (that of the one split, if one)
+        aggs["all"] = next(iter(aggs.values())) if len(aggs) == 1 else \
+            aggs_of({n: f.assign(split="all") for n, f in frames.items()})["all"]
+    for split, agg in aggs.items():
+        names = {}  # iqm -> iqm_heldout, iqm_low -> iqm_heldout_low, ...
+        for base in (*STATISTICS, "p_improve"):
+            for end in ("", "_low", "_high"):
+                if base + end in agg.table.columns:
+                    names[base + end] = f"{base}_{split}{end}"
+        table = table.join(agg.table.set_index("policy")[list(names)].rename(columns=names), on="name")
+    return table
+
+
+def _members_of(table: pd.DataFrame) -> dict[str, list[str]]:
+    """The entries whose rows each shown row stands for: its own, or a method's training seeds."""
+    if not len(table):
+        return {}
+    return {t["name"]: t["members"].split(",") if t.get("members") else [t["name"]] for _, t in table.iterrows()}
+
+
+def _stats(mine: pd.DataFrame, base: pd.Series) -> dict[str, float]:
+    """KPIs (mean, 25% and 75%), the mean NSW's interval and the paired NSW difference to ``base``.
+
+    Pairs are (scenario, seed) units; a learned method's training seeds are averaged per unit first.
+    """
+    rec: dict[str, float] = {}
+    for k, (mean, q25, q75) in summarize(mine, KPI_COLUMNS).items():
+        rec[k], rec[f"{k}_q25"], rec[f"{k}_q75"] = mean, q25, q75
+    ci = bootstrap_ci(mine["nsw"].to_numpy())
+    rec["nsw_ci_low"], rec["nsw_ci_high"] = ci.low, ci.high
+    a, b = mine.groupby(["scenario", "seed"])["nsw"].mean().align(base, join="inner")
+    if len(a):
+        rec["diff"], rec["diff_low"], rec["diff_high"] = paired_difference(a.to_numpy(), b.to_numpy())
+        rec["common_seeds"] = len(a)
+    return rec
+
+
+def _baseline_units(rows: pd.DataFrame, baseline: str, members_of: dict[str, list[str]]) -> pd.Series:
+    mine = rows[rows["name"].isin(members_of.get(baseline, []))]
+    return mine.groupby(["scenario", "seed"])["nsw"].mean()
+
+
+def _entry_stats(rows: pd.DataFrame, baseline: str, members_of: dict[str, list[str]]) -> pd.DataFrame:
+    """Per shown row with rows, :func:`_stats` over all its rows, indexed by name."""
+    base = _baseline_units(rows, baseline, members_of)
+    out = {}
+    for name, names in members_of.items():
+        mine = rows[rows["name"].isin(names)]
+        if len(mine):
+            out[name] = _stats(mine, base.iloc[0:0] if name == baseline else base)
+    return pd.DataFrame.from_dict(out, orient="index", columns=_stats_columns()) if out else \
+        pd.DataFrame(columns=_stats_columns())
+
+
+def _stats_columns() -> list[str]:
+    kpis = [c for k in KPI_COLUMNS for c in (k, f"{k}_q25", f"{k}_q75")]
+    return [*kpis, "nsw_ci_low", "nsw_ci_high", "diff", "diff_low", "diff_high", "common_seeds"]
+
+
+def _scenario_stats(rows: pd.DataFrame, table: pd.DataFrame, track: Track, baseline: str,
+                    members_of: dict[str, list[str]]) -> pd.DataFrame:
+    """One row per (scenario, shown entry with rows there), in rank order: its normalized mean and :func:`_stats`."""
+    shown = table.loc[~_is_member(table), "name"].tolist() if len(table) else []
+    base = _baseline_units(rows, baseline, members_of)
+    out = []
+    for key, sc in track.scenarios():
+        here = rows[rows["scenario"] == key]
+        for name in shown:
+            mine = here[here["name"].isin(members_of[name])]
+            if len(mine):
+                out.append({"scenario": sc.id, "split": sc.split, "name": name, "seeds": len(mine),
+                            "normalized": float(mine["normalized"].mean()),
+                            **_stats(mine, base.iloc[0:0] if name == baseline else base)})
+    return pd.DataFrame(out, columns=["scenario", "split", "name", "seeds", "normalized", *_stats_columns()])
+
+
+def _member_of(policy: str) -> tuple[str, int] | None:
+    """A training seed's policy ``METHOD#seedK[@MODE]`` -> (``METHOD[@MODE]``, K); None for any other policy."""
+    parsed = parse_member(policy)
+    if parsed is None or parsed[1] < 0:
+        return None
+    method, k, mode = parsed
+    return method + (f"@{mode}" if mode else ""), k
+
+
+def _method_record(method: str, members: list[tuple[int, str, bool]], subs: dict, rows: pd.DataFrame,
+                   max_decision_ms: float | None, max_cpu_s: float | None,
+                   left_out: list[str]) -> tuple[dict, pd.DataFrame | None]:
+    """The row of a learned method over its entered training seeds, and its pooled runs when every seed is complete."""
+    names = [name for _, name, _ in members]
+    mine = rows[rows["name"].isin(names)]
+    first = subs[names[0]]
+    rec = entry_record(over_seeds(method, len(members)), first, mine)
+    missing = [name for _, name, complete in members if not complete]
+    rec.update(policy=f"{method} over training seeds " + ", ".join(str(k) for k, _, _ in members),
+               submitter=", ".join(dict.fromkeys(subs[n].submitter for n in names)),
+               status="complete" if not missing else "incomplete",
+               reason=f"training seeds not complete: {', '.join(missing)}" if missing else "",
+               builtin=False, fingerprint=",".join(subs[n].fingerprint or "legacy" for n in names),
+               deployable=all(not reads_future(subs[n].policy) for n in names), member_of="", pick_of="",
+               seeds_of=method, members=",".join(names))
+    rec["ranked"] = rec["deployable"] and not missing
+    add_budget(rec, first, mine, max_decision_ms, max_cpu_s, left_out)
+    if missing:
+        return rec, None
+    return rec, pool_seeds({n: _frame(rows[rows["name"] == n]) for n in names})
+
+
+def _is_member(table: pd.DataFrame) -> pd.Series:
+    if "member_of" not in table:
+        return pd.Series(False, index=table.index)
+    return table["member_of"].fillna("").astype(str) != ""
 
 
 REFERENCE_TITLE = ("Not deployable (reads the future): hindsight oracles, a reference for what the deployable "
@@ -168,34 +333,6 @@ def reads_future(policy: str) -> bool:
         return False
 
 
-def _cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[str]]]:
-    n = len(r.track.test_seeds)
-    header = ["#", "Name", "Policy", *[KPI_LABELS[k] for k in KPI_COLUMNS], "NSW 95% CI",
-              f"NSW - {r.baseline} (paired, 95% CI)", "Seeds", "Status", *BUDGET_HEADER]
-    rows = []
-    for _, t in r.table.iterrows():
-        if bool(t["deployable"]) != deployable:
-            continue
-        has = t["seeds"] > 0
-        kpis = [format_kpi(t[k], t[f"{k}_q25"], t[f"{k}_q75"]) if has else "-" for k in KPI_COLUMNS]
-        ci = f"[{t['nsw_ci_low']:.3f}, {t['nsw_ci_high']:.3f}]" if has else "-"
-        if t["name"] == r.baseline:
-            diff = "(baseline)"
-        elif has and pd.notna(t.get("diff", np.nan)):
-            diff = f"{t['diff']:+.4f} [{t['diff_low']:+.4f}, {t['diff_high']:+.4f}]"
-            if t.get("common_seeds", n) < n:
-                diff += f" on {int(t['common_seeds'])} seeds"
-        else:
-            diff = "-"
-        status = t["status"] + (" (legacy: no fingerprint)" if t["fingerprint"] == "legacy" else "") \
-            + (f": {t['reason']}" if t["reason"] else "")
-        if t["over_budget"]:
-            status += f"; outside the budget: {t['over_budget']}"
-        rank = str(int(t["rank"])) if pd.notna(t["rank"]) else "-"
-        rows.append([rank, t["name"], t["policy"], *kpis, ci, diff, f"{t['seeds']}/{n}", status, *budget_cells(t)])
-    return header, rows
-
-
 BUDGET_HEADER = ("ms per decision p50 / p99", "CPU s per episode", "Machine", "Training, tuning, solver limits")
 
 
@@ -204,15 +341,6 @@ def budget_cells(t: pd.Series) -> list[str]:
     p50, p99, cpu = t.get("decision_ms_p50", np.nan), t.get("decision_ms_p99", np.nan), t.get("cpu_s", np.nan)
     ms = f"{p50:.3g} / {p99:.3g}" if pd.notna(p50) and pd.notna(p99) else "-"
     return [ms, f"{cpu:.3g}" if pd.notna(cpu) else "-", t.get("machine") or "-", t.get("cost") or "-"]
-
-
-def caption(r: Ranking) -> str:
-    t = r.track
-    return (f"Track {t.name} (hash {t.hash}): {t.description}; test seeds {t.test_seeds[0]}..{t.test_seeds[-1]} "
-            f"({len(t.test_seeds)}). Ranked by mean NSW (higher is better); KPIs are mean (25%-75%) over seeds; "
-            "intervals are bootstrap 95%; differences are paired by seed. Costs: wall ms per decision of one "
-            "environment (median / worst 99th percentile over chunks; a compiled composite's CPU time per "
-            "environment-step), CPU s per episode, on the machine named" + budget_note(r) + ".")
 
 
 def budget_note(r: Ranking) -> str:
@@ -226,25 +354,6 @@ def budget_note(r: Ranking) -> str:
         return ""
     left = f"; left out: {'; '.join(r.left_out)}" if r.left_out else "; none left out"
     return f"; ranked only within the budget of {' and '.join(parts)}{left}"
-
-
-def render(r: Ranking, fmt: str = "table") -> str:
-    if fmt not in FORMATS:
-        raise ValueError(f"unknown format {fmt!r}; allowed: {', '.join(FORMATS)}")
-    if fmt == "csv":
-        return r.table.to_csv(index=False)
-    if fmt == "html":
-        return render_html(r)
-    header, rows = _cells(r)
-    _, ref = _cells(r, deployable=False)
-    if not rows and not ref:
-        return f"No submissions on track {r.track.name} yet: run 'wfbench leaderboard seed' or 'submit'."
-    table = markdown_table if fmt == "md" else text_table
-    out = (table(header, rows) if rows else "No deployable submissions yet.") + ("\n\n" if fmt == "md" else "\n")
-    out += caption(r)
-    if ref:
-        out += f"\n\n{REFERENCE_TITLE}\n" + ("\n" if fmt == "md" else "") + table(header, ref)
-    return out
 
 
 def check_format(fmt: str, what: str = "format") -> str:
@@ -261,36 +370,149 @@ def png_data(fig) -> str:
     return base64.b64encode(buf.getvalue()).decode()
 
 
-def _figures(r: Ranking) -> list[tuple[str, str]]:
-    import matplotlib
+def _interval(t: pd.Series, metric: str, split: str) -> str:
+    v = t.get(f"{metric}_{split}", np.nan)
+    if pd.isna(v):
+        return "-"
+    return f"{v:.3f} [{t[f'{metric}_{split}_low']:.3f}, {t[f'{metric}_{split}_high']:.3f}]"
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    from wfbench.analysis.plots import draw_kpi_distribution, utilization_band
+def _status(t: pd.Series) -> str:
+    return t["status"] + (" (legacy: no fingerprint)" if t["fingerprint"] == "legacy" else "") \
+        + (f": {t['reason']}" if t["reason"] else "")
 
-    if r.table.empty:
-        return []
-    shown = r.table[r.table["seeds"] > 0]
-    if shown.empty:
-        return []
-    names = shown["name"].tolist()
-    figs = []
-    fig = nsw_figure(r)
-    figs.append(("Mean Nash social welfare with bootstrap 95% intervals, on its whole range [0, 1] (hatched: reads "
-                 "the future, not deployable)", png_data(fig)))
-    plt.close(fig)
-    low, high = band = utilization_band(r.track.config)
-    fig, axes = plt.subplots(1, 4, figsize=(16, 3.4))
-    for ax, k in zip(axes, KPI_COLUMNS, strict=True):
-        data = [r.per_seed.loc[r.per_seed["name"] == n, k].to_numpy() for n in names]
-        draw_kpi_distribution(ax, data, names, k, band=band)
-    fig.tight_layout()
-    figs.append((f"Per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%, points: seeds; gray: the utilization band "
-                 f"{low:.2f}-{high:.2f})", png_data(fig)))
-    plt.close(fig)
-    diffs = _paired_difference_figure(r, shown)
-    return figs + ([diffs] if diffs else [])
+
+def cells(r: Ranking, deployable: bool = True) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of the entries (deployable ones, or the oracles'), in rank order."""
+    n = len(r.track.units())
+    split = r.track.rank_split
+    over = SPLIT_LABELS[split]
+    header = ["#", "Name", "Policy", f"IQM, {over} [95% CI]", f"Mean, {over} [95% CI]",
+              f"Optimality gap, {over} [95% CI]", "IQM, training [95% CI]",
+              f"P(improvement over {r.baseline}), {over} [95% CI]", "Episodes", "Status", *BUDGET_HEADER]
+    rows = []
+    for _, t in r.table.iterrows():
+        if bool(t["deployable"]) != deployable or t.get("member_of"):  # a training seed: in seed_cells
+            continue
+        poi = "(baseline)" if t["name"] == r.baseline else _interval(t, "p_improve", split).replace(".000", ".00")
+        status = _status(t)
+        total = n * len(t["members"].split(",")) if t.get("members") else n  # a method: every seed's episodes
+        if t["status"] == "complete" and t["seeds"] < total:
+            status += f" ({total - t['seeds']} episodes missing or refused)"
+        if t["over_budget"]:
+            status += f"; outside the budget: {t['over_budget']}"
+        if t.get("pick_of"):
+            status += f"; the shipped pick of {t['pick_of']}, ranked over its training seeds"
+        rank = str(int(t["rank"])) if pd.notna(t["rank"]) else "-"
+        rows.append([rank, t["name"], t["policy"], _interval(t, "iqm", split), _interval(t, "mean", split),
+                     _interval(t, "optimality_gap", split), _interval(t, "iqm", "train"), poi,
+                     f"{t['seeds']}/{total}", status, *budget_cells(t)])
+    return header, rows
+
+
+SCENARIOS_TITLE = ("Per scenario: the mean normalized score, the KPIs as mean (25%-75%) over seeds, the mean NSW's "
+                   "bootstrap 95% interval and the NSW difference to the baseline, paired by seed")
+
+
+def scenario_cells(r: Ranking) -> tuple[list[str], list[list[str]]]:
+    """One row per scenario and shown entry (rank order), training seeds pooled into their method's row."""
+    n = len(r.track.test_seeds)
+    header = ["Scenario", "Split", "Name", "Normalized mean", *[KPI_LABELS[k] for k in KPI_COLUMNS], "NSW 95% CI",
+              f"NSW - {r.baseline} (paired, 95% CI)", "Seeds"]
+    oracles = set(r.table.loc[~r.table["deployable"].astype(bool), "name"]) if len(r.table) else set()
+    rows = []
+    for _, s in r.scenarios.iterrows():
+        if s["name"] == r.baseline:
+            diff = "(baseline)"
+        elif pd.notna(s["diff"]):
+            diff = f"{s['diff']:+.4f} [{s['diff_low']:+.4f}, {s['diff_high']:+.4f}]"
+            if s["common_seeds"] < n:
+                diff += f" on {int(s['common_seeds'])} seeds"
+        else:
+            diff = "-"
+        norm = f"{s['normalized']:.3f}" if pd.notna(s["normalized"]) else "-"
+        rows.append([s["scenario"], s["split"], s["name"] + (" (reads the future)" if s["name"] in oracles else ""),
+                     norm, *[format_kpi(s[k], s[f"{k}_q25"], s[f"{k}_q75"]) for k in KPI_COLUMNS],
+                     f"[{s['nsw_ci_low']:.3f}, {s['nsw_ci_high']:.3f}]", diff, str(int(s["seeds"]))])
+    return header, rows
+
+
+def seed_cells(r: Ranking) -> tuple[list[str], list[list[str]]]:
+    """Each learned method's training seeds: IQM per split of each seed's normalized score, and its mean per scenario.
+
+    One row per entered seed (the shipped pick marked), then the method's pooled row with its 95% intervals;
+    empty when no method's seeds are entered.
+    """
+    splits = list(dict.fromkeys([r.track.rank_split, "train"]))
+    ids = [sc.id for sc in r.track.suite.scenarios]
+    header = ["Method", "Training seed (entry)", *(f"IQM, {SPLIT_LABELS[sp]}" for sp in splits), "Status", *ids]
+    if not len(r.table) or not _is_member(r.table).any():
+        return header, []
+    rows = []
+    members = r.table[_is_member(r.table)]
+    for method, g in members.groupby("member_of", sort=True):
+        pick = shipped_member(method.partition("@")[0])
+        complete = [n for n in g.loc[g["status"] == "complete", "name"] if (r.per_seed["name"] == n).any()]
+        frames = {n: _frame(r.per_seed[r.per_seed["name"] == n]) for n in complete}
+        scores = pd.DataFrame(columns=["member"])
+        if frames:
+            scores = seed_scores(frames).merge(
+                seed_scores({n: f.assign(split="all") for n, f in frames.items()})[["member", "iqm_all"]], on="member")
+        scores = scores.set_index("member")
+        for _, t in g.sort_values("policy").iterrows():
+            name = t["name"]
+            is_pick = pick is not None and t["policy"].partition("@")[0] == pick
+            have = name in scores.index
+            rows.append([method, name + (" (shipped pick)" if is_pick else ""),
+                         *(f"{scores.loc[name, f'iqm_{sp}']:.3f}" if have and f"iqm_{sp}" in scores else "-"
+                           for sp in splits), _status(t),
+                         *(f"{scores.loc[name, sc]:.3f}" if have and sc in scores else "-" for sc in ids)])
+        for _, t in r.table[r.table["seeds_of"] == method].iterrows():
+            rank = f"#{int(t['rank'])}" if pd.notna(t["rank"]) else "not ranked"
+            means = r.per_seed[r.per_seed["name"].isin(t["members"].split(","))].groupby("scenario_id")["normalized"]\
+                .mean()
+            rows.append([method, f"{t['name']}, pooled ({rank})", *(_interval(t, "iqm", sp) for sp in splits),
+                         t["status"], *(f"{means[sc]:.3f}" if sc in means.index else "-" for sc in ids)])
+    return header, rows
+
+
+SEEDS_TITLE = ("Learned methods over training seeds: each seed's IQM and mean normalized score per scenario, the "
+               "shipped pick (chosen on public seeds, before any test) marked; the method is ranked by the pooled row")
+
+
+def caption(r: Ranking) -> str:
+    t = r.track
+    seeds = t.test_seeds
+    return (f"Track {t.name} (hash {t.hash}): {t.description}; test seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}) on "
+            f"each of {len(t.suite.scenarios)} scenario(s). Ranked by the IQM of the normalized score over "
+            f"{SPLIT_LABELS[t.rank_split]} (the held-out scenarios where a track has some, else all of them; "
+            "0 = the random policy, 1 = the proven upper bound, per scenario; higher is better), with 95% "
+            "stratified bootstrap intervals over seeds within scenarios (rliable). A learned method entered once "
+            "per training seed is ranked by the aggregate over its seeds, 'METHOD (N seeds)'. Costs: wall ms per "
+            "decision of one environment (median / worst 99th percentile over chunks; a compiled composite's CPU "
+            "time per environment-step), CPU s per episode, on the machine named" + budget_note(r) + ".")
+
+
+def render(r: Ranking, fmt: str = "table", per_seed: bool = True) -> str:
+    """The ranking as text, markdown, CSV (one row per entry) or an HTML page (:func:`render_html`)."""
+    check_format(fmt)
+    if fmt == "csv":
+        return r.table.to_csv(index=False)
+    if fmt == "html":
+        return render_html(r, per_seed)
+    header, rows = cells(r)
+    _, ref = cells(r, deployable=False)
+    if not rows and not ref:
+        return (f"No submissions on track {r.track.name} yet: run 'wfbench leaderboard seed --track {r.track.name}' "
+                f"or 'wfbench leaderboard submit --track {r.track.name}'.")
+    table = markdown_table if fmt == "md" else text_table
+    gap = "\n\n" if fmt == "md" else "\n"
+    out = (table(header, rows) if rows else "No deployable submissions yet.") + gap + caption(r)
+    for title, (h, body) in ((REFERENCE_TITLE, (header, ref)), (SCENARIOS_TITLE, scenario_cells(r)),
+                             (SEEDS_TITLE, seed_cells(r))):
+        if body:
+            out += f"\n\n{title}\n" + ("\n" if fmt == "md" else "") + table(h, body)
+    return out
 
 
 DEPLOYABLE_COLOR = "#4c72b0"
@@ -299,69 +521,98 @@ ORACLE_HATCH = "//"
 ORACLE_LABEL = "reads the future, not deployable"
 
 
-def nsw_figure(r: Ranking):
-    """The bar chart of mean NSW with its 95% interval per entry that has rows, or None when none has.
+def iqm_figure(r: Ranking):
+    """Bars of each aggregated entry's IQM per split with its 95% interval, or None when none is aggregated.
 
-    The axis is NSW's whole range, 0 to 1 (a welfare in [0, 1]): a cut axis would
-    magnify the gaps. An oracle's bar (it reads the future) is gray and hatched and the
-    legend says it is not deployable.
+    The rank split's bars are dark, the training split's light (where it differs); an oracle's bars
+    (it reads the future) are gray and hatched and the legend says it is not deployable.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 
-    shown = r.table[r.table["seeds"] > 0] if not r.table.empty else r.table
+    from wfbench.analysis.plots import new_figure
+
+    rank = r.track.rank_split
+    shown = r.table[r.table[f"iqm_{rank}"].notna()] if f"iqm_{rank}" in r.table else r.table.iloc[0:0]
     if shown.empty:
         return None
     names = shown["name"].tolist()
-    fig, ax = plt.subplots(figsize=(max(4.5, 0.8 * len(names) + 2), 3.4))
-    mean = shown["nsw"].to_numpy()
-    err = np.vstack([mean - shown["nsw_ci_low"].to_numpy(), shown["nsw_ci_high"].to_numpy() - mean])
     oracle = ~shown["deployable"].to_numpy(dtype=bool)
-    bars = ax.bar(range(len(names)), mean, yerr=err, capsize=4,
-                  color=[ORACLE_COLOR if o else DEPLOYABLE_COLOR for o in oracle],
-                  edgecolor=["#555555" if o else DEPLOYABLE_COLOR for o in oracle])
-    for bar, o in zip(bars, oracle, strict=True):
-        if o:
-            bar.set_hatch(ORACLE_HATCH)
-    for i, m in enumerate(mean):
-        ax.annotate(f"{m:.3f}", (i, 0.0), xytext=(0, 3), textcoords="offset points", ha="center", fontsize=8,
-                    color="black" if oracle[i] else "white")
-    ax.set_xticks(range(len(names)), names, rotation=30, ha="right")
-    ax.set_ylabel("mean NSW (95% CI)")
-    ax.set_ylim(0.0, 1.0)
-    ax.set_title(f"Nash social welfare on {r.track.name} (axis: its whole range, 0 to 1)", fontsize=10)
-    handles = [Patch(facecolor=DEPLOYABLE_COLOR, label="deployable")]
+    splits = [s for s in dict.fromkeys(("train", rank)) if f"iqm_{s}" in shown and (s == rank or rank != "all")]
+    fig = new_figure(figsize=(max(5.0, 1.1 * len(names) + 2), 3.4))
+    ax = fig.subplots()
+    x, width = np.arange(len(names)), 0.76 / len(splits)
+    for i, split in enumerate(splits):
+        mean = shown[f"iqm_{split}"].to_numpy()
+        err = np.vstack([mean - shown[f"iqm_{split}_low"].to_numpy(), shown[f"iqm_{split}_high"].to_numpy() - mean])
+        color = DEPLOYABLE_COLOR if split == rank else "#a6bddb"
+        bars = ax.bar(x + (i - (len(splits) - 1) / 2) * width, mean, width, yerr=err, capsize=3,
+                      color=[ORACLE_COLOR if o else color for o in oracle], edgecolor=[
+                          "#555555" if o else color for o in oracle])
+        for bar, o in zip(bars, oracle, strict=True):
+            if o:
+                bar.set_hatch(ORACLE_HATCH)
+    ax.set_xticks(x, names, rotation=30, ha="right")
+    ax.axhline(0.0, color="#888888", lw=0.8)
+    ax.axhline(1.0, color="#888888", lw=0.8, ls="--")
+    ax.set_ylabel("IQM of the normalized score")
+    ax.set_title(f"{r.track.name}: 0 = random, 1 = the proven bound (dashed)", fontsize=10)
+    handles = [Patch(facecolor=DEPLOYABLE_COLOR if s == rank else "#a6bddb", label=SPLIT_LABELS[s]) for s in splits]
     if oracle.any():
         handles.append(Patch(facecolor=ORACLE_COLOR, edgecolor="#555555", hatch=ORACLE_HATCH, label=ORACLE_LABEL))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
     return fig
 
 
-def _paired_difference_figure(r: Ranking, shown: pd.DataFrame) -> tuple[str, str] | None:
-    """The paired NSW differences to the baseline with their intervals, as in the table (none resampled here)."""
-    from wfbench.analysis.plots import draw_paired_differences, new_figure
+def _scenario_figures(r: Ranking, per_seed: bool) -> list[tuple[str, str]]:
+    """Per scenario: the per-seed KPIs (when ``per_seed``) and the paired NSW differences to the baseline."""
+    from wfbench.analysis.plots import draw_kpi_distribution, draw_paired_differences, new_figure, utilization_band
 
-    if "diff" not in shown:
-        return None
-    rows = shown[shown["diff"].notna() & (shown["name"] != r.baseline)]
-    if rows.empty:
-        return None
+    figs = []
     n = len(r.track.test_seeds)
-    notes = [f"on {int(c)} seeds" if c < n else "" for c in rows["common_seeds"]]
-    fig = new_figure(figsize=(9, 1.2 + 0.45 * len(rows)), layout="constrained")
-    draw_paired_differences(fig.subplots(), rows["name"].tolist(), rows["diff"], rows["diff_low"],
-                            rows["diff_high"], r.baseline, notes)
-    return (f"NSW minus {r.baseline}, paired by seed, with bootstrap 95% intervals (green: above zero, red: "
-            "below, gray: contains zero)", png_data(fig))
+    for key, sc in r.track.scenarios():
+        stats = r.scenarios[r.scenarios["scenario"] == sc.id]
+        if stats.empty:
+            continue
+        names = stats["name"].tolist()
+        if per_seed:
+            members = _members_of(r.table)
+            here = r.per_seed[r.per_seed["scenario"] == key]
+            low, high = band = utilization_band(sc.config)
+            fig = new_figure(figsize=(16, 3.4), layout="constrained")
+            for ax, k in zip(fig.subplots(1, 4), KPI_COLUMNS, strict=True):
+                data = [here.loc[here["name"].isin(members[m]), k].to_numpy() for m in names]
+                draw_kpi_distribution(ax, data, names, k, band=band)
+            figs.append((f"{sc.id}: per-seed KPIs (boxes: 25%-75%, whiskers: 5%-95%, points: seeds; gray: the "
+                         f"utilization band {low:.2f}-{high:.2f})", png_data(fig)))
+        diffs = stats[stats["diff"].notna() & (stats["name"] != r.baseline)]
+        if len(diffs):
+            notes = [f"on {int(c)} seeds" if c < n else "" for c in diffs["common_seeds"]]
+            fig = new_figure(figsize=(9, 1.2 + 0.45 * len(diffs)), layout="constrained")
+            draw_paired_differences(fig.subplots(), diffs["name"].tolist(), diffs["diff"], diffs["diff_low"],
+                                    diffs["diff_high"], r.baseline, notes)
+            figs.append((f"{sc.id}: NSW minus {r.baseline}, paired by seed, with bootstrap 95% intervals (green: "
+                         "above zero, red: below, gray: contains zero)", png_data(fig)))
+    return figs
 
 
-def render_html(r: Ranking) -> str:
-    header, rows = _cells(r)
-    _, ref = _cells(r, deployable=False)
-    return page(r, caption(r), header, rows, ref, _figures(r))
+def render_html(r: Ranking, per_seed: bool = True) -> str:
+    """The self-contained page: the ranking, the oracles' section, the IQM chart, the per-scenario figures and tables.
+
+    ``per_seed=False`` leaves out the per-seed KPI figures (a hosted test phase shows only aggregates).
+    """
+    header, rows = cells(r)
+    _, ref = cells(r, deployable=False)
+    figures = []
+    fig = iqm_figure(r)
+    if fig is not None:
+        figures.append(("IQM of the normalized score per split with its 95% stratified bootstrap interval (hatched: "
+                        "reads the future, not deployable)", png_data(fig)))
+    figures += _scenario_figures(r, per_seed)
+    extra = [(SCENARIOS_TITLE, "scenarios", *scenario_cells(r))]
+    th, tr = seed_cells(r)
+    if tr:
+        extra.append((SEEDS_TITLE, "seeds", th, tr))
+    return page(r, caption(r), header, rows, ref, figures, extra)
 
 
 def page(r: Ranking, text: str, header: list[str], rows: list[list[str]], ref: list[list[str]],

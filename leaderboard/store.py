@@ -27,7 +27,7 @@ from typing import Any
 import pandas as pd
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection
-from wfbench.leaderboard import report, suite_report
+from wfbench.leaderboard import report
 from wfbench.leaderboard.hosted import db as hosted
 from wfbench.leaderboard.hosted.db import Board, accounts, kind_of_reason, packages, submissions
 from wfbench.leaderboard.hosted.migrations import NewerBoardError, check_known
@@ -46,7 +46,7 @@ from wfbench.leaderboard.rows import (
     scrub_paths,
 )
 from wfbench.leaderboard.schema4 import Schema4Store, is_schema4
-from wfbench.leaderboard.tracks import SuiteTrack, Track, get_track
+from wfbench.leaderboard.tracks import Track, get_track
 
 from wfbench.core.kpis import SCORE
 from wfbench.harness.budget import BUDGET_COLUMNS
@@ -274,7 +274,7 @@ class Store:
             r = _find(conn, track, name)
         return _entry(r) if r else None
 
-    def open_submission(self, track: Track | SuiteTrack, name: str, policy: str, submitter: str, version: str,
+    def open_submission(self, track: Track, name: str, policy: str, submitter: str, version: str,
                         builtin: bool = False, fingerprint: str = "", fingerprint_detail: str = "",
                         replace: bool = False, budget: str = "") -> tuple[Entry, str]:
         """The entry ``name`` of ``track`` for a policy with this fingerprint, in one transaction.
@@ -369,7 +369,7 @@ class Store:
 
         A row holds the KPIs, ``episode_length`` and ``invalid_actions``, and its budget
         (:data:`~wfbench.leaderboard.rows.BUDGET_ROW_COLUMNS`) when measured: a missing or
-        non-finite measurement is stored as NULL. On a suite track each row names its ``scenario``.
+        non-finite measurement is stored as NULL. Each row names its ``scenario`` (``""`` on a one-scenario track).
         """
         rows = list(rows)
         for row in rows:
@@ -399,7 +399,7 @@ class Store:
         return self._write(f"{len(rows)} result(s) of {sub.name!r}", insert)
 
     # -- reading -----------------------------------------------------------------------------------
-    def results(self, track: Track | SuiteTrack) -> tuple[pd.DataFrame, list[str]]:
+    def results(self, track: Track) -> tuple[pd.DataFrame, list[str]]:
         """Valid rows of the track (with the entry's name) and one message per refused row."""
         r, p = hosted.rows, local_rows
         q = (sa.select(submissions.c.name, submissions.c.state, local_entries.c.builtin, r.c.submission_id, r.c.seed,
@@ -529,7 +529,7 @@ class Shown:
     left_out: list[str]  # complete entries the budget left unranked, one line each
 
 
-def show(track: str | Track | SuiteTrack, db: Any = None, fmt: str = "table", baseline: str = "heuristic",
+def show(track: str | Track, db: Any = None, fmt: str = "table", baseline: str = "heuristic",
          max_decision_ms: float | None = None, max_cpu_s: float | None = None) -> Shown:
     """A track's board as ``wfbench leaderboard show`` prints it.
 
@@ -550,7 +550,5 @@ def show(track: str | Track | SuiteTrack, db: Any = None, fmt: str = "table", ba
     tr = get_track(track) if isinstance(track, str) else track
     report.check_format(fmt)
     store = db if isinstance(db, Store | Schema4Store) else Store(db, create=False)  # showing never creates one
-    suite = isinstance(tr, SuiteTrack)
-    rank, draw = (suite_report.ranking, suite_report.render) if suite else (report.ranking, report.render)
-    r = rank(store, tr, baseline=baseline, max_decision_ms=max_decision_ms, max_cpu_s=max_cpu_s)
-    return Shown(draw(r, fmt), list(r.refused), list(r.left_out))
+    r = report.ranking(store, tr, baseline=baseline, max_decision_ms=max_decision_ms, max_cpu_s=max_cpu_s)
+    return Shown(report.render(r, fmt), list(r.refused), list(r.left_out))

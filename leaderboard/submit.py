@@ -29,7 +29,7 @@ from typing import Any
 from joblib.externals.loky.backend.context import get_context
 from wfbench.leaderboard.rows import ROW_COLUMNS, Entry, NameTaken, scrub_paths
 from wfbench.leaderboard.store import Store
-from wfbench.leaderboard.tracks import SuiteTrack, Track, get_track
+from wfbench.leaderboard.tracks import Track, get_track
 from wfbench.policies import registry as _registry
 from wfbench.policies import tuned as _tuned
 
@@ -346,19 +346,17 @@ def _duration(seconds: float) -> str:
         else f"{seconds / 3600:.1f} h"
 
 
-def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: str | None = None, db: Any = None,
+def submit(track: str | Track, policy: str, name: str, submitter: str | None = None, db: Any = None,
            backend: str = "process", workers: int | None = None, address: str | None = None,
            wall_time_s: float = DEFAULT_WALL_TIME_S, memory_mb: int | None = DEFAULT_MEMORY_MB,
            chunk_size: int | None = None, progress: bool = False, builtin: bool = False,
            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, replace: bool = False) -> Outcome:
     """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows.
 
-    On a suite track (:class:`~wfbench.leaderboard.tracks.SuiteTrack`) the policy runs on every
-    scenario of the suite, one row per (scenario, seed).
+    The policy runs on every scenario of the track, one row per (scenario, seed).
 
     Args:
-        track: a track name, :class:`~wfbench.leaderboard.tracks.Track` or
-            :class:`~wfbench.leaderboard.tracks.SuiteTrack`.
+        track: a track name or :class:`~wfbench.leaderboard.tracks.Track`.
         policy: a registry name or a ``module:attr`` entry point.
         name: the entry's name on the track; submitting it again resumes.
         submitter: who submits (default: the user name).
@@ -385,7 +383,7 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
             bad limits); nothing is stored.
     """
     try:
-        tr = track if isinstance(track, Track | SuiteTrack) else get_track(track)
+        tr = track if isinstance(track, Track) else get_track(track)
         check_backend(backend, address)
         act_timeout_s = check_act_timeout(act_timeout_s)
     except ValueError as exc:
@@ -520,7 +518,7 @@ def submit(track: str | Track | SuiteTrack, policy: str, name: str, submitter: s
                    clock.per_scenario() if clock is not None else {})
 
 
-def _check_taken(existing: Entry, tr: Track | SuiteTrack, name: str, policy: str, fingerprint: str,
+def _check_taken(existing: Entry, tr: Track, name: str, policy: str, fingerprint: str,
                  detail: dict[str, Any] | None) -> None:
     """Raise the one-line SubmitError when ``name`` is taken by another fingerprint or track version."""
     how = ("pass --replace to evaluate this policy under that name (the old entry's rows are kept in the store's "
@@ -565,16 +563,16 @@ def scenario_times(out: Outcome) -> str:
     return f"CPU seconds per scenario (this run's episodes, costliest first): {parts}"
 
 
-def seed_tracks(track: str | Track | SuiteTrack | None = None) -> list[Track | SuiteTrack]:
-    """The tracks ``wfbench leaderboard seed`` fills: the one named, or every one-scenario track.
+def seed_tracks(track: str | Track | None = None) -> list[Track]:
+    """The tracks ``wfbench leaderboard seed`` fills: the one named, or every track marked ``seeded``.
 
-    A suite track runs every scenario of its suite, so it is seeded only when named.
+    A track that runs a whole suite is not marked (:func:`~wfbench.leaderboard.tracks.suite_track`): named only.
     """
     from wfbench.leaderboard.tracks import TRACKS
 
     if track is not None:
-        return [track if isinstance(track, Track | SuiteTrack) else get_track(track)]
-    return [t for t in TRACKS.values() if not isinstance(t, SuiteTrack)]
+        return [track if isinstance(track, Track) else get_track(track)]
+    return [t for t in TRACKS.values() if t.seeded]
 
 
 MOVED = {"replaced": "; the entry it replaced is in the audit tables",
@@ -582,7 +580,7 @@ MOVED = {"replaced": "; the entry it replaced is in the audit tables",
 """What :func:`describe` adds for a submission that moved an entry to the audit tables, by ``Outcome.action``."""
 
 
-def describe(out: Outcome, track: Track | SuiteTrack, store_path: Any, hint: str = "") -> str:
+def describe(out: Outcome, track: Track, store_path: Any, hint: str = "") -> str:
     """The line ``wfbench leaderboard submit`` prints for a submission's outcome.
 
     A complete one says how many rows it stored and, where it replaced an entry or a
@@ -598,14 +596,14 @@ def describe(out: Outcome, track: Track | SuiteTrack, store_path: Any, hint: str
             f"{store_path}; submit again to resume, or with --replace once the policy is changed{hint})")
 
 
-def seed_builtins(track: str | Track | SuiteTrack, db: Any = None, names: tuple[str, ...] = BUILTIN_ENTRIES,
+def seed_builtins(track: str | Track, db: Any = None, names: tuple[str, ...] = BUILTIN_ENTRIES,
                   progress: bool = False, **kwargs: Any) -> list[Outcome]:
     """Submit (or resume) the built-in policies under their registry names.
 
     A built-in entry whose fingerprint is not the current code's (wfbench's policy code
     changed since it was stored) is replaced: its rows go to the audit tables.
     """
-    tr = track if isinstance(track, Track | SuiteTrack) else get_track(track)
+    tr = track if isinstance(track, Track) else get_track(track)
     store = db if isinstance(db, Store) else Store(db)
     out = []
     for n in names:

@@ -187,12 +187,12 @@ import sys
 from wfbench.leaderboard.report import ranking, render, render_html
 from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.submit import submit
-from wfbench.leaderboard.tracks import Track
+from wfbench.leaderboard.tracks import scenario_track
 
 sys.path.insert(0, str(workdir))
-track = Track(name="small-tutorial", config=wfbench.ScenarioConfig.preset(SCENARIO),
-              public_seeds=tuple(range(1000, 1010)), test_seeds=tuple(range(SEEDS)),
-              description="the small scenario, for the tutorial")
+track = scenario_track(name="small-tutorial", config=wfbench.ScenarioConfig.preset(SCENARIO),
+                       public_seeds=tuple(range(1000, 1010)), test_seeds=tuple(range(SEEDS)),
+                       description="the small scenario, for the tutorial")
 store = Store(workdir / "leaderboard.sqlite")
 for policy, name in (("heuristic", "heuristic"), ("my_policy:make_policy", "longest-down-first")):
     outcome = submit(track, policy, name, submitter="tutorial", db=store, backend="serial")

@@ -27,7 +27,7 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
 from wfbench.leaderboard.hosted import hidden, migrations
 from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, KPI_COLUMNS, ROW_COLUMNS, Entry
-from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, Track
+from wfbench.leaderboard.tracks import TRACKS, Track
 
 from wfbench import __version__
 from wfbench.harness.budget import BUDGET_COLUMNS
@@ -406,7 +406,7 @@ class Board:
         dev_concurrent: development-phase jobs queued or running at once per account.
     """
 
-    def __init__(self, url: str | Path, tracks: Mapping[str, Track | SuiteTrack] | None = None,
+    def __init__(self, url: str | Path, tracks: Mapping[str, Track] | None = None,
                  daily_quota: int = DEFAULT_DAILY_QUOTA, dev_daily_quota: int = DEV_DAILY_QUOTA,
                  dev_concurrent: int = DEV_CONCURRENT):
         for what, value in (("daily quota", daily_quota), ("dev-phase quota", dev_daily_quota),
@@ -415,7 +415,7 @@ class Board:
                 raise BoardError(f"{what} {value!r} is not allowed; allowed: 1 or more")
         self.url = str(url)
         self.engine = connect(url)
-        self.tracks: dict[str, Track | SuiteTrack] = dict(TRACKS if tracks is None else tracks)
+        self.tracks: dict[str, Track] = dict(TRACKS if tracks is None else tracks)
         self.daily_quota = daily_quota
         # phase -> (jobs queued or running at once, submissions per 24 h)
         self.quotas = {"test": (1, daily_quota), "dev": (dev_concurrent, dev_daily_quota)}
@@ -443,7 +443,7 @@ class Board:
         except sa.exc.IntegrityError:  # another process made it at the same time
             pass
 
-    def track(self, name: str) -> Track | SuiteTrack:
+    def track(self, name: str) -> Track:
         """The track ``name``, or BoardError naming those there are."""
         if name not in self.tracks:
             raise BoardError(f"unknown track {name!r}; available: {', '.join(self.tracks)}")
@@ -773,11 +773,9 @@ class Board:
 
         Withdrawn submissions are left out; in a running test phase a failure's reason is
         its word only (:meth:`shown_reason`). Rank it with its own :attr:`BoardView.track`,
-        e.g. ``ranking(view, view.track)`` (:func:`wfbench.leaderboard.suite_report.ranking`
-        for a suite track). On the test
-        board the rows' ``seed`` is the seed's index in the hidden list and the track's
-        ``test_seeds`` are those indices (:func:`~wfbench.leaderboard.hosted.hidden.board_track`):
-        no hidden seed reaches a report.
+        e.g. ``ranking(view, view.track)``. On the test board the rows' ``seed`` is the seed's
+        index in the hidden list and the track's ``test_seeds`` are those indices
+        (:func:`~wfbench.leaderboard.hosted.hidden.board_track`): no hidden seed reaches a report.
         """
         tr = self.track(track)
         try:
@@ -821,7 +819,7 @@ class BoardView:
     off the board with a line in the refused messages.
     """
 
-    def __init__(self, track: Track | SuiteTrack, track_hash: str, phase: str, hidden_version: int | None,
+    def __init__(self, track: Track, track_hash: str, phase: str, hidden_version: int | None,
                  subs: list[Submission], frame: pd.DataFrame):
         self.track = track  # what to rank with (hidden.board_track)
         self.phase = phase
@@ -868,6 +866,6 @@ class BoardView:
         """The entries of this phase (``track``: accepted for Store's signature; the view holds one track)."""
         return list(self._subs)
 
-    def results(self, track: Track | SuiteTrack | None = None) -> tuple[pd.DataFrame, list[str]]:
+    def results(self, track: Track | None = None) -> tuple[pd.DataFrame, list[str]]:
         """The entries' rows, in Store.results' columns, and the refused messages."""
         return self._rows.copy(), list(self.refused)

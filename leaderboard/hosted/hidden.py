@@ -11,13 +11,12 @@ its commitment (sha256 of canonical JSON with a salt) is published from the star
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import secrets
 from dataclasses import dataclass
 
-from wfbench.leaderboard.tracks import SuiteTrack, Track
+from wfbench.leaderboard.tracks import Track
 
 PHASES = ("dev", "test")
 DEFAULT_COUNT = 50
@@ -84,7 +83,7 @@ def verify(published: Commitment | HiddenSeeds, seeds: tuple[int, ...] | list[in
     return commitment(published.track, published.track_hash, published.version, seeds, salt) == published.commitment
 
 
-def make(track: Track | SuiteTrack, version: int, n: int = DEFAULT_COUNT, created: float = 0.0) -> HiddenSeeds:
+def make(track: Track, version: int, n: int = DEFAULT_COUNT, created: float = 0.0) -> HiddenSeeds:
     """A new hidden seed list for ``track`` with its salt and commitment."""
     seeds, salt = draw_seeds(n), new_salt()
     return HiddenSeeds(track.name, track.hash, version, seeds, salt,
@@ -100,7 +99,7 @@ def key_context(track: str, phase: str) -> str:
     return f"wfbench-hosted/{track}/{check_phase(phase)}"
 
 
-def phase_seeds(track: Track | SuiteTrack, phase: str, hidden: HiddenSeeds | None = None) -> tuple[int, ...]:
+def phase_seeds(track: Track, phase: str, hidden: HiddenSeeds | None = None) -> tuple[int, ...]:
     """The seeds a phase runs: the public seeds (``dev``), or the hidden list (``test``, which needs ``hidden``)."""
     if check_phase(phase) == "dev":
         return tuple(track.public_seeds)
@@ -109,13 +108,13 @@ def phase_seeds(track: Track | SuiteTrack, phase: str, hidden: HiddenSeeds | Non
     return hidden.seeds
 
 
-def units(track: Track | SuiteTrack, seeds: tuple[int, ...]) -> list[tuple[str, int, int]]:
+def units(track: Track, seeds: tuple[int, ...]) -> list[tuple[str, int, int]]:
     """What a complete submission has a row for: (scenario, seed index, seed), scenarios in the track's order."""
     return [(scenario, i, s) for scenario in track.configs() for i, s in enumerate(seeds)]
 
 
-def board_track(track: Track | SuiteTrack, phase: str, count: int = 0,
-                note: str = "") -> Track | SuiteTrack:
+def board_track(track: Track, phase: str, count: int = 0,
+                note: str = "") -> Track:
     """The track to rank a phase's rows with: its ``test_seeds`` are what the rows carry as ``seed``.
 
     ``dev``: the public seeds. ``test``: the indices ``0..count-1`` of the hidden seeds
@@ -123,7 +122,4 @@ def board_track(track: Track | SuiteTrack, phase: str, count: int = 0,
     """
     seeds = tuple(track.public_seeds) if check_phase(phase) == "dev" else tuple(range(count))
     description = track.description + (f"; {note}" if note else "")
-    if isinstance(track, SuiteTrack):
-        return dataclasses.replace(track, suite=dataclasses.replace(track.suite, test_seeds=seeds),
-                                   description=description)
-    return dataclasses.replace(track, test_seeds=seeds, description=description)
+    return track.with_seeds(seeds, description)

@@ -1,10 +1,9 @@
 """The HTML pages of a hosted board: the home page, a track's board per phase, a submission, an error.
 
-A board is the local leaderboard's own page (:mod:`wfbench.leaderboard.report`, or
-:mod:`wfbench.leaderboard.suite_report` for a suite track) over the hosted rows
-(:meth:`Board.store_view`), so both boards rank, show costs and name oracles alike; a test
-phase's rows carry seed indices, so no page names a hidden seed. Every text a submitter chose
-is escaped. A submission's page refreshes itself while it is queued or running.
+A board is the local leaderboard's own page (:mod:`wfbench.leaderboard.report`) over the hosted
+rows (:meth:`Board.store_view`), so both boards rank, show costs and name oracles alike; a test
+phase's rows carry seed indices and its page draws no per-seed figure: no page names a hidden
+seed. Every text a submitter chose is escaped. A submission's page refreshes itself while it is queued or running.
 ``docs/leaderboard.md``, "The hosted leaderboard".
 """
 
@@ -15,9 +14,8 @@ import threading
 import weakref
 from typing import Any
 
-from wfbench.leaderboard import report, suite_report
+from wfbench.leaderboard import report
 from wfbench.leaderboard.report import Ranking
-from wfbench.leaderboard.tracks import SuiteTrack
 
 from wfbench.core.kpis import KPI_LABELS
 
@@ -52,17 +50,36 @@ def track_info(board, name: str) -> dict[str, Any]:
     t = board.tracks[name]
     dev = tuple(t.public_seeds)
     published = board.hidden_commitment(name)
-    return {"name": name, "hash": t.hash, "description": t.description, "suite": isinstance(t, SuiteTrack),
-            "scenarios": len(t.configs()), "dev": {"seeds": f"{dev[0]}..{dev[-1]}", "count": len(dev)},
+    return {"name": name, "hash": t.hash, "description": t.description, "scenarios": len(t.configs()),
+            "dev": {"seeds": f"{dev[0]}..{dev[-1]}", "count": len(dev)},
             "test": {"hidden": True, "count": published.count, "version": published.version,
                      "commitment": published.commitment}}
 
 
+_RANK = threading.Lock()
+# board -> {(track, phase): (what the ranking saw, the ranking)}, like the pages below
+_RANKINGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _stamp(board, track: str, phase: str) -> tuple:
+    """What a board's ranking and page depend on: the submissions' states and times and the hidden seeds."""
+    return (tuple((s.id, s.state, s.updated) for s in board.submissions(track, phase)),
+            board.hidden_commitment(track), board.test_phase_ended(track))
+
+
 def board_ranking(board, track: str, phase: str) -> Ranking:
-    """The ranking of a phase of ``track`` over the database's rows, by the local board's own rules."""
-    view = board.store_view(track, phase)
-    rank = suite_report.ranking if isinstance(view.track, SuiteTrack) else report.ranking
-    return rank(view, view.track)
+    """The ranking of a phase of ``track`` by the local board's own rules, ranked again only when a submission changed.
+
+    Its stratified bootstrap takes seconds on a busy machine, and the JSON and the page both ask for it.
+    """
+    stamp = _stamp(board, track, phase)
+    with _RANK:
+        kept = _RANKINGS.setdefault(board, {})
+        cached = kept.get((track, phase))
+        if cached is None or cached[0] != stamp:
+            view = board.store_view(track, phase)
+            kept[(track, phase)] = cached = (stamp, report.ranking(view, view.track))
+    return cached[1]
 
 
 def phase_note(board, track: str, phase: str) -> str:
@@ -79,21 +96,6 @@ def phase_note(board, track: str, phase: str) -> str:
             "published before any result; revealing the seeds and salt later lets anyone check it).")
 
 
-def _test_board_html(r: Ranking) -> str:
-    """A one-scenario track's test board: the ranking and the NSW chart, without the per-seed KPI figure."""
-    import matplotlib.pyplot as plt
-
-    header, rows = report._cells(r)
-    _, ref = report._cells(r, deployable=False)
-    figures = []
-    fig = report.nsw_figure(r)
-    if fig is not None:
-        figures.append(("Mean Nash social welfare with bootstrap 95% intervals, on its whole range [0, 1]",
-                        report.png_data(fig)))
-        plt.close(fig)
-    return report.page(r, report.caption(r), header, rows, ref, figures)
-
-
 _RENDER = threading.Lock()  # pyplot's figures are global state: one board is drawn at a time
 # board -> {(track, phase): (what the page showed, the page)}; a board that is gone takes its pages with it
 _PAGES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -107,8 +109,7 @@ def board_page(board, track: str, phase: str) -> str:
     kept per board, track and phase with the submissions' states and times it showed (a
     running entry's episode count is brought up to date when its state changes).
     """
-    stamp = (tuple((s.id, s.state, s.updated) for s in board.submissions(track, phase)),
-             board.hidden_commitment(track), board.test_phase_ended(track))
+    stamp = _stamp(board, track, phase)
     with _RENDER:
         pages = _PAGES.setdefault(board, {})
         cached = pages.get((track, phase))
@@ -120,10 +121,7 @@ def board_page(board, track: str, phase: str) -> str:
 def render_board(board, track: str, phase: str) -> str:
     """The board of ``track``'s ``phase``: the local report's page with the phase's note and links above it."""
     r = board_ranking(board, track, phase)
-    if isinstance(r.track, SuiteTrack) or phase == "dev":
-        page = (suite_report if isinstance(r.track, SuiteTrack) else report).render(r, "html")
-    else:
-        page = _test_board_html(r)
+    page = report.render(r, "html", per_seed=phase == "dev")  # a test phase shows aggregates only
     other = "test" if phase == "dev" else "dev"
     banner = (f"<nav><a href='/'>wfbench leaderboard</a> | <a href='/board/{esc(track)}?phase={other}'>"
               f"{other} phase</a> | <a href='/api/board/{esc(track)}?phase={phase}'>JSON</a></nav>\n"

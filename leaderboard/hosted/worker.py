@@ -176,7 +176,7 @@ def failure_reason(exc: BaseException) -> str:
 def aggregate(frame: pd.DataFrame) -> dict[str, Any]:
     """A finished submission's result: the episode count and each KPI's mean, 25% and 75% quantile.
 
-    Over every row, and per scenario on a suite track (one entry per scenario).
+    Over every row, and per scenario where the rows name theirs (a track of several scenarios).
     """
     def kpis(df: pd.DataFrame) -> dict[str, dict[str, float]]:
         return {k: {"mean": m, "q25": lo, "q75": hi} for k, (m, lo, hi) in summarize(df, KPI_COLUMNS).items()}

@@ -13,7 +13,7 @@ import torch
 from wfbench.leaderboard.report import ranking, render
 from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.submit import submit
-from wfbench.leaderboard.tracks import Track
+from wfbench.leaderboard.tracks import scenario_track
 from wfbench.policies.solver import DEFAULT_TIME_LIMIT_S, AssignmentDispatch
 from wfbench.solvers import assignment
 
@@ -24,8 +24,10 @@ from wfbench.harness.budget import BUDGET_COLUMNS, NOT_RECORDED, machine, policy
 from wfbench.harness.evaluation import evaluate
 
 SHORT = ScenarioConfig.preset("small").replace(name="budget-test", horizon=40)
-TINY = Track(name="tiny-budget", config=ScenarioConfig.preset("small").replace(name="tiny-budget", horizon=40),
-             public_seeds=(100, 101), test_seeds=(0, 1, 2, 3), description="a small track for the budget tests")
+TINY = scenario_track(name="tiny-budget", config=ScenarioConfig.preset("small").replace(name="tiny-budget", horizon=40),
+                      public_seeds=(100, 101), test_seeds=(0, 1, 2, 3),
+                      description="a small track for the budget tests",
+                      references={"tiny-budget": (0.0, 1.0)})  # no published constants: normalized = NSW
 SLEEP_S = 0.004
 
 

@@ -175,7 +175,7 @@ def test_reproduce_suite_checks_every_member_against_the_bound(members, tmp_path
 # the suite board
 
 def test_the_board_ranks_a_method_over_its_seeds_and_shows_each_seed(members, tmp_path):
-    from wfbench.leaderboard import suite_report
+    from wfbench.leaderboard import report
     from wfbench.leaderboard.store import Store
 
     from tests.leaderboard.test_leaderboard_suite import TINY, _row
@@ -194,7 +194,7 @@ def test_the_board_ranks_a_method_over_its_seeds_and_shows_each_seed(members, tm
     entry("gen-0", "ppo-general#seed0", 0.70, 0.90)
     entry("gen-1", "ppo-general#seed1", 0.70, 0.70)
     entry("ppo-general", "ppo-general", 0.70, 0.70)  # the pick, seed 1's copy
-    r = suite_report.ranking(store, TINY, reps=200)
+    r = report.ranking(store, TINY, reps=200)
     t = r.table.set_index("name")
     assert t.loc["ppo-general (2 seeds)", "rank"] == 1 and t.loc["heuristic", "rank"] == 2
     for name in ("gen-0", "gen-1", "ppo-general"):
@@ -206,12 +206,12 @@ def test_the_board_ranks_a_method_over_its_seeds_and_shows_each_seed(members, tm
     assert t.loc["ppo-general (2 seeds)", "mean_heldout"] == pytest.approx(runs.mean())  # 6 runs x 1 scenario
     lo, hi = t.loc["ppo-general (2 seeds)", ["iqm_heldout_low", "iqm_heldout_high"]]
     assert lo <= t.loc["ppo-general (2 seeds)", "iqm_heldout"] <= hi
-    text = suite_report.render(r, "md")
+    text = report.render(r, "md")
     assert "| 1 | ppo-general (2 seeds) | ppo-general over training seeds 0, 1 |" in text
-    assert "| gen-0 |" not in text.split("Mean normalized score per scenario")[0], "seeds are not entries to rank"
+    assert "| gen-0 |" not in text.split(report.SCENARIOS_TITLE)[0], "seeds are not entries to rank"
     assert "the shipped pick of ppo-general, ranked over its training seeds" in text
-    seeds = text.split(suite_report.SEEDS_TITLE)[1]
+    seeds = text.split(report.SEEDS_TITLE)[1]
     assert "| ppo-general | gen-1 (shipped pick) |" in seeds and "ppo-general (2 seeds), pooled (#1)" in seeds
     assert f"{normalize([0.90, 0.91, 0.92], 'slow-64-v1', TINY.suite).mean():.3f}" in seeds  # seed 0's held-out
-    page = suite_report.render(r, "html")
+    page = report.render(r, "html")
     assert "<table id='seeds'>" in page and "<td>gen-1 (shipped pick)</td>" in page

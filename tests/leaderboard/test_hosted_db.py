@@ -18,12 +18,13 @@ from wfbench.leaderboard.hosted import hidden, queue
 from wfbench.leaderboard.hosted.db import Board, BoardError, QuotaExceeded, connect, submissions
 from wfbench.leaderboard.report import ranking, render
 from wfbench.leaderboard.store import KPI_COLUMNS
-from wfbench.leaderboard.tracks import Track, suite_track
+from wfbench.leaderboard.tracks import scenario_track, suite_track
 
 from wfbench.core.config import ScenarioConfig
 
-TINY = Track(name="tiny", config=ScenarioConfig.preset("small").replace(name="tiny", horizon=20),
-             public_seeds=(1000, 1001, 1002), test_seeds=(0, 1, 2), description="a tiny track for the tests")
+TINY = scenario_track(name="tiny", config=ScenarioConfig.preset("small").replace(name="tiny", horizon=20),
+                      public_seeds=(1000, 1001, 1002), test_seeds=(0, 1, 2), description="a tiny track for the tests",
+                      references={"tiny": (0.0, 1.0)})  # no published constants: normalized = NSW
 
 
 @pytest.fixture
@@ -203,7 +204,8 @@ def test_hidden_seeds_are_committed_and_verifiable(board):
     assert not hidden.verify(pub, (h.seeds[0] + 1, *h.seeds[1:]), h.salt), "another seed list does not verify"
     assert not hidden.verify(pub, h.seeds, "00" * 16)
     # a new definition of the track needs a new list; the old one stays for the submissions that ran on it
-    edited = Track("tiny", TINY.config.replace(horizon=21), TINY.public_seeds, TINY.test_seeds, TINY.description)
+    edited = scenario_track("tiny", TINY.config.replace(horizon=21), TINY.public_seeds, TINY.test_seeds,
+                            TINY.description)
     other = Board(board.url, tracks={"tiny": edited})
     h2 = other.ensure_hidden_seeds("tiny", n=4)
     assert h2.version == 2 and h2.track_hash == edited.hash and not set(h2.seeds) & set(h.seeds)

@@ -14,15 +14,17 @@ from wfbench.leaderboard.hosted.db import BoardError
 from wfbench.leaderboard.hosted.seed import ACCOUNT, ENTRY, seed
 from wfbench.leaderboard.hosted.worker import run_worker
 from wfbench.leaderboard.store import ROW_COLUMNS
-from wfbench.leaderboard.tracks import Track
+from wfbench.leaderboard.tracks import scenario_track
 from wfbench.policies.registry import LINEUPS
 
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.evaluation import evaluate
 
-TINY = Track(name="tiny", config=ScenarioConfig.preset("small").replace(name="tiny", horizon=20),
-             public_seeds=tuple(range(1000, 1004)), test_seeds=(0, 1, 2), description="a tiny track for the tests")
+TINY = scenario_track(name="tiny", config=ScenarioConfig.preset("small").replace(name="tiny", horizon=20),
+                      public_seeds=tuple(range(1000, 1004)), test_seeds=(0, 1, 2),
+                      description="a tiny track for the tests",
+                      references={"tiny": (0.0, 1.0)})  # no published constants: normalized = NSW
 ORACLE_LEFT_OUT = "it reads the trace (a hindsight oracle); a sandboxed policy sees observations only"
 
 

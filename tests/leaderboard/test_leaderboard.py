@@ -17,19 +17,20 @@ import pytest
 from wfbench.leaderboard.report import ranking, render
 from wfbench.leaderboard.store import Store, StoreError
 from wfbench.leaderboard.submit import SubmitError, submit
-from wfbench.leaderboard.tracks import TRACKS, Track, get_track
+from wfbench.leaderboard.tracks import TRACKS, get_track, scenario_track
 
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 
-TINY = Track(
+TINY = scenario_track(
     name="tiny-test",
     config=ScenarioConfig.preset("small").replace(name="tiny-test", horizon=60),
     public_seeds=(100, 101),
     test_seeds=(0, 1, 2, 3),
     description="a small track for the tests",
+    references={"tiny-test": (0.0, 1.0)},  # no published constants: the normalized score is the NSW
 )
 
 
@@ -58,7 +59,7 @@ def test_tracks_are_defined_and_hashed():
     ns = get_track("nonstationary").config
     assert ns.request_schedule.kind == "drift" and ns.churn_schedule.kind == "drift"
     assert len({t.hash for t in TRACKS.values()}) == 4  # and suite-v1: tests/leaderboard/test_leaderboard_suite.py
-    edited = Track(p.name, p.config.replace(horizon=801), p.public_seeds, p.test_seeds, p.description)
+    edited = scenario_track(p.name, p.config.replace(horizon=801), p.public_seeds, p.test_seeds, p.description)
     assert edited.hash != p.hash
     with pytest.raises(ValueError, match="unknown track 'nope'; available: paper-64, nonstationary, large, suite-v1"):
         get_track("nope")
@@ -172,7 +173,8 @@ def test_rows_that_do_not_match_the_track_are_refused(db):
     assert sorted(rows["seed"]) == [0, 3]
     assert any("seed 77 is not a test seed" in m for m in refused)
     assert any("seed 2: its values do not match its digest (the row was edited)" in m for m in refused)
-    newer = Track(TINY.name, TINY.config.replace(horizon=61), TINY.public_seeds, TINY.test_seeds, TINY.description)
+    newer = scenario_track(TINY.name, TINY.config.replace(horizon=61), TINY.public_seeds, TINY.test_seeds,
+                           TINY.description)
     rows, refused = Store(db).results(newer)
     assert rows.empty and all("another version of track tiny-test" in m for m in refused) and len(refused) == 4
 
@@ -282,7 +284,9 @@ def test_html_report_renders_in_headless_chromium(db, tmp_path):
     )
     dom = out.stdout
     assert "<table id=\"ranking\">" in dom, out.stderr[-2000:]
-    assert dom.count("<tr>") == 4  # header + 3 entries
+    ranked, per_scenario = dom.split("<table id=\"scenarios\">")
+    assert ranked.count("<tr>") == 4 and per_scenario.count("<tr>") == 4  # header + 3 entries, each
+    # the IQM chart, and the scenario's per-seed KPIs and paired differences to the baseline
     assert 'data-images-decoded="3"' in dom, "the browser decoded the three embedded plots"
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import json
 
 import pytest
-from wfbench.leaderboard import suite_report
+from wfbench.leaderboard import report
 from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.submit import submit
-from wfbench.leaderboard.tracks import TRACKS, SuiteTrack, get_track
+from wfbench.leaderboard.tracks import TRACKS, Track, get_track
 
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
@@ -17,7 +17,7 @@ from wfbench.scenarios import Suite, get_suite, normalize
 
 FULL = get_suite("suite-v1")
 # two real scenarios of suite-v1, one per split, on three seeds: their normalization constants are the suite's
-TINY = SuiteTrack(name="tiny-suite", suite=Suite(name="suite-v1", version=1, description="a subset for the tests",
+TINY = Track(name="tiny-suite", suite=Suite(name="suite-v1", version=1, description="a subset for the tests",
                                                  scenarios=(FULL.scenario("small-v1"), FULL.scenario("slow-64-v1")),
                                                  test_seeds=(0, 1, 2)),
                   description="small-v1 (training) and slow-64-v1 (held out) on seeds 0-2")
@@ -45,7 +45,7 @@ def _entry(store, name, nsw_train, nsw_heldout):
 
 def test_the_suite_track_is_listed_and_hashed_with_the_suite(capsys):
     tr = get_track("suite-v1")
-    assert isinstance(tr, SuiteTrack) and tr.hash == FULL.hash
+    assert tr.suite is FULL and not tr.seeded and tr.hash == FULL.hash and tr.rank_split == "heldout"
     assert len(tr.units()) == 16 * 50 and tr.units()[0] == ("small-v1", 0)
     assert tr.configs()["city-v1"] == FULL.scenario("city-v1").config
     assert main(["leaderboard", "tracks"]) == 0
@@ -57,7 +57,7 @@ def test_ranked_by_the_held_out_aggregate_not_by_the_mean_score(db):
     store = Store(db)
     _entry(store, "good-at-training", nsw_train=0.85, nsw_heldout=0.50)  # the higher mean NSW over all rows
     _entry(store, "good-held-out", nsw_train=0.45, nsw_heldout=0.80)
-    r = suite_report.ranking(store, TINY, baseline="good-at-training")
+    r = report.ranking(store, TINY, baseline="good-at-training")
     t = r.table.set_index("name")
     assert t.loc["good-at-training", "nsw"] > t.loc["good-held-out", "nsw"]
     assert t["rank"].to_dict() == {"good-held-out": 1, "good-at-training": 2}
@@ -68,10 +68,10 @@ def test_ranked_by_the_held_out_aggregate_not_by_the_mean_score(db):
             assert t.loc[name, f"iqm_{split}_low"] <= t.loc[name, f"iqm_{split}"] <= t.loc[name, f"iqm_{split}_high"]
     assert t.loc["good-at-training", "iqm_train"] > t.loc["good-held-out", "iqm_train"], "training shown too"
     assert t.loc["good-held-out", "p_improve_heldout"] == 1.0
-    again = suite_report.ranking(store, TINY, baseline="good-at-training").table
+    again = report.ranking(store, TINY, baseline="good-at-training").table
     assert again.equals(r.table), "the intervals are seeded: the same rows give the same digits"
-    text = suite_report.render(r, "md")
-    assert "| 1 | good-held-out | heuristic |" in text and "Mean normalized score per scenario" in text
+    text = report.render(r, "md")
+    assert "| 1 | good-held-out | heuristic |" in text and report.SCENARIOS_TITLE in text
     assert "| slow-64-v1 | heldout |" in text
 
 
@@ -86,15 +86,15 @@ def test_submit_runs_every_scenario_and_resumes_and_the_html_shows_the_track(db,
     assert refused == [] and len(rows) == 12
     assert set(zip(rows["scenario"], rows["seed"], strict=True)) == set(TINY.units())
     assert rows[["decision_ms_p50", "cpu_s"]].notna().all().all()
-    t = suite_report.ranking(Store(db), TINY).table.set_index("name")
+    t = report.ranking(Store(db), TINY).table.set_index("name")
     assert t.loc["heuristic", "rank"] == 1 and t.loc["random", "rank"] == 2
     assert t.loc["heuristic", "iqm_heldout"] > t.loc["random", "iqm_heldout"]
     assert main(["leaderboard", "show", "--track", TINY.name, "--db", str(db)]) == 0
     shown = capsys.readouterr().out
-    assert "Held-out IQM [95% CI]" in shown and "Training IQM [95% CI]" in shown and "6/6" in shown
+    assert "IQM, held out [95% CI]" in shown and "IQM, training [95% CI]" in shown and "6/6" in shown
     assert main(["leaderboard", "show", "--track", TINY.name, "--db", str(db), "--format", "html"]) == 0
     page = capsys.readouterr().out
-    assert "<title>wfbench leaderboard: tiny-suite</title>" in page and "<th>Held-out IQM [95% CI]</th>" in page
+    assert "<title>wfbench leaderboard: tiny-suite</title>" in page and "<th>IQM, held out [95% CI]</th>" in page
     assert "<table id='scenarios'>" in page and "data:image/png;base64," in page
     assert "<td>slow-64-v1</td><td>heldout</td>" in page
 
@@ -102,7 +102,7 @@ def test_submit_runs_every_scenario_and_resumes_and_the_html_shows_the_track(db,
 def test_results_of_another_suite_version_are_refused(db):
     store = Store(db)
     _entry(store, "old", 0.6, 0.6)
-    changed = SuiteTrack(name=TINY.name, description=TINY.description,
+    changed = Track(name=TINY.name, description=TINY.description,
                          suite=Suite(name="suite-v1", version=1, description="seeds changed",
                                      scenarios=TINY.suite.scenarios, test_seeds=(0, 1, 2, 3)))
     assert changed.hash != TINY.hash
@@ -110,8 +110,8 @@ def test_results_of_another_suite_version_are_refused(db):
     assert rows.empty and len(refused) == 6
     assert refused[0] == (f"result of 'old', scenario slow-64-v1, seed 0: made on another version of track "
                           f"tiny-suite (hash {TINY.hash}, current {changed.hash}); refused")
-    r = suite_report.ranking(store, changed)
-    assert r.table.loc[0, "rank"] is None and "0/8" in suite_report.render(r, "table")
+    r = report.ranking(store, changed)
+    assert r.table.loc[0, "rank"] is None and "0/8" in report.render(r, "table")
 
 
 def test_time_left_weighs_scenarios_by_their_measured_and_estimated_cost(monkeypatch):
@@ -152,3 +152,47 @@ def test_a_suite_submission_reports_its_time_per_scenario(db, monkeypatch, capsy
     assert "0/6 episodes" in err and "time left: after the first episodes" in err and "time left: about" in err, err
     o = submit(TINY, "random", "r", db=db, backend="serial")
     assert set(o.scenario_seconds) == {"small-v1", "slow-64-v1"} and all(t > 0 for t in o.scenario_seconds.values())
+
+
+def test_a_one_scenario_track_is_a_suite_of_one_ranked_by_the_same_rule(db):
+    from rliable import metrics
+
+    from wfbench.analysis.stats import bootstrap_ci
+
+    paper, large = get_track("paper-64"), get_track("large")
+    assert paper.scenarios() == [("", FULL.scenario("paper-64-v1"))] and paper.hash == "c99646c6fa5c75b7"
+    assert (paper.rank_split, large.rank_split, get_track("suite-v1").rank_split) == ("all", "heldout", "heldout")
+    short = paper.with_seeds((0, 1, 2, 3), "paper-64 on four seeds")
+    store = Store(db)
+    nsw = {"low": [0.70, 0.71, 0.72, 0.90], "high": [0.75, 0.76, 0.77, 0.60]}
+    for name, values in nsw.items():
+        sub, _ = store.open_submission(short, name, "heuristic", "me", "0", fingerprint=name)
+        store.add_results(sub, "0", [_row("", s, v) for s, v in zip(short.test_seeds, values, strict=True)])
+        store.set_status(sub.id, "complete")
+    r = report.ranking(store, short, baseline="low", reps=200)
+    t = r.table.set_index("name")
+    for name, values in nsw.items():  # the rank key: the IQM of the normalized score with suite-v1's constants
+        iqm = metrics.aggregate_iqm(normalize(values, "paper-64-v1", FULL).reshape(-1, 1))
+        assert t.loc[name, "iqm_all"] == pytest.approx(iqm)
+    # "low" has the higher mean NSW (0.7575 > 0.72) but the lower IQM: the IQM ranks
+    assert t.loc["high", "rank"] == 1 and t.loc["low", "rank"] == 2 and t.loc["low", "nsw"] > t.loc["high", "nsw"]
+    text = report.render(r, "table")
+    assert "IQM, all scenarios [95% CI]" in text and "P(improvement over low), all scenarios" in text
+    ci = bootstrap_ci(nsw["high"])  # the per-scenario table keeps the mean NSW with its interval
+    line = next(ln for ln in text.splitlines() if ln.startswith("paper-64-v1") and " high " in ln)
+    assert f"[{ci.low:.3f}, {ci.high:.3f}]" in line and "-0.0375 [" in line and " train " in line
+
+
+def test_a_scenario_without_constants_is_shown_and_not_ranked(db):
+    from wfbench.leaderboard.tracks import scenario_track
+
+    own = scenario_track("own", ScenarioConfig.preset("small").replace(name="own", horizon=20), (100,), (0, 1),
+                         "a scenario of no suite")
+    store = Store(db)
+    sub, _ = store.open_submission(own, "mine", "heuristic", "me", "0", fingerprint="mine")
+    store.add_results(sub, "0", [_row("", s, 0.7) for s in own.test_seeds])
+    store.set_status(sub.id, "complete")
+    r = report.ranking(store, own, reps=200)
+    assert r.table.loc[0, "rank"] is None and r.table.loc[0, "nsw"] == pytest.approx(0.7)
+    assert r.refused == ["scenario own: suite 'own' has no reference constants (own.json); compute them with "
+                         "tools/suite_references.py; its rows are shown, not ranked"]

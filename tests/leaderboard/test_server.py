@@ -25,15 +25,18 @@ from wfbench.leaderboard.hosted import queue
 from wfbench.leaderboard.hosted.db import Board, jobs, packages, submissions
 from wfbench.leaderboard.hosted.server import create_app
 from wfbench.leaderboard.hosted.worker import Worker, aggregate
-from wfbench.leaderboard.tracks import Track
+from wfbench.leaderboard.tracks import scenario_track
 
 from tests.leaderboard.live_server import LiveServer
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.guard import PolicyError
 from wfbench.harness.isolation.package import archive
 
-TRACK = Track(name="tiny-hosted", config=ScenarioConfig.preset("small").replace(name="tiny-hosted", horizon=60),
-              public_seeds=(1000, 1001, 1002), test_seeds=(0, 1, 2), description="a small hosted track for the tests")
+TRACK = scenario_track(name="tiny-hosted",
+                       config=ScenarioConfig.preset("small").replace(name="tiny-hosted", horizon=60),
+                       public_seeds=(1000, 1001, 1002), test_seeds=(0, 1, 2),
+                       description="a small hosted track for the tests",
+                       references={"tiny-hosted": (0.0, 1.0)})  # no published constants: normalized = NSW
 POLICY = """\
 import numpy as np
 
@@ -309,7 +312,7 @@ def test_submission_page__what_a_policy_wrote_is_escaped(client, board, token):
 def test_tracks_and_board_json__the_test_phase_publishes_only_its_commitment(client, board, token):
     tracks = client.get("/api/tracks").json()["tracks"]
     published = board.hidden_commitment(TRACK.name)
-    assert tracks == [{"name": TRACK.name, "hash": TRACK.hash, "description": TRACK.description, "suite": False,
+    assert tracks == [{"name": TRACK.name, "hash": TRACK.hash, "description": TRACK.description,
                        "scenarios": 1, "dev": {"seeds": "1000..1002", "count": 3},
                        "test": {"hidden": True, "count": 50, "version": 1, "commitment": published.commitment}}]
     for tag in ("lo", "hi"):

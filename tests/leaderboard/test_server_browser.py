@@ -107,7 +107,8 @@ def test_boards__order_is_the_database_ranking_and_the_test_phase_shows_no_per_s
     test = dom(browser, f"{url}/board/{TRACK.name}?phase=test")
     assert names_in(test) == ["test-0.7", "test-0.5", "test-0.3", "test-0.1"]
     assert names_in(test) == board_ranking(board, TRACK.name, "test").table["name"].tolist()
-    assert 'data-images-decoded="1"' in test, "the test board has the NSW chart only, no per-seed KPI figure"
+    # the IQM chart only (no entry is the baseline "heuristic" to pair with), and no per-seed KPI figure
+    assert 'data-images-decoded="1"' in test and "per-seed KPIs" not in test
     assert board.hidden_commitment(TRACK.name).commitment in test
     hidden = board.ensure_hidden_seeds(TRACK.name).seeds
     pages = [test, dom(browser, f"{url}/submissions/{ids[3]}")]

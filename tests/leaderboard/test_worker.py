@@ -23,7 +23,7 @@ import sqlalchemy as sa
 from wfbench.leaderboard.hosted import worker as worker_mod
 from wfbench.leaderboard.hosted.worker import Worker, run_worker
 from wfbench.leaderboard.store import ROW_COLUMNS
-from wfbench.leaderboard.tracks import Track
+from wfbench.leaderboard.tracks import scenario_track
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness.evaluation import evaluate
@@ -31,8 +31,10 @@ from wfbench.harness.guard import PolicyError
 
 ROOT = Path(__file__).resolve().parents[2]
 POLICY = "heuristic"  # what the in-process evaluator plays, whatever the package
-TINY = Track(name="tiny", config=ScenarioConfig.preset("small").replace(name="tiny", horizon=20),
-             public_seeds=tuple(range(1000, 1006)), test_seeds=(0, 1, 2), description="a tiny track for the tests")
+TINY = scenario_track(name="tiny", config=ScenarioConfig.preset("small").replace(name="tiny", horizon=20),
+                      public_seeds=tuple(range(1000, 1006)), test_seeds=(0, 1, 2),
+                      description="a tiny track for the tests",
+                      references={"tiny": (0.0, 1.0)})  # no published constants: normalized = NSW
 
 
 def builtin_evaluator(package_dir, entry, config, seeds, limits, key_secret, key_context, chunk_size=None):

@@ -64,8 +64,8 @@ def add_parser(sub) -> None:
                     help="rank only entries that used at most this many CPU seconds per episode")
     ld = lsub.add_parser("baselines", aliases=["seed"], help="fill in the built-in entries (random, heuristic, "
                          "solver, ...); 'seed' is the old name of this command")
-    ld.add_argument("--track", default=None, help="one track (default: every one-scenario track; a suite track "
-                                                  "only when named)")
+    ld.add_argument("--track", default=None, help="one track (default: every track but one that runs a whole "
+                                                  "suite, such as suite-v1: that one only when named)")
     ld.add_argument("--db", default=None)
     ld.add_argument("--no-progress", action="store_true")
     add_backend_args(ld)
@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
         if args.lb_command in ("baselines", "seed"):
             check_backend_args(args)
             failed = 0
-            for tr in seed_tracks(track(args.track) if args.track else None):  # a suite track only when named
+            for tr in seed_tracks(track(args.track) if args.track else None):  # a track not marked seeded: only when named
                 for out in seed_builtins(tr, db=args.db, backend=args.backend, workers=args.workers,
                                          address=args.address, progress=not args.no_progress):
                     print(f"{tr.name:<14s} {out.submission.name:<20s} {out.status} ({out.stored_rows} seeds, "

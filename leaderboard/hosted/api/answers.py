@@ -94,7 +94,6 @@ class TrackInfo(BaseModel):
     name: str
     hash: str
     description: str
-    suite: bool
     scenarios: int
     dev: SeedCount
     test: HiddenSeedList
