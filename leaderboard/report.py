@@ -483,8 +483,10 @@ SEEDS_TITLE = ("Learned methods over training seeds: each seed's IQM and mean no
 def caption(r: Ranking) -> str:
     t = r.track
     seeds = t.test_seeds
+    n = len(t.suite.scenarios)
+    where = "its one scenario" if n == 1 else f"each of {n} scenarios"
     return (f"Track {t.name} (hash {t.hash}): {t.description}; test seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}) on "
-            f"each of {len(t.suite.scenarios)} scenario(s). Ranked by the IQM of the normalized score over "
+            f"{where}. Ranked by the IQM of the normalized score over "
             f"{SPLIT_LABELS[t.rank_split]} (the held-out scenarios where a track has some, else all of them; "
             "0 = the random policy, 1 = the proven upper bound, per scenario; higher is better), with 95% "
             "stratified bootstrap intervals over seeds within scenarios (rliable). A learned method entered once "
