@@ -34,6 +34,7 @@ from wfbench.harness.evaluation import format_kpi, summarize
 
 FORMATS = ("table", "md", "csv", "html")
 SPLIT_LABELS = {"heldout": "held out", "train": "training", "all": "all scenarios"}
+RANKED_OVER = {"heldout": "the held-out scenarios", "all": "all its scenarios"}  # the caption's words
 REPS = 2000  # bootstrap replications per entry and split (rliable's IQM costs about 0.6 ms each on 50 x 8 scores)
 SEED = 0  # the bootstrap's seed: the same rows give the same intervals to the last digit
 
@@ -487,7 +488,7 @@ def caption(r: Ranking) -> str:
     where = "its one scenario" if n == 1 else f"each of {n} scenarios"
     return (f"Track {t.name} (hash {t.hash}): {t.description}; test seeds {seeds[0]}..{seeds[-1]} ({len(seeds)}) on "
             f"{where}. Ranked by the IQM of the normalized score over "
-            f"{SPLIT_LABELS[t.rank_split]} (the held-out scenarios where a track has some, else all of them; "
+            f"{RANKED_OVER[t.rank_split]} (the held-out scenarios where a track has some, else all of them; "
             "0 = the random policy, 1 = the proven upper bound, per scenario; higher is better), with 95% "
             "stratified bootstrap intervals over seeds within scenarios (rliable). A learned method entered once "
             "per training seed is ranked by the aggregate over its seeds, 'METHOD (N seeds)'. Costs: wall ms per "
