@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,20 +66,23 @@ def db_now(conn: Connection) -> float:
 
 
 def claim(engine: Engine, worker_id: str, lease_s: float = DEFAULT_LEASE_S,
-          max_attempts: int = MAX_ATTEMPTS) -> Claim | None:
+          max_attempts: int = MAX_ATTEMPTS, submission_id: int | None = None) -> Claim | None:
     """Take the oldest job that is queued or whose lease expired, or None when there is none.
 
     A job whose lease expired after ``max_attempts`` claims is failed instead ("lost its
     worker N times") and the next candidate is tried, in the same transaction.
+    ``submission_id``: only that submission's job is a candidate.
     """
     if not lease_s > 0:
         raise ValueError(f"lease {lease_s:g} s is not allowed; allowed: seconds > 0")
     with engine.begin() as conn:
         while True:
             now = db_now(conn)
+            claimable = (jobs.c.state == "queued") | ((jobs.c.state == "running") & (jobs.c.lease_until < now))
+            if submission_id is not None:
+                claimable = claimable & (jobs.c.submission_id == submission_id)
             job = conn.execute(
-                sa.select(jobs.c.submission_id, jobs.c.state, jobs.c.fence)
-                .where((jobs.c.state == "queued") | ((jobs.c.state == "running") & (jobs.c.lease_until < now)))
+                sa.select(jobs.c.submission_id, jobs.c.state, jobs.c.fence).where(claimable)
                 .order_by(jobs.c.submission_id).limit(1).with_for_update(skip_locked=True)).first()
             if job is None:
                 return None
@@ -157,11 +160,14 @@ def release(c: Claim, reason: str, spent_s: float | None = None) -> str:
         return "requeued"
 
 
-def write_rows(c: Claim, new_rows: Iterable[Mapping[str, Any]], spent_s: float | None = None) -> int:
+def write_rows(c: Claim, new_rows: Iterable[Mapping[str, Any]], spent_s: float | None = None,
+               then: Callable[[Connection, list[dict[str, Any]]], None] | None = None) -> int:
     """Store finished units in one transaction, after checking the fence; returns how many rows were new.
 
     Each row has the keys of :data:`wfbench.leaderboard.hosted.db.ROW_FIELDS`; a missing or
     non-finite budget measurement is stored as NULL. A unit already stored is skipped.
+    ``then(conn, rows)``: called in the same transaction with the rows inserted, as stored
+    (the local board adds their provenance).
 
     Raises:
         LeaseLost: the fence is stale; nothing was written.
@@ -177,8 +183,12 @@ def write_rows(c: Claim, new_rows: Iterable[Mapping[str, Any]], spent_s: float |
             v["finished"] = now
         # RETURNING counts what was inserted (psycopg reports no rowcount for ON CONFLICT DO NOTHING)
         stmt = dialect.insert(rows).values(values).on_conflict_do_nothing(
-            index_elements=[rows.c.submission_id, rows.c.scenario, rows.c.seed_index]).returning(rows.c.seed_index)
-        return len(conn.execute(stmt).all())
+            index_elements=[rows.c.submission_id, rows.c.scenario, rows.c.seed_index]).returning(
+            rows.c.scenario, rows.c.seed_index)
+        inserted = {(r.scenario, r.seed_index) for r in conn.execute(stmt)}
+        if then is not None and inserted:
+            then(conn, [v for v in values if (v["scenario"], v["seed_index"]) in inserted])
+        return len(inserted)
 
 
 def _row(submission_id: int, r: Mapping[str, Any]) -> dict[str, Any]:

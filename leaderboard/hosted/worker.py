@@ -1,13 +1,12 @@
-"""``wfbench worker --server DBURL``: evaluate queued submissions in the sandbox and store their rows, fenced.
+"""``wfbench worker --server DBURL``: evaluate queued submissions and store their rows, fenced.
 
-The loop: :func:`~wfbench.leaderboard.hosted.queue.claim` a job, unpack its package (re-checked),
-run the missing units chunk by chunk through
-:func:`wfbench.harness.isolation.sandbox.evaluate_sandboxed`, store each chunk
-(:func:`~wfbench.leaderboard.hosted.queue.write_rows`) and finish, a thread renewing the lease.
-The policy's failures are final; the board's hand the job back. :func:`warm_builtins` warms the
-numba cache the sandboxes copy from; :func:`stale_unpack_dirs` finds folders of killed workers.
-The evaluator is a parameter only so tests can pass a deterministic in-process one.
-``docs/leaderboard.md``, "The hosted leaderboard" (the queue, whose fault, an upload's cost).
+The loop: :func:`~wfbench.leaderboard.hosted.queue.claim` a job, ask the :class:`Runner` for its
+missing units chunk by chunk, store each chunk (:func:`~wfbench.leaderboard.hosted.queue.write_rows`)
+and finish, a thread renewing the lease. The hosted board's runner (:class:`SandboxRunner`)
+unpacks the package and runs each chunk in the sandbox; the local board runs the same worker with
+its own (``wfbench.leaderboard.local``). The policy's failures are final; the board's hand the job
+back. :func:`warm_builtins` warms the sandboxes' numba cache; :func:`stale_unpack_dirs` finds
+folders of killed workers. ``docs/leaderboard.md``, "The hosted leaderboard" and "One board".
 """
 
 from __future__ import annotations
@@ -25,10 +24,12 @@ import tempfile
 import threading
 import time
 import traceback
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import pandas as pd
 import sqlalchemy as sa
@@ -220,6 +221,103 @@ class _Heartbeat(threading.Thread):
         self.join(5)
 
 
+@dataclass
+class Progress:
+    """Where a claimed job stands, for a runner's limits: units stored of all, and the worker seconds used so far."""
+
+    done: int
+    total: int
+    spent: Callable[[], float]
+
+
+Run = Callable[[str, ScenarioConfig, list[int]], Iterator[pd.DataFrame]]
+"""``run(scenario, config, seeds)``: the rows of those seeds, one frame per finished chunk."""
+
+
+class Runner(Protocol):
+    """How a worker evaluates a claimed submission: the hosted board's :class:`SandboxRunner`, or the local one's.
+
+    The local board's (:class:`wfbench.leaderboard.local.LocalRunner`) plays the chunks in a
+    child process with today's evaluator and adds each row's provenance (:meth:`record`).
+    """
+
+    def units(self, board: Board, sub: Submission) -> list[tuple[str, int, int]]:
+        """The (scenario, seed index, seed) the submission runs."""
+
+    def open(self, board: Board, sub: Submission, progress: Progress) -> AbstractContextManager[Run]:
+        """What runs the submission's chunks, ready (a package unpacked, a policy loaded) for as long as it is open."""
+
+    def record(self, conn: sa.engine.Connection, rows: list[dict[str, Any]]) -> None:
+        """Store what the board keeps beside the rows just inserted, in the same transaction (or nothing)."""
+
+
+class SandboxRunner:
+    """The hosted board's runner: each chunk of the submission's package in the sandbox, within its time budget.
+
+    Args:
+        evaluator: what runs a chunk (default :func:`sandbox_evaluator`).
+        unpack: what unpacks a package into a folder (default :func:`package_unpacker`).
+        limits: the sandbox's limits (:class:`wfbench.harness.isolation.sandbox.Limits`; None: its defaults).
+        chunk_size: seeds per evaluator call and per stored transaction.
+        job_time_s: worker seconds one upload may use per scenario of its track, over
+            every attempt (:data:`JOB_TIME_S`).
+        work_dir: where packages are unpacked (default: the temporary folder).
+    """
+
+    def __init__(self, evaluator: Evaluator = sandbox_evaluator, unpack: Unpacker = package_unpacker,
+                 limits: Any = None, chunk_size: int = DEFAULT_CHUNK, job_time_s: float = JOB_TIME_S,
+                 work_dir: str | Path | None = None):
+        if chunk_size < 1:
+            raise ValueError(f"chunk size {chunk_size} is not allowed; allowed: 1 or more")
+        if not (isinstance(job_time_s, int | float) and math.isfinite(job_time_s) and job_time_s > 0):
+            raise ValueError(f"job time {job_time_s!r} s is not allowed; allowed: seconds > 0")
+        self.evaluator, self.unpack, self.limits = evaluator, unpack, limits
+        self.chunk_size, self.job_time_s = chunk_size, float(job_time_s)
+        self.work_dir = Path(work_dir) if work_dir is not None else Path(tempfile.gettempdir())
+
+    def units(self, board: Board, sub: Submission) -> list[tuple[str, int, int]]:
+        return board.units(sub)
+
+    def record(self, conn: sa.engine.Connection, rows: list[dict[str, Any]]) -> None:
+        return None
+
+    def budget(self, board: Board, sub: Submission) -> float:
+        """The worker seconds ``sub`` may use over every attempt: :attr:`job_time_s` per scenario of its track."""
+        return self.job_time_s * len(board.track(sub.track).configs())
+
+    def _chunk_limits(self, board: Board, sub: Submission, progress: Progress) -> Any:
+        """The sandbox's limits for the next chunk: its wall limit is what is left of the budget (OverBudget: none)."""
+        budget = self.budget(board, sub)
+        left = budget - progress.spent()
+        if left <= 0:
+            raise OverBudget(f"used its time budget of {budget:g} s of worker time per upload ({self.job_time_s:g} s "
+                             f"per scenario of its track) with {progress.done} of {progress.total} episodes done")
+        from wfbench.harness.isolation.sandbox import Limits
+
+        limits = self.limits if self.limits is not None else Limits()
+        return dataclasses.replace(limits, wall_time_s=min(limits.wall_time_s, left))
+
+    @contextmanager
+    def open(self, board: Board, sub: Submission, progress: Progress) -> Iterator[Run]:
+        data = board.package(sub.package_sha)
+        if data is None:
+            raise BoardError(f"package {sub.package_sha} is missing from the board")
+        secret, context = board.key_secret(), hidden.key_context(sub.track, sub.phase)
+        self.work_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=unpack_prefix(), dir=self.work_dir) as tmp:
+            package_dir = Path(tmp) / "policy"
+            package_dir.mkdir()
+            self.unpack(data, package_dir)
+
+            def run(scenario: str, config: ScenarioConfig, seeds: list[int]) -> Iterator[pd.DataFrame]:
+                for i in range(0, len(seeds), self.chunk_size):
+                    limits = self._chunk_limits(board, sub, progress)
+                    yield self.evaluator(package_dir, sub.entry, config, seeds[i:i + self.chunk_size], limits,
+                                         secret, context)
+
+            yield run
+
+
 class Worker:
     """Claims and evaluates jobs of one board.
 
@@ -227,32 +325,28 @@ class Worker:
         board: the board (its database).
         worker_id: the name stored as the lease's owner (default ``host:pid``).
         lease_s: the lease in seconds; renewed every third of it.
-        chunk_size: seeds per evaluator call and per stored transaction.
-        limits: the sandbox's limits (:class:`wfbench.harness.isolation.sandbox.Limits`; None: its defaults).
-        evaluator: what runs a chunk (default :func:`sandbox_evaluator`).
-        unpack: what unpacks a package into a folder (default :func:`package_unpacker`).
+        chunk_size: the :class:`SandboxRunner`'s seeds per evaluator call and stored transaction.
+        limits: the :class:`SandboxRunner`'s sandbox limits.
+        evaluator: the :class:`SandboxRunner`'s evaluator of a chunk.
+        unpack: the :class:`SandboxRunner`'s unpacker of a package.
         say: where progress lines go (default: stderr).
-        job_time_s: worker seconds one upload may use per scenario of its track, over
-            every attempt (:data:`JOB_TIME_S`).
-        work_dir: where packages are unpacked (default: the temporary folder).
+        job_time_s: the :class:`SandboxRunner`'s time budget per upload, per scenario of its track.
+        work_dir: where the :class:`SandboxRunner` unpacks packages.
+        runner: how a claimed submission runs (default: the :class:`SandboxRunner` of the above).
     """
 
     def __init__(self, board: Board, worker_id: str | None = None, lease_s: float = DEFAULT_LEASE_S,
                  chunk_size: int = DEFAULT_CHUNK, limits: Any = None, evaluator: Evaluator = sandbox_evaluator,
                  unpack: Unpacker = package_unpacker, say: Callable[[str], None] | None = None,
-                 job_time_s: float = JOB_TIME_S, work_dir: str | Path | None = None):
+                 job_time_s: float = JOB_TIME_S, work_dir: str | Path | None = None, runner: Runner | None = None):
         if not lease_s > 0:
             raise ValueError(f"lease {lease_s:g} s is not allowed; allowed: seconds > 0")
-        if chunk_size < 1:
-            raise ValueError(f"chunk size {chunk_size} is not allowed; allowed: 1 or more")
-        if not (isinstance(job_time_s, int | float) and math.isfinite(job_time_s) and job_time_s > 0):
-            raise ValueError(f"job time {job_time_s!r} s is not allowed; allowed: seconds > 0")
-        self.job_time_s = float(job_time_s)
-        self.work_dir = Path(work_dir) if work_dir is not None else Path(tempfile.gettempdir())
+        sandboxed = SandboxRunner(evaluator, unpack, limits, chunk_size, job_time_s, work_dir)
+        self.runner: Runner = runner if runner is not None else sandboxed
+        self.work_dir = sandboxed.work_dir
         self.board = board
         self.worker_id = worker_id or f"{socket.gethostname()}:{os.getpid()}"
-        self.lease_s, self.chunk_size, self.limits = float(lease_s), chunk_size, limits
-        self.evaluator, self.unpack = evaluator, unpack
+        self.lease_s = float(lease_s)
         self.say = say or (lambda line: print(f"wfbench worker {self.worker_id}: {line}", file=sys.stderr,
                                               flush=True))
 
@@ -297,13 +391,15 @@ class Worker:
                      f"gone: {', '.join(p.name for p in gone)}")
         return gone
 
-    def run_one(self) -> str | None:
+    def run_one(self, submission_id: int | None = None) -> str | None:
         """Claim one job and evaluate it: ``done``, ``failed``, ``requeued`` (a board fault) or ``lost``; None if none.
+
+        ``submission_id``: claim that submission's job only (the local board's worker).
 
         After a :class:`~wfbench.harness.isolation.sandbox.SandboxUnavailable` the job is handed back
         and the error raised: this worker cannot run any job.
         """
-        c = claim(self.board.engine, self.worker_id, self.lease_s)
+        c = claim(self.board.engine, self.worker_id, self.lease_s, submission_id=submission_id)
         if c is None:
             return None
         self.say(f"claimed submission {c.submission_id} (attempt {c.attempt}, fence {c.fence})")
@@ -372,60 +468,37 @@ class Worker:
         self.say(f"submission {c.submission_id} failed: {reason}")
         return "failed"
 
-    def budget(self, sub: Submission) -> float:
-        """The worker seconds ``sub`` may use over every attempt: :attr:`job_time_s` per scenario of its track."""
-        return self.job_time_s * len(self.board.track(sub.track).configs())
-
-    def _chunk_limits(self, sub: Submission, spent_s: float, done: int, total: int) -> Any:
-        """The sandbox's limits for the next chunk: its wall limit is what is left of the budget (OverBudget: none)."""
-        budget = self.budget(sub)
-        left = budget - spent_s
-        if left <= 0:
-            raise OverBudget(f"used its time budget of {budget:g} s of worker time per upload ({self.job_time_s:g} s "
-                             f"per scenario of its track) with {done} of {total} episodes done")
-        from wfbench.harness.isolation.sandbox import Limits
-
-        limits = self.limits if self.limits is not None else Limits()
-        return dataclasses.replace(limits, wall_time_s=min(limits.wall_time_s, left))
-
     def _evaluate(self, c: Claim, sub: Submission, lost: threading.Event | None, log: list[str],
                   spent: Callable[[], float]) -> None:
-        tr = self.board.track(sub.track)
-        configs = tr.configs()
+        configs = self.board.track(sub.track).configs()
         done = self.board.done_units(sub.id)
-        missing = [u for u in self.board.units(sub) if (u[0], u[1]) not in done]
+        missing = [u for u in self.runner.units(self.board, sub) if (u[0], u[1]) not in done]
         if not missing:
             return
-        data = self.board.package(sub.package_sha)
-        if data is None:
-            raise BoardError(f"package {sub.package_sha} is missing from the board")
-        secret, context = self.board.key_secret(), hidden.key_context(sub.track, sub.phase)
-        total, n_done = len(missing) + len(done), len(done)
-        self.work_dir.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=unpack_prefix(), dir=self.work_dir) as tmp:
-            package_dir = Path(tmp) / "policy"
-            package_dir.mkdir()
-            self.unpack(data, package_dir)
-            for scenario, chunk in _chunks(missing, self.chunk_size):
-                if lost is not None and lost.is_set():
-                    raise LeaseLost(f"submission {c.submission_id}: worker {c.worker_id} lost its lease (a "
-                                    "heartbeat was refused: another worker claimed the job, or its owner withdrew "
-                                    "it); nothing more was written")
-                limits = self._chunk_limits(sub, spent(), n_done, total)
-                index = {seed: i for _, i, seed in chunk}
-                frame = self.evaluator(package_dir, sub.entry, configs[scenario], [s for _, _, s in chunk],
-                                       limits, secret, context)
-                text = frame.attrs.get("log")
-                if isinstance(text, str) and text:
-                    log.append(text)
-                n_done += write_rows(c, _rows(frame, scenario, index), spent_s=spent())
+        progress = Progress(len(done), len(missing) + len(done), spent)
+        with self.runner.open(self.board, sub, progress) as run:
+            for scenario, units in _by_scenario(missing):
+                index = {seed: i for _, i, seed in units}
+                for frame in run(scenario, configs[scenario], list(index)):
+                    if lost is not None and lost.is_set():
+                        raise LeaseLost(f"submission {c.submission_id}: worker {c.worker_id} lost its lease (a "
+                                        "heartbeat was refused: another worker claimed the job, or its owner "
+                                        "withdrew it); nothing more was written")
+                    text = frame.attrs.get("log")
+                    if isinstance(text, str) and text:
+                        log.append(text)
+                    progress.done += write_rows(c, _rows(frame, scenario, index), spent_s=spent(),
+                                                then=self.runner.record)
+        stored = len(self.board.done_units(sub.id))
+        if stored < progress.total:
+            raise ValueError(f"only {stored} of {progress.total} episodes were stored")
 
 
-def _chunks(units: list[tuple[str, int, int]], size: int) -> list[tuple[str, list[tuple[str, int, int]]]]:
-    """The units grouped by scenario (in order), each group cut into chunks of ``size``."""
+def _by_scenario(units: list[tuple[str, int, int]]) -> list[tuple[str, list[tuple[str, int, int]]]]:
+    """The units grouped by scenario, in order."""
     out: list[tuple[str, list[tuple[str, int, int]]]] = []
     for u in units:
-        if out and out[-1][0] == u[0] and len(out[-1][1]) < size:
+        if out and out[-1][0] == u[0]:
             out[-1][1].append(u)
         else:
             out.append((u[0], [u]))
@@ -433,8 +506,12 @@ def _chunks(units: list[tuple[str, int, int]], size: int) -> list[tuple[str, lis
 
 
 def _rows(frame: pd.DataFrame, scenario: str, index: dict[int, int]) -> list[dict[str, Any]]:
-    """The evaluator's rows as the queue stores them (seed index, scenario and the machine's line added)."""
-    if set(frame["seed"].astype(int)) != set(index):
+    """The evaluator's rows as the queue stores them (seed index, scenario and, unless they name it, the machine).
+
+    A frame without a ``machine`` column ran in the sandbox (one process).
+    """
+    seeds = frame["seed"].astype(int).tolist()
+    if not set(seeds) <= set(index) or len(set(seeds)) != len(seeds):
         raise ValueError(f"the evaluation returned seeds other than those asked ({len(frame)} rows for "
                          f"{len(index)} seeds)")
     budget = frame.attrs.get("budget", {})
@@ -443,7 +520,8 @@ def _rows(frame: pd.DataFrame, scenario: str, index: dict[int, int]) -> list[dic
     for r in frame.to_dict("records"):
         row = {c: r[c] for c in ROW_COLUMNS}
         row.update({c: r.get(c, math.nan) for c in BUDGET_COLUMNS})
-        row.update(scenario=scenario, seed=int(r["seed"]), seed_index=index[int(r["seed"])], machine=where)
+        row.update(scenario=scenario, seed=int(r["seed"]), seed_index=index[int(r["seed"])],
+                   machine=r.get("machine") or where)
         out.append(row)
     return out
 

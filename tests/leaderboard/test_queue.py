@@ -218,3 +218,17 @@ def test_concurrent_claimers_in_processes_never_share_a_job(board, tmp_path):
 def test_lease_must_be_positive(board):
     with pytest.raises(ValueError, match="lease 0 s is not allowed; allowed: seconds > 0"):
         queue.claim(board.engine, "w", 0)
+
+
+def test_a_claim_of_one_submission_takes_its_job_only_and_write_rows_calls_then_with_the_new_rows(board):
+    older, mine = queued(board, 2)
+    assert claim(board.engine, "local", 30, submission_id=4242) is None, "no such job"
+    c = claim(board.engine, "local", 30, submission_id=mine.id)
+    assert c.submission_id == mine.id and job(board, older.id)["state"] == "queued", "the older job is left queued"
+    units = board.units(board.submission(mine.id))
+    seen = []
+    assert write_rows(c, fake_rows(units[:2], 0.5), then=lambda conn, rows: seen.extend(rows)) == 2
+    assert [r["seed_index"] for r in seen] == [u[1] for u in units[:2]]
+    seen.clear()
+    assert write_rows(c, fake_rows(units[:3], 0.5), then=lambda conn, rows: seen.extend(rows)) == 1
+    assert [r["seed_index"] for r in seen] == [units[2][1]], "a unit already stored is not passed on"
