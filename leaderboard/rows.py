@@ -32,6 +32,10 @@ class StoreError(Exception):
     """A board that cannot be used as asked: printed as one line by the CLI."""
 
 
+class SubmitError(Exception):
+    """The submission cannot start (unknown track or policy, name taken, bad limits): one line, exit 2."""
+
+
 @dataclass(frozen=True)
 class Entry:
     """A submission as the reports rank it, on the local board or a phase of the hosted one."""

@@ -254,11 +254,15 @@ class Store:
             with self.engine.begin() as conn:
                 return fn(conn)
         except sa.exc.OperationalError as exc:
-            text = str(exc.orig or exc)
-            if "full" in text:
-                raise StoreError(f"cannot write {what} to {self.path}: the disk is full ({text}); nothing was lost, "
-                                 "finished seeds are kept: free space and submit again to resume") from None
-            raise StoreError(f"cannot write {what} to {self.path}: {text}") from None
+            raise self.write_error(what, exc) from None
+
+    def write_error(self, what: str, exc: sa.exc.OperationalError) -> StoreError:
+        """The one line for a write of ``what`` the database refused (a full disk: nothing was lost)."""
+        text = str(exc.orig or exc)
+        if "full" in text:
+            return StoreError(f"cannot write {what} to {self.path}: the disk is full ({text}); nothing was lost, "
+                              "finished seeds are kept: free space and submit again to resume")
+        return StoreError(f"cannot write {what} to {self.path}: {text}")
 
     # -- entries -----------------------------------------------------------------------------------
     def submissions(self, track: str | None = None) -> list[Entry]:
@@ -277,7 +281,7 @@ class Store:
     def open_submission(self, track: Track, name: str, policy: str, submitter: str, version: str,
                         builtin: bool = False, fingerprint: str = "", fingerprint_detail: str = "",
                         replace: bool = False, budget: str = "") -> tuple[Entry, str]:
-        """The entry ``name`` of ``track`` for a policy with this fingerprint, in one transaction.
+        """The entry ``name`` of ``track`` for a policy with this fingerprint, its job queued, in one transaction.
 
         Returns the entry and what happened: ``"new"``, ``"resumed"`` (same fingerprint
         and track version: only missing seeds are to be evaluated), ``"replaced"``
@@ -312,10 +316,11 @@ class Store:
                     _set_state(conn, existing.id, "running", "")
                     conn.execute(local_entries.update().where(local_entries.c.submission_id == existing.id)
                                  .values(budget=budget))
+                    _queue(conn, existing.id)
                     return "resumed"
-            _add_entry(conn, track.name, track.hash, name, policy, submitter, "running", "", {
+            _queue(conn, _add_entry(conn, track.name, track.hash, name, policy, submitter, "running", "", {
                 "builtin": bool(builtin), "fingerprint": fingerprint, "fingerprint_detail": fingerprint_detail,
-                "budget": budget, "wfbench_version": version, "created_at": _now()})
+                "budget": budget, "wfbench_version": version, "created_at": _now()}))
             return action
 
         action = self._write(f"submission {name!r}", open_)
@@ -379,22 +384,18 @@ class Store:
 
         def insert(conn: Connection) -> int:
             done = _done(conn, sub.id)
-            n = 0
+            new = []
             for row in rows:
                 seed, scenario = int(row["seed"]), str(row.get("scenario") or "")
                 if (scenario, seed) in done:
                     continue
                 budget = {c: None if budget_value(row.get(c)) is None else float(row[c]) for c in BUDGET_COLUMNS}
-                values = {**row, **budget, "machine": row.get("machine") or None, "scenario": scenario}
-                digest = row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed,
-                                    values, sub.fingerprint)
-                _add_row(conn, sub.id, values, seed, time.time(), {
-                    "track": sub.track, "track_hash": sub.track_hash, "policy": sub.policy,
-                    "submitter": sub.submitter, "fingerprint": sub.fingerprint, "wfbench_version": version,
-                    "finished_at": _now(), "digest": digest})
+                new.append({**row, **budget, "machine": row.get("machine") or None, "scenario": scenario,
+                            "seed": seed, "seed_index": seed})
+                _add_row(conn, sub.id, new[-1], seed, time.time())
                 done.add((scenario, seed))
-                n += 1
-            return n
+            add_provenance(conn, sub, version, new)
+            return len(new)
 
         return self._write(f"{len(rows)} result(s) of {sub.name!r}", insert)
 
@@ -469,13 +470,40 @@ def _add_entry(conn: Connection, track: str, track_hash: str, name: str, policy:
 
 
 def _add_row(conn: Connection, sub_id: int, values: dict[str, Any], seed: int, finished: float,
-             provenance: dict[str, Any]) -> None:
+             provenance: dict[str, Any] | None = None) -> None:
     scenario = values["scenario"]
     conn.execute(hosted.rows.insert().values(
         submission_id=sub_id, scenario=scenario, seed_index=seed, seed=seed, finished=finished,
         **{c: float(values[c]) for c in KPI_COLUMNS}, episode_length=int(values["episode_length"]),
         invalid_actions=int(values["invalid_actions"]), **{c: values.get(c) for c in BUDGET_ROW_COLUMNS}))
-    conn.execute(local_rows.insert().values(submission_id=sub_id, scenario=scenario, seed_index=seed, **provenance))
+    if provenance is not None:
+        conn.execute(local_rows.insert().values(submission_id=sub_id, scenario=scenario, seed_index=seed,
+                                                **provenance))
+
+
+def add_provenance(conn: Connection, sub: Entry, version: str, rows: list[dict[str, Any]]) -> None:
+    """Each new row's provenance and digest (``local_rows``), inside the caller's transaction.
+
+    ``rows``: as stored in the board's ``rows`` table (the seed is the seed index); the
+    local worker's writes (:func:`wfbench.leaderboard.hosted.queue.write_rows`) call it.
+    """
+    for values in rows:
+        seed = int(values["seed"])
+        conn.execute(local_rows.insert().values(
+            submission_id=sub.id, scenario=values["scenario"], seed_index=seed, track=sub.track,
+            track_hash=sub.track_hash, policy=sub.policy, submitter=sub.submitter, fingerprint=sub.fingerprint,
+            wfbench_version=version, finished_at=_now(),
+            digest=row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed, values,
+                              sub.fingerprint)))
+
+
+def _queue(conn: Connection, sub_id: int) -> None:
+    """Queue the entry's job for the local worker: a new one, or its old one again (fenced off any earlier run)."""
+    values = {"state": "queued", "lease_owner": None, "lease_until": None}
+    if conn.execute(hosted.jobs.update().where(hosted.jobs.c.submission_id == sub_id)
+                    .values(fence=hosted.jobs.c.fence + 1, **values)).rowcount == 0:
+        conn.execute(hosted.jobs.insert().values(submission_id=sub_id, fence=0, **values))
+    conn.execute(submissions.update().where(submissions.c.id == sub_id).values(attempts=0))
 
 
 def _archive(conn: Connection, sub_id: int, action: str, note: str, moved_at: str | None = None) -> int:
@@ -484,6 +512,10 @@ def _archive(conn: Connection, sub_id: int, action: str, note: str, moved_at: st
     moved_at = moved_at or _now()
     conn.execute(submissions.update().where(submissions.c.id == sub_id).values(withdrawn=_epoch(moved_at) or
                                                                                time.time(), updated=time.time()))
+    # its job is cancelled: a run of it still going is refused at its next write
+    conn.execute(hosted.jobs.update().where((hosted.jobs.c.submission_id == sub_id)
+                                            & hosted.jobs.c.state.in_(("queued", "running"))).values(
+        state="failed", lease_owner=None, lease_until=None, fence=hosted.jobs.c.fence + 1))
     conn.execute(local_entries.update().where(local_entries.c.submission_id == sub_id).values(
         action=action, note=note, moved_at=moved_at, audit_id=audit_id))
     return conn.execute(sa.select(sa.func.count()).select_from(hosted.rows)

@@ -76,6 +76,33 @@ def test_submit_stores_a_row_per_seed_with_provenance(db):
     assert again.status == "complete" and again.new_rows == 0
 
 
+
+def _job(db, name):
+    """The queue's job of the entry ``name`` and its submission's state, fault and stored reason."""
+    import sqlalchemy as sa
+
+    store = Store(db)
+    sub = store.find(TINY.name, name)
+    with store.engine.begin() as conn:
+        job = conn.execute(sa.text("SELECT state, fence FROM jobs WHERE submission_id = :i"), {"i": sub.id}).one()
+        state = conn.execute(sa.text("SELECT state, fault, kind, reason FROM submissions WHERE id = :i"),
+                             {"i": sub.id}).one()
+    store.close()
+    return tuple(job), tuple(state)
+
+
+def test_a_local_submission_is_a_job_of_the_board_s_queue_run_by_its_worker(db, capsys):
+    out = submit(TINY, "heuristic", "h", db=db, **_fast())
+    assert out.status == "complete" and out.new_rows == 4
+    assert _job(db, "h") == (("done", 1), ("done", "", "", "")), "queued, claimed once (fence 1) and finished"
+    out = submit(TINY, "tests.lb_policies:Raises", "broken", db=db, **_fast())
+    assert out.status == "failed" and str(ROOT) in out.reason, "the caller gets the whole reason"
+    (job, fence), (state, fault, kind, reason) = _job(db, "broken")
+    assert (job, state, fault, kind) == ("failed", "failed", "policy", "raised")
+    assert reason.startswith("policy 'tests.lb_policies:Raises' failed in act at ") and str(ROOT) not in reason
+    assert capsys.readouterr().err == "", "the in-process worker says nothing of its own"
+    assert len(Store(db).results(TINY)[0]) == 4, "the failure left the other entry's rows as they were"
+
 HOSTILE = ROOT / "tests" / "data" / "user_policies" / "hostile.py"
 
 
