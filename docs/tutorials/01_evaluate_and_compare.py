@@ -16,8 +16,10 @@
 # This notebook scores the built-in policies on the same seeds, reads the paired
 # differences to the heuristic with their 95% intervals, and plots the KPIs over the
 # episode. It runs on the `small` scenario (a 16x16 grid, 8 facility and 8 personnel
-# slots, 200 steps), so it finishes in well under a minute on two cores; every call
-# takes `"paper-64"` (the paper's setting) as well.
+# slots, 200 steps), so it finishes in well under a minute on two cores (35 s as a script
+# on the 2-core VM, 2026-11-28, beside two other jobs, the numba cache warm; a fresh
+# install first compiles the numba core once, about 75 s on an idle 2-core VM); every
+# call takes `"paper-64"` (the paper's setting) as well.
 #
 # Every tutorial is a plain Python file in the
 # [jupytext](https://jupytext.readthedocs.io) percent format, this one
