@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
         if args.lb_command in ("baselines", "seed"):
             check_backend_args(args)
             failed = 0
-            for tr in seed_tracks(track(args.track) if args.track else None):  # a track not marked seeded: only when named
+            for tr in seed_tracks(track(args.track) if args.track else None):  # unseeded tracks: only when named
                 for out in seed_builtins(tr, db=args.db, backend=args.backend, workers=args.workers,
                                          address=args.address, progress=not args.no_progress):
                     print(f"{tr.name:<14s} {out.submission.name:<20s} {out.status} ({out.stored_rows} seeds, "
