@@ -223,11 +223,16 @@ class _Heartbeat(threading.Thread):
 
 @dataclass
 class Progress:
-    """Where a claimed job stands, for a runner's limits: units stored of all, and the worker seconds used so far."""
+    """Where a claimed job stands, for a runner's limits: units stored of all, and the worker seconds used so far.
+
+    ``check()`` raises :class:`~wfbench.leaderboard.hosted.queue.LeaseLost` once the job's lease
+    is gone: a runner calls it before each chunk it starts, the worker before each write.
+    """
 
     done: int
     total: int
     spent: Callable[[], float]
+    check: Callable[[], None] = lambda: None
 
 
 Run = Callable[[str, ScenarioConfig, list[int]], Iterator[pd.DataFrame]]
@@ -311,6 +316,7 @@ class SandboxRunner:
 
             def run(scenario: str, config: ScenarioConfig, seeds: list[int]) -> Iterator[pd.DataFrame]:
                 for i in range(0, len(seeds), self.chunk_size):
+                    progress.check()  # a lost lease costs no further chunk
                     limits = self._chunk_limits(board, sub, progress)
                     yield self.evaluator(package_dir, sub.entry, config, seeds[i:i + self.chunk_size], limits,
                                          secret, context)
@@ -475,15 +481,18 @@ class Worker:
         missing = [u for u in self.runner.units(self.board, sub) if (u[0], u[1]) not in done]
         if not missing:
             return
-        progress = Progress(len(done), len(missing) + len(done), spent)
+        def check() -> None:
+            if lost is not None and lost.is_set():
+                raise LeaseLost(f"submission {c.submission_id}: worker {c.worker_id} lost its lease (a heartbeat "
+                                "was refused: another worker claimed the job, or its owner withdrew it); nothing "
+                                "more was written")
+
+        progress = Progress(len(done), len(missing) + len(done), spent, check)
         with self.runner.open(self.board, sub, progress) as run:
             for scenario, units in _by_scenario(missing):
                 index = {seed: i for _, i, seed in units}
                 for frame in run(scenario, configs[scenario], list(index)):
-                    if lost is not None and lost.is_set():
-                        raise LeaseLost(f"submission {c.submission_id}: worker {c.worker_id} lost its lease (a "
-                                        "heartbeat was refused: another worker claimed the job, or its owner "
-                                        "withdrew it); nothing more was written")
+                    check()
                     text = frame.attrs.get("log")
                     if isinstance(text, str) and text:
                         log.append(text)
