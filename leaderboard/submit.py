@@ -36,6 +36,8 @@ __all__ = ["SubmitError", "Outcome", "RemainingTime", "submit", "describe", "sce
 
 DEFAULT_WALL_TIME_S = 3600.0
 DEFAULT_MEMORY_MB = 8192
+STORED_CHUNK = 5  # seeds per stored chunk where the Execution names no chunk size
+DEFAULT_EXECUTION = Execution(backend="process")
 BUILTIN_ENTRIES = _registry.LINEUPS["leaderboard"]  # the entries seed_builtins makes (the registry's lineups)
 
 
@@ -54,9 +56,8 @@ class Outcome:
 
 
 def submit(track: str | Track, policy: str, name: str, submitter: str | None = None, db: Any = None,
-           backend: str = "process", workers: int | None = None, address: str | None = None,
-           wall_time_s: float = DEFAULT_WALL_TIME_S, memory_mb: int | None = DEFAULT_MEMORY_MB,
-           chunk_size: int | None = None, progress: bool = False, builtin: bool = False,
+           execution: Execution = DEFAULT_EXECUTION, wall_time_s: float = DEFAULT_WALL_TIME_S,
+           memory_mb: int | None = DEFAULT_MEMORY_MB, builtin: bool = False,
            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, replace: bool = False) -> Outcome:
     """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows.
 
@@ -71,13 +72,11 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         name: the entry's name on the track; submitting it again resumes.
         submitter: who submits (default: the user name).
         db: a store path or :class:`~wfbench.leaderboard.store.Store` (default: the user's store).
-        backend: where the child runs the episodes (:mod:`wfbench.harness.backends`).
-        workers: processes or Ray tasks of the child.
-        address: Ray cluster address.
+        execution: where the child runs the episodes, and its progress bar
+            (:class:`~wfbench.harness.backends.Execution`); its ``chunk_size`` is the seeds per
+            stored chunk (``None``: 5). Default: a pool of processes over all cores.
         wall_time_s: the whole evaluation's limit in seconds.
         memory_mb: the child's address-space limit in MiB (``None``: none).
-        chunk_size: seeds per stored chunk (default 5).
-        progress: show a progress bar.
         builtin: mark the entry as one of wfbench's own.
         act_timeout_s: limit of each ``reset``/``act`` call of a user's policy in
             seconds; ``None`` or 0 for none.
@@ -94,7 +93,10 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     """
     try:
         tr = track if isinstance(track, Track) else get_track(track)
-        execution = Execution(backend, workers, address, chunk_size=chunk_size or 5, progress=progress)
+        if not isinstance(execution, Execution):
+            raise ValueError(f"execution = {execution!r} is not allowed; allowed: an Execution")
+        if execution.chunk_size is None:
+            execution = execution.replace(chunk_size=STORED_CHUNK)
         act_timeout_s = check_act_timeout(act_timeout_s)
     except ValueError as exc:
         raise SubmitError(str(exc)) from None
@@ -212,11 +214,12 @@ def describe(out: Outcome, track: Track, store_path: Any, hint: str = "") -> str
 
 
 def seed_builtins(track: str | Track, db: Any = None, names: tuple[str, ...] = BUILTIN_ENTRIES,
-                  progress: bool = False, **kwargs: Any) -> list[Outcome]:
+                  execution: Execution = DEFAULT_EXECUTION, **kwargs: Any) -> list[Outcome]:
     """Submit (or resume) the built-in policies under their registry names.
 
     A built-in entry whose fingerprint is not the current code's (wfbench's policy code
-    changed since it was stored) is replaced: its rows go to the audit tables.
+    changed since it was stored) is replaced: its rows go to the audit tables. ``execution``
+    and ``kwargs`` (``wall_time_s``, ``memory_mb``) are :func:`submit`'s.
     """
     tr = track if isinstance(track, Track) else get_track(track)
     store = db if isinstance(db, Store) else Store(db)
@@ -225,6 +228,6 @@ def seed_builtins(track: str | Track, db: Any = None, names: tuple[str, ...] = B
         existing = store.find(tr.name, n)
         stale = existing is not None and not existing.legacy and (
             existing.fingerprint != policy_fingerprint(n)[0] or existing.track_hash != tr.hash)
-        out.append(submit(tr, n, n, submitter="wfbench", db=store, builtin=True, progress=progress, replace=stale,
-                          **kwargs))
+        out.append(submit(tr, n, n, submitter="wfbench", db=store, builtin=True, execution=execution,
+                          replace=stale, **kwargs))
     return out

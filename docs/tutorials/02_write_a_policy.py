@@ -195,7 +195,7 @@ track = scenario_track(name="small-tutorial", config=wfbench.ScenarioConfig.pres
                        description="the small scenario, for the tutorial")
 store = Store(workdir / "leaderboard.sqlite")
 for policy, name in (("heuristic", "heuristic"), ("my_policy:make_policy", "longest-down-first")):
-    outcome = submit(track, policy, name, submitter="tutorial", db=store, backend="serial")
+    outcome = submit(track, policy, name, submitter="tutorial", db=store, execution=wfbench.Execution(backend="serial"))
     print(f"{name}: {outcome.status} {outcome.reason}, {outcome.stored_rows} seeds stored in {outcome.seconds:.1f} s")
     assert outcome.status == "complete", outcome.reason
 

@@ -338,7 +338,8 @@ class Worker:
         say: where progress lines go (default: stderr).
         job_time_s: the :class:`SandboxRunner`'s time budget per upload, per scenario of its track.
         work_dir: where the :class:`SandboxRunner` unpacks packages.
-        runner: how a claimed submission runs (default: the :class:`SandboxRunner` of the above).
+        runner: how a claimed submission runs (default: the :class:`SandboxRunner` of the above,
+            which is not built when a runner is given).
     """
 
     def __init__(self, board: Board, worker_id: str | None = None, lease_s: float = DEFAULT_LEASE_S,
@@ -347,9 +348,12 @@ class Worker:
                  job_time_s: float = JOB_TIME_S, work_dir: str | Path | None = None, runner: Runner | None = None):
         if not lease_s > 0:
             raise ValueError(f"lease {lease_s:g} s is not allowed; allowed: seconds > 0")
-        sandboxed = SandboxRunner(evaluator, unpack, limits, chunk_size, job_time_s, work_dir)
-        self.runner: Runner = runner if runner is not None else sandboxed
-        self.work_dir = sandboxed.work_dir
+        if runner is None:
+            runner = SandboxRunner(evaluator, unpack, limits, chunk_size, job_time_s, work_dir)
+        self.runner: Runner = runner
+        # where killed workers' unpack folders are looked for: the sandbox's, or the folder it would use
+        self.work_dir = getattr(runner, "work_dir", Path(work_dir) if work_dir is not None else
+                                Path(tempfile.gettempdir()))
         self.board = board
         self.worker_id = worker_id or f"{socket.gethostname()}:{os.getpid()}"
         self.lease_s = float(lease_s)

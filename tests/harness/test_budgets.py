@@ -20,6 +20,7 @@ from wfbench.solvers import assignment
 from wfbench import policies
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
+from wfbench.harness.backends import Execution
 from wfbench.harness.budget import BUDGET_COLUMNS, NOT_RECORDED, machine, policy_budget, results_only
 from wfbench.harness.evaluation import evaluate
 
@@ -174,7 +175,7 @@ def test_submit_stores_the_cost_and_show_prints_and_filters_it(tmp_path, capsys,
     db = tmp_path / "lb.sqlite"
     monkeypatch.setattr("wfbench.leaderboard.tracks.TRACKS", {TINY.name: TINY})
     for policy, name in (("random", "random"), ("tests.harness.test_budgets:Sleepy", "sleepy")):
-        out = submit(TINY, policy, name, db=db, backend="serial", chunk_size=2)
+        out = submit(TINY, policy, name, db=db, execution=Execution(backend="serial", chunk_size=2))
         assert out.status == "complete", out.reason
     rows = Store(db).results(TINY)[0]
     assert rows[list(BUDGET_COLUMNS)].notna().all().all() and rows["machine"].str.contains("serial x1").all()

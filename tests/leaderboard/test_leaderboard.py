@@ -21,6 +21,7 @@ from wfbench.leaderboard.tracks import TRACKS, get_track, scenario_track
 
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
+from wfbench.harness.backends import Execution
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -41,7 +42,7 @@ def integrity(path) -> str:
 
 
 def _fast(**kw):
-    return dict(backend="serial", chunk_size=1, **kw)
+    return dict(execution=Execution(backend="serial", chunk_size=1), **kw)
 
 
 @pytest.fixture()
@@ -140,6 +141,8 @@ def test_unloadable_policy_is_a_user_error_and_stores_nothing(db):
         submit(TINY, "tests.lb_policies:import_fails", "x", db=db, **_fast())
     with pytest.raises(SubmitError, match="unknown policy 'nope'"):
         submit(TINY, "nope", "x", db=db, **_fast())
+    with pytest.raises(SubmitError, match=r"^execution = 'serial' is not allowed; allowed: an Execution$"):
+        submit(TINY, "heuristic", "x", db=db, execution="serial")
     assert Store(db).submissions() == []
 
 
@@ -160,8 +163,9 @@ def test_kill_minus_9_loses_no_finished_seed_and_resume_completes(db, tmp_path):
         sys.path.insert(0, {str(ROOT)!r})
         from tests.leaderboard.test_leaderboard import TINY
         from wfbench.leaderboard.submit import submit
+        from wfbench.harness.backends import Execution
         if __name__ == "__main__":
-            submit(TINY, "tests.lb_policies:Slow", "slow", db={str(db)!r}, backend="serial", chunk_size=1)
+            submit(TINY, "tests.lb_policies:Slow", "slow", db={str(db)!r}, execution=Execution("serial", chunk_size=1))
     """))
     proc = subprocess.Popen([sys.executable, str(script)], start_new_session=True, cwd=ROOT)
     try:
@@ -337,7 +341,7 @@ def _orphan_workers() -> set[int]:
 @pytest.mark.parametrize("policy", ["heuristic", "tests.lb_policies:Raises"])
 def test_a_submission_leaves_no_worker_processes_behind(db, policy):
     before = _orphan_workers()
-    submit(TINY, policy, "pool", db=db, backend="process", workers=2, chunk_size=1)
+    submit(TINY, policy, "pool", db=db, execution=Execution("process", workers=2, chunk_size=1))
     time.sleep(0.5)
     assert _orphan_workers() - before == set()
 

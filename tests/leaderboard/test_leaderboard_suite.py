@@ -13,6 +13,7 @@ from wfbench.leaderboard.tracks import TRACKS, Track, get_track
 
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
+from wfbench.harness.backends import Execution
 from wfbench.scenarios import Suite, get_suite, normalize
 
 FULL = get_suite("suite-v1")
@@ -21,6 +22,7 @@ TINY = Track(name="tiny-suite", suite=Suite(name="suite-v1", version=1, descript
                                                  scenarios=(FULL.scenario("small-v1"), FULL.scenario("slow-64-v1")),
                                                  test_seeds=(0, 1, 2)),
                   description="small-v1 (training) and slow-64-v1 (held out) on seeds 0-2")
+SERIAL = Execution(backend="serial")
 
 
 @pytest.fixture()
@@ -79,9 +81,9 @@ def test_ranked_by_the_held_out_aggregate_not_by_the_mean_score(db):
 def test_submit_runs_every_scenario_and_resumes_and_the_html_shows_the_track(db, monkeypatch, capsys):
     monkeypatch.setitem(TRACKS, TINY.name, TINY)
     for policy in ("random", "heuristic"):
-        out = submit(TINY, policy, policy, db=db, backend="serial", chunk_size=3)
+        out = submit(TINY, policy, policy, db=db, execution=SERIAL.replace(chunk_size=3))
         assert (out.status, out.stored_rows, out.new_rows) == ("complete", 6, 6), out.reason
-    assert submit(TINY, "heuristic", "heuristic", db=db, backend="serial").new_rows == 0, "complete: nothing to run"
+    assert submit(TINY, "heuristic", "heuristic", db=db, execution=SERIAL).new_rows == 0, "complete: nothing to run"
     rows, refused = Store(db).results(TINY)
     assert refused == [] and len(rows) == 12
     assert set(zip(rows["scenario"], rows["seed"], strict=True)) == set(TINY.units())
@@ -150,7 +152,7 @@ def test_a_suite_submission_reports_its_time_per_scenario(db, monkeypatch, capsy
     assert "small-v1" in line and "slow-64-v1" in line, line
     # the bar: no estimate before the first rows, then one weighted by the scenarios' costs
     assert "0/6 episodes" in err and "time left: after the first episodes" in err and "time left: about" in err, err
-    o = submit(TINY, "random", "r", db=db, backend="serial")
+    o = submit(TINY, "random", "r", db=db, execution=SERIAL)
     assert set(o.scenario_seconds) == {"small-v1", "slow-64-v1"} and all(t > 0 for t in o.scenario_seconds.values())
 
 

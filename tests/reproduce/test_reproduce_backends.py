@@ -11,6 +11,7 @@ from wfbench.core.presets import TABLE2_CELLS, TABLE2_GRIDS
 from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate, results_only
 from wfbench.reproduce.table2 import table2_trends
+from wfbench.scenarios import Suite, get_suite
 
 # identical numbers from the serial, process and Ray backends: tests/harness/test_backends_script.py, which
 # runs them from a script without a __main__ guard, with a registry policy and a class from __main__
@@ -46,6 +47,27 @@ def test_evaluate_takes_one_execution_or_its_keywords_not_both():
     assert results_only(by_value).equals(results_only(by_keywords)), "a chunk size moves no number"
     with pytest.raises(ValueError, match=r"^threads, workers given beside execution=; allowed: execution= alone"):
         evaluate("heuristic", "small", 2, execution=run, workers=2, threads=1)
+
+
+def test_the_suite_and_comparison_functions_hand_one_execution_to_every_evaluation():
+    from wfbench.harness.compare import compare, compare_suite
+    from wfbench.harness.suite import evaluate_suite
+
+    run = Execution(threads=1, chunk_size=1)
+    suite = evaluate_suite("heuristic", "suite-v1", [0, 1], scenarios=["small"], execution=run)
+    assert suite.attrs["budget"]["small-v1"]["chunks"] == 2, "the chunk size reached the scenario's evaluation"
+    table = compare(["random"], "small", [0, 1], execution=run)
+    assert [df.attrs["budget"]["chunks"] for df in table.attrs["runs"].values()] == [2, 2]
+    full = get_suite("suite-v1")
+    one = Suite(name="suite-v1", version=1, description="small-v1 alone", scenarios=(full.scenario("small-v1"),),
+                test_seeds=(0, 1))
+    paired = compare_suite(["random"], one, [0, 1], poi_reps=10, execution=run)
+    assert [f.attrs["budget"]["small-v1"]["chunks"] for f in paired.runs.values()] == [2, 2]
+    for call in (lambda: evaluate_suite("heuristic", "suite-v1", [0], execution=run, backend="process"),
+                 lambda: compare(["random"], "small", [0], execution=run, progress=True),
+                 lambda: compare_suite(["random"], "suite-v1", [0], execution=run, workers=2)):
+        with pytest.raises(ValueError, match=r"given beside execution=; allowed: execution= alone"):
+            call()
 
 
 @pytest.mark.slow

@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     if args.suite is not None or args.split is not None:
         return run_suite(args, names)
     config = resolve_scenario(args.scenario or "paper-64")
-    check_backend_args(args)
+    execution = check_backend_args(args, progress=not args.no_progress)
     plot = None
     if args.plot:  # checked before the runs, which may take long
         try:
@@ -59,8 +59,8 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
     seeds = seed_list(args)
     try:  # compare loads every policy before running the first
-        df = compare(names, config, seeds, baseline=args.baseline, backend=args.backend, workers=args.workers,
-                     address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout)
+        df = compare(names, config, seeds, baseline=args.baseline, act_timeout_s=args.act_timeout,
+                     execution=execution)
     except PolicyLoadError as exc:
         raise UsageError(str(exc)) from None
     if df.attrs["baseline_added"]:  # on stderr: a CSV on stdout stays clean
@@ -91,12 +91,11 @@ def run_suite(args: argparse.Namespace, names: list[str]) -> int:
         raise UsageError("--plot applies to one scenario, not to --suite ('wfbench reproduce suite' draws the "
                          "suite's figures)")
     suite = check_suite_args(args)
-    check_backend_args(args)
+    execution = check_backend_args(args, progress=not args.no_progress)
     seeds = seed_list(args)
     try:
-        result = compare_suite(names, suite, seeds, baseline=args.baseline, split=args.split, backend=args.backend,
-                               workers=args.workers, address=args.address, progress=not args.no_progress,
-                               act_timeout_s=args.act_timeout, poi_reps=args.poi_reps)
+        result = compare_suite(names, suite, seeds, baseline=args.baseline, split=args.split,
+                               act_timeout_s=args.act_timeout, poi_reps=args.poi_reps, execution=execution)
     except PolicyLoadError as exc:
         raise UsageError(str(exc)) from None
     if result.baseline_added:

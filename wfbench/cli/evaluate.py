@@ -142,12 +142,12 @@ def run_suite(args: argparse.Namespace) -> int:
     from wfbench.harness.suite import evaluate_suite, suite_cells, suite_summary
 
     suite = check_suite_args(args)
-    check_backend_args(args)
+    execution = check_backend_args(args, progress=not args.no_progress)
     out = check_writable(args.out, "--out") if args.out else None
     seeds = seed_list(args)
     try:
-        df = evaluate_suite(args.policy, suite, seeds, split=args.split, backend=args.backend, workers=args.workers,
-                            address=args.address, progress=not args.no_progress, act_timeout_s=args.act_timeout)
+        df = evaluate_suite(args.policy, suite, seeds, split=args.split, act_timeout_s=args.act_timeout,
+                            execution=execution)
     except PolicyLoadError as exc:
         raise UsageError(str(exc)) from None
     if out:

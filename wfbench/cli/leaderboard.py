@@ -172,10 +172,9 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if args.lb_command == "submit":
             tr = track(args.track)
-            check_backend_args(args)
-            out = submit(tr, args.policy, args.name, submitter=args.submitter, db=args.db, backend=args.backend,
-                         workers=args.workers, address=args.address, wall_time_s=args.wall_time,
-                         memory_mb=args.memory, progress=not args.no_progress, act_timeout_s=args.act_timeout,
+            execution = check_backend_args(args, progress=not args.no_progress)
+            out = submit(tr, args.policy, args.name, submitter=args.submitter, db=args.db, execution=execution,
+                         wall_time_s=args.wall_time, memory_mb=args.memory, act_timeout_s=args.act_timeout,
                          replace=args.replace)
             store = Store(args.db)
             if out.status == "complete":
@@ -196,11 +195,10 @@ def run(args: argparse.Namespace) -> int:
                   f"of {store.path}")
             return 0
         if args.lb_command in ("baselines", "seed"):
-            check_backend_args(args)
+            execution = check_backend_args(args, progress=not args.no_progress)
             failed = 0
             for tr in seed_tracks(track(args.track) if args.track else None):  # unseeded tracks: only when named
-                for out in seed_builtins(tr, db=args.db, backend=args.backend, workers=args.workers,
-                                         address=args.address, progress=not args.no_progress):
+                for out in seed_builtins(tr, db=args.db, execution=execution):
                     print(f"{tr.name:<14s} {out.submission.name:<20s} {out.status} ({out.stored_rows} seeds, "
                           f"{out.new_rows} new, {out.seconds:.1f} s){': ' + out.reason if out.reason else ''}")
                     failed += out.status != "complete"

@@ -18,7 +18,8 @@ from wfbench.analysis.stats import bootstrap_ci, paired_difference
 from wfbench.analysis.tables import markdown_table, text_table
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
-from wfbench.harness.evaluation import evaluate, format_kpi, resolve_seeds, summarize
+from wfbench.harness.backends import Execution
+from wfbench.harness.evaluation import evaluate, format_kpi, one_execution, resolve_seeds, summarize
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.scenarios.resolve import resolve_scenario
 
@@ -29,7 +30,8 @@ if TYPE_CHECKING:  # pragma: no cover
 def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,
             baseline: str = "heuristic", backend: str = "serial", workers: int | None = None,
             address: str | None = None, progress: bool = False,
-            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, plot: str | Path | None = None) -> pd.DataFrame:
+            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, plot: str | Path | None = None,
+            threads: int | None = None, execution: Execution | None = None) -> pd.DataFrame:
     """One row per policy (baseline included): KPI summaries, NSW 95% interval, paired NSW difference.
 
     Every policy runs on the same seeds, so the difference to the baseline is paired by
@@ -53,6 +55,10 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         plot: also write the comparison's figure here (:func:`plot_comparison`); the suffix
             picks the format (``.png``, ``.svg`` or ``.pdf``); the path is checked before anything
             runs (:func:`check_plot_path`).
+        threads: numba threads of the ``serial`` backend.
+        execution: ``backend``, ``workers``, ``address``, ``progress`` and ``threads`` as one
+            :class:`~wfbench.harness.backends.Execution`, handed to every policy's evaluation;
+            give it or those keywords, not both.
 
     Returns:
         The comparison, one row per policy.
@@ -61,6 +67,8 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         ValueError: a bad scenario, seed list or plot path; :class:`wfbench.harness.guard.PolicyLoadError`
             (a ValueError) for a spec that names no policy.
     """
+    run = one_execution(execution, {"backend": backend, "workers": workers, "threads": threads,
+                                    "progress": progress, "address": address})
     if plot is not None:
         check_plot_path(plot)  # a bad suffix or folder fails before the runs, not after them
     config = resolve_scenario(scenario)
@@ -68,8 +76,7 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
     added = baseline not in policies
     loaded = [load_policy(p, act_timeout_s) for p in ([baseline, *policies] if added else policies)]
     by_name = {lp.name: lp for lp in loaded}  # a policy listed twice runs once
-    runs = {name: evaluate(lp, config, seed_list, backend=backend, workers=workers, address=address,
-                           progress=progress) for name, lp in by_name.items()}
+    runs = {name: evaluate(lp, config, seed_list, execution=run) for name, lp in by_name.items()}
     base = runs[baseline]["nsw"].to_numpy()
     rows = []
     for name, df in runs.items():
@@ -218,7 +225,8 @@ def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int |
                   baseline: str = "heuristic", split: str | None = None, backend: str = "serial",
                   workers: int | None = None, address: str | None = None, progress: bool = False,
                   act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, seed: int = 0,
-                  poi_reps: int = 1000) -> SuiteComparison:
+                  poi_reps: int = 1000, threads: int | None = None,
+                  execution: Execution | None = None) -> SuiteComparison:
     """Policies over a suite, paired per scenario and seed with a baseline, and aggregated per split.
 
     Every policy runs on every scenario of the suite (or of ``split``) on the same seeds
@@ -239,6 +247,9 @@ def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int |
         act_timeout_s: limit of each ``reset``/``act`` call of a user's policy (``None``: none).
         seed: the aggregate's bootstrap seed.
         poi_reps: bootstrap replications of the probability of improvement's interval.
+        threads: numba threads of the ``serial`` backend.
+        execution: the run options as one :class:`~wfbench.harness.backends.Execution`
+            (as for :func:`compare`); give it or the keywords, not both.
 
     Returns:
         The :class:`SuiteComparison`.
@@ -247,14 +258,15 @@ def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int |
     from wfbench.harness.suite import evaluate_suite
     from wfbench.scenarios import get_suite
 
+    run = one_execution(execution, {"backend": backend, "workers": workers, "threads": threads,
+                                    "progress": progress, "address": address})
     s = get_suite(suite)
     s.ids(split)  # an unknown split fails before anything runs
     seed_list = resolve_seeds(seeds)
     added = baseline not in policies
     loaded = [load_policy(p, act_timeout_s) for p in ([baseline, *policies] if added else policies)]
     by_name = {lp.name: lp for lp in loaded}
-    runs = {name: evaluate_suite(lp, s, seed_list, split=split, backend=backend, workers=workers, address=address,
-                                 progress=progress) for name, lp in by_name.items()}
+    runs = {name: evaluate_suite(lp, s, seed_list, split=split, execution=run) for name, lp in by_name.items()}
     base = runs[baseline]
     rows = []
     for sc in dict.fromkeys(base["scenario"]):

@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from wfbench.harness.evaluation import evaluate
+from wfbench.harness.backends import Execution
+from wfbench.harness.evaluation import evaluate, one_execution
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.policies.registry import ScenarioMismatchWarning
 from wfbench.scenarios.score import REFERENCE_SEEDS, normalize
@@ -20,7 +21,8 @@ __all__ = ["compute_reference", "evaluate_suite", "suite_cells", "suite_summary"
 def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | str | Iterable[int] = "test",
                    split: str | None = None, scenarios: Sequence[str] | None = None, backend: str = "serial",
                    workers: int | None = None, address: str | None = None, progress: bool = False,
-                   act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, **kwargs: Any) -> Any:
+                   act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, threads: int | None = None,
+                   execution: Execution | None = None) -> Any:
     """Score ``policy`` on every scenario of a suite (or of one split): one row per (scenario, seed).
 
     Each scenario runs through :func:`wfbench.evaluate` (so every backend works unchanged),
@@ -42,7 +44,9 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
         act_timeout_s: limit in seconds of each ``reset``/``act`` call of a policy that is not a
             built-in registry name, as for :func:`wfbench.evaluate`: default
             :data:`wfbench.harness.guard.DEFAULT_ACT_TIMEOUT_S`, ``None`` or 0 for no limit.
-        **kwargs: passed on to :func:`wfbench.evaluate` (``threads``).
+        threads: numba threads of the ``serial`` backend.
+        execution: the options above as one :class:`~wfbench.harness.backends.Execution`,
+            handed to every scenario's evaluation; give it or the keywords, not both.
 
     Returns:
         The DataFrame; ``attrs`` holds ``suite``, ``suite_hash``, ``policy``, ``split`` and, where the
@@ -52,6 +56,9 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
         ValueError: an unknown suite, split or scenario, or a bad seed list or backend.
     """
     import pandas as pd
+
+    run = one_execution(execution, {"backend": backend, "workers": workers, "threads": threads,
+                                    "progress": progress, "address": address})
 
     s = get_suite(suite)
     ids = s.ids(split)  # an unknown split fails here
@@ -63,8 +70,7 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
         with warnings.catch_warnings():  # zero-shot is the point of the held-out split: no mismatch warning there
             if sc.split == "heldout":
                 warnings.simplefilter("ignore", ScenarioMismatchWarning)
-            df = evaluate(loaded, sc.config, seeds, backend=backend, workers=workers, address=address,
-                          progress=progress, **kwargs)
+            df = evaluate(loaded, sc.config, seeds, execution=run)
         if "budget" in df.attrs:
             budgets[sc.id] = df.attrs["budget"]
         df.insert(0, "normalized", normalize(df["nsw"].to_numpy(), sc.id, s))
