@@ -99,3 +99,34 @@ def test_aggregate__leaves_the_root_logger_unconfigured(monkeypatch):
     aggregate({"a": rng.random((5, 2)), "b": rng.random((5, 2))}, baseline="b", reps=20, poi_reps=10,
               profile_reps=5)
     assert root.handlers == [], "rliable's absl log call would have run logging.basicConfig() on the root"
+
+
+def test_aggregate__the_iqm_without_scipy_s_wrapper_is_rliable_s_to_the_bit():
+    from rliable import metrics
+
+    from wfbench.analysis.aggregate import _iqm
+
+    iqm, rng = _iqm(), np.random.default_rng(7)
+    shapes = [(int(rng.integers(1, 60)), int(rng.integers(1, 9))) for _ in range(300)]
+    mats = [rng.random(s) for s in shapes] + [np.round(rng.random((50, 8)), 1) for _ in range(50)]  # ties too
+    mats += [np.array([[0.5, np.nan], [0.2, 0.1]]), np.array([[np.inf, 0.3]])]
+    for m in mats:
+        assert np.array_equal(iqm(m), metrics.aggregate_iqm(m), equal_nan=True), m.shape
+
+
+def test_aggregate__intervals_are_those_of_rliable_s_own_metric_functions():
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "benchmarks" / "aggregate_speed.py"
+    spec = importlib.util.spec_from_file_location("aggregate_speed", path)
+    bench = importlib.util.module_from_spec(spec)
+    sys.modules["aggregate_speed"] = bench
+    spec.loader.exec_module(bench)
+    s = _scores()
+    theirs = bench.rliable_table(s, seed=3, reps=200)
+    t = aggregate(s, seed=3, reps=200, profile_reps=10).table.set_index("policy")
+    cols = [*STATISTICS, *(f"{k}_low" for k in STATISTICS), *(f"{k}_high" for k in STATISTICS)]
+    for name, values in theirs.items():
+        assert np.array_equal(t.loc[name, cols].to_numpy(dtype=float), values), name
