@@ -33,6 +33,7 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.harness.backends import Execution, run_chunks, shutdown_pools
 from wfbench.harness.budget import BUDGET_COLUMNS, machine_line, policy_budget
 from wfbench.harness.guard import PolicyError, PolicyLoadError, load_policy, one_line
+from wfbench.harness.runner import results_frame
 
 
 class LocalFailure(PolicyError):
@@ -105,14 +106,11 @@ def _child(conn, policy_spec: str, configs, execution: Execution, memory_mb, act
     conn.send(("ready", fingerprint, detail, budget))
     serial = execution.backend == "serial"
     where = {"backend": execution.backend, "workers": 1 if serial else execution.workers or os.cpu_count() or 1}
+    run = execution.replace(threads=1 if serial else None)  # serial: one numba thread, as each parallel worker
     while (msg := conn.recv())[0] == "run":
         scenario, seeds = msg[1], msg[2]
         try:
-            for batch in run_chunks(loaded, configs[scenario], seeds, backend=execution.backend,
-                                    workers=execution.workers, address=execution.address,
-                                    chunk_size=execution.chunk_size, threads=1 if serial else None):
-                from wfbench.harness.runner import results_frame
-
+            for batch in run_chunks(loaded, configs[scenario], seeds, run):
                 frame = results_frame([batch], configs[scenario], policy_spec)[["seed", *ROW_COLUMNS,
                                                                                *BUDGET_COLUMNS]]
                 conn.send(("rows", [{**row, "machine": machine_line({**batch.machine, **where}), "scenario": scenario}
@@ -151,7 +149,7 @@ class RemainingTime:
     finished rows report); a scenario not started yet is estimated from its size (slots times
     horizon) at the cost per unit of size measured on the scenarios that have finished
     episodes. The wall seconds per unit of cost (which folds in the workers running side by
-    side) come from what finished since :meth:`start`. Before the first rows there is no
+    side) come from what finished since it was made. Before the first rows there is no
     estimate (``None``), never a guess.
 
     Args:

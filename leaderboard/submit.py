@@ -28,7 +28,7 @@ from wfbench.leaderboard.tracks import Track, get_track
 from wfbench.policies import registry as _registry
 
 from wfbench import __version__
-from wfbench.harness.backends import Execution
+from wfbench.harness.backends import Execution, check_execution
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, PolicyLoadError, check_act_timeout, load_policy
 
 __all__ = ["SubmitError", "Outcome", "RemainingTime", "submit", "describe", "scenario_times", "seed_builtins",
@@ -93,8 +93,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     """
     try:
         tr = track if isinstance(track, Track) else get_track(track)
-        if not isinstance(execution, Execution):
-            raise ValueError(f"execution = {execution!r} is not allowed; allowed: an Execution")
+        execution = check_execution(execution)
         if execution.chunk_size is None:
             execution = execution.replace(chunk_size=STORED_CHUNK)
         act_timeout_s = check_act_timeout(act_timeout_s)

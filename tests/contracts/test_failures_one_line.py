@@ -11,7 +11,7 @@ from wfbench.policies import get
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.harness import backends
-from wfbench.harness.backends import run_chunks
+from wfbench.harness.backends import Execution, run_chunks
 from wfbench.harness.guard import PolicyError, load_policy
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -99,7 +99,7 @@ def test_a_failed_chunk_kills_the_workers_mid_episode(tmp_path):
     config = ScenarioConfig.preset("small").replace(horizon=2000)
     loaded = load_policy(FailsOnSeedZero(tmp_path), act_timeout_s=None)
     with pytest.raises(PolicyError, match="seed 0 fails"):
-        for _ in run_chunks(loaded, config, [0, 1, 2], backend="process", workers=2, chunk_size=1):
+        for _ in run_chunks(loaded, config, [0, 1, 2], Execution("process", workers=2, chunk_size=1)):
             pass
     assert backends._pool is None  # the next evaluation starts a new pool
     running = [int(p.name) for p in tmp_path.iterdir()]

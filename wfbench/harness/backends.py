@@ -18,6 +18,7 @@ import os
 import socket
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 from joblib.externals.loky import FIRST_COMPLETED, get_reusable_executor, wait
 from joblib.externals.loky.backend.utils import kill_process_tree
@@ -83,6 +84,10 @@ class Execution:
         return replace(self, **changes)
 
 
+SERIAL = Execution()
+"""This process, with numba's threads over all cores: the default of every run."""
+
+
 def require_ray(what: str) -> None:
     """Raise ValueError saying that ``what`` needs Ray and how to install it, unless Ray imports."""
     try:
@@ -111,28 +116,39 @@ def shutdown_pools(kill_workers: bool = False) -> None:
         _pool = None
 
 
-def run_chunks(loaded: LoadedPolicy, config: ScenarioConfig, seeds: Sequence[int], backend: str = "serial",
-               workers: int | None = None, address: str | None = None, chunk_size: int | None = None,
-               keep_series: bool = False, threads: int | None = None) -> Iterator[BatchResult]:
+def check_execution(value: Any, default: Execution | None = None) -> Execution:
+    """``value`` as a run's :class:`Execution`: ``default`` for ``None`` where one is given.
+
+    Raises:
+        ValueError: anything else, in one line naming what is allowed.
+    """
+    if value is None and default is not None:
+        return default
+    if not isinstance(value, Execution):
+        allowed = "an Execution or None" if default is not None else "an Execution"
+        raise ValueError(f"execution = {value!r} is not allowed; allowed: {allowed}")
+    return value
+
+
+def run_chunks(loaded: LoadedPolicy, config: ScenarioConfig, seeds: Sequence[int], execution: Execution = SERIAL,
+               keep_series: bool = False) -> Iterator[BatchResult]:
     """Yield a BatchResult per finished chunk of ``seeds``.
 
     Args:
         loaded: the policy, resolved once (:func:`wfbench.harness.guard.load_policy`).
         config: the scenario.
         seeds: the seeds to run.
-        backend: ``serial``, ``process`` or ``ray``.
-        workers: processes or Ray tasks (default: all cores).
-        address: Ray cluster address.
-        chunk_size: seeds per batch; default all seeds for ``serial`` and an even split
-            over the workers otherwise.
+        execution: the backend, its workers or Ray address, the seeds per batch (default all
+            seeds for ``serial`` and an even split over the workers otherwise) and the numba
+            threads of a compiled rollout on ``serial`` (the parallel backends use one per
+            worker); checked when it was made.
         keep_series: keep the per-step metrics.
-        threads: numba threads of a compiled rollout on ``serial`` (the parallel
-            backends use one per worker).
 
     Yields:
         Each chunk's result as soon as it is finished.
     """
-    check_backend(backend, address)
+    backend, workers, address = execution.backend, execution.workers, execution.address
+    chunk_size, threads = execution.chunk_size, execution.threads
     seeds = list(seeds)
     by_size = None if chunk_size is None else [seeds[i : i + chunk_size] for i in range(0, len(seeds), chunk_size)]
     if backend == "serial":

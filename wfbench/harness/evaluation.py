@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.core.seeds import resolve_seeds
-from wfbench.harness.backends import BACKENDS, Execution, run_chunks
+from wfbench.harness.backends import BACKENDS, Execution, check_execution, run_chunks
 from wfbench.harness.budget import BUDGET_COLUMNS, policy_budget, results_only
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, LoadedPolicy, load_policy
 from wfbench.harness.runner import BatchResult, results_frame
@@ -95,8 +95,7 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
         bar = tqdm(total=len(seed_list), desc=f"{loaded.name} on {config.name}", unit="episode", leave=False)
     results: list[BatchResult] = []
     try:
-        for r in run_chunks(loaded, config, seed_list, backend=run.backend, workers=run.workers, address=run.address,
-                            chunk_size=run.chunk_size, keep_series=return_series, threads=run.threads):
+        for r in run_chunks(loaded, config, seed_list, run, keep_series=return_series):
             results.append(r)
             if bar:
                 bar.update(len(r.seeds))
@@ -108,7 +107,7 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
     rank = np.argsort(df["seed"].map(order).to_numpy(), kind="stable")
     df = df.iloc[rank].reset_index(drop=True)
     df.attrs.update(scenario=config.name, policy=loaded.name,
-                    budget=budget_record(results, loaded, policy, run.backend, run.workers, run.threads))
+                    budget=budget_record(results, loaded, policy, run))
     if return_series:
         series = np.concatenate([r.series for r in results if r.series is not None], axis=0)
         return df, series[rank]
@@ -124,8 +123,7 @@ def one_execution(execution: Execution | None, given: dict[str, Any]) -> Executi
     """
     if execution is None:
         return Execution(**given)
-    if not isinstance(execution, Execution):
-        raise ValueError(f"execution = {execution!r} is not allowed; allowed: an Execution or None")
+    check_execution(execution, Execution())
     loose = sorted(k for k, v in given.items() if v != LOOSE[k])
     if loose:
         raise ValueError(f"{', '.join(loose)} given beside execution=; allowed: execution= alone, or the keywords "
@@ -133,8 +131,8 @@ def one_execution(execution: Execution | None, given: dict[str, Any]) -> Executi
     return execution
 
 
-def budget_record(results: Sequence[BatchResult], loaded: LoadedPolicy, spec: Any, backend: str,
-                  workers: int | None, threads: int | None) -> dict[str, Any]:
+def budget_record(results: Sequence[BatchResult], loaded: LoadedPolicy, spec: Any,
+                  execution: Execution) -> dict[str, Any]:
     """What ``df.attrs["budget"]`` holds: where the chunks ran and what the policy states about its cost.
 
     Keys: ``machine`` (:func:`wfbench.harness.budget.machine` of the process that ran the chunks;
@@ -144,11 +142,11 @@ def budget_record(results: Sequence[BatchResult], loaded: LoadedPolicy, spec: An
     ``chunks`` and ``policy`` (:func:`wfbench.harness.budget.policy_budget`).
     """
     machines = list({json.dumps(r.machine, sort_keys=True): r.machine for r in results}.values())
-    parallel = backend != "serial" and len(results) > 1
+    parallel = execution.backend != "serial" and len(results) > 1
     out: dict[str, Any] = {
-        "backend": backend,
-        "workers": (workers or os.cpu_count() or 1) if parallel else 1,
-        "threads": 1 if parallel else threads,
+        "backend": execution.backend,
+        "workers": (execution.workers or os.cpu_count() or 1) if parallel else 1,
+        "threads": 1 if parallel else execution.threads,
         "timing": results[0].timing if results else "",
         "chunks": len(results),
         "policy": policy_budget(_spec(loaded, spec), loaded.policy),

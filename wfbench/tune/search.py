@@ -27,7 +27,7 @@ from tqdm.auto import tqdm
 from wfbench import __version__
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.seeds import PUBLIC, TEST, TRAIN_START, describe, resolve_seeds
-from wfbench.harness.backends import Execution
+from wfbench.harness.backends import Execution, check_execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.policies import get
 from wfbench.policies import tuned as tuned_file
@@ -243,9 +243,7 @@ def tune(policy: str, scenario: str | ScenarioConfig | None = None, trials: int 
     if isinstance(sampler_seed, bool) or not isinstance(sampler_seed, int) or sampler_seed < 0:
         raise ValueError(f"sampler_seed = {sampler_seed!r}: allowed: a whole number >= 0")
     check_scenario_args(scenario, scenarios)
-    run = Execution() if execution is None else execution
-    if not isinstance(run, Execution):
-        raise ValueError(f"execution = {execution!r} is not allowed; allowed: an Execution or None")
+    run = check_execution(execution, Execution())
     each = run.replace(progress=False)  # the bar is over the trials, not over each trial's episodes
     worlds: list[TuningWorld] | None = None
     if scenarios is not None:
