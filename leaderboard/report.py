@@ -35,7 +35,7 @@ from wfbench.harness.evaluation import format_kpi, summarize
 FORMATS = ("table", "md", "csv", "html")
 SPLIT_LABELS = {"heldout": "held out", "train": "training", "all": "all scenarios"}
 RANKED_OVER = {"heldout": "the held-out scenarios", "all": "all its scenarios"}  # the caption's words
-REPS = 2000  # bootstrap replications per entry and split (rliable's IQM costs about 0.6 ms each on 50 x 8 scores)
+REPS = 2000  # bootstrap replications per entry and split (docs/performance.md: about 0.2 s an entry on the VM)
 SEED = 0  # the bootstrap's seed: the same rows give the same intervals to the last digit
 
 
@@ -197,14 +197,10 @@ def _frame(mine: pd.DataFrame) -> pd.DataFrame:
 def _join_aggregates(table: pd.DataFrame, frames: dict[str, pd.DataFrame], track: Track, baseline: str,
                      reps: int) -> pd.DataFrame:
     """``table`` with each aggregated entry's statistics per split, and over the rank split."""
-    def aggs_of(fr: dict[str, pd.DataFrame]) -> dict:
-        return aggregate_suite(fr, baseline=baseline if baseline in fr else None, seed=SEED, reps=reps,
-                               poi_reps=max(100, reps // 10), profile_reps=10)
-
-    aggs = aggs_of(frames)
-    if track.rank_split not in aggs:  # "all": the aggregate over every scenario (that of the one split, if one)
-        aggs["all"] = next(iter(aggs.values())) if len(aggs) == 1 else \
-            aggs_of({n: f.assign(split="all") for n, f in frames.items()})["all"]
+    aggs = aggregate_suite(frames, baseline=baseline if baseline in frames else None, seed=SEED, reps=reps,
+                           poi_reps=max(100, reps // 10), profile_reps=10)
+    if track.rank_split == "all":  # no held-out scenario: every scenario is a training one, and "all" is that one
+        aggs["all"] = aggs["train"]
     for split, agg in aggs.items():
         names = {}  # iqm -> iqm_heldout, iqm_low -> iqm_heldout_low, ...
         for base in (*STATISTICS, "p_improve"):

@@ -21,6 +21,7 @@ import numpy as np
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.seeds import PUBLIC, TEST
 from wfbench.scenarios import Suite, SuiteScenario, get_suite, normalize
+from wfbench.scenarios.score import scale
 
 TRACK_SCHEMA = 1
 REFERENCE_SUITE = "suite-v1"  # the suite whose published constants normalize a one-scenario track of its scenarios
@@ -91,8 +92,7 @@ class Track:
         given = {r[0]: r[1:] for r in self.references}
         if sc.id not in given:
             return np.asarray(normalize(np.asarray(nsw, dtype=float), sc.id, self.suite), dtype=float)
-        lo, hi = given[sc.id]
-        return (np.asarray(nsw, dtype=float) - lo) / (hi - lo)
+        return scale(nsw, *given[sc.id])
 
     def definition(self) -> dict[str, Any]:
         """What the hash covers: the suite's definition, or (one scenario) the definition it had before suites."""

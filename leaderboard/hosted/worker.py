@@ -256,6 +256,11 @@ class Runner(Protocol):
         """Store what the board keeps beside the rows just inserted, in the same transaction (or nothing)."""
 
 
+def unpack_root(work_dir: str | Path | None) -> Path:
+    """The folder packages are unpacked under: ``work_dir``, or the temporary folder."""
+    return Path(work_dir) if work_dir is not None else Path(tempfile.gettempdir())
+
+
 class SandboxRunner:
     """The hosted board's runner: each chunk of the submission's package in the sandbox, within its time budget.
 
@@ -278,7 +283,7 @@ class SandboxRunner:
             raise ValueError(f"job time {job_time_s!r} s is not allowed; allowed: seconds > 0")
         self.evaluator, self.unpack, self.limits = evaluator, unpack, limits
         self.chunk_size, self.job_time_s = chunk_size, float(job_time_s)
-        self.work_dir = Path(work_dir) if work_dir is not None else Path(tempfile.gettempdir())
+        self.work_dir = unpack_root(work_dir)
 
     def units(self, board: Board, sub: Submission) -> list[tuple[str, int, int]]:
         return board.units(sub)
@@ -352,8 +357,7 @@ class Worker:
             runner = SandboxRunner(evaluator, unpack, limits, chunk_size, job_time_s, work_dir)
         self.runner: Runner = runner
         # where killed workers' unpack folders are looked for: the sandbox's, or the folder it would use
-        self.work_dir = getattr(runner, "work_dir", Path(work_dir) if work_dir is not None else
-                                Path(tempfile.gettempdir()))
+        self.work_dir = getattr(runner, "work_dir", None) or unpack_root(work_dir)
         self.board = board
         self.worker_id = worker_id or f"{socket.gethostname()}:{os.getpid()}"
         self.lease_s = float(lease_s)

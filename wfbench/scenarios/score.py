@@ -22,7 +22,7 @@ from wfbench.scenarios.suites import SUITES, Suite, lookup
 REFERENCE_SEEDS = tuple(TEST)  # the seeds of the normalization constants: the test seeds 0-49
 DATA = Path(__file__).parent
 
-__all__ = ["DATA", "REFERENCE_SEEDS", "normalize", "reference", "references"]
+__all__ = ["DATA", "REFERENCE_SEEDS", "normalize", "reference", "references", "scale"]
 
 
 @cache
@@ -75,8 +75,12 @@ def normalize(nsw: float | np.ndarray | Sequence[float], scenario_id: str,
     Returns:
         A float for a scalar, an array otherwise.
     """
-    lo, hi = reference(scenario_id, suite)
-    out = (np.asarray(nsw, dtype=float) - lo) / (hi - lo)
+    out = scale(nsw, *reference(scenario_id, suite))
     return float(out) if out.ndim == 0 else out
+
+
+def scale(nsw: float | np.ndarray | Sequence[float], random_ref: float, bound_ref: float) -> np.ndarray:
+    """``(nsw - random_ref) / (bound_ref - random_ref)``: the normalized score with given constants (an array)."""
+    return (np.asarray(nsw, dtype=float) - random_ref) / (bound_ref - random_ref)
 
 
