@@ -95,10 +95,10 @@ NS_FLAGS = {"NEWNS": 0x20000, "NEWCGROUP": 0x02000000, "NEWUTS": 0x04000000, "NE
 NUMBERS = {
     "x86_64": {"ptrace": 101, "mount": 165, "umount2": 166, "unshare": 272, "setns": 308, "clone": 56, "clone3": 435,
                "bpf": 321, "perf_event_open": 298, "keyctl": 250, "add_key": 248, "request_key": 249,
-               "userfaultfd": 323},
+               "userfaultfd": 323, "shmget": 29},
     "aarch64": {"ptrace": 117, "mount": 40, "umount2": 39, "unshare": 97, "setns": 268, "clone": 220, "clone3": 435,
                 "bpf": 280, "perf_event_open": 241, "keyctl": 219, "add_key": 217, "request_key": 218,
-                "userfaultfd": 282},
+                "userfaultfd": 282, "shmget": 194},
 }
 CALLS = [
     ("ptrace", (0xDEADBEEF, 0, 0, 0)),  # an unknown request on pid 0: ESRCH/EIO
@@ -115,6 +115,7 @@ CALLS = [
     ("add_key", (0, 0, 0, 0, 0)),  # EFAULT
     ("request_key", (0, 0, 0, 0)),  # EFAULT
     ("userfaultfd", (0x1 | 0x8000,)),  # user-mode-only and an unknown flag: EINVAL
+    ("shmget", (0, 0, 0o1000)),  # a private segment of 0 bytes: EINVAL
 ]
 
 SPY = '''

@@ -11,6 +11,10 @@
   an inheritable descriptor) hands neither to the sandbox: a spy reads ``/proc/1/environ``,
   ``/proc/self/environ``, its parent's and every other environment it can see, and lists its
   descriptors.
+- The policy writes only its capped ``/tmp``, root or not (issue #55): under a non-root worker
+  the skeleton bubblewrap makes for its binds once belonged to the policy's own uid, an
+  uncapped tmpfs that took 1.5 GiB of the host's memory. The spy tries every folder of its
+  sandbox; a filler writes ``/tmp`` until it is refused.
 """
 
 from __future__ import annotations
@@ -205,8 +209,25 @@ def _fds():
     return out
 
 
+def _writable():
+    """Every folder outside /proc and /sys in which a new file can be made."""
+    found = []
+    for root, dirs, _ in os.walk("/"):
+        if root in ("/proc", "/sys"):
+            dirs[:] = []
+            continue
+        probe = os.path.join(root, ".wfbench-probe")
+        try:
+            os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        except OSError:
+            continue
+        os.unlink(probe)
+        found.append(root)
+    return found
+
+
 REPORT = {
-    "uid": os.getuid(), "pid": os.getpid(), "ppid": os.getppid(),
+    "uid": os.getuid(), "pid": os.getpid(), "ppid": os.getppid(), "writable": _writable(),
     "self": _environ("/proc/self/environ"), "init": _environ("/proc/1/environ"),
     "parent": _environ(f"/proc/{os.getppid()}/environ"),
     "all": {p: _environ(f"/proc/{p}/environ") for p in os.listdir("/proc") if p.isdigit()},
@@ -230,8 +251,9 @@ class Policy:
 '''
 
 
-def _spy_report(layout, as_user: int | None) -> tuple[dict, str]:
-    package = _write_package(layout["root"], f"spy-{as_user}", SPY)
+def _spy_report(layout, as_user: int | None, source: str = SPY, prefix: str = "SPY ") -> tuple[dict, str]:
+    """What the policy ``source`` printed after ``prefix`` in its constructor, run by a worker of ``as_user``."""
+    package = _write_package(layout["root"], f"{prefix.strip().lower()}-{as_user}", source)
     leak = layout["root"] / f"board-{as_user}.sqlite"
     leak.write_text("the board's database")
     leak.chmod(0o644)
@@ -248,8 +270,8 @@ def _spy_report(layout, as_user: int | None) -> tuple[dict, str]:
     assert out.returncode == 0, out.stderr[-3000:]
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["reason"].startswith("the policy could not be loaded: RuntimeError: reported"), result["reason"]
-    spy_line = next(line for line in result["log"].splitlines() if line.startswith("SPY "))
-    return json.loads(spy_line[4:]), out.stdout + out.stderr
+    spy_line = next(line for line in result["log"].splitlines() if line.startswith(prefix))
+    return json.loads(spy_line[len(prefix):]), out.stdout + out.stderr
 
 
 @pytest.mark.parametrize("as_user", [USER, None], ids=["non-root", "root"])
@@ -268,3 +290,72 @@ def test_no_secret_and_no_stray_descriptor_reaches_the_sandbox(bwrap, layout, as
     assert len(extra) <= 1 and all(t.startswith("/proc/") or t == "FileNotFoundError" for t in extra.values()), \
         report["fds"]
     assert "board-" not in json.dumps(report["fds"])
+    # nowhere to write but its capped /tmp, root or not
+    assert report["writable"] and all(w == "/tmp" or w.startswith("/tmp/") for w in report["writable"]), \
+        report["writable"]
+
+
+FILL = '''
+import errno, json, os
+
+MIB = 1 << 20
+
+
+def fill(folder, most=256 * MIB):
+    """Write files of 8 MiB (below RLIMIT_FSIZE) into ``folder`` until refused: the bytes written, the errno.
+
+    It stops at ``most`` (twice the sandbox's cap: "no limit") and removes what it wrote, so that a sandbox that
+    lets it write takes the test machine's memory only for a moment and only that much.
+    """
+    block, total, made = b"x" * MIB, 0, []
+    try:
+        while total < most:
+            path = os.path.join(folder, f"fill-{len(made)}")
+            try:
+                fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            except OSError as exc:
+                return total, errno.errorcode.get(exc.errno, str(exc.errno))
+            made.append(path)
+            try:
+                for _ in range(8):
+                    total += os.write(fd, block)
+            except OSError as exc:
+                return total, errno.errorcode.get(exc.errno, str(exc.errno))
+            finally:
+                os.close(fd)
+        return total, "no limit"
+    finally:
+        for path in made:
+            os.unlink(path)
+
+
+class Policy:
+    decisions = ("dispatch",)
+
+    def __init__(self):
+        # the root and every folder in it (issue #55 filled /etc, /opt, the checkout's parents and the root), /dev/shm,
+        # then /tmp
+        tops = sorted(os.path.join("/", d) for d in os.listdir("/") if os.path.isdir(os.path.join("/", d)))
+        folders = ["/", *(f for f in tops if f not in ("/proc", "/sys", "/tmp")), "/dev/shm", "/tmp"]
+        tried = {f: fill(f) for f in folders}
+        print("FILL " + json.dumps(tried), flush=True)
+        raise RuntimeError("reported")
+
+    def reset(self, keys):
+        pass
+
+    def act(self, obs):
+        return {}
+'''
+
+
+@pytest.mark.parametrize("as_user", [USER, None], ids=["non-root", "root"])
+def test_a_policy_writes_only_its_tmp_and_stops_at_its_cap(bwrap, layout, as_user):
+    from wfbench.harness.isolation.sandbox import Limits
+
+    tried, _ = _spy_report(layout, as_user, FILL, "FILL ")
+    outside = {folder: r for folder, r in tried.items() if folder != "/tmp"}
+    assert all(written == 0 and err in ("EROFS", "EACCES", "EPERM") for written, err in outside.values()), outside
+    written, err = tried["/tmp"]
+    cap = (Limits().tmp_mb + Limits().numba_cache_mb) << 20  # the tmpfs's size, the numba copies included
+    assert err == "ENOSPC" and cap // 2 < written <= cap, (written, err, cap)

@@ -3,10 +3,11 @@
 :class:`SandboxPolicy` starts ``python -m wfbench.harness.isolation.child`` in bubblewrap and
 speaks to it over two pipes (:mod:`wfbench.harness.isolation.wire`, never pickle); the simulator
 stays in the evaluator, and the policy sees observations and :func:`opaque_keys` (HMAC-SHA256 of
-the seed), never the seeds. The sandbox: read-only binds of what Python needs, a capped tmpfs,
-its own namespaces (no network), its own uid as root, rlimits, a seccomp filter, clocks kept
-outside, a cleared environment. :class:`SandboxUnavailable` is the set-up's fault (before
-STARTED), :class:`SandboxError` the policy's. :func:`evaluate_sandboxed`; :func:`check_sandbox`.
+the seed), never the seeds. The sandbox: read-only binds of what Python needs on a read-only
+root, a capped tmpfs ``/tmp`` (the one place it can write), its own namespaces (no network),
+its own uid as root, rlimits, a seccomp filter, clocks kept outside, a cleared environment.
+:class:`SandboxUnavailable` is the set-up's fault (before STARTED), :class:`SandboxError` the
+policy's. :func:`evaluate_sandboxed`; :func:`check_sandbox`.
 The rules and why: ``docs/leaderboard.md``, "The threat model".
 """
 
@@ -349,9 +350,11 @@ def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, u
 
     The order matters: bubblewrap applies its operations one by one, so the tmpfs at
     ``/tmp`` comes before every bind, or it would hide those under ``/tmp`` (a venv or a
-    checkout there). The child runs isolated (``-I``: no ``PYTHON*`` variables, no user site,
-    not the current folder on its path): the package joins the path only once the child has
-    imported what it needs and told the evaluator it started.
+    checkout there), and the root and ``/dev`` are remounted read-only after the last
+    bind, leaving ``/tmp`` the one writable folder. The child runs isolated (``-I``: no
+    ``PYTHON*`` variables, no user site, not the current folder on its path): the package
+    joins the path only once the child has imported what it needs and told the evaluator it
+    started.
     """
     folders = python_folders()
     mounts = [f"{CACHE_MOUNT}/{i}" for i in range(len(caches))]
@@ -369,6 +372,10 @@ def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, u
     for (_, folder), m in zip(caches, mounts, strict=True):
         cmd += ["--ro-bind", str(folder), m]
     cmd += ["--ro-bind", str(package_dir), "/policy", "--proc", "/proc", "--dev", "/dev", "--chdir", "/policy"]
+    # the skeleton bubblewrap made for the binds (its root, the binds' parent folders, /dev) is a tmpfs with no size
+    # cap that RLIMIT_AS does not count; under a non-root worker it belongs to the policy's own uid: read-only, so
+    # that the capped /tmp is the one place the policy can write, root or not (issue #55)
+    cmd += ["--remount-ro", "/dev", "--remount-ro", "/"]
     if seccomp_fd is not None:
         cmd += ["--seccomp", str(seccomp_fd)]
     if os.geteuid() == 0:  # the child drops to ``uid``, with no capability left in any set
@@ -381,12 +388,13 @@ def sandbox_command(package_dir: Path, config: dict[str, Any], limits: Limits, u
 
 # -- the seccomp filter ---------------------------------------------------------------------------------------------
 
-# refused with EPERM: debugging other processes, mounting, namespaces, the kernel's programmable and keyring corners
+# refused with EPERM: debugging other processes, mounting, namespaces, the kernel's programmable and keyring corners,
+# and System V shared memory (a segment outlives its mapping, so RLIMIT_AS would not count it)
 SECCOMP_DENY = ("ptrace", "process_vm_readv", "process_vm_writev", "mount", "umount2", "pivot_root",
                 "fsopen", "fsconfig", "fsmount", "fspick", "move_mount", "open_tree", "mount_setattr",
                 "unshare", "setns", "bpf", "perf_event_open", "keyctl", "add_key", "request_key", "userfaultfd",
                 "io_uring_setup", "io_uring_enter", "io_uring_register", "kexec_load", "kexec_file_load",
-                "init_module", "finit_module", "delete_module", "open_by_handle_at")
+                "init_module", "finit_module", "delete_module", "open_by_handle_at", "shmget")
 # clone with any of these flags (a new namespace) is refused; clone3 passes its flags in memory the filter cannot
 # read, so it answers ENOSYS, on which the C library falls back to clone
 CLONE_NEW_FLAGS = (0x00020000, 0x02000000, 0x04000000, 0x08000000, 0x10000000, 0x20000000, 0x40000000)
