@@ -93,6 +93,18 @@ LOOKAHEAD: dict[str, tuple[str, str, str]] = {
                                   "futures, the network playing them (K=2, H=80, R=80)"),
 }
 
+# for city (issue #53): a preset field "sparse:BUDGET" is BUDGET's knobs on solver-tuned's sparse twin (its tuned
+# parameters, assignment and p-median on the k nearest), a decision every R steps only, the futures positioned by
+# spatial averaging (wfbench.policies.lookahead.rollout.SPARSE_PRESET; docs/policies.md, "Lookahead policies on city")
+LOOKAHEAD.update({
+    "rollout-solver-sparse-tuned": ("solver-tuned", "sparse:10ms", "rollout of solver-tuned's sparse twin, for "
+                                    "city: K=4, H=80, a decision every R=20 steps, spatial positioning in the futures"),
+    "rollout-solver-sparse-tuned-1ms": ("solver-tuned", "sparse:1ms", "rollout-solver-sparse-tuned at the 1 ms "
+                                        "budget (K=2, H=80, R=80)"),
+    "rollout-solver-sparse-tuned-100ms": ("solver-tuned", "sparse:100ms", "rollout-solver-sparse-tuned at the "
+                                          "100 ms budget (K=16, H=120, R=10)"),
+})
+
 
 # the rolling-horizon MILP (issue #43): a preset field naming the forecast kind, "mpc:rates" or "mpc:ma"; the base
 # plays dispatch (its assignment), the MILP staffs and positions on the forecast (docs/policies.md, "mpc")

@@ -1,13 +1,12 @@
 """Rollout of a compiled base policy on sampled futures: a deployable direct lookahead (issue #43).
 
-At a workforce decision, :class:`Rollout` scores the base's own workforce action and its allowed
-neighbours by the mean over ``K`` worlds sampled from what it observed
-(:class:`wfbench.core.belief.Belief`) of the NSW summed over ``H`` steps, the base playing every
-later step (:func:`wfbench.policies.oracle.rollout.roll_forward`); every candidate meets the same
-worlds, and the base's choice wins ties. It decides where the base hires or lets go and every
-``R`` steps otherwise. It reads no trace or seed: its public model comes from
-:meth:`Rollout.set_world`, ``scenario=`` or the first observation. ``docs/policies.md``,
-"Lookahead policies" and "The world's public parameters: set_world".
+At a workforce decision, :class:`Rollout` scores the base's action and its allowed neighbours by
+the mean NSW over ``H`` steps of ``K`` worlds sampled from what it observed (:class:`wfbench.core.belief.Belief`),
+the base playing the later steps (:func:`wfbench.policies.oracle.rollout.roll_forward`); common worlds,
+ties to the base. It decides where the base hires or lets go and every ``R`` steps. The ``sparse:``
+presets, for ``city``: the base's :func:`sparse_twin`, a decision every R steps only, futures with
+spatial positioning (:func:`spatial_twin`). It reads no trace or seed: its model comes from
+:meth:`Rollout.set_world`, ``scenario=`` or the first observation. ``docs/policies.md``, "Lookahead policies".
 """
 
 from __future__ import annotations
@@ -19,8 +18,11 @@ from typing import Any
 
 import numpy as np
 from wfbench.policies import kernels as K
+from wfbench.policies.builtin import BuiltinDecision
+from wfbench.policies.composite import Composite
 from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
 from wfbench.policies.protocol import as_obs, seeds_array
+from wfbench.policies.rules import CODES
 
 from wfbench.core.actions import AGENTS
 from wfbench.core.belief import Belief, config_from_observation
@@ -36,6 +38,14 @@ BUDGETS: dict[str, tuple[int, int, int]] = {
 DEFAULT_BUDGET = "10ms"
 KNOBS = {"K": "sampled futures per candidate", "H": "steps of each roll-forward",
          "R": "steps between two decisions the base did not ask for"}
+# the dense solver rules and their twins on sparse candidate graphs, the k nearest (docs/solvers.md, "Sparse
+# candidate graphs"): the same hyper-parameters, the same kernels in the roll-forward (policies/kernels/act.py)
+SPARSE_TWINS: dict[str, str] = {"assignment": "assignment-sparse", "facility-location": "facility-location-sparse"}
+DECIDE = {"base": "where the base hires or lets go, and every R steps", "period": "every R steps only"}
+# a budget "sparse:PRESET": PRESET's knobs with sparse=True, decide="period" and the futures played by the sparse twin's
+# spatial twin, so that a decision's cost on city does not grow with the p-median solves or with how often the base
+# hires (docs/policies.md, "Lookahead policies on city")
+SPARSE_PRESET = "sparse:"
 
 
 def knob(name: str, value: Any) -> int:
@@ -47,6 +57,57 @@ def knob(name: str, value: Any) -> int:
         raise ValueError(f"rollout knob {name} = {value!r} is not allowed; allowed: an integer >= 1 "
                          f"({KNOBS[name]})")
     return int(value)
+
+
+def sparse_twin(base: Any) -> Composite:
+    """The compiled composite ``base`` with its assignment and p-median on sparse candidate graphs, all else kept.
+
+    Each part of :data:`SPARSE_TWINS` becomes its twin with the same hyper-parameters and seed
+    (tuned values stay tuned); a part already sparse stays. Raises ValueError (one line) for a
+    base that is not a compiled composite or has neither part.
+    """
+    name = getattr(base, "name", base)
+    if not getattr(base, "compiled", False):
+        raise ValueError(f"rollout base {name!r} is not a composite of built-in kernels; allowed with sparse=True: "
+                         "a compiled composite with an assignment or facility-location part")
+    parts, sparse = {}, False
+    for decision, part in base.parts.items():
+        twin = SPARSE_TWINS.get(part.name)
+        sparse = sparse or twin is not None or part.name in SPARSE_TWINS.values()
+        if twin is None:
+            parts[decision] = part
+            continue
+        hp = {f: float(part.hp[i]) for i, f in enumerate(K.HP_FIELDS)}
+        parts[decision] = BuiltinDecision(decision, CODES[decision][twin], twin, seed=part.seed, **hp)
+    if not sparse:
+        raise ValueError(f"rollout base {name!r} has no part to solve on a sparse graph; allowed with sparse=True: "
+                         f"a compiled composite with one of {', '.join(SPARSE_TWINS)} (or its sparse twin)")
+    return Composite(**parts, name=f"{name}-sparse")
+
+
+def spatial_twin(base: Any) -> Composite:
+    """The compiled composite ``base`` with its positioning played by spatial averaging, its hyper-parameters kept.
+
+    The cheaper policy of the ``sparse:`` presets' futures: on ``city`` a p-median solve costs
+    more than the rest of a step. Spatial averaging reads the same demand history (``smoothing``,
+    ``request_weight``), so the state the base keeps carries over. ValueError (one line) for a
+    base that is not a compiled composite.
+    """
+    if not getattr(base, "compiled", False):
+        raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
+                         "allowed: a compiled composite")
+    part = base.parts["positioning"]
+    hp = {f: float(part.hp[i]) for i, f in enumerate(K.HP_FIELDS)}
+    spatial = BuiltinDecision("positioning", CODES["positioning"]["spatial"], "spatial", seed=part.seed, **hp)
+    return Composite(base.parts["dispatch"], base.parts["workforce"], spatial, name=f"{base.name}-spatial")
+
+
+def sparse_flag(value: Any) -> bool:
+    """``value`` as the ``sparse`` knob; ValueError of one line otherwise."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"rollout knob sparse = {value!r} is not allowed; allowed: True or False (play the "
+                         "base's sparse twin, its assignment and p-median on the k nearest)")
+    return bool(value)
 
 
 def budget(name: str) -> tuple[int, int, int]:
@@ -99,7 +160,13 @@ class Rollout(RolloutBase):
     Args:
         base: a composite of built-in kernels (``Composite.compiled``), e.g. ``policies.get("solver-tuned")``.
         K, H, R: the knobs (:data:`KNOBS`), integers >= 1; None takes the ``budget`` preset's.
-        budget: a preset of :data:`BUDGETS` for the knobs not given.
+        budget: a preset of :data:`BUDGETS` for the knobs not given; ``sparse:PRESET`` is that
+            preset with ``sparse=True``, ``decide="period"`` and ``futures`` the sparse twin's
+            :func:`spatial_twin` (the registry's ``rollout-solver-sparse-tuned`` presets, for ``city``).
+        sparse: play :func:`sparse_twin` of ``base`` (a bool).
+        decide: when to roll out (:data:`DECIDE`): ``"base"``, where the base hires or lets go
+            and every R steps; ``"period"``, every R steps only (the base's other actions pass).
+        futures: a compiled composite that plays the futures after their first step; None: the base.
         scenario: the public config of the world (a :class:`ScenarioConfig`); None: from
             :meth:`set_world` (the evaluator's), else built from the first observation.
         seed: the policy's own seed, mixed into its belief keys.
@@ -108,11 +175,23 @@ class Rollout(RolloutBase):
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  budget: str = DEFAULT_BUDGET, scenario: ScenarioConfig | None = None, seed: int = 0,
-                 name: str | None = None):
+                 name: str | None = None, sparse: bool = False, decide: str = "base", futures: Any = None):
+        if isinstance(budget, str) and budget.startswith(SPARSE_PRESET):  # the city presets (module docstring)
+            budget, sparse, decide = budget[len(SPARSE_PRESET):], True, "period"
+            futures = spatial_twin(sparse_twin(base)) if futures is None else futures
+        if sparse_flag(sparse):
+            base = sparse_twin(base)
         if not getattr(base, "compiled", False):
             raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
                              "allowed: a compiled composite (a registry composite or tuned file of one)")
+        if decide not in DECIDE:
+            raise ValueError(f"rollout knob decide = {decide!r} is not allowed; allowed: "
+                             + ", ".join(f"{k} ({v})" for k, v in DECIDE.items()))
+        if futures is not None and not getattr(futures, "compiled", False):
+            raise ValueError(f"rollout futures {getattr(futures, 'name', futures)!r} is not a composite of built-in "
+                             "kernels; allowed: None (the base) or a compiled composite")
         name = name or f"rollout-{getattr(base, 'name', 'base')}"
+        self.sparse, self.decide, self.futures = bool(sparse), decide, futures
         super().__init__(base, K, H, R, budget, scenario, seed, name)
 
     # the name of before; the runner hands ``attach`` only to policies that read the trace
@@ -131,6 +210,9 @@ class Rollout(RolloutBase):
         self.belief.reset(self._seeds, self.seed)
         codes, hp, pstate = self.base.compiled_plan(self._seeds, M, N)
         self.codes, self.hp, self.pstate = codes, hp, pstate
+        # the futures' kernels: the base's, or the cheaper composite's (its state is the base's, copied per row)
+        self.f_codes, self.f_hp = (codes, hp) if self.futures is None else self.futures.compiled_plan(self._seeds,
+                                                                                                       M, N)[:2]
         rows = B * 7 * self.K
         self.fork = self.belief.simulator(rows)
         self.fork_pstate = K.allocate_state(rows, M, N)
@@ -149,7 +231,7 @@ class Rollout(RolloutBase):
         p = np.zeros((B, 2, M), dtype=np.float64)
         t = np.asarray(obs["t"], dtype=np.int64)
         K.act_batch(as_obs(obs), self.pstate, self.codes, self.hp, d, w, p, t)
-        decide = (w != 0) | (t % self.R == 0)
+        decide = (t % self.R == 0) if self.decide == "period" else (w != 0) | (t % self.R == 0)
         self.last_scores = None
         if decide.any():
             self._decide(obs, np.flatnonzero(decide), d, w, p)
@@ -169,7 +251,7 @@ class Rollout(RolloutBase):
         buf.first_d[:n] = d[env_idx]
         buf.first_w[:n] = rows_a
         buf.first_p[:n] = p[env_idx]
-        score = roll_forward(self.fork, self.H, self.codes, self.hp, self.fork_pstate, first=True, buffers=buf,
+        score = roll_forward(self.fork, self.H, self.f_codes, self.f_hp, self.fork_pstate, first=True, buffers=buf,
                              rows=n)[:n]
         self.timing["decisions"] += len(envs)
         self.timing["rolls"] += n
@@ -224,5 +306,5 @@ def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, 
     return Rollout(base, budget=budget_name, name=name, **knobs)
 
 
-__all__ = ["BUDGETS", "DEFAULT_BUDGET", "KNOBS", "Rollout", "RolloutBase", "budget", "candidate_rows", "knob", "make",
-           "pick_best"]
+__all__ = ["BUDGETS", "DECIDE", "DEFAULT_BUDGET", "KNOBS", "SPARSE_PRESET", "SPARSE_TWINS", "Rollout", "RolloutBase",
+           "budget", "candidate_rows", "knob", "make", "pick_best", "sparse_flag", "sparse_twin", "spatial_twin"]

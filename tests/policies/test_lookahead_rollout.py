@@ -32,11 +32,15 @@ def test_bad_budget_and_base_are_refused_in_one_line():
 
 def test_the_presets_are_registered_by_budget():
     for name, (_base, preset, _) in LOOKAHEAD.items():
-        if preset.startswith(("mpc:", "tuned:")):  # the MILP's entries, tuned or not (test_lookahead_mpc.py)
+        if preset.startswith(("mpc:", "tuned:", "search:")):  # the MILP's (test_lookahead_mpc.py), the search's
             continue
         assert parse_spec(name).kind == "lookahead"
         pol = policies.get(name)
-        assert pol.name == name and tuple(pol.settings().values()) == BUDGETS[preset]
+        sparse = preset.startswith("sparse:")  # the city presets (test_lookahead_sparse.py)
+        assert pol.name == name and tuple(pol.settings().values()) == BUDGETS[preset.removeprefix("sparse:")]
+        if isinstance(pol, Rollout):  # of a compiled base (the network's: test_lookahead_network.py)
+            assert pol.sparse == sparse and pol.decide == ("period" if sparse else "base")
+            assert (pol.futures is None) != sparse
     assert Rollout(policies.get("solver-tuned"), budget="1ms", H=7).settings() == {"K": 2, "H": 7, "R": 80}
 
 
