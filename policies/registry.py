@@ -126,6 +126,18 @@ LOOKAHEAD.update({
 })
 
 
+# search with the network (issue #52; docs/policies.md, "search-scalefree-general"): a preset field "search:BUDGET"
+# names a preset of wfbench.policies.lookahead.search (greedy futures ended at the network's value, a noise test)
+LOOKAHEAD.update({
+    "search-scalefree-general-1ms": ("scalefree-general", "search:1ms", "search with the scale-free network, the "
+                                     "1 ms budget: greedy futures ended at its value, a noise test"),
+    "search-scalefree-general": ("scalefree-general", "search:10ms", "search with the scale-free network on sampled "
+                                 "futures: greedy futures ended at its value, a noise test (10 ms budget)"),
+    "search-scalefree-general-100ms": ("scalefree-general", "search:100ms", "search with the scale-free network, "
+                                       "the 100 ms budget: greedy futures ended at its value, a noise test"),
+})
+
+
 def _lookahead_file(name: str) -> Path | None:
     """The tuned-policy file a tuned lookahead reads, or None."""
     preset = LOOKAHEAD[name][1]

@@ -3,6 +3,8 @@
 :mod:`~wfbench.policies.lookahead.rollout` rolls a compiled base policy forward on K sampled
 futures (:class:`Rollout`, :data:`BUDGETS`); :mod:`~wfbench.policies.lookahead.network_rollout`
 does it with a trained network as the base (:class:`NetworkRollout`);
+:mod:`~wfbench.policies.lookahead.search` searches with the network, greedy futures ended at its
+value and a noise test (:class:`NetworkSearch`);
 :mod:`~wfbench.policies.lookahead.mpc` solves a rolling-horizon staffing MILP on a forecast
 (:class:`MPC`). The worlds come from :class:`wfbench.core.belief.Belief`: they agree with every
 observation and draw the unobserved from the public model under the policy's own keys. The
@@ -12,19 +14,24 @@ oracles that read the true future are :mod:`wfbench.policies.oracle`. ``docs/pol
 
 from typing import Any
 
+from wfbench.policies.lookahead import search
 from wfbench.policies.lookahead.mpc import MPC
 from wfbench.policies.lookahead.network_rollout import NetworkRollout
 from wfbench.policies.lookahead.rollout import BUDGETS, DEFAULT_BUDGET, Rollout, budget, knob
+from wfbench.policies.lookahead.search import NetworkSearch
 
 
 def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, **knobs: Any) -> Any:
     """A rollout of ``base`` at a budget preset, knobs overriding it.
 
-    :class:`Rollout` of a compiled composite, :class:`NetworkRollout` of a network.
+    :class:`Rollout` of a compiled composite, :class:`NetworkRollout` of a network; a budget
+    ``search:NAME`` is :class:`NetworkSearch` of a network at its preset NAME.
     """
+    if budget_name.startswith("search:"):
+        return search.make(base, budget_name[len("search:"):], name=name, **knobs)
     if not getattr(base, "compiled", False) and hasattr(base, "model"):
         return NetworkRollout(base, budget=budget_name, name=name, **knobs)
     return Rollout(base, budget=budget_name, name=name, **knobs)
 
 
-__all__ = ["BUDGETS", "DEFAULT_BUDGET", "MPC", "NetworkRollout", "Rollout", "budget", "knob", "make"]
+__all__ = ["BUDGETS", "DEFAULT_BUDGET", "MPC", "NetworkRollout", "NetworkSearch", "Rollout", "budget", "knob", "make"]

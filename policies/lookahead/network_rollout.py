@@ -79,6 +79,7 @@ class NetworkRollout(RolloutBase):
                 self.base.reset(self._seeds)
             self._start(obs)
         self.belief.update(obs)
+        self._prior = self.base._state, self.base._starts  # the memory before this step (a search re-reads its heads)
         action = self.base.act(obs)
         action = {k: np.array(v, copy=True) for k, v in action.items()}
         t = np.asarray(obs["t"], dtype=np.int64)

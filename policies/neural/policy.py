@@ -133,9 +133,12 @@ class NetworkPolicy:
             torch.set_num_threads(before)
 
     @torch.no_grad()
-    def _act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        B, M = obs["requesting"].shape
-        N = obs["personnel"].shape[1]
+    def heads(self, obs: dict[str, np.ndarray]) -> tuple[dict, dict, torch.Tensor | None]:
+        """One step of the network on ``obs``: its head outputs, features and compact rows; the memory moves on.
+
+        What :meth:`act` samples from; a lookahead reads the value and the logits from it
+        (:mod:`wfbench.policies.lookahead.search`).
+        """
         # a network before the scale-free one computes only the dispatch rows its sampler reads (the choosing
         # facilities): the same bits as the rows of the whole block, which on city is about 30 times larger
         x = scalefree.features(self.model, scalefree.raw_tensors(self.model, obs, self.device), rows_only=True)
@@ -146,6 +149,14 @@ class NetworkPolicy:
         else:
             out, self._state = self.model(x, self._state, self._starts, at)
         self._starts = torch.zeros_like(self._starts)
+        return out, x, choose
+
+    @torch.no_grad()
+    def _act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        B, M = obs["requesting"].shape
+        N = obs["personnel"].shape[1]
+        out, x, choose = self.heads(obs)
+        at = None if choose is None else choose.nonzero(as_tuple=True)
         noise = None
         if self.mode != "greedy":
             # greedy-dispatch reads no dispatch noise, but its stream is drawn past all the same
