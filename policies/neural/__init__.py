@@ -8,5 +8,5 @@ algorithm), and the shipped checkpoints (``policies/neural/checkpoints/``).
 
 # the algorithms a checkpoint can name in its ``algo`` key, each its prefix ``ALGO:PATH``
 # (wfbench.train.registry.ALGORITHMS; tests/train/test_train_registry.py checks the two agree)
-CHECKPOINT_ALGORITHMS = ("ppo", "impala", "hindsight")
+CHECKPOINT_ALGORITHMS = ("ppo", "impala", "hindsight", "distill")
 ALIAS = "ppo"  # the prefix that loads a checkpoint of any algorithm (the one every checkpoint loaded by before)

@@ -21,7 +21,7 @@ def test_registry__names_configs_and_trainers_agree_with_the_checkpoint_prefixes
     for name, algo in ALGORITHMS.items():
         assert issubclass(algo.config_class(), BaseConfig), name
         assert callable(algo.trainer_class().train), name
-    with pytest.raises(ValueError, match="algorithm 'sac' is not known; allowed: ppo, impala, hindsight"):
+    with pytest.raises(ValueError, match="algorithm 'sac' is not known; allowed: ppo, impala, hindsight, distill"):
         get_algorithm("sac")
 
 

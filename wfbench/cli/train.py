@@ -16,7 +16,7 @@ from wfbench.train.registry import ALGORITHMS, DEFAULT_ALGORITHM, get_algorithm
 # the flags that set a field of the same name in the algorithm's config (when given)
 TRAIN_FLAGS = ("variant", "scenario", "scenarios", "steps", "model", "num_envs", "num_steps", "epochs", "minibatches",
                "lr", "ent_coef", "seed", "device", "threads", "checkpoint_every", "eval_every", "eval_seeds", "run_dir",
-               "init", "gae_lambda", "gamma", "agents", "address")
+               "init", "gae_lambda", "gamma", "agents", "address", "teacher")
 
 
 def add_parser(sub) -> None:
@@ -69,6 +69,10 @@ def add_parser(sub) -> None:
     tr.add_argument("--address", default=None, metavar="ADDR",
                     help="impala: run the actors on a Ray cluster ('auto', 'ray://host:10001' or 'local' for a "
                          "Ray instance on this machine); docs/impala.md")
+    tr.add_argument("--teacher", default=None, metavar="NAME",
+                    help="distill: the deployable policy the network imitates on its own states (default "
+                         "rollout-solver-tuned-1ms; a policy that reads the future is refused: that is --algo "
+                         "hindsight); hindsight: oracle or nearest+oracle+oracle; docs/rl.md, Distillation")
     tr.add_argument("--resume", default=None, metavar="CKPT",
                     help="continue a run from its checkpoint (latest.pt); its settings are kept, --steps may raise "
                          "the total")

@@ -240,7 +240,11 @@ class Trainer:
     """A hindsight-learning run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint.
 
     Collection (:meth:`collect`) and the update (:meth:`learn`) alternate, one DAgger iteration each.
+    The teacher of an episode comes from :meth:`teacher`; :mod:`wfbench.train.distill` is this
+    loop with a deployable teacher in place of the oracle's planner.
     """
+
+    ALGO = "hindsight"  # the checkpoints' algo key, the run's title and the policy's name
 
     def __init__(self, config: HindsightConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True, amp: str | torch.dtype | None = "auto"):
@@ -256,7 +260,7 @@ class Trainer:
         self.opt = torch.optim.Adam(self.trainable(), lr=c.lr)
         self.data = Dataset(max(c.dataset_steps // c.num_steps, c.num_envs), c.num_steps)
         self.iteration, self.episode, self.seed_cursor = 0, 0, 0
-        self.timing = {"oracle": 0.0, "values": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0,
+        self.timing = {"teacher": 0.0, "values": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0,
                        "evaluate": 0.0}  # seconds; "values": the learner's roll-forwards (value_rollout learner)
         if c.init and resume is None:
             toolkit.init_weights(self)
@@ -284,16 +288,33 @@ class Trainer:
         if isinstance(scenario, WorldSet):  # across worlds: each episode of the batch on the next world in turn
             self.world = scenario.worlds[(self.seed_cursor // self.run.config.num_envs) % len(scenario.worlds)]
             scenario = self.world.config
-        seeds = toolkit.take_seeds(self.run.config.seed, self.seed_cursor, self.run.config.num_envs)
+        seeds = self.episode_seeds()
         self.seed_cursor += self.run.config.num_envs
         self.sim = Simulator(scenario, seeds, keep_series=False, threads=1)
         self.obs = self.sim.reset()
-        self.planner = teacher_planner(self.run.config.teacher, self.run.config.oracle)
-        self.planner.attach(scenario)
-        self.planner.reset(seeds)
+        self.planner = self.teacher(scenario, seeds)
         self.state = self.model.initial_state(self.sim.B, self.run.device)
         self.starts = torch.ones(self.sim.B, device=self.run.device)
         self.value_fork = None  # the copies the learner's roll-forwards run in (value_rollout "learner")
+
+    def episode_seeds(self) -> list[int]:
+        """The training seeds of the next episode batch: the run seed's window, ``seed_cursor`` seeds on."""
+        return toolkit.take_seeds(self.run.config.seed, self.seed_cursor, self.run.config.num_envs)
+
+    def mix_beta(self, beta: float) -> float:
+        """The probability that an environment follows the teacher at this step: the iteration's ``beta``."""
+        return beta
+
+    def teacher(self, scenario, seeds: list[int]):
+        """The labeller of an episode on ``seeds``: the oracle's planner, attached to the world's trace.
+
+        ``act(obs)`` gives its joint action, ``record(action)`` tells it what was played;
+        ``workforce_values`` (the planner's) feeds the value targets.
+        """
+        planner = teacher_planner(self.run.config.teacher, self.run.config.oracle)
+        planner.attach(scenario)
+        planner.reset(seeds)
+        return planner
 
     def beta(self, iteration: int | None = None) -> float:
         i = self.iteration if iteration is None else iteration
@@ -348,7 +369,7 @@ class Trainer:
                 values.append(torch.from_numpy(np.nan_to_num(v, nan=0.0)).float() if v is not None
                               else torch.zeros((B, self.obs["workforce_mask"].shape[1])))
             t2 = time.perf_counter()
-            use = self.mix_rng.random(B) < beta  # per environment: the oracle's action or the learner's
+            use = self.mix_rng.random(B) < self.mix_beta(beta)  # per environment: the teacher's or the learner's
             action = {
                 "dispatch": np.where(use[:, None], label["dispatch"], mine["dispatch"]),
                 "workforce": np.where(use, label["workforce"], mine["workforce"]),
@@ -391,7 +412,7 @@ class Trainer:
                 # the LSTM state is reset through the starts flags of the next episode's first step
             t4 = time.perf_counter()
             self.timing["forward"] += t1 - t0
-            self.timing["oracle"] += t2 - t1 - values_s
+            self.timing["teacher"] += t2 - t1 - values_s
             self.timing["values"] += values_s
             self.timing["simulator"] += t4 - t3
         chunk = {k: torch.stack([r[k] for r in raws], 1) for k in self.obs_keys}  # (B, T, ...)
@@ -579,7 +600,7 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return toolkit.deployable(self.model, "joint", mode, name="hindsight-joint")
+        return toolkit.deployable(self.model, "joint", mode, name=f"{self.ALGO}-joint")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
@@ -589,7 +610,7 @@ class Trainer:
         return res
 
     def checkpoint(self) -> dict:
-        return toolkit.run_checkpoint(self, "hindsight", self.iteration, episode=self.episode,
+        return toolkit.run_checkpoint(self, self.ALGO, self.iteration, episode=self.episode,
                                       seed_cursor=self.seed_cursor)
 
     def save(self, path: Path, full: bool = True) -> Path:
@@ -598,7 +619,7 @@ class Trainer:
                                 value_generator=self.value_gen.get_state())
 
     def _load(self, path) -> None:
-        ckpt = toolkit.load_run(self, path, "hindsight")
+        ckpt = toolkit.load_run(self, path, self.ALGO)
         self.gen.set_state(ckpt["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
         self.batch_gen.set_state(ckpt["batch_generator"].cpu())
         self.mix_rng.bit_generator.state = ckpt["mix_rng"]
@@ -612,10 +633,10 @@ class Trainer:
         c = self.run.config
         stop = c.iterations if iterations is None else min(c.iterations, self.iteration + iterations)
         per_iter = c.chunks_per_iter * c.chunk_steps
-        toolkit.write_run_config(self.run, self.model, algo="hindsight")
+        toolkit.write_run_config(self.run, self.model, algo=self.ALGO)
         start, start_step = time.perf_counter(), self.run.global_step
         stats: dict = {}
-        with toolkit.RunOutputs(self, "iteration", f"hindsight {self.run.scenario.name}", stop * per_iter,
+        with toolkit.RunOutputs(self, "iteration", f"{self.ALGO} {self.run.scenario.name}", stop * per_iter,
                                 self.iteration * per_iter) as out:
             while self.iteration < stop:
                 beta = self.beta()

@@ -79,13 +79,15 @@ class RunOutputs:
     def public(self, res: dict, count: int) -> None:
         """Log a public score (:func:`wfbench.train.scoring.score_public`); keep ``best.pt`` when it is the best.
 
-        Best: the sampled score above the run's best so far; ``best.pt`` holds the policy only.
+        Best: the score of the result's ``select`` mode (the sampled one unless the trainer
+        selects greedy) above the run's best so far; ``best.pt`` holds the policy only.
         """
         t, run = self.trainer, self.trainer.run
         if self.writer:
             log_public(self.writer, res, run.global_step)
-        if res["sample"] > run.best["score"]:
-            run.best = {"score": res["sample"], "update": count, "global_step": run.global_step, "mode": "sample",
+        mode = res.get("select", "sample")
+        if res[mode] > run.best["score"]:
+            run.best = {"score": res[mode], "update": count, "global_step": run.global_step, "mode": mode,
                         "seeds": res["seeds"], "greedy": res["greedy"]}
             t.save(run.dir / "best.pt", full=False)
 

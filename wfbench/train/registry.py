@@ -41,6 +41,9 @@ ALGORITHMS: dict[str, Algorithm] = {
                         "IMPALA: an actor with lagging parameters, a learner with V-trace"),
     "hindsight": Algorithm("hindsight", "wfbench.train.hindsight", "HindsightConfig",
                            "hindsight learning: imitation of the oracles (DAgger) or the learner's own action values"),
+    "distill": Algorithm("distill", "wfbench.train.distill", "DistillConfig",
+                         "distillation: imitation of a deployable teacher that searches (a rollout, the network's "
+                         "search) on the network's own states (DAgger)"),
 }
 DEFAULT_ALGORITHM = "ppo"
 
