@@ -3,8 +3,8 @@
 A checkpoint records its algorithm (``algo``: :data:`CHECKPOINT_ALGORITHMS`; none means PPO)
 and loads as ``ALGO:PATH``; ``ppo:PATH`` loads any. :class:`NetworkPolicy` follows the policy
 protocol (``docs/policies.md``) and acts on the whole batch at once, in mode ``sample`` (the
-default: noise from one generator per environment keyed by its seed), ``greedy`` or
-``greedy-dispatch``. ``trained_on`` is the checkpoint's scenario. A dispatch-only checkpoint is
+default: noise from one generator per environment keyed by its seed), ``greedy``,
+``greedy-dispatch`` or ``greedy-workforce`` (argmax of that one head, the others sampled). ``trained_on`` is the checkpoint's scenario. A dispatch-only checkpoint is
 deployed inside ``policies.Composite`` with ``threshold`` and ``spatial``; independent agents run
 each head from its own network. Modes and why: ``docs/rl.md``, "A checkpoint is a policy".
 """
@@ -23,7 +23,7 @@ from wfbench.policies.neural.dist import env_action
 from wfbench.policies.neural.model import AgentSet, WorkforceNet
 from wfbench.policies.protocol import seeds_array
 
-MODES = ("sample", "greedy", "greedy-dispatch")
+MODES = ("sample", "greedy", "greedy-dispatch", "greedy-workforce")
 POLICY_SEED = 0x99A
 
 
@@ -160,12 +160,14 @@ class NetworkPolicy:
         noise = None
         if self.mode != "greedy":
             # greedy-dispatch reads no dispatch noise, but its stream is drawn past all the same
-            read = self.mode == "sample" and "dispatch" in self.decisions
+            read = self.mode in ("sample", "greedy-workforce") and "dispatch" in self.decisions
             if not read:
                 rows = torch.zeros(B, M, dtype=torch.bool)
             else:  # for a version-1 network the rows read are the choosing facilities
                 rows = scalefree.dispatch_rows(self.model, x) if choose is None else choose
             noise = self._noise(B, M, N, rows.cpu().numpy(), None if choose is None else choose.cpu().numpy())
+            if self.mode == "greedy-workforce":  # the same stream as sample, the workforce head's noise unread
+                noise["workforce"] = torch.zeros_like(noise["workforce"])
         return env_action(scalefree.sample(self.model, out, x, noise, at), M)
 
 

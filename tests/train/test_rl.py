@@ -429,8 +429,32 @@ def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
         sent += int((mixed["dispatch"] < N).sum())
         _, obs = sim.step_observe(acts["sample"])
     assert sent > 0, "no dispatch decision was compared"
-    with pytest.raises(ValueError, match="allowed: sample, greedy, greedy-dispatch"):
+    with pytest.raises(ValueError, match="allowed: sample, greedy, greedy-dispatch, greedy-workforce"):
         policies.get("ppo-joint@argmax")
+
+
+def test_rl__greedy_workforce_mode_is_argmax_workforce_with_sampled_dispatch_and_positioning():
+    """A mode a distilled network may be deployed in (docs/rl.md, "Distillation"): the same stream as sample."""
+    from wfbench.core.simulator import Simulator
+
+    pols = {m: policies.get(f"scalefree-general@{m}") for m in ("sample", "greedy", "greedy-workforce")}
+    seeds = [1000, 1001, 1002, 1003]
+    sim = Simulator(wfbench.scenario("paper-64"), seeds)
+    obs = sim.reset()
+    for p in pols.values():
+        p.reset(seeds)
+    differs = 0
+    for _ in range(60):  # the three see the same observations, so their LSTM states stay equal
+        acts = {m: p.act(obs) for m, p in pols.items()}
+        mixed = acts["greedy-workforce"]
+        assert np.array_equal(mixed["workforce"], acts["greedy"]["workforce"])
+        assert np.array_equal(mixed["dispatch"], acts["sample"]["dispatch"])
+        # where to hire or whom to let go follows the workforce action: the same as sample's where both agree
+        same = mixed["workforce"] == acts["sample"]["workforce"]
+        assert np.array_equal(mixed["positioning"][same], acts["sample"]["positioning"][same])
+        differs += int((~same).sum())
+        _, obs = sim.step_observe(acts["sample"])
+    assert differs > 0, "sampled and greedy workforce never differed: the check compared nothing"
 
 
 
