@@ -246,8 +246,12 @@ def test_skrl_default_config_hits_its_expand_bug(algorithm):
 @pytest.mark.slow
 @pytest.mark.parametrize("positioning", ["2d", "flat"])
 @pytest.mark.parametrize("algorithm", ["IPPO", "MAPPO"])
-def test_skrl_ippo_and_mappo_train_on_the_parallel_env(algorithm, positioning):
-    """skrl's IPPO and MAPPO with its SequentialTrainer: three updates of 8 steps each, every agent's policy moved."""
+def test_skrl_ippo_and_mappo_train_on_the_parallel_env(algorithm, positioning, tmp_path):
+    """skrl's IPPO and MAPPO with its SequentialTrainer: three updates of 8 steps each, every agent's policy moved.
+
+    Its experiment folder (TensorBoard, checkpoints) goes to a temporary folder: skrl's default, ``runs/`` of the
+    current folder, is where the README's ``wfbench train`` commands write.
+    """
     import torch
     from skrl.envs.wrappers.torch import wrap_env
     from skrl.memories.torch import RandomMemory
@@ -259,7 +263,7 @@ def test_skrl_ippo_and_mappo_train_on_the_parallel_env(algorithm, positioning):
     rollouts, updates = 8, 3
     memories = {a: RandomMemory(memory_size=rollouts, num_envs=env.num_envs, device=env.device)
                 for a in env.possible_agents}
-    cfg = {"rollouts": rollouts, "learning_epochs": 1, "mini_batches": 1,
+    cfg = {"rollouts": rollouts, "learning_epochs": 1, "mini_batches": 1, "experiment": {"directory": str(tmp_path)},
            **{field: {a: {} for a in env.possible_agents} for field in SKRL_KWARGS_FIELDS}}  # the workaround
     agent = _skrl_agent(algorithm, env, models, memories, cfg)
     before = {a: [p.detach().clone() for p in models[a]["policy"].parameters()] for a in env.possible_agents}
@@ -268,6 +272,7 @@ def test_skrl_ippo_and_mappo_train_on_the_parallel_env(algorithm, positioning):
                                                             "close_environment_at_exit": False})
     trainer.train()
     assert env.unwrapped.core.sim.t == rollouts * updates
+    assert any(tmp_path.iterdir()), "skrl wrote its experiment folder elsewhere than the one given"
     for a in env.possible_agents:
         after = list(models[a]["policy"].parameters())
         assert any(not torch.equal(b, p) for b, p in zip(before[a], after, strict=True)), f"{a}'s policy did not update"

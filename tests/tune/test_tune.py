@@ -182,6 +182,15 @@ def test_wfbench_policies_lists_the_tuned_ones(capsys):
     assert "heuristic-tuned        policies/tuned/heuristic-paper-64.json" in out and "solver-tuned" in out
 
 
+def test_wfbench_policies_lists_every_lookahead(capsys):
+    from wfbench.policies.registry import lookahead_names
+
+    assert main(["policies"]) == 0
+    out = capsys.readouterr().out
+    names = [line.split()[0] for line in out.splitlines() if " a lookahead on " in line]
+    assert names == lookahead_names() and "rollout-solver-tuned" in names and "mpc-ma" in names, names
+
+
 def test_cli_tune_writes_a_file_that_the_cli_evaluates(tmp_path, capsys):
     cfg = tmp_path / "small60.toml"
     cfg.write_text(SMALL.to_toml())

@@ -1,4 +1,4 @@
-"""``wfbench policies``: list the registered policies and the decisions a composite is made of."""
+"""``wfbench policies``: list the registered policies (lookaheads included) and the decisions of a composite."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import argparse
 
 
 def add_parser(sub) -> None:
-    sub.add_parser("policies", help="list the registered policies")
+    sub.add_parser("policies", help="list the registered policies, lookaheads included")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -14,10 +14,12 @@ def run(args: argparse.Namespace) -> int:
     from wfbench.policies.registry import (
         COMPOSITES,
         LEARNED,
+        LOOKAHEAD,
         ORACLES,
         SEED_RUNS,
         TUNED,
         learned_names,
+        lookahead_names,
         seed_members,
         shipped_member,
     )
@@ -30,6 +32,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"{name:<22s} policies/tuned/{file}: {text}")
     for name in learned_names():
         print(f"{name:<22s} policies/neural/checkpoints/{LEARNED[name][0]}: {LEARNED[name][1]}")
+    for name in lookahead_names():  # deployable lookaheads: they plan on futures sampled from what they observed
+        base, _, text = LOOKAHEAD[name]
+        print(f"{name:<22s} a lookahead on {base}: {text}")
     for method, files in SEED_RUNS.items():  # training seeds: reported by their aggregate (docs/suite.md)
         present = seed_members(method)
         if not present:

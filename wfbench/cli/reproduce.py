@@ -19,8 +19,8 @@ from wfbench.cli.common import (
 
 
 def add_parser(sub) -> None:
-    rp = sub.add_parser("reproduce", help="regenerate the paper's table2, table3 or figure3, the oracle gap, or "
-                        "the suite")
+    rp = sub.add_parser("reproduce", help="regenerate the paper's table2, table3 or figure3, the oracle gap, the "
+                        "suite, its verify (bit for bit) or the frontier (held-out score against compute)")
     rp.add_argument("target", help="table2, table3, figure3, gap (heuristic, solver, oracle and the bound "
                     "per scenario), suite (every built-in policy on every scenario of suite-v1, normalized and "
                     "aggregated; docs/suite.md), verify (recompute the pieces of the suite run in --out and "
