@@ -130,11 +130,11 @@ LOOKAHEAD.update({
 # names a preset of wfbench.policies.lookahead.search (greedy futures ended at the network's value, a noise test)
 LOOKAHEAD.update({
     "search-scalefree-general-1ms": ("scalefree-general", "search:1ms", "search with the scale-free network, the "
-                                     "1 ms budget: greedy futures ended at its value, a noise test"),
-    "search-scalefree-general": ("scalefree-general", "search:10ms", "search with the scale-free network on sampled "
-                                 "futures: greedy futures ended at its value, a noise test (10 ms budget)"),
+                                     "1 ms budget (K=2, H=10, R=80, top=2, z=1)"),
+    "search-scalefree-general": ("scalefree-general", "search:10ms", "search with the scale-free network: greedy "
+                                 "futures ended at its value, a noise test (K=8, H=20, R=20, top=3, z=1)"),
     "search-scalefree-general-100ms": ("scalefree-general", "search:100ms", "search with the scale-free network, "
-                                       "the 100 ms budget: greedy futures ended at its value, a noise test"),
+                                       "the 100 ms budget (K=32, H=20, R=10, top=4, z=1)"),
 })
 
 

@@ -33,9 +33,9 @@ from wfbench.core.config import ScenarioConfig
 # budget presets: (K, H, R, top, z), named by the CPU time per env-step they aim at on paper-64 (one core,
 # whole episodes); chosen on public seeds 1000-1009 (docs/policies.md, "search-scalefree-general")
 BUDGETS: dict[str, tuple[int, int, int, int, float]] = {
-    "1ms": (4, 10, 100, 2, 1.0),
+    "1ms": (2, 10, 80, 2, 1.0),
     "10ms": (8, 20, 20, 3, 1.0),
-    "100ms": (16, 40, 10, 4, 1.0),
+    "100ms": (32, 20, 10, 4, 1.0),
 }
 KNOBS = {"K": ("sampled futures per candidate", "an integer >= 2"),
          "H": ("steps of each future before the value ends it", "an integer >= 1"),
@@ -247,10 +247,10 @@ class NetworkSearch(NetworkRollout):
         self.timing["rolls"] += n
         self.last_scores = np.full((self.B, 7), np.nan)
         self.last_test = {}
-        i = 0
-        for b, cs in zip(envs, cands, strict=True):
-            score = np.asarray(total[i: i + len(cs) * self.K], dtype=np.float64).reshape(len(cs), self.K)
-            i += len(cs) * self.K
+        at = 0
+        for i, (b, cs) in enumerate(zip(envs, cands, strict=True)):
+            score = np.asarray(total[at: at + len(cs) * self.K], dtype=np.float64).reshape(len(cs), self.K)
+            at += len(cs) * self.K
             best, mean, se = beyond_noise(score, self.z)
             self.last_scores[b, cs] = score.mean(1)
             self.last_test[int(b)] = (cs, mean, se)
@@ -258,7 +258,7 @@ class NetworkSearch(NetworkRollout):
                 a = cs[best]
                 w[b] = a
                 action["positioning"][b] = 0.0
-                action["positioning"][b, int(a >= 4), pos[list(envs).index(b), int(a >= 4)]] = 1.0
+                action["positioning"][b, int(a >= 4), pos[i, int(a >= 4)]] = 1.0
                 self.timing["deviations"] += 1
 
 
