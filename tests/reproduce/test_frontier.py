@@ -88,8 +88,10 @@ def test_the_oracle_line_names_where_a_policy_is_above_it():
 
 def test_family__joins_each_kind_on_its_line():
     assert [target.family(p) for p in ("rollout-solver-tuned-1ms", "mpc-ma", "scalefree-general", "solver-tuned",
-                                       "heuristic-tuned-train", "oracle")] == \
-        ["rollout", "mpc", "network", "solver", "heuristic", "oracle"]
+                                       "heuristic-tuned-train", "oracle", "search-scalefree-general-1ms")] == \
+        ["rollout", "mpc", "network", "solver", "heuristic", "oracle", "search"]
+    # the network's search is the learned side's, as the network is
+    assert target.SIDES["search"] == target.SIDES["network"] == "learned"
 
 
 @pytest.mark.parametrize(("argv", "message"), [

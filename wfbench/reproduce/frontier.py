@@ -29,7 +29,7 @@ from wfbench.scenarios import SuiteScenario, get_suite, normalize
 
 BUDGETS_MS = (1.0, 10.0, 100.0)  # CPU ms per env-step: the issue's "about 1 ms, 10 ms, 100 ms"
 BASELINE = "solver-tuned"  # the probability of improvement is taken over it (the rollouts' base)
-SIDES = {"heuristic": "OR", "solver": "OR", "rollout": "OR", "mpc": "OR", "network": "learned",
+SIDES = {"heuristic": "OR", "solver": "OR", "rollout": "OR", "mpc": "OR", "network": "learned", "search": "learned",
          "oracle": "reference", "random": "reference"}
 DEFAULT_REUSE = ("docs/results/frontier-v1", "docs/results/suite-v1-50")  # the committed runs, from a checkout
 
@@ -43,7 +43,9 @@ def default_policies() -> list[str]:
 
 
 def family(policy: str) -> str:
-    """The line a policy is joined on: rollout, mpc, or the suite's family (heuristic, solver, network, ...)."""
+    """The line a policy is joined on: rollout, mpc, search (the network's own), or the suite's family."""
+    if policy.startswith("search-"):  # issue #52: the learned side's lookahead
+        return "search"
     if policy.startswith("rollout-"):
         return "rollout"
     if policy.startswith("mpc"):
@@ -248,7 +250,8 @@ def _figure(result: pd.DataFrame, split: str, n: int, seeds_text: str, path_stem
     from wfbench.analysis.plots import save_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
-    colors = dict(zip(["heuristic", "solver", "rollout", "mpc", "network", "oracle", "random", "other"],
+    # a new family is appended, so that the committed figures keep their colours
+    colors = dict(zip(["heuristic", "solver", "rollout", "mpc", "network", "oracle", "random", "other", "search"],
                       plt.get_cmap("tab10").colors, strict=False))
     for ax, x, label in ((axes[0], "decision_ms_p50", "decision time p50 (ms per env-step, log)"),
                          (axes[1], "cpu_s_per_episode", "CPU seconds per episode (log)")):
