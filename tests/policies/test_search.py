@@ -190,3 +190,13 @@ def test_search_is_not_below_its_network_on_small_public_worlds():
     pol = NetworkSearch(policies.get("scalefree-general"), K=8, H=20, R=20, top=3, z=1.0)
     got = wfbench.evaluate(pol, config, seeds, backend="serial", act_timeout_s=None)["nsw"].to_numpy()
     assert (got - base).mean() >= -0.005, f"search {got.mean():.4f} below its network {base.mean():.4f}"
+
+
+def test_any_network_the_registry_serves_is_a_base_scored_on_its_steps_without_a_value_map():
+    """ppo-general reads observation version 1 and has (B, 2, M) positioning logits; it has no value map."""
+    seeds = [1000]
+    _, net, _ = play(policies.get("ppo-general"), SMALL, seeds)
+    pol = NetworkSearch(policies.get("ppo-general"), K=2, H=5, R=10, top=3, z=1e12, scenario=SMALL)
+    _, srch, tests = play(pol, SMALL, seeds)
+    assert pol.value == () and sum(len(t) for t in tests) >= SMALL.horizon // 10
+    assert all(np.array_equal(x["workforce"], y["workforce"]) for x, y in zip(net, srch, strict=True))
