@@ -201,6 +201,21 @@ class NetworkSearch(NetworkRollout):
             return logits.masked_fill(~mask, -torch.inf).argmax(-1).numpy()
 
     def _decide(self, obs, envs: np.ndarray, action: dict[str, np.ndarray], t: int) -> None:
+        """:meth:`_search` under the network's torch threads, as its own act (torch's default: every core)."""
+        import torch
+
+        threads = self.base.threads
+        if threads is None or self.base.device.type != "cpu":
+            return self._search(obs, envs, action, t)
+        before = torch.get_num_threads()
+        torch.set_num_threads(threads)
+        try:
+            return self._search(obs, envs, action, t)
+        finally:
+            torch.set_num_threads(before)
+
+    def _search(self, obs, envs: np.ndarray, action: dict[str, np.ndarray], t: int) -> None:
+        """Score the candidates of ``envs`` on K greedy futures cut at the value; play a winner beyond the noise."""
         import torch
 
         w = action["workforce"]
