@@ -5,7 +5,8 @@ Every ``R`` steps, for each environment, :class:`MPC` solves
 next ``H`` steps and plays the plan's workforce actions; dispatch is the base's assignment.
 The demand forecast is named apart: ``rates`` (``mpc-rates``, the world's public model from
 ``set_world``) or ``ma`` (``mpc-ma``, a moving average of observed requests). Its knobs, the
-MILP's prices and a capacity scale are tunable (:attr:`MPC.tunable`). Nothing here reads the
+MILP's prices and a capacity scale are tunable (:attr:`MPC.tunable`); ``calibrate=True`` measures
+the capacity from observed repairs (issue #53's diagnosis). Nothing here reads the
 trace, a seed's generator or the true state. The model in full: ``docs/policies.md``, "mpc".
 """
 
@@ -26,7 +27,7 @@ from wfbench.core.actions import AGENTS
 from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.observation_v2 import W
 from wfbench.core.observe import FAC_REQUESTING, FAC_X, FAC_Y, PER_HOME_X, PER_HOME_Y, PER_LEVEL
-from wfbench.core.state import EMPTY, ONBOARDING
+from wfbench.core.state import EMPTY, ONBOARDING, RETURNING, TO_FACILITY
 
 FORECASTS = ("rates", "ma")
 KNOBS = {"H": "steps of the plan", "R": "steps between two solves",
@@ -39,6 +40,11 @@ SHORTFALL_COST = 1000.0  # per request per step not covered, salary units: a que
 # wall-clock limit made it depend on the machine's speed); the largest solve measured on the held-out worlds took 17
 NODE_LIMIT = 1000
 ACTION_COST = 50.0  # per hire or let-go, salary units: what churn costs beyond the lags (a novice earns 1 a step)
+# calibrate=True (issue #53): the capacity's correction is a ratio of repairs observed to repairs the model expects
+# over the busy person-steps, both decayed by this much a step (a memory of about 200 steps, so the ratio follows the
+# headcount: trips are longer with fewer people), with PRIOR_REPAIRS of the model's own rate as a prior
+CALIBRATION_DECAY = 1.0 - 1.0 / 200.0
+PRIOR_REPAIRS = 5.0
 # what a tuner may search (wfbench tune), and a tuned file may set; the defaults above sit inside
 TUNABLE: dict[str, Param] = {
     "H": Param(20, 300, "int"),
@@ -74,6 +80,12 @@ class MPC:
         action_cost: its price of a hire or let-go, salary units.
         capacity_scale: a factor on the capacity model's requests a step per person (the
             model is coarse; tuning may correct it).
+        calibrate: False (today's model) or True: the capacity times the ratio of repairs
+            observed to those the model expects over the busy person-steps (decayed, with a
+            prior), the share of facilities operational averaged over ``window`` steps
+            (``rates``) instead of read off this step, and (``ma``) the base's workforce
+            actions until a full window of requests is seen. The diagnosis that asked for it:
+            docs/policies.md, "mpc".
         node_limit: HiGHS's branch-and-bound nodes per solve, at most.
         name: the policy's name.
     """
@@ -84,7 +96,8 @@ class MPC:
     def __init__(self, base: Any, forecast: str = "rates", H: int = DEFAULTS["H"], R: int = DEFAULTS["R"],
                  window: int = DEFAULTS["window"], scenario: ScenarioConfig | None = None,
                  shortfall_cost: float = SHORTFALL_COST, action_cost: float = ACTION_COST,
-                 capacity_scale: float = 1.0, node_limit: int = NODE_LIMIT, name: str | None = None):
+                 capacity_scale: float = 1.0, node_limit: int = NODE_LIMIT, name: str | None = None,
+                 calibrate: bool = False):
         if not getattr(base, "compiled", False):
             raise ValueError(f"mpc base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
                              "allowed: a compiled composite (a registry composite or tuned file of one)")
@@ -96,6 +109,9 @@ class MPC:
         self.action_cost = TUNABLE["action_cost"].check(action_cost, "action_cost")
         self.capacity_scale = TUNABLE["capacity_scale"].check(capacity_scale, "capacity_scale")
         self.node_limit = knob("node_limit", node_limit)
+        if not isinstance(calibrate, (bool, np.bool_)):
+            raise ValueError(f"mpc calibrate = {calibrate!r} is not allowed; allowed: True or False")
+        self.calibrate = bool(calibrate)
         self.name = name or f"mpc-{forecast}"
         self.config = None if scenario is None else require_config(scenario, f"{self.name} scenario=")
         self.timing: dict[str, float] = {}
@@ -103,8 +119,10 @@ class MPC:
 
     def settings(self) -> dict[str, int]:
         out = {"H": self.H, "R": self.R}
-        if self.forecast == "ma":
+        if self.forecast == "ma" or self.calibrate:
             out["window"] = self.window
+        if self.calibrate:
+            out["calibrate"] = True
         return out
 
     @property
@@ -124,7 +142,7 @@ class MPC:
                 raise ValueError(f"{self.name} has no tunable parameter {k!r}; allowed: {', '.join(self.tunable)}")
             values[k] = self.tunable[k].check(v, k)
         return MPC(self.base, forecast=self.forecast, scenario=self.config, node_limit=self.node_limit,
-                   name=name or self.name, **values)
+                   name=name or self.name, calibrate=self.calibrate, **values)
 
     def set_world(self, config: ScenarioConfig) -> None:
         """The world's public parameters (the evaluator calls it before ``reset``); ``rates`` needs them."""
@@ -156,6 +174,9 @@ class MPC:
         self.travel_mean = np.zeros(B)
         self.travel_n = np.zeros(B)
         self.plan_t0 = np.full(B, -(10**9), dtype=np.int64)
+        self.up_ring = np.zeros((B, self.window), dtype=np.float64)  # share of facilities operational, a ring
+        self.seen_repairs = np.zeros(B)  # decayed repairs observed (calibrate)
+        self.busy_steps = np.zeros((B, 3))  # decayed busy person-steps per level (calibrate)
         self.timing = {"steps": 0.0, "act_s": 0.0, "solves": 0.0, "solve_s": 0.0}
         if self.config is not None:
             c = self.config
@@ -182,6 +203,16 @@ class MPC:
         new = down & ~(self.prev_down & same)
         slot = t % self.window
         rows = np.arange(self.B)
+        if self.calibrate:
+            repaired = self.prev_down & same & ~down  # a request closed at its own facility: a repair
+            busy = (status >= TO_FACILITY) & (status <= RETURNING) & (t[:, None] > 0)
+            level = np.asarray(obs["personnel"][..., PER_LEVEL], dtype=np.int64)
+            self.seen_repairs = self.seen_repairs * CALIBRATION_DECAY + repaired.sum(-1)
+            self.busy_steps *= CALIBRATION_DECAY
+            for lv in range(3):
+                self.busy_steps[:, lv] += (busy & (level == lv)).sum(-1)
+            n_act = active.sum(-1)
+            self.up_ring[rows, slot] = np.where(n_act > 0, 1.0 - down.sum(-1) / np.maximum(n_act, 1), 1.0)
         self.onsets[rows, slot] = new.sum(-1)
         self.fac_onsets[~same] = 0.0  # a new facility in the slot: forget the old one's requests
         self.fac_onsets[rows, :, slot] = new
@@ -207,6 +238,8 @@ class MPC:
             n = n * keep + arrivals[min(h + 1, H - 1)]
         down = (obs["facilities"][b, :, FAC_REQUESTING] > 0.5) & (np.asarray(obs["facility_mask"])[b] == 1)
         up = 1.0 - down.sum() / max(n0, 1.0)  # only operational facilities fail
+        if self.calibrate:  # the share now swings with the backlog, and a low one (a backlog) planned fewer people
+            up = float(self.up_ring[b, : min(t + 1, self.window)].mean())
         return active * up * self.req_mult[steps] / c.request_interval
 
     def _instance(self, b: int, t: int, obs: dict[str, np.ndarray]) -> StaffingInstance:
@@ -247,6 +280,9 @@ class MPC:
         self.travel_mean[b] += (travel - self.travel_mean[b]) / self.travel_n[b]
         T = world[W["service_time"]] + 2.0 * self.travel_mean[b]
         cap = self.capacity_scale * (world[W["target_utilization"]] * fix / max(T, 1e-9))
+        if self.calibrate:  # the model's rate per busy person-step measured: about 1.35 times too low on paper-64
+            expected = float(self.busy_steps[b] @ (fix / max(T, 1e-9)))
+            cap = cap * (self.seen_repairs[b] + PRIOR_REPAIRS) / (expected + PRIOR_REPAIRS)
         return StaffingInstance(demand=self._demand(b, t, obs), capacity=cap, salary=salary, ready=ready, paid=paid,
                                 hire_delay=int(world[W["hire_delay"]]), notice_delay=int(world[W["notice_delay"]]),
                                 max_headcount=int(world[W["max_personnel"]]),
@@ -291,6 +327,8 @@ class MPC:
         self.last = [None] * B if len(self.last) != B else self.last
         for b in range(B):
             tb = int(t[b])
+            if self.calibrate and self.forecast == "ma" and tb + 1 < self.window:
+                continue  # the base's workforce actions until a full window: at step 0 it saw no request and let go
             if tb - self.plan_t0[b] >= min(self.R, self.H):
                 s0 = time.perf_counter()
                 res = plan_staffing(self._instance(b, tb, obs), node_limit=self.node_limit, block=BLOCK)

@@ -130,3 +130,58 @@ def test_the_tuned_presets_load_their_shipped_files():
         assert isinstance(pol, MPC) and pol.name == name and pol.forecast == kind
         assert pol.params() == shipped["params"]
         assert all(p.endswith("(tuned)") for p in parts(name))
+
+
+def test_calibrate_is_refused_unless_a_bool_and_survives_with_params():
+    pol = policies.get("mpc-ma")
+    assert pol.calibrate is False and "calibrate" not in pol.settings(), "the default path is today's model"
+    with pytest.raises(ValueError, match="mpc calibrate = 'yes' is not allowed; allowed: True or False"):
+        MPC(pol.base, calibrate="yes")
+    on = MPC(pol.base, forecast="ma", calibrate=True)
+    assert on.settings() == {"H": 100, "R": 20, "window": 100, "calibrate": True}
+    assert on.with_params({"H": 60}).calibrate is True
+
+
+def test_the_default_never_reads_the_calibration_state(monkeypatch):
+    """calibrate=False plays today's model: garbage in the calibration's counters changes no action."""
+    config = ScenarioConfig.preset("small").replace(horizon=80)
+    plain = run_batch(policies.get("mpc-rates"), config, [1000, 1001])
+    real = MPC._observe
+
+    def poisoned(self, obs, t):
+        real(self, obs, t)
+        self.seen_repairs[:] = 1e9
+        self.busy_steps[:] = 7.0
+        self.up_ring[:] = 0.01
+
+    monkeypatch.setattr(MPC, "_observe", poisoned)
+    again = run_batch(policies.get("mpc-rates"), config, [1000, 1001])
+    assert np.array_equal(plain.means["nsw"], again.means["nsw"])
+    assert all(np.array_equal(plain.counters[k], again.counters[k]) for k in plain.counters)
+
+
+def test_calibrated_ma_waits_for_a_full_window_and_measures_its_rate():
+    """At step 0 the moving average has seen no request: today's model then lets go of nearly everyone."""
+    config = ScenarioConfig.preset("small").replace(horizon=60)
+    base = policies.get("solver-tuned-train")
+    pol = MPC(base, forecast="ma", H=40, R=10, window=20, calibrate=True)
+    r = run_batch(pol, config, [1000, 1001])
+    assert pol.timing["solves"] == 2 * 5, "solves at steps 19, 29, 39, 49, 59 only"
+    assert (pol.plan_t0 == 59).all() and all(res.has_solution for res in pol.last)
+    assert (pol.busy_steps.sum(-1) > 0).all() and np.isfinite(r.means["nsw"]).all()
+    plain = MPC(base, forecast="ma", H=40, R=10, window=20)  # the same state, today's model
+    plain.__dict__.update({k: v.copy() if isinstance(v, np.ndarray) else v for k, v in pol.__dict__.items()
+                           if k != "calibrate"})
+    obs = _last_obs(config)
+    on, off = pol._instance(0, 59, obs), plain._instance(0, 59, obs)
+    factor = on.capacity / off.capacity
+    assert np.allclose(factor, factor[0]) and factor[0] != 1.0, "one measured factor on every level's capacity"
+    assert np.array_equal(on.demand, off.demand), "the moving average's forecast is the same"
+
+
+def _last_obs(config):
+    from wfbench import Simulator
+
+    sim = Simulator(config, [1000, 1001])
+    sim.reset()
+    return sim.observe()
