@@ -114,6 +114,14 @@ LOOKAHEAD.update({
     "mpc-ma": ("solver-tuned-train", "mpc:ma", "rolling-horizon staffing MILP (HiGHS) on a 100-step moving average "
                "of observed requests (no demand model), H=100, R=20; assignment dispatch"),
 })
+# the same with its capacity measured from observed repairs (issue #53; docs/policies.md, "Why it churns"): a
+# preset field "mpc:FORECAST:calibrated" turns on MPC(calibrate=True)
+LOOKAHEAD.update({
+    "mpc-rates-calibrated": ("solver-tuned-train", "mpc:rates:calibrated", "mpc-rates with the capacity per person "
+                             "measured from observed repairs and the working share averaged over the window"),
+    "mpc-ma-calibrated": ("solver-tuned-train", "mpc:ma:calibrated", "mpc-ma with the capacity per person measured "
+                          "from observed repairs; the base staffs until a window of requests is seen"),
+})
 
 
 # tuned on suite-v1's training split, public seeds 1000-1004 (issue #43; docs/policies.md, "mpc"): a preset field
@@ -159,7 +167,8 @@ def _lookahead(name: str) -> Any:
     if preset.startswith("mpc:"):
         from wfbench.policies.lookahead import mpc
 
-        return mpc.make(get(base), preset[4:], name=name)
+        forecast, _, option = preset[4:].partition(":")
+        return mpc.make(get(base), forecast, name=name, **({"calibrate": True} if option == "calibrated" else {}))
     return make(get(base), preset, name=name)
 # -- end of deployable lookahead --------------------------------------------------------------------------------------
 
@@ -576,7 +585,9 @@ def parts(name: str) -> tuple[str, str, str]:
     if name in LOOKAHEAD:  # issue #43: the base's parts, its workforce rolled out or planned (mpc)
         d, w, pos = parts(LOOKAHEAD[name][0])
         if LOOKAHEAD[name][1].startswith("mpc:"):
-            return d, f"Staffing MILP on {LOOKAHEAD[name][1][4:]}", f"Forecast demand ({LOOKAHEAD[name][1][4:]})"
+            forecast, _, option = LOOKAHEAD[name][1][4:].partition(":")
+            how = f"{forecast}, {option}" if option else forecast
+            return d, f"Staffing MILP on {how}", f"Forecast demand ({how})"
         return d, f"{w} + rollout", pos
     registered = [*COMPOSITES, *ORACLES, *TUNED, *LEARNED]
     raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join(registered)}")

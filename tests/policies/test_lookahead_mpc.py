@@ -46,6 +46,16 @@ def test_both_kinds_are_registered_apart_and_not_in_names():
     assert policies.get("mpc-ma").settings() == {"H": 100, "R": 20, "window": 100}
 
 
+def test_the_calibrated_presets_are_the_same_mpc_with_calibrate_on():
+    for name, kind in (("mpc-rates-calibrated", "rates"), ("mpc-ma-calibrated", "ma")):
+        assert name in LOOKAHEAD and name not in names() and parse_spec(name).kind == "lookahead"
+        pol, plain = policies.get(name), policies.get(f"mpc-{kind}")
+        assert isinstance(pol, MPC) and pol.forecast == kind and pol.name == name
+        assert pol.calibrate is True and plain.calibrate is False
+        assert all(pol.settings()[k] == plain.settings()[k] for k in ("H", "R"))  # the same budget
+        assert pol.settings()["calibrate"] is True and "calibrated" in parts(name)[1]
+
+
 def test_a_short_episode_follows_its_plan():
     config = ScenarioConfig.preset("small").replace(horizon=60)
     for name in ("mpc-rates", "mpc-ma"):
