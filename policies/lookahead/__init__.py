@@ -14,11 +14,11 @@ oracles that read the true future are :mod:`wfbench.policies.oracle`. ``docs/pol
 
 from typing import Any
 
-from wfbench.policies.lookahead import search
 from wfbench.policies.lookahead.mpc import MPC
 from wfbench.policies.lookahead.network_rollout import NetworkRollout
 from wfbench.policies.lookahead.rollout import BUDGETS, DEFAULT_BUDGET, Rollout, budget, knob
 from wfbench.policies.lookahead.search import NetworkSearch
+from wfbench.policies.lookahead.search import make as search_preset
 
 
 def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, **knobs: Any) -> Any:
@@ -28,7 +28,7 @@ def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, 
     ``search:NAME`` is :class:`NetworkSearch` of a network at its preset NAME.
     """
     if budget_name.startswith("search:"):
-        return search.make(base, budget_name[len("search:"):], name=name, **knobs)
+        return search_preset(base, budget_name[len("search:"):], name=name, **knobs)
     if not getattr(base, "compiled", False) and hasattr(base, "model"):
         return NetworkRollout(base, budget=budget_name, name=name, **knobs)
     return Rollout(base, budget=budget_name, name=name, **knobs)

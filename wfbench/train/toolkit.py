@@ -31,12 +31,12 @@ from wfbench.train.config import (
 from wfbench.train.outputs import RunOutputs
 from wfbench.train.precision import AMP_DTYPES, amp_dtype, autocast
 from wfbench.train.record import Run, git_commit, start_run, torch_device, write_run_config
-from wfbench.train.scoring import deployable, log_public, score_public, score_worlds
+from wfbench.train.scoring import SELECT_MODES, deployable, log_public, score_public, score_worlds
 
 __all__ = [
     "AMP_DTYPES", "ActorCriticConfig", "BaseConfig", "Collector", "DECISIONS", "DEVICES", "Run", "RunOutputs",
-    "RunningStd", "amp_dtype", "autocast", "build_model", "check_ints", "check_numbers", "deployable", "episode_kpis",
-    "git_commit", "init_weights", "load_run", "log_public", "network_config", "policy_step", "run_checkpoint",
-    "save_atomic", "save_run", "save_unselected_best", "score_public", "score_worlds", "start_run", "take_seeds",
-    "torch_device", "write_run_config",
+    "RunningStd", "SELECT_MODES", "amp_dtype", "autocast", "build_model", "check_ints", "check_numbers", "deployable",
+    "episode_kpis", "git_commit", "init_weights", "load_run", "log_public", "network_config", "policy_step",
+    "run_checkpoint", "save_atomic", "save_run", "save_unselected_best", "score_public", "score_worlds", "start_run",
+    "take_seeds", "torch_device", "write_run_config",
 ]
