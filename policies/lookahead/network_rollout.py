@@ -97,13 +97,17 @@ class NetworkRollout(RolloutBase):
             self.forks[rows] = self.belief.simulator(rows)
         return self.forks[rows]
 
-    def _decide(self, obs, envs: np.ndarray, action: dict[str, np.ndarray], t: int) -> None:
+    def _play(self, env_idx: np.ndarray, rows_k: list[int], first: dict[str, np.ndarray], t: int,
+              rngs: list | None = None) -> tuple[np.ndarray, dict[str, np.ndarray], int]:
+        """Play one future per row: world ``rows_k[i]`` of environment ``env_idx[i]``, sampled from the belief.
+
+        Each row plays ``first`` now, then the copy of the network (its memory of the episode
+        so far, its noise ``rngs`` when given) for the rest of ``min(H, steps left)`` steps.
+        Returns the NSW summed per row, the last observation and the steps played.
+        """
         import torch
 
-        w = action["workforce"]
-        cands, rows_env, rows_a, rows_k = candidate_rows(envs, w, obs["workforce_mask"], self.K)
-        n = len(rows_env)
-        env_idx = np.asarray(rows_env, dtype=np.int64)
+        n = len(env_idx)
         fork = self._fork(n)
         self.belief.sample_into(fork, env_idx, np.asarray(rows_k, dtype=np.int64), self.H)
         p = self.player
@@ -111,15 +115,25 @@ class NetworkRollout(RolloutBase):
         idx = torch.as_tensor(env_idx, device=h.device)
         p._state = (h[:, idx].clone(), c[:, idx].clone())
         p._starts = torch.zeros(1, n, device=h.device)
-        p._rngs = [np.random.default_rng([int(self._seeds[e]), self.seed, PURPOSE_NOISE, t, k])
-                   for e, k in zip(rows_env, rows_k, strict=True)]
-        first = {"dispatch": action["dispatch"][env_idx], "workforce": np.asarray(rows_a, dtype=np.int64),
-                 "positioning": action["positioning"][env_idx]}
+        if rngs is not None:
+            p._rngs = rngs
         steps = min(self.H, self.horizon - t)
         total, fobs = fork.step_observe(first)
         for _ in range(steps - 1):
             r, fobs = fork.step_observe(p.act(fobs))
             total += r
+        return total, fobs, steps
+
+    def _decide(self, obs, envs: np.ndarray, action: dict[str, np.ndarray], t: int) -> None:
+        w = action["workforce"]
+        cands, rows_env, rows_a, rows_k = candidate_rows(envs, w, obs["workforce_mask"], self.K)
+        n = len(rows_env)
+        env_idx = np.asarray(rows_env, dtype=np.int64)
+        rngs = [np.random.default_rng([int(self._seeds[e]), self.seed, PURPOSE_NOISE, t, k])
+                for e, k in zip(rows_env, rows_k, strict=True)]
+        first = {"dispatch": action["dispatch"][env_idx], "workforce": np.asarray(rows_a, dtype=np.int64),
+                 "positioning": action["positioning"][env_idx]}
+        total, _, _ = self._play(env_idx, rows_k, first, t, rngs)
         self.timing["decisions"] += len(envs)
         self.timing["rolls"] += n
         self.last_scores = pick_best(total, envs, cands, self.K, w, self.B)  # the network's action wins ties

@@ -240,20 +240,10 @@ class NetworkSearch(NetworkRollout):
                     first_p.append(p_row)
         n = len(rows_env)
         env_idx = np.asarray(rows_env, dtype=np.int64)
-        fork = self._fork(n)
-        self.belief.sample_into(fork, env_idx, np.asarray(rows_k, dtype=np.int64), self.H)
-        p = self.player
-        h, c = self.base._state  # after this step's act: the network's memory of the episode so far
-        idx = torch.as_tensor(env_idx, device=h.device)
-        p._state = (h[:, idx].clone(), c[:, idx].clone())
-        p._starts = torch.zeros(1, n, device=h.device)
         first = {"dispatch": action["dispatch"][env_idx], "workforce": np.asarray(rows_a, dtype=np.int64),
                  "positioning": np.stack(first_p)}
-        steps = min(self.H, self.horizon - t)
-        total, fobs = fork.step_observe(first)
-        for _ in range(steps - 1):
-            r, fobs = fork.step_observe(p.act(fobs))
-            total += r
+        total, fobs, steps = self._play(env_idx, rows_k, first, t)  # the greedy copy: no noise to hand it
+        p = self.player
         slope = value_slope(self.value, self.horizon - t - steps)
         if t + steps < self.horizon and slope:  # truncated: the critic's estimate of the rest, in summed NSW
             with torch.no_grad():
