@@ -206,11 +206,7 @@ class DistillConfig(hindsight.HindsightConfig):
     select_mode: str = "greedy"
 
     def check(self) -> None:
-        teacher_policy(self.teacher)  # the one line on a teacher that is unknown, reads the future or decides less
-        for name, allowed in HINDSIGHT_ONLY.items():
-            if getattr(self, name) != allowed:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is not allowed for distill; allowed: "
-                                 f"{allowed!r} (it is a setting of hindsight learning's oracle)")
+        super().check()
         if self.model != scalefree.ARCH:
             raise ValueError(f"model {self.model!r} is not allowed for distill; allowed: {scalefree.ARCH} (the "
                              "network that reads every world's size, which distillation trains)")
@@ -218,12 +214,21 @@ class DistillConfig(hindsight.HindsightConfig):
             raise ValueError(f"select_mode {self.select_mode!r} is not allowed; allowed: {', '.join(SELECT_MODES)}")
         if type(self.teacher_batches) is not int or self.teacher_batches < 0:
             raise ValueError(f"teacher_batches = {self.teacher_batches!r} is not allowed; allowed: an integer >= 0")
-        teacher = self.teacher
-        try:
-            self.teacher = hindsight.TEACHERS[0]  # the shared checks, with a teacher they accept
-            super().check()
-        finally:
-            self.teacher = teacher
+
+    def check_teacher(self) -> None:
+        """A deployable teacher, and none of the oracle's settings (checked first).
+
+        One line on a teacher that is unknown, reads the future or decides less; the oracle's
+        settings are refused here, before hindsight learning's own checks of them speak.
+        """
+        teacher_policy(self.teacher)
+        for name, allowed in HINDSIGHT_ONLY.items():
+            if getattr(self, name) != allowed:
+                raise ValueError(f"{name} = {getattr(self, name)!r} is not allowed for distill; allowed: "
+                                 f"{allowed!r} (it is a setting of hindsight learning's oracle)")
+
+    def check_teacher_settings(self) -> None:
+        """Nothing more: a deployable teacher has no planner settings (``check_teacher`` refused any)."""
 
 
 DEMONSTRATION_SEED = 0  # the run seed whose window of training seeds the teacher's own play takes, for every run

@@ -105,8 +105,7 @@ class HindsightConfig(toolkit.BaseConfig):
         if self.variant not in VARIANTS:
             raise ValueError(f"variant {self.variant!r} is not allowed; allowed: {', '.join(VARIANTS)} "
                              "(the oracle teaches all three decisions)")
-        if self.teacher not in TEACHERS:
-            raise ValueError(f"teacher {self.teacher!r} is not allowed; allowed: {', '.join(TEACHERS)}")
+        self.check_teacher()
         if self.workforce_target not in WORKFORCE_TARGETS:
             raise ValueError(f"workforce_target {self.workforce_target!r} is not allowed; allowed: "
                              f"{', '.join(WORKFORCE_TARGETS)}")
@@ -141,7 +140,16 @@ class HindsightConfig(toolkit.BaseConfig):
         if self.dataset_steps < self.chunk_steps:
             raise ValueError(f"dataset_steps = {self.dataset_steps} is not allowed; allowed: at least one chunk, "
                              f"num_envs x num_steps = {self.chunk_steps}")
-        teacher_planner(self.teacher, self.oracle)  # the planner names what it does not allow
+        self.check_teacher_settings()
+
+    def check_teacher(self) -> None:
+        """The teacher's name (checked first): one of :data:`TEACHERS`."""
+        if self.teacher not in TEACHERS:
+            raise ValueError(f"teacher {self.teacher!r} is not allowed; allowed: {', '.join(TEACHERS)}")
+
+    def check_teacher_settings(self) -> None:
+        """The teacher's settings (checked last): the planner names what it does not allow."""
+        teacher_planner(self.teacher, self.oracle)
 
 
 def teacher_planner(teacher: str, settings: dict) -> Planner:
