@@ -409,25 +409,33 @@ def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(c
     assert df["nsw"].mean() == pytest.approx(improved["best"]["score"], abs=5e-3)
 
 
-def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
+def _modes_side_by_side(network: str, mixed: str, steps: int = 60):
+    """``network`` in modes sample, greedy and ``mixed`` on the same observations of paper-64: each step's actions.
+
+    The three see the same observations (the sampled mode's episode), so their LSTM states stay equal.
+    """
     from wfbench.core.simulator import Simulator
 
-    pols = {m: policies.get(f"ppo-joint@{m}") for m in ("sample", "greedy", "greedy-dispatch")}
+    pols = {m: policies.get(f"{network}@{m}") for m in ("sample", "greedy", mixed)}
     seeds = [1000, 1001, 1002, 1003]
     sim = Simulator(wfbench.scenario("paper-64"), seeds)
     obs = sim.reset()
     for p in pols.values():
         p.reset(seeds)
-    sent = 0
-    N = obs["personnel"].shape[1]
-    for _ in range(60):  # the three see the same observations, so their LSTM states stay equal
+    for _ in range(steps):
         acts = {m: p.act(obs) for m, p in pols.items()}
+        yield obs, acts
+        _, obs = sim.step_observe(acts["sample"])
+
+
+def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
+    sent = 0
+    for obs, acts in _modes_side_by_side("ppo-joint", "greedy-dispatch"):
         mixed = acts["greedy-dispatch"]
         assert np.array_equal(mixed["dispatch"], acts["greedy"]["dispatch"])
         assert np.array_equal(mixed["workforce"], acts["sample"]["workforce"])  # the same random stream
         assert np.array_equal(mixed["positioning"], acts["sample"]["positioning"])
-        sent += int((mixed["dispatch"] < N).sum())
-        _, obs = sim.step_observe(acts["sample"])
+        sent += int((mixed["dispatch"] < obs["personnel"].shape[1]).sum())
     assert sent > 0, "no dispatch decision was compared"
     with pytest.raises(ValueError, match="allowed: sample, greedy, greedy-dispatch, greedy-workforce"):
         policies.get("ppo-joint@argmax")
@@ -435,17 +443,8 @@ def test_rl__greedy_dispatch_mode_is_argmax_dispatch_with_sampled_workforce():
 
 def test_rl__greedy_workforce_mode_is_argmax_workforce_with_sampled_dispatch_and_positioning():
     """A mode a distilled network may be deployed in (docs/rl.md, "Distillation"): the same stream as sample."""
-    from wfbench.core.simulator import Simulator
-
-    pols = {m: policies.get(f"scalefree-general@{m}") for m in ("sample", "greedy", "greedy-workforce")}
-    seeds = [1000, 1001, 1002, 1003]
-    sim = Simulator(wfbench.scenario("paper-64"), seeds)
-    obs = sim.reset()
-    for p in pols.values():
-        p.reset(seeds)
     differs = 0
-    for _ in range(60):  # the three see the same observations, so their LSTM states stay equal
-        acts = {m: p.act(obs) for m, p in pols.items()}
+    for _, acts in _modes_side_by_side("scalefree-general", "greedy-workforce"):
         mixed = acts["greedy-workforce"]
         assert np.array_equal(mixed["workforce"], acts["greedy"]["workforce"])
         assert np.array_equal(mixed["dispatch"], acts["sample"]["dispatch"])
@@ -453,7 +452,6 @@ def test_rl__greedy_workforce_mode_is_argmax_workforce_with_sampled_dispatch_and
         same = mixed["workforce"] == acts["sample"]["workforce"]
         assert np.array_equal(mixed["positioning"][same], acts["sample"]["positioning"][same])
         differs += int((~same).sum())
-        _, obs = sim.step_observe(acts["sample"])
     assert differs > 0, "sampled and greedy workforce never differed: the check compared nothing"
 
 
