@@ -342,7 +342,14 @@ def _network_rollout():
     return NetworkRollout(policies.get("scalefree-general"), K=2, H=10, R=10, scenario=SMALL)
 
 
-@pytest.mark.parametrize("make", [_compiled_rollout, _network_rollout], ids=["solver-tuned", "scalefree-general"])
+def _network_search():
+    from wfbench.policies.lookahead.search import NetworkSearch
+
+    return NetworkSearch(policies.get("scalefree-general"), K=2, H=8, R=10, top=3, z=1.0, scenario=SMALL)
+
+
+@pytest.mark.parametrize("make", [_compiled_rollout, _network_rollout, _network_search],
+                         ids=["solver-tuned", "scalefree-general", "search-scalefree-general"])
 def test_a_rollout_acts_the_same_up_to_T_in_two_episodes_that_differ_after_T(make):
     """The lookahead policy itself: the same actions at every step up to T, and the same candidate scores at T."""
     seed, T = 1004, 40  # T: a decision step (T % R == 0)

@@ -1,4 +1,7 @@
-"""Search with the network (issue #52): future blindness, the noise test, its knobs, the registry, its base.
+"""Search with the network (issue #52): the noise test, its knobs, the registry, its base.
+
+Its future blindness is the rollouts' test (``tests/core/test_fork.py``, parametrized over the
+three network and compiled lookaheads) and the leak test (``tests/policies/test_future_leak.py``).
 
 Public seeds only (1000-1049): nothing is selected on the test seeds.
 """
@@ -20,7 +23,6 @@ from wfbench.policies.lookahead.search import (
 from wfbench.policies.registry import LOOKAHEAD, parse_spec
 
 import wfbench
-from tests.core.test_fork import other_future
 from wfbench import ScenarioConfig, Simulator, policies
 
 SMALL = ScenarioConfig.preset("small").replace(horizon=60)
@@ -143,38 +145,6 @@ def test_it_deviates_from_its_network_only_beyond_the_noise():
             else:
                 assert a["workforce"][b] == cs[0], "within the noise the network's own action is played"
     assert deviated >= 1, "a small z lets it deviate somewhere: the test above checked both branches"
-
-
-def test_search_is_future_blind():
-    """The same observations up to T and another true future after T: the same actions up to T, the same scores at T."""
-    seed, T = 1004, 40  # a decision step (T % R == 0)
-    runs = []
-    for swap in (False, True):
-        sim = Simulator(SMALL.replace(horizon=240), [seed])
-        obs = sim.reset()
-        pol = search(scenario=SMALL.replace(horizon=240))
-        pol.reset([seed])
-        actions = []
-        for t in range(T + 1):
-            if swap and t == T:
-                sim = other_future(sim, 1019)
-                obs = sim.observe()
-            actions.append({k: v.copy() for k, v in pol.act(obs).items()})
-            if t < T:
-                sim.step(actions[-1])
-                obs = sim.observe()
-        runs.append((sim, pol, actions))
-    (sim_a, pol_a, act_a), (sim_b, pol_b, act_b) = runs
-    for t, (x, y) in enumerate(zip(act_a, act_b, strict=True)):
-        for k in x:
-            assert np.array_equal(x[k], y[k]), (t, k)
-    assert np.isfinite(pol_a.last_scores).sum() >= 2  # T was a decision with several candidates
-    assert np.array_equal(pol_a.last_scores, pol_b.last_scores, equal_nan=True)
-    for _ in range(60):  # the two true futures do part after T
-        a = pol_a.act(sim_a.observe())
-        sim_a.step(a)
-        sim_b.step(a)
-    assert not np.array_equal(sim_a.observe()["facilities"], sim_b.observe()["facilities"])
 
 
 @pytest.mark.slow
