@@ -1,4 +1,4 @@
-"""Training: one module per algorithm (ppo, impala, hindsight) on what they share (:mod:`wfbench.train.toolkit`).
+"""Training: one module per algorithm (ppo, impala, hindsight) on what they share (config, collection, record, ...).
 
 :func:`fit` trains a run from its settings, as ``wfbench train`` does (:mod:`wfbench.train.runs`).
 The algorithms are listed by name in :mod:`wfbench.train.registry`, which imports no

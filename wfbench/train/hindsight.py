@@ -30,7 +30,13 @@ from wfbench.policies.neural.dist import env_action, gumbel, log_prob_entropy, p
 from wfbench.policies.neural.model import OBS_KEYS
 from wfbench.policies.oracle.oracles import OracleDispatch, OraclePositioning, OracleWorkforce
 from wfbench.policies.oracle.planner import Planner
-from wfbench.train import toolkit
+from wfbench.train.checkpoints import init_weights, load_run, run_checkpoint, save_run
+from wfbench.train.collection import episode_kpis, policy_step, take_seeds
+from wfbench.train.config import DECISIONS, BaseConfig, build_model, check_ints, check_numbers
+from wfbench.train.outputs import RunOutputs
+from wfbench.train.precision import autocast
+from wfbench.train.record import start_run, write_run_config
+from wfbench.train.scoring import deployable, score_public
 from wfbench.train.worlds import FACILITY_KEYS, PERSONNEL_KEYS, WorldSet
 
 VARIANTS = ("joint",)
@@ -38,7 +44,7 @@ VARIANTS = ("joint",)
 # (stateless, so its action in the learner's state is exact; the oracle's dispatch uses knowledge of the
 # next repair outcome that no observation carries, and imitating it without that knowledge costs downtime)
 TEACHERS = ("oracle", "nearest+oracle+oracle")
-HEADS = toolkit.DECISIONS
+HEADS = DECISIONS
 ROLLOUT_MODES = ("sample", "greedy")
 # what the workforce head learns: the teacher's action, or the hindsight value of each of its actions
 WORKFORCE_TARGETS = ("action", "values", "improve")
@@ -54,8 +60,8 @@ SCALEFREE_HEAD_MODULES = {"dispatch": ("ptr_q", "ptr_mem", "ptr_k", "pair", "noo
 
 
 @dataclass
-class HindsightConfig(toolkit.BaseConfig):
-    """Every setting of a run (the shared ones in :class:`wfbench.train.toolkit.BaseConfig`)."""
+class HindsightConfig(BaseConfig):
+    """Every setting of a run (the shared ones in :class:`wfbench.train.config.BaseConfig`)."""
 
     variant: str = "joint"  # the teacher gives all three decisions
     model: str = "cpu"  # wfbench.policies.neural.model.PRESETS, or "scalefree" (`wfbench train`'s default)
@@ -126,13 +132,13 @@ class HindsightConfig(toolkit.BaseConfig):
             raise ValueError(f"train_params {self.train_params!r} is not allowed; allowed: {', '.join(TRAIN_PARAMS)}")
         if self.rollout_mode not in ROLLOUT_MODES:
             raise ValueError(f"rollout_mode {self.rollout_mode!r} is not allowed; allowed: {', '.join(ROLLOUT_MODES)}")
-        toolkit.check_ints(self, ("iter_steps", "dataset_steps", "grad_steps", "batch_seqs", "value_horizon",
+        check_ints(self, ("iter_steps", "dataset_steps", "grad_steps", "batch_seqs", "value_horizon",
                                   "value_every", "value_samples"))
         if type(self.burn_in) is not int or not 0 <= self.burn_in < self.num_steps:
             raise ValueError(f"burn_in = {self.burn_in!r} is not allowed; allowed: an integer in "
                              f"0..num_steps - 1 = {self.num_steps - 1}")
-        toolkit.check_numbers(self, ("beta0", "beta_decay"), lambda v: 0.0 <= v <= 1.0, "a number in [0, 1]")
-        toolkit.check_numbers(self, ("lr", "max_grad_norm"), lambda v: v > 0.0, "a number > 0")
+        check_numbers(self, ("beta0", "beta_decay"), lambda v: 0.0 <= v <= 1.0, "a number in [0, 1]")
+        check_numbers(self, ("lr", "max_grad_norm"), lambda v: v > 0.0, "a number > 0")
         weights = [getattr(self, f"{h}_weight") for h in HEADS]
         if any(not w >= 0.0 for w in weights) or sum(weights) <= 0.0:
             raise ValueError(f"head weights {dict(zip(HEADS, weights, strict=True))} are not allowed; allowed: "
@@ -256,14 +262,14 @@ class Trainer:
 
     def __init__(self, config: HindsightConfig, resume: str | Path | None = None, progress: bool = True,
                  log: bool = True, amp: str | torch.dtype | None = "auto"):
-        self.run = toolkit.start_run(config, progress, log, amp)
+        self.run = start_run(config, progress, log, amp)
         c = config
         # the random streams of its own (the network's initial weights come from torch's, seeded by start_run)
         self.gen = torch.Generator(device=self.run.device).manual_seed(c.seed)  # the learner's sampling noise
         self.batch_gen = torch.Generator().manual_seed(c.seed * 7919 + 1)  # minibatch draws
         self.mix_rng = np.random.default_rng([c.seed, 0x4D1])  # oracle-or-learner draws
         self.value_gen = torch.Generator(device=self.run.device).manual_seed(c.seed * 7919 + 2)  # roll-forward noise
-        self.model = toolkit.build_model(self.run.network).to(self.run.device)
+        self.model = build_model(self.run.network).to(self.run.device)
         self.obs_keys = scalefree.OBS_KEYS_V2 if scalefree.obs_version(self.model) == 2 else OBS_KEYS
         self.opt = torch.optim.Adam(self.trainable(), lr=c.lr)
         self.data = Dataset(max(c.dataset_steps // c.num_steps, c.num_envs), c.num_steps)
@@ -271,7 +277,7 @@ class Trainer:
         self.timing = {"teacher": 0.0, "values": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0,
                        "evaluate": 0.0}  # seconds; "values": the learner's roll-forwards (value_rollout learner)
         if c.init and resume is None:
-            toolkit.init_weights(self)
+            init_weights(self)
         if resume is not None:
             self._load(resume)
         self.sim = None
@@ -307,7 +313,7 @@ class Trainer:
 
     def episode_seeds(self) -> list[int]:
         """The training seeds of the next episode batch: the run seed's window, ``seed_cursor`` seeds on."""
-        return toolkit.take_seeds(self.run.config.seed, self.seed_cursor, self.run.config.num_envs)
+        return take_seeds(self.run.config.seed, self.seed_cursor, self.run.config.num_envs)
 
     def mix_beta(self, beta: float) -> float:
         """The probability that an environment follows the teacher at this step: the iteration's ``beta``."""
@@ -355,7 +361,7 @@ class Trainer:
                 self._new_episode()
                 M, N = self.sim.M, self.sim.N  # across worlds the next episode may be of another size
             t0 = time.perf_counter()
-            raw, x, out, self.state, acts = toolkit.policy_step(self.model, self.obs, self.state, self.starts,
+            raw, x, out, self.state, acts = policy_step(self.model, self.obs, self.state, self.starts,
                                                                 self.model, gen, self.run.amp)
             mine = {k: v.cpu().numpy() for k, v in acts.items()}
             t1 = time.perf_counter()
@@ -413,7 +419,7 @@ class Trainer:
             self.run.global_step += B
             self.starts = torch.zeros(B, device=dev)
             if self.sim.done:
-                episodes.append(toolkit.episode_kpis(self.sim) | {"beta": beta})
+                episodes.append(episode_kpis(self.sim) | {"beta": beta})
                 if isinstance(self.run.scenario, WorldSet):
                     episodes[-1][f"{SCORE}/{self.world.name}"] = episodes[-1][SCORE]
                 self.episode += B
@@ -504,7 +510,7 @@ class Trainer:
             if k == c.value_horizon - 1 or self.value_fork.done:
                 break
             x = scalefree.features(self.model, scalefree.raw_tensors(self.model, obs, dev))
-            with toolkit.autocast(dev, self.run.amp):
+            with autocast(dev, self.run.amp):
                 out, state = self.model(x, state, starts)
             noise = {key: gumbel(shape, self.value_gen, dev)[noise_row]
                      for key, shape in scalefree.noise_shapes(self.model, B * S, M, N).items()}
@@ -519,7 +525,7 @@ class Trainer:
         T, S = batch["starts"].shape
         raw = {k: batch[k].flatten(0, 1) for k in self.obs_keys}
         x = scalefree.features(self.model, raw)
-        with toolkit.autocast(self.run.device, self.run.amp):
+        with autocast(self.run.device, self.run.amp):
             out, _ = self.model(x, (batch["h"], batch["c"]), batch["starts"])
         acts = {k: batch[k].flatten(0, 1).long() for k in HEADS}
         scale_free = scalefree.obs_version(self.model) == 2
@@ -608,26 +614,26 @@ class Trainer:
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
-        return toolkit.deployable(self.model, "joint", mode, name=f"{self.ALGO}-joint")
+        return deployable(self.model, "joint", mode, name=f"{self.ALGO}-joint")
 
     def evaluate_public(self) -> dict:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
         t0 = time.perf_counter()
-        res = toolkit.score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
+        res = score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
         self.timing["evaluate"] += time.perf_counter() - t0
         return res
 
     def checkpoint(self) -> dict:
-        return toolkit.run_checkpoint(self, self.ALGO, self.iteration, episode=self.episode,
+        return run_checkpoint(self, self.ALGO, self.iteration, episode=self.episode,
                                       seed_cursor=self.seed_cursor)
 
     def save(self, path: Path, full: bool = True) -> Path:
-        return toolkit.save_run(self, path, full, generator=self.gen.get_state(),
+        return save_run(self, path, full, generator=self.gen.get_state(),
                                 batch_generator=self.batch_gen.get_state(), mix_rng=self.mix_rng.bit_generator.state,
                                 value_generator=self.value_gen.get_state())
 
     def _load(self, path) -> None:
-        ckpt = toolkit.load_run(self, path, self.ALGO)
+        ckpt = load_run(self, path, self.ALGO)
         self.gen.set_state(ckpt["generator"].cpu())  # a generator state is a CPU ByteTensor, on any device
         self.batch_gen.set_state(ckpt["batch_generator"].cpu())
         self.mix_rng.bit_generator.state = ckpt["mix_rng"]
@@ -641,10 +647,10 @@ class Trainer:
         c = self.run.config
         stop = c.iterations if iterations is None else min(c.iterations, self.iteration + iterations)
         per_iter = c.chunks_per_iter * c.chunk_steps
-        toolkit.write_run_config(self.run, self.model, algo=self.ALGO)
+        write_run_config(self.run, self.model, algo=self.ALGO)
         start, start_step = time.perf_counter(), self.run.global_step
         stats: dict = {}
-        with toolkit.RunOutputs(self, "iteration", f"{self.ALGO} {self.run.scenario.name}", stop * per_iter,
+        with RunOutputs(self, "iteration", f"{self.ALGO} {self.run.scenario.name}", stop * per_iter,
                                 self.iteration * per_iter) as out:
             while self.iteration < stop:
                 beta = self.beta()

@@ -92,24 +92,3 @@ def test_run_outputs__cleanup_runs_however_the_loop_ends(tmp_path, raised, order
         if raised:
             raise raised
     assert events == order
-
-
-
-def test_toolkit_is_the_parts_under_one_name():
-    """``toolkit.NAME`` (hindsight.py, user scripts) is the very object its own module defines, for every name."""
-    import ast
-    import importlib
-    from pathlib import Path
-
-    from wfbench.train import toolkit
-
-    defined = {}
-    for part in ("config", "precision", "collection", "record", "checkpoints", "scoring", "outputs"):
-        module = importlib.import_module(f"wfbench.train.{part}")
-        for node in ast.parse(Path(module.__file__).read_text()).body:
-            names = [node.name] if isinstance(node, (ast.FunctionDef, ast.ClassDef)) else [
-                t.id for t in getattr(node, "targets", [getattr(node, "target", None)]) if isinstance(t, ast.Name)]
-            defined.update({name: getattr(module, name) for name in names})
-    assert sorted(toolkit.__all__) == sorted(defined)
-    for name, obj in defined.items():
-        assert getattr(toolkit, name) is obj, name
