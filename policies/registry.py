@@ -16,7 +16,6 @@ from typing import Any
 from wfbench.policies import tuned as _tuned
 from wfbench.policies.composite import Composite
 from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
-from wfbench.policies.oracle.best import BestInHindsight
 
 from wfbench.core.paths import CHECKPOINTS, data_path
 
@@ -60,6 +59,11 @@ COMPOSITES: dict[str, tuple[str, str, str, str]] = {
 ORACLES: dict[str, str] = {
     "oracle": "per seed, the best in hindsight of oracle-planner and every deployable built-in (the composites, the "
               "tuned files and the shipped networks): reads the trace, not deployable (docs/hindsight.md)",
+    # issue #53: the references are versioned (wfbench.policies.oracle.references; docs/hindsight.md)
+    "oracle-v2": "reference v2: per seed, the best in hindsight of every deployable family, the lookaheads "
+                 "included, and oracle-rollout; replays recorded episodes and committed pieces (docs/hindsight.md)",
+    "oracle-rollout": "the rollout of solver-tuned on the true future, rolled to the end of the episode: reads the "
+                      "trace, not deployable (docs/hindsight.md, \"The hindsight rollout\")",
 }
 
 # name -> (file under policies/tuned/, description): tuned-policy files shipped with wfbench (docs/policies.md, Tuning)
@@ -325,10 +329,22 @@ def _deployable_composites() -> list[str]:
 NOT_ORACLE_CANDIDATES = frozenset({"heuristic-tuned-train", "solver-tuned-train", "scalefree-general", "solver-sparse"})
 
 
-def oracle_candidates() -> list[str]:
-    """The candidates of the ``oracle``, in tie-breaking order: the compiled built-ins, the planner, the networks."""
-    return [n for n in (*_deployable_composites(), *TUNED, "oracle-planner", *learned_names())
-            if n not in NOT_ORACLE_CANDIDATES]
+def oracle_candidates(name: str = "oracle") -> list[str]:
+    """The candidates of an oracle (or reference), in tie-breaking order, as its reference lists them.
+
+    Its reference is a fixed tuple (:mod:`wfbench.policies.oracle.references`); a network whose
+    checkpoint is not shipped is left out, as are lookaheads on it.
+    """
+    from wfbench.policies.oracle import references
+
+    return references.candidates(name, _available)
+
+
+def _available(name: str) -> bool:
+    """Whether a candidate can be built here: a network's checkpoint, or a lookahead's base's, is shipped."""
+    if name in LOOKAHEAD:
+        return _available(LOOKAHEAD[name][0])
+    return name not in LEARNED or name in learned_names()
 
 
 def best_in_hindsight(name: str = "oracle") -> Any:
@@ -338,11 +354,17 @@ def best_in_hindsight(name: str = "oracle") -> Any:
         ValueError: networks are shipped but torch is missing. The oracle refuses rather
             than drop them, which would change its numbers under the same name.
     """
-    nets = learned_names()
+    from wfbench.policies.oracle import references
+
+    if name == "oracle-rollout":  # issue #53: not a best of candidates, the rollout on the true future
+        from wfbench.policies.oracle.hindsight import HindsightRollout
+
+        return HindsightRollout(get("solver-tuned"), name=name)
+    nets = [n for n in oracle_candidates(name) if n in LEARNED]
     if nets and importlib.util.find_spec("torch") is None:
         raise ValueError(f"policy {name!r} plays the shipped networks ({', '.join(nets)}) as candidates and needs "
                          "torch; install the rl extra: pip install 'wfbench[rl]' (oracle-planner needs no torch)")
-    return BestInHindsight(oracle_candidates(), get, name=name)
+    return references.make(name, get, _available)
 
 
 def load_learned(path: Any, mode: str = "sample", name: str | None = None, algo: str | None = None) -> Any:

@@ -83,12 +83,15 @@ class BestInHindsight:
     reads_trace = True
     decisions = AGENTS
 
-    def __init__(self, candidates: Sequence[str], resolve: Callable[[str], Any], name: str = "oracle"):
+    def __init__(self, candidates: Sequence[str], resolve: Callable[[str], Any], name: str = "oracle",
+                 replay: bool = False):
         if not candidates:
             raise ValueError("a best-in-hindsight oracle needs at least one candidate")
         self.candidates = tuple(candidates)
         self.resolve = resolve
         self.name = name
+        self.replay = bool(replay)  # totals from pieces and recorded episodes (wfbench.policies.oracle.replay)
+        self.sources: dict[str, dict[str, int]] = {}  # with replay: candidate -> where its seeds' totals came from
         self.config: ScenarioConfig | None = None
         self.seeds: np.ndarray | None = None
         self.scores: np.ndarray | None = None  # (B, candidates) episode NSW, NaN where stopped early
@@ -110,6 +113,11 @@ class BestInHindsight:
             raise RuntimeError("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
                                "(wfbench's runner does this for policies with reads_trace = True)")
         seeds = seeds_array(seeds)
+        if self.replay:
+            from wfbench.policies.oracle.replay import reset_replaying
+
+            reset_replaying(self, seeds)
+            return
         c = self.config
         B, T = seeds.size, c.horizon
         self.seeds = seeds
@@ -184,14 +192,22 @@ class BestInHindsight:
         totals_cache.store(key, seeds[rows], keys, total[rows])
         return total, int(found.sum())
 
-    def _play_recorded(self, policy: Any, seeds: np.ndarray, best_total: np.ndarray) -> tuple[np.ndarray, _Recording]:
-        """Episode totals of NSW of any policy played through ``act`` (NaN when stopped early), and its actions."""
+    def _play_recorded(self, policy: Any, seeds: np.ndarray, best_total: np.ndarray,
+                       world: bool = False) -> tuple[np.ndarray, _Recording]:
+        """Episode totals of NSW of any policy played through ``act`` (NaN when stopped early), and its actions.
+
+        With ``world``, a deployable policy with ``set_world`` is handed the public config first,
+        as the runner hands it (``wfbench.harness.runner.public_world``): a lookahead plays then
+        the episode it plays in an evaluation.
+        """
         c = self.config
         T = c.horizon
         sim = Simulator(c, [int(s) for s in seeds], keep_series=False, threads=1)
         obs = sim.reset()
         if getattr(policy, "reads_trace", False):
             policy.attach(c)
+        elif world and hasattr(policy, "set_world"):
+            policy.set_world(ScenarioConfig.from_dict(c.to_dict()))
         policy.reset(sim.seeds)
         rec = _Recording(sim.B, sim.M, sim.N, T)
         while not sim.done:

@@ -424,17 +424,29 @@ def _scaling_row(policy: str, scenario: SuiteScenario, df: pd.DataFrame) -> dict
             "source": source}
 
 
-def outside_oracle(name: str) -> bool:
-    """Whether ``name`` (or the method of a ``METHOD#seedK`` member) is one the oracle does not play."""
-    from wfbench.policies.registry import NOT_ORACLE_CANDIDATES, parse_member
+def outside_oracle(name: str, oracle: str = ORACLE) -> bool:
+    """Whether ``name`` (or the method of a ``METHOD#seedK`` member) is one ``oracle`` does not play.
+
+    Each oracle plays the candidates of its reference (:mod:`wfbench.policies.oracle.references`).
+    """
+    from wfbench.policies.oracle import references
+    from wfbench.policies.registry import parse_member
 
     member = parse_member(name)
-    return (member[0] if member else name) in NOT_ORACLE_CANDIDATES
+    return references.outside(member[0] if member else name, oracle)
 
 
 def _checks(chosen: list[SuiteScenario], runs_by: dict[str, pd.DataFrame],
             bound: dict[str, np.ndarray]) -> tuple[list[dict], list[list[str]]]:
-    """Per scenario: the seeds where a policy is above the bound, and whether the oracle beats every deployable."""
+    """Per scenario: the seeds where a policy is above the bound, and whether the oracle beats every deployable.
+
+    The oracle checked is the newest reference that ran (``oracle-v2`` before ``oracle``), against
+    the deployable policies it plays.
+    """
+    from wfbench.policies.oracle import references
+
+    ran = [n for n in references.ORACLES if n in runs_by]
+    checked = ran[-1] if ran else ORACLE
     checks, rows = [], []
     for sc in chosen:
         above: dict[str, int] = {}
@@ -445,12 +457,12 @@ def _checks(chosen: list[SuiteScenario], runs_by: dict[str, pd.DataFrame],
             if sc.id in bound:
                 above[name] = int((g[SCORE].to_numpy() > bound[sc.id] + BOUND_SLACK).sum())
         # the oracle's candidates (and members of their methods): the policies it is the best in hindsight of
-        deployable = {n: m for n, m in means.items() if family(n) != "oracle" and not outside_oracle(n)}
-        oracle = means.get(ORACLE)
+        deployable = {n: m for n, m in means.items() if family(n) != "oracle" and not outside_oracle(n, checked)}
+        oracle = means.get(checked)
         best = max(deployable, key=deployable.get) if deployable else None
         ok = None if oracle is None or best is None else bool(oracle >= deployable[best])
         bad = {n: k for n, k in above.items() if k}
-        checks.append({"scenario": sc.id, "split": sc.split, "bound_checked": sc.id in bound,
+        checks.append({"scenario": sc.id, "split": sc.split, "oracle": checked, "bound_checked": sc.id in bound,
                        "bound_holds": not bad, "above_bound": json.dumps(bad), "oracle_nsw": oracle,
                        "best_deployable": best, "best_deployable_nsw": deployable.get(best) if best else None,
                        "oracle_at_least_deployable": ok})

@@ -1,0 +1,145 @@
+"""The hindsight rollout, ``oracle-rollout``: the deployable rollout with the true future as its one sample.
+
+:class:`HindsightRollout` decides like :class:`wfbench.policies.lookahead.rollout.Rollout`: the
+compiled base acts, and where the base hires or lets go, and every ``R`` steps, each allowed
+workforce action (the base's first, so it wins ties) is scored by the NSW of ``H`` steps with the
+base playing the later steps. Its one future is the episode's own: a copy of the real state,
+trace included (a shadow ``Simulator(config, seeds)`` stepped with its own actions), rolled
+forward by :func:`wfbench.policies.oracle.rollout.roll_forward`. With ``H`` to the end of the
+episode a score is the exact rest of the episode, so the policy is one step of exact policy
+improvement over its base, and scores at least the base on every seed. It reads the trace: not
+deployable (``docs/hindsight.md``, "The hindsight rollout").
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from wfbench.policies import kernels as K
+from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
+from wfbench.policies.protocol import as_obs, seeds_array
+
+from wfbench.core.actions import AGENTS
+from wfbench.core.config import ScenarioConfig, require_config
+from wfbench.core.lookahead import copy_state, fork
+from wfbench.core.simulator import Simulator
+
+N_WORKFORCE = 7  # the workforce actions: no-op, three hires, three let-gos
+KNOBS = {"H": "steps of each roll-forward (None: to the end of the episode)",
+         "R": "steps between two decisions the base did not ask for"}
+
+
+def _knob(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) < 1:
+        raise ValueError(f"oracle-rollout knob {name} = {value!r} is not allowed; allowed: an integer >= 1 "
+                         f"({KNOBS[name]})")
+    return int(value)
+
+
+class HindsightRollout:
+    """Rollout of the compiled composite ``base`` on the episode's true future (module docstring).
+
+    Args:
+        base: a composite of built-in kernels (``Composite.compiled``), e.g. ``policies.get("solver-tuned")``.
+        H: steps of each roll-forward; None (the default) rolls to the end of the episode.
+        R: steps between two decisions the base did not ask for (the 10 ms rollout's 20).
+        name: its name in tables.
+    """
+
+    reads_trace = True
+    decisions = AGENTS
+
+    def __init__(self, base: Any, H: int | None = None, R: int = 20, name: str = "oracle-rollout"):
+        if not getattr(base, "compiled", False):
+            raise ValueError(f"oracle-rollout base {getattr(base, 'name', base)!r} is not a composite of built-in "
+                             "kernels; allowed: a compiled composite (a registry composite or tuned file of one)")
+        self.base = base
+        self.H = None if H is None else _knob("H", H)
+        self.R = _knob("R", R)
+        self.name = name
+        self.config: ScenarioConfig | None = None
+        self.shadow: Simulator | None = None
+        self.last_scores: np.ndarray | None = None  # (B, 7) the score of each workforce action at the last decision
+        self.timing: dict[str, float] = {}
+
+    def __repr__(self) -> str:
+        return f"HindsightRollout({getattr(self.base, 'name', self.base)!r}, H={self.H}, R={self.R})"
+
+    def settings(self) -> dict[str, int | None]:
+        return {"H": self.H, "R": self.R}
+
+    def attach(self, config: ScenarioConfig) -> None:
+        """Tell it the scenario (the runner does, before ``reset``, for policies that read the trace)."""
+        self.config = require_config(config, f"{type(self).__name__}.attach")
+
+    def reset(self, seeds: int | Sequence[int]) -> None:
+        """Start the shadow of the coming batch (``attach`` first)."""
+        if self.config is None:
+            raise RuntimeError("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
+                               "(wfbench's runner does this for policies with reads_trace = True)")
+        self._seeds = seeds_array(seeds)
+        self.shadow = Simulator(self.config, [int(s) for s in self._seeds], keep_series=False, threads=1)
+        self.shadow.reset()
+        B, M, N = self.shadow.B, self.shadow.M, self.shadow.N
+        self.B, self.M, self.N = B, M, N
+        self.codes, self.hp, self.pstate = self.base.compiled_plan(self._seeds, M, N)
+        self.fork = fork(self.shadow, copies=N_WORKFORCE, keep_series=False, threads=1)
+        self.fork_pstate = K.allocate_state(self.fork.B, M, N)
+        self.buffers = RollBuffers(self.fork.B, M, N, onset_capacity=1)
+        self.steps = self.config.horizon if self.H is None else self.H
+        self.timing = {"steps": 0.0, "act_s": 0.0, "decisions": 0.0, "rolls": 0.0}
+
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        if self.shadow is None:
+            raise RuntimeError("call attach(config) and reset(seeds) before act()")
+        start = time.perf_counter()
+        t = np.asarray(obs["t"], dtype=np.int64)
+        if t.shape[0] != self.B or not np.array_equal(t, self.shadow.state.t):
+            raise RuntimeError(f"{self.name}: the observation is not of the episode it was reset for (step "
+                               f"{t.tolist()[:3]}, its shadow at {self.shadow.state.t.tolist()[:3]}): reset it")
+        B, M, N = self.B, self.M, self.N
+        d = np.full((B, M), N, dtype=np.int64)
+        w = np.zeros(B, dtype=np.int64)
+        p = np.zeros((B, 2, M), dtype=np.float64)
+        K.act_batch(as_obs(obs), self.pstate, self.codes, self.hp, d, w, p, t)
+        decide = np.flatnonzero((w != 0) | (t % self.R == 0))
+        self.last_scores = None
+        if decide.size:
+            self._decide(decide, np.asarray(obs["workforce_mask"]), d, w, p)
+        actions = {"dispatch": d, "workforce": w, "positioning": p}
+        self.shadow.step(actions)  # the real episode takes exactly these: the shadow stays its copy
+        self.timing["steps"] += 1
+        self.timing["act_s"] += time.perf_counter() - start
+        return actions
+
+    def _decide(self, envs: np.ndarray, mask: np.ndarray, d: np.ndarray, w: np.ndarray, p: np.ndarray) -> None:
+        """Score every allowed workforce action of ``envs`` on the true future; keep the best (the base's on a tie)."""
+        cands = {int(b): [int(w[b])] + [a for a in range(N_WORKFORCE) if a != w[b] and mask[b, a]] for b in envs}
+        rows_env = np.array([b for b in cands for _ in cands[b]], dtype=np.int64)
+        rows_a = np.array([a for b in cands for a in cands[b]], dtype=np.int64)
+        n = rows_env.size
+        copy_state(self.fork, self.shadow, rows_env)
+        for src, dst in zip(self.pstate, self.fork_pstate, strict=True):
+            np.take(src, rows_env, axis=0, out=dst[:n])
+        buf = self.buffers
+        buf.first_d[:n] = d[rows_env]
+        buf.first_w[:n] = rows_a
+        buf.first_p[:n] = p[rows_env]
+        score = roll_forward(self.fork, self.steps, self.codes, self.hp, self.fork_pstate, first=True, buffers=buf,
+                             rows=n)[:n]
+        scores = np.full((self.B, N_WORKFORCE), np.nan)
+        i = 0
+        for b, allowed in cands.items():
+            k = i + int(np.argmax(score[i: i + len(allowed)]))  # the first of the best: the base's on a tie
+            scores[b, allowed] = score[i: i + len(allowed)]
+            w[b] = rows_a[k]
+            i += len(allowed)
+        self.timing["decisions"] += len(envs)
+        self.timing["rolls"] += n
+        self.last_scores = scores
+
+
+__all__ = ["KNOBS", "HindsightRollout"]

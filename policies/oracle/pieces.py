@@ -1,0 +1,152 @@
+"""Candidate totals from committed suite pieces, taken only when the piece was made by this code.
+
+A suite piece is ``FOLDER/cache/POLICY/SCENARIO.csv`` (one row per seed, its ``nsw`` the episode
+mean) with a ``.json`` holding the suite scenario's ``hash``, the ``seeds`` and the
+``provenance`` (``wfbench.reproduce.provenance``: the ``commit`` that made it and whether the
+tree was ``dirty``). The replaying oracle reads the pieces of its candidates without a network
+(whose totals do not depend on the batch) from :func:`folders`. **Provenance matches the
+code** when the piece names a commit, was not made from a dirty tree, and every file that
+decides the candidate's episodes (:func:`wfbench.policies.oracle.episodes.decisive_files`: the
+import closure of its objects' modules and of the simulator) has at that commit the bytes it
+has here, as git stores them (blob ids). A piece that covers some asked seeds and does not
+match raises :class:`PieceMismatch`, one line naming the piece: the oracle never mixes codes.
+``docs/hindsight.md``, "Replayed, not played again".
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wfbench.core.config import ScenarioConfig
+from wfbench.core.jit import ROOT
+
+ENV = "WFBENCH_ORACLE_PIECES"  # folders of suite runs (os.pathsep between them), or "off"
+OFF = ("off", "0", "false", "no", "")
+RESULTS = "docs/results"  # where a checkout keeps its committed suite runs
+
+
+class PieceMismatch(ValueError):
+    """A committed piece the oracle was asked to use was made by other code than this."""
+
+
+def folders() -> list[Path]:
+    """The suite runs whose pieces the replaying oracle reads: ``$WFBENCH_ORACLE_PIECES``, else the checkout's own.
+
+    Unset: every folder of ``docs/results`` with a ``cache/`` in the checkout the code runs from
+    (none in an installed copy). ``off`` (or empty): none.
+    """
+    value = os.environ.get(ENV)
+    if value is not None:
+        if value.strip().lower() in OFF:
+            return []
+        return [Path(p) for p in value.split(os.pathsep) if p]
+    results = ROOT / RESULTS
+    return sorted(p for p in results.iterdir() if (p / "cache").is_dir()) if results.is_dir() else []
+
+
+def piece_folder(policy: str) -> str:
+    """A policy's folder under ``cache/``: its name made path-safe (as ``wfbench.reproduce.suite`` writes it)."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
+
+
+@cache
+def _suite_scenarios(text: str) -> tuple[tuple[str, str], ...]:
+    """(id, hash) of every suite scenario whose config's canonical JSON is ``text``."""
+    from wfbench.scenarios import SUITES, get_suite
+
+    out = []
+    for name in SUITES:
+        for sc in get_suite(name).scenarios:
+            if json.dumps(sc.config.to_dict(), sort_keys=True) == text:
+                out.append((sc.id, sc.hash))
+    return tuple(out)
+
+
+def find(policy: str, config: ScenarioConfig, seeds: np.ndarray) -> list[tuple[Path, dict, pd.DataFrame]]:
+    """The pieces of ``policy`` on ``config`` (a suite scenario) that hold any of ``seeds``: (csv, meta, rows)."""
+    out = []
+    scenarios = _suite_scenarios(json.dumps(config.to_dict(), sort_keys=True))
+    wanted = set(np.asarray(seeds).tolist())
+    for folder in folders():
+        for sc_id, sc_hash in scenarios:
+            path = folder / "cache" / piece_folder(policy) / f"{sc_id}.csv"
+            meta_path = path.with_suffix(".json")
+            if not (path.is_file() and meta_path.is_file()):
+                continue
+            meta = json.loads(meta_path.read_text())
+            if meta.get("hash") != sc_hash or not wanted & set(meta.get("seeds", [])):
+                continue
+            out.append((path, meta, pd.read_csv(path, float_precision="round_trip")))  # the bits that were written
+    return out
+
+
+def _git(*args: str, data: bytes | None = None) -> str:
+    return subprocess.run(["git", "-C", str(ROOT), *args], input=data, capture_output=True, check=True).stdout.decode()
+
+
+@cache
+def _repository() -> bool:
+    try:
+        return Path(_git("rev-parse", "--show-toplevel").strip()).resolve() == ROOT.resolve()
+    except (OSError, subprocess.CalledProcessError):
+        return False
+
+
+def mismatch(meta: dict, files: list[str]) -> str | None:
+    """Why a piece's provenance does not match this code (``files``: the repository paths that decide it), or None."""
+    prov = meta.get("provenance") or {}
+    commit = prov.get("commit")
+    if not commit:
+        return "it records no commit"
+    if prov.get("dirty") is True:
+        return f"it was made from a dirty tree at {commit[:12]}"
+    if not _repository():
+        return "this code is not a git checkout, so its files cannot be compared with the commit"
+    return _differs(commit, tuple(files))
+
+
+@cache
+def _differs(commit: str, files: tuple[str, ...]) -> str | None:
+    try:
+        listing = _git("ls-tree", "-r", "--full-tree", commit, "--", *files)
+    except subprocess.CalledProcessError:
+        return f"its commit {commit[:12]} is not in this repository"
+    then = {line.split("\t", 1)[1]: line.split()[2] for line in listing.splitlines()}
+    now = _git("hash-object", "--", *files).split()
+    for path, blob in zip(files, now, strict=True):
+        if then.get(path) != blob:
+            return f"{path} differs from its commit {commit[:12]}"
+    return None
+
+
+def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
+           who: str = "oracle") -> tuple[np.ndarray, dict[int, Path]]:
+    """The committed mean NSW of ``seeds`` (NaN where no piece has it) and the piece of each row that has one.
+
+    Raises:
+        PieceMismatch: a piece holding some of the seeds does not match this code (one line, naming it).
+    """
+    seeds = np.asarray(seeds, dtype=np.int64)
+    out = np.full(seeds.size, np.nan)
+    where: dict[int, Path] = {}
+    for path, meta, rows in find(policy, config, seeds):
+        why = mismatch(meta, files)
+        if why is not None:
+            raise PieceMismatch(f"{who}: the piece {path} of {policy!r} was not made by this code ({why}); "
+                                f"recompute it (wfbench reproduce suite) or leave its folder out of ${ENV}")
+        by_seed = dict(zip(rows["seed"].astype(int).tolist(), rows["nsw"].astype(float).tolist(), strict=True))
+        for i, s in enumerate(seeds.tolist()):
+            if i not in where and s in by_seed:
+                out[i], where[i] = by_seed[s], path
+    return out, where
+
+
+__all__ = ["ENV", "PieceMismatch", "find", "folders", "mismatch", "piece_folder", "scores"]

@@ -1,0 +1,87 @@
+"""Named, versioned references: which candidates each best-in-hindsight oracle plays, listed once, never changed.
+
+A reference is a literal tuple of registry names, in the order that breaks ties (the first
+wins). Publishing a number with a reference freezes nothing but that tuple: a policy added
+to the registry later enters a *new* version, never an existing one, so a published
+reference does not move. :data:`ORACLES` names each oracle of the registry by its
+reference. ``v1`` is the candidate list of the ``oracle`` that made every table up to issue
+#53 (the suite, Table 3, the gap), entry for entry; ``v2`` takes every deployable family,
+the lookahead presets included, and the hindsight rollout (``oracle-rollout``,
+:mod:`wfbench.policies.oracle.hindsight`). ``docs/hindsight.md``, "Versioned references".
+
+This module is below the registry (``wfbench.policies`` layers): it holds the lists and
+builds an oracle from a ``resolve`` function the registry hands it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from wfbench.policies.oracle.best import BestInHindsight
+
+# the oracle of every table published up to issue #53: the compiled built-ins, the planner, the shipped networks
+V1: tuple[str, ...] = (
+    "random", "heuristic", "heuristic-stochastic", "random-dispatch", "random-positioning", "fixed-workforce",
+    "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "heuristic-tuned", "solver-tuned",
+    "oracle-planner",
+    "ppo-joint", "ppo-dispatch", "impala-joint", "hindsight-joint", "ppo-independent", "hindsight-ppo", "ppo-general",
+    "hindsight-general",
+)
+
+# every deployable family of issue #53: v1's candidates in v1's order, the compiled policies v1 left out, the hindsight
+# rollout, the scale-free network, then every lookahead preset (rollouts, MPCs, the network's search)
+V2: tuple[str, ...] = (
+    *V1[:12],  # the compiled built-ins of v1
+    "solver-sparse", "heuristic-tuned-train", "solver-tuned-train",
+    "oracle-rollout", "oracle-planner",
+    *V1[13:],  # the networks of v1
+    "scalefree-general",
+    "rollout-solver-tuned-1ms", "rollout-solver-tuned", "rollout-solver-tuned-100ms",
+    "rollout-solver-sparse-tuned-1ms", "rollout-solver-sparse-tuned", "rollout-solver-sparse-tuned-100ms",
+    "rollout-scalefree-general",
+    "mpc-rates", "mpc-ma", "mpc-rates-calibrated", "mpc-ma-calibrated", "mpc-rates-tuned-train", "mpc-ma-tuned-train",
+    "search-scalefree-general-1ms", "search-scalefree-general", "search-scalefree-general-100ms",
+)
+
+REFERENCES: dict[str, tuple[str, ...]] = {"v1": V1, "v2": V2}
+
+# registry name -> its reference: what each best-in-hindsight oracle of the registry plays
+ORACLES: dict[str, str] = {"oracle": "v1", "oracle-v2": "v2"}
+# the reference whose oracle also takes totals from committed suite pieces and replays recorded episodes
+# (BestInHindsight(replay=True)); v1 plays as it always did, so its numbers stay bit for bit
+REPLAYING = frozenset({"v2"})
+
+
+def reference(name: str) -> str:
+    """The reference of an oracle's registry name, or a reference's own name; ValueError of one line otherwise."""
+    if name in ORACLES:
+        return ORACLES[name]
+    if name in REFERENCES:
+        return name
+    raise ValueError(f"{name!r} is neither a best-in-hindsight oracle nor a reference; allowed: "
+                     f"{', '.join([*ORACLES, *REFERENCES])}")
+
+
+def candidates(name: str = "oracle", available: Callable[[str], bool] | None = None) -> list[str]:
+    """The candidates of an oracle or reference, in tie-breaking order, those ``available`` says are installed.
+
+    ``available`` is the registry's test of a name (a shipped network is offered only when its
+    checkpoint is there); None keeps every name.
+    """
+    listed = REFERENCES[reference(name)]
+    return [n for n in listed if available is None or available(n)]
+
+
+def outside(policy: str, name: str = "oracle") -> bool:
+    """Whether ``policy`` is not a candidate of the oracle or reference ``name``."""
+    return policy not in REFERENCES[reference(name)]
+
+
+def make(name: str, resolve: Callable[[str], Any], available: Callable[[str], bool] | None = None) -> BestInHindsight:
+    """The best-in-hindsight oracle ``name`` (:data:`ORACLES`) over its reference's available candidates."""
+    ref = reference(name)
+    return BestInHindsight(candidates(ref, available), resolve, name=name, replay=ref in REPLAYING)
+
+
+__all__ = ["ORACLES", "REFERENCES", "REPLAYING", "V1", "V2", "candidates", "make", "outside", "reference"]

@@ -1,0 +1,249 @@
+"""Versioned references, the hindsight rollout, and the replaying oracle (docs/hindsight.md, issue #53)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import numpy as np
+import pandas as pd
+import pytest
+from wfbench.policies import registry
+from wfbench.policies.oracle import cache, episodes, pieces, references
+from wfbench.policies.oracle.best import BestInHindsight
+from wfbench.policies.oracle.hindsight import HindsightRollout
+
+import wfbench
+from wfbench import policies
+from wfbench.core.simulator import Simulator
+from wfbench.harness.evaluation import evaluate
+
+SHORT = wfbench.scenario("small").replace(horizon=120)  # 5 facilities, 4 people: a lookahead episode in a second
+SEEDS = [3, 5, 8]
+
+
+@pytest.fixture
+def store(tmp_path, monkeypatch):
+    """An empty totals cache and episode store, on disk in ``tmp_path``, nothing in memory."""
+    monkeypatch.setenv(cache.ENV, str(tmp_path / "cache"))
+    monkeypatch.setenv(pieces.ENV, "off")
+    cache.clear_memory()
+    episodes.clear_memory()
+    yield tmp_path / "cache"
+    cache.clear_memory()
+    episodes.clear_memory()
+
+
+def _nsw(name: str, seeds=SEEDS) -> np.ndarray:
+    """The evaluator's mean NSW per seed of a registry name on ``SHORT``."""
+    return evaluate(name, SHORT, seeds)["nsw"].to_numpy()
+
+
+def _episode(policy, seeds=SEEDS) -> np.ndarray:
+    """Mean NSW per seed of a policy object, played as the runner plays a built-in."""
+    sim = Simulator(SHORT, seeds)
+    obs = sim.reset()
+    policy.attach(SHORT)
+    policy.reset(sim.seeds)
+    while not sim.done:
+        sim.step(policy.act(obs))
+        obs = sim.observe()
+    return sim.episode_means()["nsw"]
+
+
+# -- the references ---------------------------------------------------------------------------------------------------
+
+def test_references__the_oracle_plays_v1_exactly_and_v2_every_deployable_family():
+    assert registry.oracle_candidates("oracle") == [n for n in references.V1 if registry._available(n)]
+    oracle = policies.get("oracle")
+    assert not oracle.replay and oracle.candidates == tuple(registry.oracle_candidates("oracle"))
+    v2 = policies.get("oracle-v2")
+    assert v2.replay and v2.reads_trace
+    everything = {*registry.deployable_names(), *registry.lookahead_names(), "oracle-planner", "oracle-rollout"}
+    assert everything <= set(references.V2) and len(set(references.V2)) == len(references.V2)
+    assert [n for n in references.V2 if n in references.V1] == list(references.V1)  # v1's tie order kept
+    assert all(n in registry.names() or n in registry.LOOKAHEAD for n in references.V2)
+
+
+def test_references__a_policy_added_to_the_registry_enters_no_existing_reference(monkeypatch):
+    before = {name: registry.oracle_candidates(name) for name in references.ORACLES}
+    monkeypatch.setitem(registry.COMPOSITES, "heuristic-new", ("nearest", "threshold", "spatial", "new"))
+    monkeypatch.setitem(registry.LOOKAHEAD, "rollout-heuristic-new", ("heuristic-new", "1ms", "new"))
+    monkeypatch.setitem(registry.TUNED, "solver-new-tuned", ("solver-paper-64.json", "new"))
+    assert {name: registry.oracle_candidates(name) for name in references.ORACLES} == before
+
+
+def test_references__an_unknown_reference_is_refused_in_one_line():
+    with pytest.raises(ValueError, match=r"^'v9' is neither a best-in-hindsight oracle nor a reference; allowed: "
+                                         r"oracle, oracle-v2, v1, v2$"):
+        references.candidates("v9")
+
+
+def test_suite_checks_each_oracle_against_its_own_reference():
+    from wfbench.reproduce.suite import outside_oracle
+
+    assert outside_oracle("rollout-solver-tuned") and not outside_oracle("rollout-solver-tuned", "oracle-v2")
+    assert outside_oracle("scalefree-general#seed2") and not outside_oracle("scalefree-general#seed2", "oracle-v2")
+    assert not outside_oracle("solver-tuned") and not outside_oracle("solver-tuned", "oracle-v2")
+
+
+# -- the hindsight rollout --------------------------------------------------------------------------------------------
+
+def test_oracle_rollout__reads_the_trace_and_improves_on_its_base_on_every_seed():
+    rollout = policies.get("oracle-rollout")
+    assert isinstance(rollout, HindsightRollout) and rollout.reads_trace and "oracle-rollout" not in \
+        registry.deployable_names()
+    ours, base = _nsw("oracle-rollout"), _nsw("solver-tuned")
+    # to the end of the episode, each score is the exact rest of it: one step of exact policy improvement
+    assert (ours >= base).all() and (ours > base).any(), (ours, base)
+
+
+def test_oracle_rollout__refuses_a_base_it_cannot_compile_in_one_line():
+    with pytest.raises(ValueError, match=r"^oracle-rollout base 'ppo-joint' is not a composite of built-in kernels"):
+        HindsightRollout(type("Net", (), {"name": "ppo-joint"})())
+    with pytest.raises(ValueError, match=r"^oracle-rollout knob H = 0 is not allowed; allowed: an integer >= 1"):
+        HindsightRollout(policies.get("solver-tuned"), H=0)
+
+
+@pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms", "mpc-rates", "oracle-rollout"])
+def test_a_lookahead_plays_a_seed_the_same_alone_and_in_any_batch(name):
+    # the replaying oracle keys these episodes by the seed alone, and takes their totals from pieces played in other
+    # chunks: that is only sound if the batch cannot move a bit
+    batch = _nsw(name, seeds=SEEDS)
+    alone = [_nsw(name, seeds=[s])[0] for s in SEEDS]
+    other = _nsw(name, seeds=[SEEDS[2], 11, SEEDS[0]])
+    assert batch.tolist() == alone and [other[2], other[0]] == [batch[0], batch[2]]
+    _, _, network = episodes.identity(policies.get(name))
+    assert not network
+
+
+# -- the replaying oracle ---------------------------------------------------------------------------------------------
+
+CANDIDATES = ("heuristic", "solver-tuned", "rollout-solver-tuned-1ms", "oracle-rollout")
+
+
+def _oracle(candidates=CANDIDATES) -> BestInHindsight:
+    return BestInHindsight(candidates, policies.get, name="oracle-test", replay=True)
+
+
+def test_replaying_oracle__scores_the_best_candidate_per_seed_then_replays_without_playing(store, monkeypatch):
+    each = {n: _nsw(n) for n in CANDIDATES}
+    best = np.max(np.stack(list(each.values())), axis=0)
+    first = _oracle()
+    rows = _episode(first)
+    assert rows.tolist() == best.tolist()  # bit for bit the chosen candidate's episode
+    assert first.choice == [CANDIDATES[int(np.argmax([each[n][i] for n in CANDIDATES]))] for i in range(3)]
+    finished = [n for k, n in enumerate(CANDIDATES[2:], 2) if not np.isnan(first.scores[:, k]).any()]
+    assert "oracle-rollout" in finished  # it scores at least solver-tuned on every seed: never stopped early
+    # a fresh process reads the episodes from disk: what finished is not played through act again
+    episodes.clear_memory()
+    played = []
+    real = BestInHindsight._play_recorded
+
+    def spy(self, policy, *a, **k):
+        played.append(policy.name)
+        return real(self, policy, *a, **k)
+
+    monkeypatch.setattr(BestInHindsight, "_play_recorded", spy)
+    again = _oracle()
+    assert _episode(again).tolist() == rows.tolist()
+    assert not set(played) & set(finished)
+    assert again.sources["oracle-rollout"] == {"episodes": 3, "pieces": 0, "cache": 0, "played": 0}
+
+
+def _piece(folder, name, seeds, nsw, commit="HEAD", dirty=False):
+    path = folder / "cache" / name / "tiny-v1.csv"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame({"seed": seeds, "nsw": nsw}).to_csv(path, index=False)
+    if commit == "HEAD":
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    meta = {"hash": "h", "seeds": list(seeds), "provenance": {"commit": commit, "dirty": dirty}}
+    path.with_suffix(".json").write_text(json.dumps(meta))
+    return path
+
+
+@pytest.fixture
+def tiny_suite(store, tmp_path, monkeypatch):
+    """``SHORT`` as the suite scenario ``tiny-v1`` (hash ``h``), its pieces read from ``tmp_path/run``."""
+    monkeypatch.setattr(pieces, "_suite_scenarios", lambda text: (("tiny-v1", "h"),))
+    monkeypatch.setenv(pieces.ENV, str(tmp_path / "run"))
+    return tmp_path / "run"
+
+
+def test_replaying_oracle__takes_totals_from_matching_pieces_and_plays_only_the_seeds_a_piece_wins(tiny_suite,
+                                                                                                   monkeypatch):
+    name = "rollout-solver-tuned-1ms"
+    truth = _nsw(name)
+    _piece(tiny_suite, name, SEEDS, truth)
+    monkeypatch.setattr(pieces, "mismatch", lambda meta, files: None)  # as if made at a commit with these files
+    oracle = _oracle(("heuristic", name))
+    oracle.attach(SHORT)
+    oracle.reset(SEEDS)
+    wins = sum(c == name for c in oracle.choice)
+    assert wins and oracle.sources[name] == {"episodes": 0, "pieces": 3, "cache": 0, "played": 0}
+    assert len(list((tiny_suite.parent / "cache").glob("episode-*/*.npz"))) == wins  # played where it wins, stored
+
+
+def test_replaying_oracle__a_piece_that_disagrees_with_the_code_fails_in_one_line_naming_it(tiny_suite,
+                                                                                          monkeypatch):
+    name = "rollout-solver-tuned-1ms"
+    path = _piece(tiny_suite, name, SEEDS, _nsw(name) + 0.5)  # a seed it wins says what no play gives
+    monkeypatch.setattr(pieces, "mismatch", lambda meta, files: None)
+    with pytest.raises(pieces.PieceMismatch) as err:
+        _episode(_oracle(("heuristic", name)))
+    text = str(err.value)
+    assert "\n" not in text and str(path) in text and "playing it now gives" in text
+
+
+def test_replaying_oracle__a_piece_from_other_code_fails_in_one_line_naming_it(tiny_suite):
+    name = "rollout-solver-tuned-1ms"
+    path = _piece(tiny_suite, name, SEEDS, np.zeros(3), commit=None)
+    with pytest.raises(pieces.PieceMismatch) as err:
+        _episode(_oracle(("heuristic", name)))
+    assert str(err.value) == (f"oracle-test: the piece {path} of {name!r} was not made by this code (it records no "
+                              f"commit); recompute it (wfbench reproduce suite) or leave its folder out of "
+                              f"${pieces.ENV}")
+    path = _piece(tiny_suite, name, SEEDS, np.zeros(3), dirty=True)
+    with pytest.raises(pieces.PieceMismatch, match=r"made from a dirty tree at [0-9a-f]{12}\); recompute it"):
+        _episode(_oracle(("heuristic", name)))
+
+
+def test_provenance_matches_when_every_decisive_file_is_the_commits():
+    files = episodes.decisive_files(policies.get("rollout-solver-tuned"))
+    assert {"policies/lookahead/rollout.py", "policies/oracle/rollout.py", "wfbench/core/simulator.py",
+            "wfbench/core/belief.py"} <= set(files)
+    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    clean = [f for f in files if subprocess.run(["git", "diff", "--quiet", "HEAD", "--", f]).returncode == 0]
+    assert clean, "every file that decides the rollout is edited: commit first"
+    assert pieces.mismatch({"provenance": {"commit": head, "dirty": False}}, clean[:5]) is None
+    first = subprocess.run(["git", "rev-list", "--max-parents=0", "HEAD"], capture_output=True, text=True,
+                           check=True).stdout.split()[0]
+    why = pieces.mismatch({"provenance": {"commit": first, "dirty": False}}, ["policies/lookahead/rollout.py"])
+    assert why == f"policies/lookahead/rollout.py differs from its commit {first[:12]}"
+    assert pieces.mismatch({"provenance": {"commit": "0" * 40, "dirty": False}}, files) == \
+        f"its commit {'0' * 12} is not in this repository"
+
+
+def test_episode_keys_change_with_what_decides_the_policy():
+    a = episodes.candidate_key(SHORT, "r", policies.get("rollout-solver-tuned"))
+    assert a == episodes.candidate_key(SHORT, "r", policies.get("rollout-solver-tuned"))
+    assert a[1]  # per seed: no network plays
+    assert a != episodes.candidate_key(SHORT, "r", policies.get("rollout-solver-tuned-1ms"))
+    assert a != episodes.candidate_key(SHORT.replace(horizon=121), "r", policies.get("rollout-solver-tuned"))
+    assert a != episodes.candidate_key(SHORT, "r", policies.get("rollout-solver-sparse-tuned"))
+    assert a != episodes.candidate_key(SHORT, "r", policies.get("mpc-rates"))
+
+
+def test_replay_gives_the_recorded_actions_back():
+    from wfbench.policies.oracle.replay import Replay, episode_of
+
+    oracle = _oracle(("heuristic",))
+    oracle.attach(SHORT)
+    sim = Simulator(SHORT, SEEDS)
+    total, rec = oracle._play_recorded(policies.get("random"), np.array(SEEDS), np.full(3, -np.inf))
+    replay = Replay(sim.M, sim.N, {i: episode_of(rec, i, total[i]) for i in range(3)})
+    sim.reset()
+    while not sim.done:
+        d, w, p = replay.actions(sim.t, np.arange(3))
+        sim.step({"dispatch": d, "workforce": w, "positioning": p})
+    assert sim.episode_means()["nsw"].tolist() == (total / SHORT.horizon).tolist()
