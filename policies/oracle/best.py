@@ -92,6 +92,7 @@ class BestInHindsight:
         self.name = name
         self.replay = bool(replay)  # totals from pieces and recorded episodes (wfbench.policies.oracle.replay)
         self.sources: dict[str, dict[str, int]] = {}  # with replay: candidate -> where its seeds' totals came from
+        self.skipped: list[tuple[str, str, str]] = []  # with replay: (candidate, piece, why) passed over
         self.config: ScenarioConfig | None = None
         self.seeds: np.ndarray | None = None
         self.scores: np.ndarray | None = None  # (B, candidates) episode NSW, NaN where stopped early

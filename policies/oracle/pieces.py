@@ -9,7 +9,9 @@ code** when the piece names a commit, was not made from a dirty tree, and every 
 decides the candidate's episodes (:func:`wfbench.policies.oracle.episodes.decisive_files`: the
 import closure of its objects' modules and of the simulator) has at that commit the bytes it
 has here, as git stores them (blob ids). A piece that covers some asked seeds and does not
-match raises :class:`PieceMismatch`, one line naming the piece: the oracle never mixes codes.
+match is passed over in the checkout's own ``docs/results`` (the oracle plays those seeds);
+in a folder named by ``$WFBENCH_ORACLE_PIECES`` it raises :class:`PieceMismatch`, one line
+naming the piece. Either way the oracle never mixes codes.
 ``docs/hindsight.md``, "Replayed, not played again".
 """
 
@@ -37,19 +39,21 @@ class PieceMismatch(ValueError):
     """A committed piece the oracle was asked to use was made by other code than this."""
 
 
-def folders() -> list[Path]:
-    """The suite runs whose pieces the replaying oracle reads: ``$WFBENCH_ORACLE_PIECES``, else the checkout's own.
+def folders() -> tuple[list[Path], bool]:
+    """The suite runs whose pieces the replaying oracle reads, and whether they were asked for by name.
 
-    Unset: every folder of ``docs/results`` with a ``cache/`` in the checkout the code runs from
-    (none in an installed copy). ``off`` (or empty): none.
+    ``$WFBENCH_ORACLE_PIECES`` names them (asked for: a piece there from other code fails);
+    ``off`` (or empty) names none. Unset: every folder of ``docs/results`` with a ``cache/`` in
+    the checkout the code runs from (none in an installed copy), whose pieces from other code
+    are passed over.
     """
     value = os.environ.get(ENV)
     if value is not None:
         if value.strip().lower() in OFF:
-            return []
-        return [Path(p) for p in value.split(os.pathsep) if p]
+            return [], True
+        return [Path(p) for p in value.split(os.pathsep) if p], True
     results = ROOT / RESULTS
-    return sorted(p for p in results.iterdir() if (p / "cache").is_dir()) if results.is_dir() else []
+    return (sorted(p for p in results.iterdir() if (p / "cache").is_dir()) if results.is_dir() else []), False
 
 
 def piece_folder(policy: str) -> str:
@@ -75,7 +79,7 @@ def find(policy: str, config: ScenarioConfig, seeds: np.ndarray) -> list[tuple[P
     out = []
     scenarios = _suite_scenarios(json.dumps(config.to_dict(), sort_keys=True))
     wanted = set(np.asarray(seeds).tolist())
-    for folder in folders():
+    for folder in folders()[0]:
         for sc_id, sc_hash in scenarios:
             path = folder / "cache" / piece_folder(policy) / f"{sc_id}.csv"
             meta_path = path.with_suffix(".json")
@@ -128,25 +132,33 @@ def _differs(commit: str, files: tuple[str, ...]) -> str | None:
 
 
 def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
-           who: str = "oracle") -> tuple[np.ndarray, dict[int, Path]]:
-    """The committed mean NSW of ``seeds`` (NaN where no piece has it) and the piece of each row that has one.
+           who: str = "oracle") -> tuple[np.ndarray, dict[int, Path], list[tuple[Path, str]]]:
+    """The committed mean NSW of ``seeds`` (NaN where no piece has it), the piece of each row that has one.
+
+    And the pieces passed over, with why: those from other code found in the default folders.
 
     Raises:
-        PieceMismatch: a piece holding some of the seeds does not match this code (one line, naming it).
+        PieceMismatch: a piece holding some of the seeds, in a folder asked for by name, does not
+            match this code (one line, naming it).
     """
     seeds = np.asarray(seeds, dtype=np.int64)
     out = np.full(seeds.size, np.nan)
     where: dict[int, Path] = {}
+    skipped: list[tuple[Path, str]] = []
+    asked = folders()[1]
     for path, meta, rows in find(policy, config, seeds):
         why = mismatch(meta, files)
-        if why is not None:
+        if why is not None and asked:
             raise PieceMismatch(f"{who}: the piece {path} of {policy!r} was not made by this code ({why}); "
                                 f"recompute it (wfbench reproduce suite) or leave its folder out of ${ENV}")
+        if why is not None:
+            skipped.append((path, why))
+            continue
         by_seed = dict(zip(rows["seed"].astype(int).tolist(), rows["nsw"].astype(float).tolist(), strict=True))
         for i, s in enumerate(seeds.tolist()):
             if i not in where and s in by_seed:
                 out[i], where[i] = by_seed[s], path
-    return out, where
+    return out, where, skipped
 
 
 __all__ = ["ENV", "PieceMismatch", "find", "folders", "mismatch", "piece_folder", "scores"]

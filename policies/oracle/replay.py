@@ -14,7 +14,8 @@ Then, per seed, the best score (mean NSW, the first candidate on a tie). A winne
 no recorded episode is played on the seeds it wins, its episode stored, and its total must
 equal the one it was chosen by, bit for bit: else the piece (or cache) is named in one line.
 ``act`` replays the episodes. ``oracle.sources`` says, per candidate, how many seeds came from
-each place. ``docs/hindsight.md``, "Replayed, not played again".
+each place; ``oracle.skipped`` the pieces passed over as made by other code, with why.
+``docs/hindsight.md``, "Replayed, not played again".
 """
 
 from __future__ import annotations
@@ -104,7 +105,7 @@ def reset_replaying(oracle: Any, seeds: np.ndarray) -> None:
     B, T = seeds.size, c.horizon
     oracle.seeds = seeds
     oracle.scores = np.full((B, len(oracle.candidates)), np.nan)
-    oracle.timing, oracle.cached, oracle.sources = {}, {}, {}
+    oracle.timing, oracle.cached, oracle.sources, oracle.skipped = {}, {}, {}, []
     best_score = np.full(B, -np.inf)
     best = np.full(B, -1, dtype=np.int64)
     found: dict[int, Any] = {}  # candidate index -> its policy (compiled) or _Candidate
@@ -124,7 +125,9 @@ def reset_replaying(oracle: Any, seeds: np.ndarray) -> None:
             for row, ep in cand.episodes.items():
                 score[row] = ep.total / T
             if per_seed:  # committed pieces: a seed's total does not depend on its batch
-                committed, where = pieces.scores(name, c, seeds, episodes.decisive_files(policy), who=oracle.name)
+                committed, where, skipped = pieces.scores(name, c, seeds, episodes.decisive_files(policy),
+                                                          who=oracle.name)
+                oracle.skipped += [(name, str(path), why) for path, why in skipped]
                 for row, path in where.items():
                     if row in cand.episodes and committed[row] != score[row]:
                         raise pieces.PieceMismatch(

@@ -208,6 +208,20 @@ def test_replaying_oracle__a_piece_from_other_code_fails_in_one_line_naming_it(t
         _episode(_oracle(("heuristic", name)))
 
 
+def test_replaying_oracle__passes_over_a_piece_from_other_code_in_the_checkouts_own_results(store, tmp_path,
+                                                                                            monkeypatch):
+    name = "rollout-solver-tuned-1ms"
+    monkeypatch.delenv(pieces.ENV)
+    monkeypatch.setattr(pieces, "ROOT", tmp_path)  # its docs/results: the committed runs found by default
+    monkeypatch.setattr(pieces, "_suite_scenarios", lambda text: (("tiny-v1", "h"),))
+    path = _piece(tmp_path / pieces.RESULTS / "run", name, SEEDS, np.zeros(3), commit=None)
+    assert pieces.folders() == ([tmp_path / pieces.RESULTS / "run"], False)
+    oracle = _oracle(("heuristic", name))
+    assert _episode(oracle).tolist() == np.maximum(_nsw("heuristic"), _nsw(name)).tolist()
+    assert oracle.skipped == [(name, str(path), "it records no commit")]
+    assert oracle.sources[name] == {"episodes": 0, "pieces": 0, "cache": 0, "played": 3}
+
+
 def test_provenance_matches_when_every_decisive_file_is_the_commits():
     files = episodes.decisive_files(policies.get("rollout-solver-tuned"))
     assert {"policies/lookahead/rollout.py", "policies/oracle/rollout.py", "wfbench/core/simulator.py",
