@@ -8,8 +8,10 @@ env-steps: observing, simulating and the policy). The paired difference to the b
         --policies scalefree-general scalefree-general@greedy search-scalefree-general-1ms \\
         search-scalefree-general search-scalefree-general-100ms --knobs 8:20:20:3:1
 
-``--knobs K:H:R:top:z`` adds a :class:`NetworkSearch` of the base with those knobs
-(``:novalue`` after them: the H steps alone, the critic left out).
+``--knobs K:H:R:top:z`` adds a :class:`NetworkSearch` of the base with those knobs; flags after
+them ablate one ingredient each: ``:novalue`` (the H steps alone, the critic left out),
+``:sample`` (the network samples the futures instead of playing them greedily). The noise
+test's ablation is a tiny z (``z=1e-9``: any positive mean wins).
 """
 
 from __future__ import annotations
@@ -37,8 +39,15 @@ def entry(spec: str, base: str) -> tuple[str, object]:
         return spec, get(spec)
     parts = spec.split(":")
     K, H, R, top = (int(x) for x in parts[:4])
-    kw = {"value": ()} if parts[-1] == "novalue" else {}
-    return f"search K={K} H={H} R={R} top={top} z={parts[4]}{' no value' if kw else ''}", NetworkSearch(
+    flags = set(parts[5:])
+    if flags - {"novalue", "sample"}:
+        raise SystemExit(f"--knobs {spec}: unknown flags {sorted(flags - {'novalue', 'sample'})}; "
+                         "allowed: novalue, sample")
+    kw = {"value": ()} if "novalue" in flags else {}
+    if "sample" in flags:
+        kw["futures"] = "sample"
+    label = "".join(f" {f}" for f in sorted(flags))
+    return f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}", NetworkSearch(
         get(base), K=K, H=H, R=R, top=top, z=float(parts[4]), **kw)
 
 

@@ -25,7 +25,7 @@ import re
 from typing import Any
 
 import numpy as np
-from wfbench.policies.lookahead.network_rollout import NetworkRollout
+from wfbench.policies.lookahead.network_rollout import PURPOSE_NOISE, NetworkRollout
 from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET
 
 from wfbench.core.config import ScenarioConfig
@@ -86,6 +86,9 @@ def value_slope(knots: tuple[tuple[int, float], ...], left: int) -> float:
     return float(np.interp(left, [k for k, _ in knots], [b for _, b in knots]))
 
 
+# how the network plays the futures: "greedy" (the search's), "sample" (its sampling mode, as the network's own rollout
+# plays them: an ablation, benchmarks/search_budget.py's ":sample")
+FUTURES = ("greedy", "sample")
 SE_FLOOR = 1e-6  # summed NSW; a decision's differences are about 0.01-1
 
 
@@ -148,23 +151,29 @@ class NetworkSearch(NetworkRollout):
             :func:`value_map` of the base's name and the world's (set at the first observation);
             ``()`` (and a base without a map): the H steps alone.
         scenario, seed, name: as :class:`NetworkRollout`.
+        futures: how the network plays the futures, :data:`FUTURES` (``"sample"`` is the
+            ablation of the greedy futures).
     """
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  top: int | None = None, z: float | None = None, budget: str = DEFAULT_BUDGET,
                  value: tuple[tuple[int, float], ...] | None = None, scenario: ScenarioConfig | None = None,
-                 seed: int = 0, name: str | None = None):
+                 seed: int = 0, name: str | None = None, futures: str = "greedy"):
+        if futures not in FUTURES:
+            raise ValueError(f"search futures {futures!r} is not allowed; allowed: {', '.join(FUTURES)} (how the "
+                             "network plays the sampled worlds)")
         preset = globals()["budget"](budget)
         given = dict(zip(KNOBS, (K, H, R, top, z), strict=True))
         k, h, r, self.top, self.z = (knob(n, preset[i] if v is None else v) for i, (n, v) in enumerate(given.items()))
         super().__init__(base, k, h, r, scenario=scenario, seed=seed,
                          name=name or f"search-{getattr(base, 'name', 'network')}")
+        self.futures = futures
         self.value_given = None if value is None else tuple(value)
         self.value = self.value_given
         self.last_test: dict[int, tuple[list[int], np.ndarray, np.ndarray]] = {}
 
     def settings(self) -> dict[str, Any]:
-        return {**super().settings(), "top": self.top, "z": self.z}
+        return {**super().settings(), "top": self.top, "z": self.z, "futures": self.futures}
 
     def _start(self, obs: dict[str, np.ndarray]) -> None:
         from wfbench.policies.neural.policy import NetworkPolicy
@@ -174,8 +183,8 @@ class NetworkSearch(NetworkRollout):
             world = self.config.name if self.config is not None else ""
             self.value = value_map(getattr(self.base, "name", ""), world)
         b = self.base
-        self.player = NetworkPolicy(b.model, mode="greedy", device=str(b.device), seed=b.seed,
-                                    name=f"{self.name}/greedy", threads=b.threads)
+        self.player = NetworkPolicy(b.model, mode=self.futures, device=str(b.device), seed=b.seed,
+                                    name=f"{self.name}/{self.futures}", threads=b.threads)
         self.timing["deviations"] = 0.0
 
     def _heads_before(self, obs: dict[str, np.ndarray]) -> tuple[dict, dict]:
@@ -242,7 +251,11 @@ class NetworkSearch(NetworkRollout):
         env_idx = np.asarray(rows_env, dtype=np.int64)
         first = {"dispatch": action["dispatch"][env_idx], "workforce": np.asarray(rows_a, dtype=np.int64),
                  "positioning": np.stack(first_p)}
-        total, fobs, steps = self._play(env_idx, rows_k, first, t)  # the greedy copy: no noise to hand it
+        rngs = None  # greedy: no noise; sampled futures (the ablation) share world k's noise, as the rollout's
+        if self.futures == "sample":
+            rngs = [np.random.default_rng([int(self._seeds[e]), self.seed, PURPOSE_NOISE, t, k])
+                    for e, k in zip(rows_env, rows_k, strict=True)]
+        total, fobs, steps = self._play(env_idx, rows_k, first, t, rngs)
         p = self.player
         slope = value_slope(self.value, self.horizon - t - steps)
         if t + steps < self.horizon and slope:  # truncated: the critic's estimate of the rest, in summed NSW

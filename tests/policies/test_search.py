@@ -107,6 +107,9 @@ def test_an_unknown_budget_or_a_base_that_is_no_network_is_refused_in_one_line()
     assert "\n" not in str(err.value)
     with pytest.raises(ValueError, match="not a network deciding dispatch, workforce and positioning"):
         NetworkSearch(policies.get("solver-tuned"))
+    with pytest.raises(ValueError, match=r"search futures 'noisy' is not allowed; allowed: greedy, sample") as err:
+        NetworkSearch(policies.get("scalefree-general"), futures="noisy")
+    assert "\n" not in str(err.value)
 
 
 def test_the_presets_are_registered_by_budget_and_the_rollout_is_unchanged():
@@ -116,7 +119,7 @@ def test_the_presets_are_registered_by_budget_and_the_rollout_is_unchanged():
         pol = policies.get(name)
         K, H, R, top, z = BUDGETS[budget]
         assert isinstance(pol, NetworkSearch) and pol.name == name
-        assert pol.settings() == {"K": K, "H": H, "R": R, "top": top, "z": z}
+        assert pol.settings() == {"K": K, "H": H, "R": R, "top": top, "z": z, "futures": "greedy"}
     pol = policies.get("rollout-scalefree-general")
     assert type(pol) is NetworkRollout and pol.settings() == {"K": 2, "H": 80, "R": 80}
 
@@ -130,6 +133,21 @@ def test_with_z_huge_it_acts_exactly_as_its_network():
     for t, (x, y) in enumerate(zip(net, srch, strict=True)):
         for k in x:
             assert np.array_equal(x[k], y[k]), (t, k)
+
+
+def test_the_futures_are_played_greedily_unless_the_ablation_samples_them():
+    seeds = [1000]
+    runs = {}
+    for futures in ("greedy", "sample"):
+        for repeat in range(2):
+            _, actions, tests = play(search(K=3, z=1e12, futures=futures), SMALL, seeds)
+            runs[futures, repeat] = [(b, cs, mean.copy()) for t in tests for b, (cs, mean, _) in t.items()]
+    assert runs["greedy", 0] and len(runs["greedy", 0]) == len(runs["sample", 0])
+    for futures in ("greedy", "sample"):  # either way the futures are the episode's own: the same twice
+        assert all(np.array_equal(x[2], y[2]) for x, y in zip(runs[futures, 0], runs[futures, 1], strict=True))
+    # the same decisions (z huge: the network's own action everywhere), scored on other futures
+    assert [x[:2] for x in runs["greedy", 0]] == [x[:2] for x in runs["sample", 0]]
+    assert any(not np.array_equal(x[2], y[2]) for x, y in zip(runs["greedy", 0], runs["sample", 0], strict=True))
 
 
 def test_it_deviates_from_its_network_only_beyond_the_noise():
