@@ -21,7 +21,7 @@ from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.reward import check_reward, step_reward
 from wfbench.envs.parallel import WorkforceCore
-from wfbench.envs.render import RENDER_MODES, HumanWindow, check_render_mode, render_rgb
+from wfbench.envs.render import RENDER_MODES, HumanWindow, Rendering, check_render_mode
 from wfbench.envs.spaces import (
     INFOS,
     OBSERVATIONS,
@@ -39,7 +39,7 @@ from wfbench.envs.spaces import (
 from wfbench.scenarios.resolve import resolve_scenario
 
 
-class _Base(gym.Env):
+class _Base(Rendering, gym.Env):
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 8}
 
     def __init__(self, scenario: str | ScenarioConfig, fixed: dict[str, Any] | None, render_mode: str | None,
@@ -97,23 +97,6 @@ class _Base(gym.Env):
         if a.shape != (n,):
             raise ActionError(f"action has shape {a.shape}, expected ({n},)")
         return a
-
-    def _show(self) -> None:
-        """In ``render_mode="human"``, draw the current state in the window (every reset and step)."""
-        if self.render_mode == "human":
-            self._window = self._window or HumanWindow(self.metadata["render_fps"])
-            self._window.show(render_rgb(self.core.sim))
-
-    def render(self):
-        """The current frame (``"rgb_array"``); None in ``"human"`` mode, which draws at every step."""
-        if self.render_mode != "rgb_array" or self.core.sim is None:
-            return None
-        return render_rgb(self.core.sim)
-
-    def close(self) -> None:
-        if self._window is not None:
-            self._window.close()
-            self._window = None
 
 
 class WorkforceEnv(_Base):

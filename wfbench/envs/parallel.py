@@ -24,7 +24,7 @@ from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.kpis import KPI_NAMES
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import COUNTERS, METRICS, N_WORKFORCE_ACTIONS
-from wfbench.envs.render import RENDER_MODES, HumanWindow, check_render_mode, render_rgb
+from wfbench.envs.render import RENDER_MODES, HumanWindow, Rendering, check_render_mode
 from wfbench.envs.spaces import (
     INFOS,
     OBSERVATIONS,
@@ -180,7 +180,7 @@ class WorkforceCore:
         }
 
 
-class WorkforceParallelEnv(ParallelEnv):
+class WorkforceParallelEnv(Rendering, ParallelEnv):
     """The three-agent workforce environment (PettingZoo Parallel API)."""
 
     metadata = {"name": "wfbench_workforce_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True,
@@ -287,23 +287,6 @@ class WorkforceParallelEnv(ParallelEnv):
         self._show()
         return (obs, {a: reward for a in agents}, {a: False for a in agents}, {a: truncated for a in agents},
                 {a: dict(info) for a in agents})
-
-    def _show(self) -> None:
-        """In ``render_mode="human"``, draw the current state in the window (every reset and step)."""
-        if self.render_mode == "human":
-            self._window = self._window or HumanWindow(self.metadata["render_fps"])
-            self._window.show(render_rgb(self.core.sim))
-
-    def render(self):
-        """The current frame (``"rgb_array"``); None in ``"human"`` mode, which draws at every step."""
-        if self.render_mode != "rgb_array" or self.core.sim is None:
-            return None
-        return render_rgb(self.core.sim)
-
-    def close(self) -> None:
-        if self._window is not None:
-            self._window.close()
-            self._window = None
 
     def state(self) -> np.ndarray:
         """A flat global state (the shared observation without masks) for centralized critics, in ``state_space``."""

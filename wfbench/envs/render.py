@@ -7,7 +7,8 @@ frames to a GIF.
 what changes (the markers, the lines, the KPI line) for each frame, by blitting onto the
 saved background; ``render_rgb`` keeps one renderer per simulator, so environments that
 render every step get the same speed. :class:`HumanWindow` shows frames in a matplotlib
-window (the environments' ``render_mode="human"``).
+window (the environments' ``render_mode="human"``); :class:`Rendering` is the ``render``,
+``close`` and human window that the Gymnasium and PettingZoo environments share.
 """
 
 from __future__ import annotations
@@ -207,6 +208,31 @@ def render_rgb(sim, b: int = 0, size_px: int = 480) -> np.ndarray:
     if renderer is None:
         renderer = mine[size_px] = Renderer(sim.config, size_px)
     return renderer.frame(sim, b)
+
+
+class Rendering:
+    """``render``, ``close`` and the human window of an environment over a core whose ``sim`` is drawn.
+
+    The Gymnasium and PettingZoo environments mix it in; they set ``render_mode``, ``metadata``
+    (with ``render_fps``), ``core`` and ``_window = None``, and call ``_show`` after every reset and step.
+    """
+
+    def _show(self) -> None:
+        """In ``render_mode="human"``, draw the current state in the window (every reset and step)."""
+        if self.render_mode == "human":
+            self._window = self._window or HumanWindow(self.metadata["render_fps"])
+            self._window.show(render_rgb(self.core.sim))
+
+    def render(self):
+        """The current frame (``"rgb_array"``); None in ``"human"`` mode, which draws at every step."""
+        if self.render_mode != "rgb_array" or self.core.sim is None:
+            return None
+        return render_rgb(self.core.sim)
+
+    def close(self) -> None:
+        if self._window is not None:
+            self._window.close()
+            self._window = None
 
 
 def save_gif(frames: list[np.ndarray], path: str | Path, fps: int = 8) -> None:
