@@ -5,7 +5,10 @@ teach one later. Modules: ``rollout`` (compiled roll-forward of a batch from its
 current state), ``dispatch``, ``workforce`` and ``positioning`` (each decision's
 candidates and maps), ``planner`` (the shadow simulator, forks and scoring),
 ``oracles`` (the per-decision policies), ``best`` (the registry's ``oracle``: per seed,
-the best in hindsight of the planner and every deployable built-in). ``docs/hindsight.md``
+the best in hindsight of the planner and every deployable built-in), ``references`` (the
+versioned candidate lists: ``oracle`` is v1, ``oracle-v2`` is v2), ``hindsight``
+(``oracle-rollout``), ``replay``, ``episodes`` and ``pieces`` (the replaying references'
+totals from recorded episodes and committed suite pieces). ``docs/hindsight.md``
 explains them; the look-ahead itself is :mod:`wfbench.core.lookahead`.
 """
 
