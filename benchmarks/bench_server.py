@@ -30,10 +30,10 @@ from pathlib import Path
 
 import httpx
 import numpy as np
-from wfbench.leaderboard.hosted import queue
-from wfbench.leaderboard.hosted.db import Board
-from wfbench.leaderboard.hosted.server import create_app
-from wfbench.leaderboard.hosted.worker import aggregate
+from wfbench.leaderboard.board import queue
+from wfbench.leaderboard.board.db import Board
+from wfbench.leaderboard.board.worker import aggregate
+from wfbench.leaderboard.server.app import create_app
 from wfbench.leaderboard.tracks import scenario_track
 
 from tests.leaderboard.live_server import LiveServer  # a test helper: run from the checkout with python -m

@@ -2,7 +2,7 @@
 
 :class:`LocalRunner` starts a loky child (no ``__main__`` guard needed) with an address-space
 limit, which loads the policy once and says its fingerprint and budget; the in-process
-:class:`~wfbench.leaderboard.hosted.worker.Worker` then asks it for each scenario's missing
+:class:`~wfbench.leaderboard.board.worker.Worker` then asks it for each scenario's missing
 seeds, stores the rows it streams back with their provenance, and the runner enforces the
 wall time. Every failure of the policy or its process is a :class:`LocalFailure`.
 ``docs/leaderboard.md``, "One board".
@@ -21,9 +21,9 @@ from typing import Any
 
 import pandas as pd
 from joblib.externals.loky.backend.context import get_context
+from wfbench.leaderboard.board.db import Board, Submission
+from wfbench.leaderboard.board.worker import Progress, Run
 from wfbench.leaderboard.fingerprint import is_entry_point, policy_fingerprint
-from wfbench.leaderboard.hosted.db import Board, Submission
-from wfbench.leaderboard.hosted.worker import Progress, Run
 from wfbench.leaderboard.rows import ROW_COLUMNS, Entry, SubmitError, scrub_paths
 from wfbench.leaderboard.store import add_provenance
 from wfbench.leaderboard.tracks import Track

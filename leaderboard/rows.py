@@ -2,7 +2,7 @@
 
 The KPI, counter and budget columns of a row, the digest that covers a row's provenance and
 values, the :class:`Entry` the reports rank, and the one-line errors of a board. The local
-board (:mod:`wfbench.leaderboard.store`) and the hosted one (:mod:`wfbench.leaderboard.hosted`)
+board (:mod:`wfbench.leaderboard.store`) and the hosted one (:mod:`wfbench.leaderboard.board`)
 both store rows of these columns; docs/leaderboard.md#what-a-row-holds.
 """
 

@@ -1,4 +1,4 @@
-"""The local leaderboard: the hosted board's database (:class:`~wfbench.leaderboard.hosted.db.Board`) on a SQLite file.
+"""The local leaderboard: the hosted board's database (:class:`~wfbench.leaderboard.board.db.Board`) on a SQLite file.
 
 An entry is a test-phase submission of the board (its policy spec the entry point, its
 submitter the account, its seeds the track's published test seeds, ``seed_index`` the
@@ -28,9 +28,9 @@ import pandas as pd
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection
 from wfbench.leaderboard import report
-from wfbench.leaderboard.hosted import db as hosted
-from wfbench.leaderboard.hosted.db import Board, accounts, kind_of_reason, packages, submissions
-from wfbench.leaderboard.hosted.migrations import NewerBoardError, check_known
+from wfbench.leaderboard.board import db as board_db
+from wfbench.leaderboard.board.db import Board, accounts, kind_of_reason, packages, submissions
+from wfbench.leaderboard.board.migrations import NewerBoardError, check_known
 from wfbench.leaderboard.rows import (
     BUDGET_ROW_COLUMNS,
     KPI_COLUMNS,
@@ -345,7 +345,7 @@ class Store:
 
     def audit(self, track: str | None = None) -> pd.DataFrame:
         """The audit trail: a row per result of an entry off the board (or per such entry without any), oldest first."""
-        e, r, p = local_entries, hosted.rows, local_rows
+        e, r, p = local_entries, board_db.rows, local_rows
         q = (sa.select(e.c.audit_id, submissions.c.track, submissions.c.name, submissions.c.entry.label("policy"),
                        e.c.fingerprint, submissions.c.state.label("status"), e.c.action, e.c.note, e.c.moved_at,
                        r.c.scenario, r.c.seed, r.c[SCORE], p.c.digest)
@@ -366,8 +366,7 @@ class Store:
     def done_units(self, sub_id: int) -> set[tuple[str, int]]:
         """The (scenario, seed) pairs stored for an entry (scenario ``""`` on a one-scenario track)."""
         with self.engine.begin() as conn:
-            return {(r.scenario, r.seed) for r in conn.execute(
-                sa.select(hosted.rows.c.scenario, hosted.rows.c.seed).where(hosted.rows.c.submission_id == sub_id))}
+            return _done(conn, sub_id)
 
     def add_results(self, sub: Entry, version: str, rows: Iterable[dict[str, Any]]) -> int:
         """Store finished seeds in one transaction; returns how many were new.
@@ -402,7 +401,7 @@ class Store:
     # -- reading -----------------------------------------------------------------------------------
     def results(self, track: Track) -> tuple[pd.DataFrame, list[str]]:
         """Valid rows of the track (with the entry's name) and one message per refused row."""
-        r, p = hosted.rows, local_rows
+        r, p = board_db.rows, local_rows
         q = (sa.select(submissions.c.name, submissions.c.state, local_entries.c.builtin, r.c.submission_id, r.c.seed,
                        *(p.c[c] for c in _PROVENANCE), *(r.c[c] for c in (*ROW_COLUMNS, *BUDGET_ROW_COLUMNS,
                                                                            "scenario")))
@@ -427,7 +426,7 @@ def _find(conn: Connection, track: str, name: str) -> Any:
 
 def _done(conn: Connection, sub_id: int) -> set[tuple[str, int]]:
     return {(r.scenario, r.seed) for r in conn.execute(
-        sa.select(hosted.rows.c.scenario, hosted.rows.c.seed).where(hosted.rows.c.submission_id == sub_id))}
+        sa.select(board_db.rows.c.scenario, board_db.rows.c.seed).where(board_db.rows.c.submission_id == sub_id))}
 
 
 def _set_state(conn: Connection, sub_id: int, state: str, reason: str) -> None:
@@ -443,7 +442,7 @@ def _account(conn: Connection, name: str) -> int:
     if found is not None:
         return found
     return conn.execute(accounts.insert().values(
-        name=name, token_hash=hosted.token_hash(secrets.token_urlsafe(32)), admin=name == hosted.BUILTIN_ACCOUNT,
+        name=name, token_hash=board_db.token_hash(secrets.token_urlsafe(32)), admin=name == board_db.BUILTIN_ACCOUNT,
         created=time.time())).inserted_primary_key[0]
 
 
@@ -454,7 +453,7 @@ def _add_entry(conn: Connection, track: str, track_hash: str, name: str, policy:
     # a local entry has no package to run: its package is its record, one per entry (the board's key needs one)
     data = json.dumps({"local entry": sub_id, "track": track, "name": name, "policy": policy,
                        "fingerprint": entry["fingerprint"]}, sort_keys=True).encode()
-    sha = hosted.package_sha(data)
+    sha = board_db.package_sha(data)
     now = time.time()
     conn.execute(packages.insert().values(sha256=sha, bytes=data, size=len(data), created=now))
     state = _STATE[status]
@@ -472,7 +471,7 @@ def _add_entry(conn: Connection, track: str, track_hash: str, name: str, policy:
 def _add_row(conn: Connection, sub_id: int, values: dict[str, Any], seed: int, finished: float,
              provenance: dict[str, Any] | None = None) -> None:
     scenario = values["scenario"]
-    conn.execute(hosted.rows.insert().values(
+    conn.execute(board_db.rows.insert().values(
         submission_id=sub_id, scenario=scenario, seed_index=seed, seed=seed, finished=finished,
         **{c: float(values[c]) for c in KPI_COLUMNS}, episode_length=int(values["episode_length"]),
         invalid_actions=int(values["invalid_actions"]), **{c: values.get(c) for c in BUDGET_ROW_COLUMNS}))
@@ -485,7 +484,7 @@ def add_provenance(conn: Connection, sub: Entry, version: str, rows: list[dict[s
     """Each new row's provenance and digest (``local_rows``), inside the caller's transaction.
 
     ``rows``: as stored in the board's ``rows`` table (the seed is the seed index); the
-    local worker's writes (:func:`wfbench.leaderboard.hosted.queue.write_rows`) call it.
+    local worker's writes (:func:`wfbench.leaderboard.board.queue.write_rows`) call it.
     """
     for values in rows:
         seed = int(values["seed"])
@@ -500,9 +499,9 @@ def add_provenance(conn: Connection, sub: Entry, version: str, rows: list[dict[s
 def _queue(conn: Connection, sub_id: int) -> None:
     """Queue the entry's job for the local worker: a new one, or its old one again (fenced off any earlier run)."""
     values = {"state": "queued", "lease_owner": None, "lease_until": None}
-    if conn.execute(hosted.jobs.update().where(hosted.jobs.c.submission_id == sub_id)
-                    .values(fence=hosted.jobs.c.fence + 1, **values)).rowcount == 0:
-        conn.execute(hosted.jobs.insert().values(submission_id=sub_id, fence=0, **values))
+    if conn.execute(board_db.jobs.update().where(board_db.jobs.c.submission_id == sub_id)
+                    .values(fence=board_db.jobs.c.fence + 1, **values)).rowcount == 0:
+        conn.execute(board_db.jobs.insert().values(submission_id=sub_id, fence=0, **values))
     conn.execute(submissions.update().where(submissions.c.id == sub_id).values(attempts=0))
 
 
@@ -513,13 +512,13 @@ def _archive(conn: Connection, sub_id: int, action: str, note: str, moved_at: st
     conn.execute(submissions.update().where(submissions.c.id == sub_id).values(withdrawn=_epoch(moved_at) or
                                                                                time.time(), updated=time.time()))
     # its job is cancelled: a run of it still going is refused at its next write
-    conn.execute(hosted.jobs.update().where((hosted.jobs.c.submission_id == sub_id)
-                                            & hosted.jobs.c.state.in_(("queued", "running"))).values(
-        state="failed", lease_owner=None, lease_until=None, fence=hosted.jobs.c.fence + 1))
+    conn.execute(board_db.jobs.update().where((board_db.jobs.c.submission_id == sub_id)
+                                            & board_db.jobs.c.state.in_(("queued", "running"))).values(
+        state="failed", lease_owner=None, lease_until=None, fence=board_db.jobs.c.fence + 1))
     conn.execute(local_entries.update().where(local_entries.c.submission_id == sub_id).values(
         action=action, note=note, moved_at=moved_at, audit_id=audit_id))
-    return conn.execute(sa.select(sa.func.count()).select_from(hosted.rows)
-                        .where(hosted.rows.c.submission_id == sub_id)).scalar()
+    return conn.execute(sa.select(sa.func.count()).select_from(board_db.rows)
+                        .where(board_db.rows.c.submission_id == sub_id)).scalar()
 
 
 def _import_tables(conn: Connection, tables: dict[str, list[dict[str, Any]]]) -> None:

@@ -3,7 +3,7 @@
 :func:`submit` checks the submission, loads the policy in its child
 (:class:`~wfbench.leaderboard.local.LocalRunner`), opens the entry by its fingerprint (the same
 one resumes, another is refused unless ``replace``), queues its job and runs it with the hosted
-board's :class:`~wfbench.leaderboard.hosted.worker.Worker`, which commits each finished chunk at
+board's :class:`~wfbench.leaderboard.board.worker.Worker`, which commits each finished chunk at
 once. A policy that cannot be loaded is a user error (nothing stored); any other failure marks
 the entry ``failed`` with a one-line reason and leaves every stored row as it was.
 ``docs/leaderboard.md``, "Submitting" and "One board".
@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import sqlalchemy as sa
+from wfbench.leaderboard.board.worker import Worker
 from wfbench.leaderboard.fingerprint import fingerprint_change, is_entry_point, policy_fingerprint
-from wfbench.leaderboard.hosted.worker import Worker
 from wfbench.leaderboard.local import LocalRunner, RemainingTime
 from wfbench.leaderboard.rows import Entry, NameTaken, SubmitError
 from wfbench.leaderboard.store import Store
@@ -62,7 +62,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
     """Evaluate ``policy`` (a registry name or ``module:attr``) on the track's test seeds and store the rows.
 
     The entry's job goes into the local board's queue and an in-process
-    :class:`~wfbench.leaderboard.hosted.worker.Worker` runs it at once with a
+    :class:`~wfbench.leaderboard.board.worker.Worker` runs it at once with a
     :class:`~wfbench.leaderboard.local.LocalRunner` (the policy in a child process, no
     sandbox). The policy runs on every scenario of the track, one row per (scenario, seed).
 

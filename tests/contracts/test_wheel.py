@@ -34,8 +34,8 @@ SHIPPED = ("wfbench/policies/tuned/__init__.py", "wfbench/policies/tuned/solver-
            "wfbench/policies/neural/checkpoints/ppo-general.pt", "wfbench/core/data/real-benelux-sites.csv",
            "wfbench/reproduce/paper.toml", "wfbench/scenarios/suite-v1.json",
            # the hosted board's Alembic environment: it upgrades a board's database at every start
-           "wfbench/leaderboard/hosted/migrations/env.py", "wfbench/leaderboard/hosted/migrations/script.py.mako",
-           "wfbench/leaderboard/hosted/migrations/versions/r0001_first_schema.py")
+           "wfbench/leaderboard/board/migrations/env.py", "wfbench/leaderboard/board/migrations/script.py.mako",
+           "wfbench/leaderboard/board/migrations/versions/r0001_first_schema.py")
 
 CHILD = """
 import sys

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from wfbench.leaderboard.hosted.hidden import key_context
+from wfbench.leaderboard.board.hidden import key_context
 from wfbench.policies import get
 from wfbench.policies.registry import deployable_names, learned_names
 

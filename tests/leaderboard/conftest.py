@@ -12,7 +12,7 @@ def db_url(request, tmp_path):
 @pytest.fixture
 def open_board(db_url):
     """``open_board(tracks, **kwargs)``: a created :class:`Board` on ``db_url``, closed after the test."""
-    from wfbench.leaderboard.hosted.db import Board
+    from wfbench.leaderboard.board.db import Board
 
     made = []
 

@@ -1,7 +1,7 @@
 """The hosted board's app under uvicorn in a thread on 127.0.0.1 and a free port, for tests and the benchmark.
 
 A test helper, not part of the server: the server module builds the app
-(:func:`wfbench.leaderboard.hosted.server.create_app`), and ``wfbench serve`` runs it.
+(:func:`wfbench.leaderboard.server.app.create_app`), and ``wfbench serve`` runs it.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ import json
 from collections.abc import Iterator
 
 import pytest
-from wfbench.leaderboard.hosted.client import UploadError, load_package, upload
+from wfbench.leaderboard.server.client import UploadError, load_package, upload
 
 from tests.leaderboard.test_server import TRACK, Live, make_package, package, serve_board
 from wfbench.cli import main
@@ -107,7 +107,7 @@ def test_cli_upload__no_token_or_no_server_is_one_line(tmp_path, capsys, monkeyp
 
 
 def test_cli_serve_account_add__prints_the_token_once_and_it_opens_the_board(tmp_path, capsys):
-    from wfbench.leaderboard.hosted.db import Board
+    from wfbench.leaderboard.board.db import Board
 
     db = tmp_path / "b.sqlite"
     assert main(["serve", "--db", str(db), "account", "add", "bob"]) == 0

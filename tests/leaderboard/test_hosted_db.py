@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 import sqlalchemy as sa
-from wfbench.leaderboard.hosted import hidden, queue
-from wfbench.leaderboard.hosted.db import Board, BoardError, QuotaExceeded, connect, submissions
+from wfbench.leaderboard.board import hidden, queue
+from wfbench.leaderboard.board.db import Board, BoardError, QuotaExceeded, connect, submissions
 from wfbench.leaderboard.report import ranking, render
 from wfbench.leaderboard.store import KPI_COLUMNS
 from wfbench.leaderboard.tracks import scenario_track, suite_track

@@ -2,7 +2,7 @@
 
 - The policy's own failures (raised, timed out, out of memory, bad action) are final;
   the board's (the sandbox did not start, disk full, a lost worker) put the job back in
-  the queue, up to :data:`~wfbench.leaderboard.hosted.db.MAX_ATTEMPTS` claims, and a
+  the queue, up to :data:`~wfbench.leaderboard.board.db.MAX_ATTEMPTS` claims, and a
   resubmission of the same bytes after such a fault runs again.
 - One upload holds a worker for at most its time budget (``job_time_s``, charged across
   attempts); each chunk's wall limit is what is left of it.
@@ -24,9 +24,9 @@ from pathlib import Path
 
 import pytest
 import sqlalchemy as sa
-from wfbench.leaderboard.hosted import queue
-from wfbench.leaderboard.hosted.db import MAX_ATTEMPTS, failure_kind
-from wfbench.leaderboard.hosted.worker import Worker, stale_unpack_dirs, unpack_prefix
+from wfbench.leaderboard.board import queue
+from wfbench.leaderboard.board.db import MAX_ATTEMPTS, failure_kind
+from wfbench.leaderboard.board.worker import Worker, stale_unpack_dirs, unpack_prefix
 
 from tests.leaderboard.test_worker import (
     ROOT,
@@ -197,7 +197,7 @@ def test_the_time_spent_on_an_upload_is_kept_when_its_worker_is_lost(board):
 SLOW_WORKER = """
 import sys
 from tests.leaderboard.test_worker import TINY, blob_unpack, slow_evaluator
-from wfbench.leaderboard.hosted.worker import run_worker
+from wfbench.leaderboard.board.worker import run_worker
 sys.exit(run_worker(sys.argv[1], worker_id="doomed", lease_s=30, once=True, poll_s=0.1, chunk_size=1,
                     tracks={"tiny": TINY}, evaluator=slow_evaluator(5.0), unpack=blob_unpack))
 """

@@ -16,8 +16,8 @@ import sqlalchemy as sa
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
-from wfbench.leaderboard.hosted import migrations
-from wfbench.leaderboard.hosted.db import Board, metadata
+from wfbench.leaderboard.board import migrations
+from wfbench.leaderboard.board.db import Board, metadata
 
 from tests.leaderboard.test_hosted_db import TINY, run_fake
 

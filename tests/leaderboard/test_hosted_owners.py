@@ -11,8 +11,8 @@ import time
 import pytest
 import sqlalchemy as sa
 from fastapi.testclient import TestClient
-from wfbench.leaderboard.hosted import queue
-from wfbench.leaderboard.hosted.db import (
+from wfbench.leaderboard.board import queue
+from wfbench.leaderboard.board.db import (
     Board,
     BoardError,
     QuotaExceeded,
@@ -23,8 +23,8 @@ from wfbench.leaderboard.hosted.db import (
     rows,
     secrets_table,
 )
-from wfbench.leaderboard.hosted.seed import ACCOUNT, builtin_package, seed
-from wfbench.leaderboard.hosted.server import create_app
+from wfbench.leaderboard.board.seed import ACCOUNT, builtin_package, seed
+from wfbench.leaderboard.server.app import create_app
 
 from tests.leaderboard.test_hosted_db import TINY, fake_rows, run_fake
 from tests.leaderboard.test_server import TRACK, make_package, post, run_jobs, serve_board

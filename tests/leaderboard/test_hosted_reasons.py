@@ -12,9 +12,9 @@ import textwrap
 
 import pytest
 from fastapi.testclient import TestClient
-from wfbench.leaderboard.hosted.db import FAILURE_KINDS, Board
-from wfbench.leaderboard.hosted.server import create_app
-from wfbench.leaderboard.hosted.worker import Worker
+from wfbench.leaderboard.board.db import FAILURE_KINDS, Board
+from wfbench.leaderboard.board.worker import Worker
+from wfbench.leaderboard.server.app import create_app
 
 from tests.leaderboard.test_server import make_package, post
 from tests.leaderboard.test_worker import TINY

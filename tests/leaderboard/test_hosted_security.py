@@ -35,8 +35,8 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from wfbench.leaderboard.hosted.db import Board
-from wfbench.leaderboard.hosted.server import create_app
+from wfbench.leaderboard.board.db import Board
+from wfbench.leaderboard.server.app import create_app
 from wfbench.leaderboard.store import KPI_COLUMNS
 
 from tests.harness.test_sandbox import RULE as SANDBOX_RULE
@@ -57,7 +57,7 @@ import sys
 from tests.harness.test_sandbox import RULE as SANDBOX_RULE
 from tests.leaderboard.test_server import TRACK
 from wfbench.harness.isolation.sandbox import Limits
-from wfbench.leaderboard.hosted.worker import run_worker
+from wfbench.leaderboard.board.worker import run_worker
 sys.exit(run_worker(sys.argv[1], worker_id=sys.argv[2], once=True, poll_s=0.1, chunk_size=3,
                     tracks={TRACK.name: TRACK},
                     limits=Limits(act_timeout_s=float(sys.argv[3]), memory_mb=1024, wall_time_s=120, tmp_mb=32,
@@ -368,7 +368,7 @@ def test_an_oracle_rebuilt_from_what_a_policy_is_handed_scores_no_better(hosted)
     one played, and scores below the plain heuristic on the hidden seeds, while the same
     wrapper handed the true seeds would beat every deployable built-in.
     """
-    from wfbench.leaderboard.hosted import hidden
+    from wfbench.leaderboard.board import hidden
     from wfbench.policies import get
     from wfbench.policies.registry import LINEUPS
 

@@ -9,10 +9,10 @@ import zipfile
 import numpy as np
 import pandas as pd
 import pytest
-from wfbench.leaderboard.hosted import pages
-from wfbench.leaderboard.hosted.db import BoardError
-from wfbench.leaderboard.hosted.seed import ACCOUNT, ENTRY, seed
-from wfbench.leaderboard.hosted.worker import run_worker
+from wfbench.leaderboard.board.db import BoardError
+from wfbench.leaderboard.board.seed import ACCOUNT, ENTRY, seed
+from wfbench.leaderboard.board.worker import run_worker
+from wfbench.leaderboard.server import pages
 from wfbench.leaderboard.store import ROW_COLUMNS
 from wfbench.leaderboard.tracks import scenario_track
 from wfbench.policies.registry import LINEUPS

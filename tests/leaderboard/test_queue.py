@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 import sqlalchemy as sa
-from wfbench.leaderboard.hosted import queue
-from wfbench.leaderboard.hosted.queue import LeaseLost, claim, finish, heartbeat, write_rows
+from wfbench.leaderboard.board import queue
+from wfbench.leaderboard.board.queue import LeaseLost, claim, finish, heartbeat, write_rows
 
 from tests.leaderboard.test_hosted_db import TINY, fake_rows
 
@@ -185,8 +185,8 @@ def test_concurrent_claimers_in_threads_never_share_a_job(board):
 CLAIMER = """
 import sys, time
 from pathlib import Path
-from wfbench.leaderboard.hosted.db import Board
-from wfbench.leaderboard.hosted.queue import claim, finish
+from wfbench.leaderboard.board.db import Board
+from wfbench.leaderboard.board.queue import claim, finish
 board = Board(sys.argv[1], tracks={})
 ready, name, n = Path(sys.argv[2]), sys.argv[3], int(sys.argv[4])
 (ready / name).touch()

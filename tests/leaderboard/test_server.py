@@ -21,10 +21,10 @@ import pandas as pd
 import pytest
 import sqlalchemy as sa
 from fastapi.testclient import TestClient
-from wfbench.leaderboard.hosted import queue
-from wfbench.leaderboard.hosted.db import Board, jobs, packages, submissions
-from wfbench.leaderboard.hosted.server import create_app
-from wfbench.leaderboard.hosted.worker import Worker, aggregate
+from wfbench.leaderboard.board import queue
+from wfbench.leaderboard.board.db import Board, jobs, packages, submissions
+from wfbench.leaderboard.board.worker import Worker, aggregate
+from wfbench.leaderboard.server.app import create_app
 from wfbench.leaderboard.tracks import scenario_track
 
 from tests.leaderboard.live_server import LiveServer
@@ -121,7 +121,7 @@ class Live:
 @contextlib.contextmanager
 def serve_board(db) -> Iterator[Live]:
     """A new board at ``db`` served by uvicorn; ``start_worker()`` runs the board's worker in a thread
-    (:class:`wfbench.leaderboard.hosted.worker.Worker` with :func:`nsw_evaluator`) until the block ends."""
+    (:class:`wfbench.leaderboard.board.worker.Worker` with :func:`nsw_evaluator`) until the block ends."""
     board = new_board(db)
     stop = threading.Event()
     threads = []

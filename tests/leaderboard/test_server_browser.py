@@ -1,6 +1,6 @@
 """The hosted board's pages in a real headless Chromium, served by uvicorn on 127.0.0.1 with a worker running.
 
-The worker is the board's own (:class:`wfbench.leaderboard.hosted.worker.Worker`: claim, fenced writes,
+The worker is the board's own (:class:`wfbench.leaderboard.board.worker.Worker`: claim, fenced writes,
 heartbeats, finish) in a thread, with an in-process evaluator that makes rows from a number in the package
 (``nsw.txt``) instead of running the sandbox, so the boards' order is known; the sandbox itself is tested in
 tests/harness/test_sandbox.py and end to end in tests/leaderboard/test_hosted_security.py.
@@ -15,7 +15,7 @@ from collections.abc import Iterator
 
 import httpx
 import pytest
-from wfbench.leaderboard.hosted.pages import board_ranking
+from wfbench.leaderboard.server.pages import board_ranking
 
 from tests.leaderboard.test_server import TRACK, package, serve_board
 

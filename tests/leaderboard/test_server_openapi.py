@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 from fastapi.testclient import TestClient
-from wfbench.leaderboard.hosted.server import create_app
+from wfbench.leaderboard.server.app import create_app
 
 from tests.leaderboard.test_server import TRACK, make_package, new_board, post
 

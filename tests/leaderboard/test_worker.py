@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 import pytest
 import sqlalchemy as sa
-from wfbench.leaderboard.hosted import worker as worker_mod
-from wfbench.leaderboard.hosted.worker import Worker, run_worker
+from wfbench.leaderboard.board import worker as worker_mod
+from wfbench.leaderboard.board.worker import Worker, run_worker
 from wfbench.leaderboard.store import ROW_COLUMNS
 from wfbench.leaderboard.tracks import scenario_track
 
@@ -172,7 +172,7 @@ def test_a_bad_database_url_is_one_line(capsys):
 WORKER = """
 import sys
 from tests.leaderboard.test_worker import TINY, blob_unpack, slow_evaluator
-from wfbench.leaderboard.hosted.worker import run_worker
+from wfbench.leaderboard.board.worker import run_worker
 sys.exit(run_worker(sys.argv[1], worker_id=sys.argv[2], lease_s=float(sys.argv[3]), once=True, poll_s=0.1,
                     chunk_size=1, tracks={"tiny": TINY}, evaluator=slow_evaluator(float(sys.argv[4])),
                     unpack=blob_unpack))

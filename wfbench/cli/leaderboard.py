@@ -1,7 +1,7 @@
 """``wfbench leaderboard``: submit policies to tracks, seed the built-in entries, withdraw one, show the rankings.
 
 ``upload`` sends a policy package to a hosted board (``wfbench serve``) instead, where it is
-evaluated in a sandbox (:mod:`wfbench.leaderboard.hosted.client`).
+evaluated in a sandbox (:mod:`wfbench.leaderboard.server.client`).
 """
 
 from __future__ import annotations
@@ -99,8 +99,8 @@ def add_parser(sub) -> None:
 
 def upload(args: argparse.Namespace) -> int:
     """Pack, upload and follow a submission to a hosted board; its refusal or failure is one line, status 1."""
-    from wfbench.leaderboard.hosted.client import UploadError, result_lines
-    from wfbench.leaderboard.hosted.client import upload as send
+    from wfbench.leaderboard.server.client import UploadError, result_lines
+    from wfbench.leaderboard.server.client import upload as send
 
     token = _token(args)
     try:
@@ -125,7 +125,7 @@ def hosted(args: argparse.Namespace) -> int:
 
     The server's refusal is its one line, with status 1.
     """
-    from wfbench.leaderboard.hosted.client import Client, UploadError, mine_lines
+    from wfbench.leaderboard.server.client import Client, UploadError, mine_lines
 
     if args.lb_command == "withdraw" and args.id is None:
         raise UsageError("--id is needed with --server: the submission to withdraw (see 'wfbench leaderboard mine')")

@@ -85,7 +85,7 @@ def track_names(text: str | None) -> dict | None:
 
 def open_board(db: str | None, tracks: dict | None):
     """The board at ``db`` (made if new); its refusal of the URL is a usage error."""
-    from wfbench.leaderboard.hosted.db import Board, BoardError
+    from wfbench.leaderboard.board.db import Board, BoardError
 
     try:
         board = Board(db or default_db(), tracks=tracks)
@@ -104,9 +104,9 @@ def worker_command(board) -> str:
 
 def seed(board, phase: str) -> int:
     """``wfbench serve baselines`` (or ``seed``): one line per built-in, track and phase; what to start next."""
-    from wfbench.leaderboard.hosted.db import BoardError
-    from wfbench.leaderboard.hosted.seed import ACCOUNT, PHASES
-    from wfbench.leaderboard.hosted.seed import seed as seed_builtins
+    from wfbench.leaderboard.board.db import BoardError
+    from wfbench.leaderboard.board.seed import ACCOUNT, PHASES
+    from wfbench.leaderboard.board.seed import seed as seed_builtins
 
     try:
         done = seed_builtins(board, phases=PHASES[phase])
@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
             require_extra("wfbench serve", "python_multipart")  # the uploads' parser (older releases: multipart)
     board = open_board(args.db, track_names(args.tracks))
     if args.serve_command == "account":
-        from wfbench.leaderboard.hosted.db import BoardError
+        from wfbench.leaderboard.board.db import BoardError
 
         try:
             token = board.add_account(args.name, admin=args.admin)
@@ -141,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
     if args.serve_command == "end-test":
         import time
 
-        from wfbench.leaderboard.hosted.db import BoardError
+        from wfbench.leaderboard.board.db import BoardError
 
         try:
             ended = board.end_test_phase(args.track)
@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     import uvicorn
 
-    from wfbench.leaderboard.hosted.server import create_app
+    from wfbench.leaderboard.server.app import create_app
 
     where = board.engine.url.render_as_string(hide_password=True)
     print(f"wfbench leaderboard on http://{args.host}:{args.port} (database {where}); start '{worker_command(board)}' "

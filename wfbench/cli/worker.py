@@ -1,6 +1,6 @@
 """``wfbench worker --server DBURL``: evaluate the hosted board's queued submissions in the sandbox.
 
-A shell over :func:`wfbench.leaderboard.hosted.worker.run_worker`, which holds the loop
+A shell over :func:`wfbench.leaderboard.board.worker.run_worker`, which holds the loop
 (docs/leaderboard.md, "The hosted leaderboard"); imported inside ``run`` so ``wfbench
 --help`` stays fast.
 """
@@ -19,11 +19,11 @@ def add_parser(sub) -> None:
     p.add_argument("--id", dest="worker_id", default=None, help="this worker's name in the leases (default host:pid)")
     p.add_argument("--lease", type=seconds, default=None,
                    help="seconds a claim holds without a heartbeat (default 60; "
-                        "wfbench.leaderboard.hosted.queue.DEFAULT_LEASE_S)")
+                        "wfbench.leaderboard.board.queue.DEFAULT_LEASE_S)")
     p.add_argument("--once", action="store_true", help="stop when the queue is empty")
     p.add_argument("--job-time", type=seconds, default=None, metavar="S",
                    help="worker seconds one upload may use per scenario of its track, over every attempt (default "
-                        "3600; wfbench.leaderboard.hosted.worker.JOB_TIME_S)")
+                        "3600; wfbench.leaderboard.board.worker.JOB_TIME_S)")
     limits = p.add_argument_group("the sandbox's limits per submission (default: "
                                   "wfbench.harness.isolation.sandbox.Limits)")
     limits.add_argument("--memory", type=positive, default=None, metavar="MB",
@@ -40,8 +40,8 @@ LIMIT_FLAGS = {"memory": "memory_mb", "act_timeout": "act_timeout_s", "wall_time
 
 def run(args) -> int:
     from wfbench.harness.isolation.sandbox import Limits
-    from wfbench.leaderboard.hosted.queue import DEFAULT_LEASE_S
-    from wfbench.leaderboard.hosted.worker import JOB_TIME_S, run_worker
+    from wfbench.leaderboard.board.queue import DEFAULT_LEASE_S
+    from wfbench.leaderboard.board.worker import JOB_TIME_S, run_worker
 
     chosen = {field: getattr(args, flag) for flag, field in LIMIT_FLAGS.items() if getattr(args, flag) is not None}
     return run_worker(args.server, args.worker_id, args.lease or DEFAULT_LEASE_S, args.once,

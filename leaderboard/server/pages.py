@@ -177,7 +177,7 @@ ROW_SKIP = ("submission_id", "id")  # columns of the stored rows not worth a col
 def submission_page(sub: dict[str, Any]) -> str:
     """A submission's state, reason and aggregate; for the development phase its per-seed rows and its log.
 
-    ``sub`` is the submission's JSON (:func:`wfbench.leaderboard.hosted.api.answers.submission_json`),
+    ``sub`` is the submission's JSON (:func:`wfbench.leaderboard.server.api.answers.submission_json`),
     which already leaves out what a test-phase submission may not show.
     """
     final = sub["state"] in ("done", "failed", "withdrawn")

@@ -1,7 +1,7 @@
 """``wfbench worker --server DBURL``: evaluate queued submissions and store their rows, fenced.
 
-The loop: :func:`~wfbench.leaderboard.hosted.queue.claim` a job, ask the :class:`Runner` for its
-missing units chunk by chunk, store each chunk (:func:`~wfbench.leaderboard.hosted.queue.write_rows`)
+The loop: :func:`~wfbench.leaderboard.board.queue.claim` a job, ask the :class:`Runner` for its
+missing units chunk by chunk, store each chunk (:func:`~wfbench.leaderboard.board.queue.write_rows`)
 and finish, a thread renewing the lease. The hosted board's runner (:class:`SandboxRunner`)
 unpacks the package and runs each chunk in the sandbox; the local board runs the same worker with
 its own (``wfbench.leaderboard.local``). The policy's failures are final; the board's hand the job
@@ -33,9 +33,9 @@ from typing import Any, Protocol
 
 import pandas as pd
 import sqlalchemy as sa
-from wfbench.leaderboard.hosted import hidden
-from wfbench.leaderboard.hosted.db import Board, BoardError, Submission, failure_kind
-from wfbench.leaderboard.hosted.queue import (
+from wfbench.leaderboard.board import hidden
+from wfbench.leaderboard.board.db import Board, BoardError, Submission, failure_kind
+from wfbench.leaderboard.board.queue import (
     DEFAULT_LEASE_S,
     Claim,
     LeaseLost,
@@ -67,7 +67,7 @@ def warm_builtins() -> None:
     """Compile the kernels of the leaderboard's built-ins into this process's numba cache, once per process.
 
     The sandboxes copy from that cache (:class:`wfbench.harness.isolation.child.CacheCopies`):
-    the seeded built-ins (:mod:`wfbench.leaderboard.hosted.seed`) and any package wrapping
+    the seeded built-ins (:mod:`wfbench.leaderboard.board.seed`) and any package wrapping
     one then start warm. The shapes do not matter (numba compiles per type), so the
     small preset serves every track. A built-in that reads the trace is skipped: the
     sandbox refuses it.
@@ -225,7 +225,7 @@ class _Heartbeat(threading.Thread):
 class Progress:
     """Where a claimed job stands, for a runner's limits: units stored of all, and the worker seconds used so far.
 
-    ``check()`` raises :class:`~wfbench.leaderboard.hosted.queue.LeaseLost` once the job's lease
+    ``check()`` raises :class:`~wfbench.leaderboard.board.queue.LeaseLost` once the job's lease
     is gone: a runner calls it before each chunk it starts, the worker before each write.
     """
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import sqlalchemy as sa
-from wfbench.leaderboard.hosted import hidden
-from wfbench.leaderboard.hosted.db import BUILTIN_ACCOUNT, Account, Board, BoardError, accounts
+from wfbench.leaderboard.board import hidden
+from wfbench.leaderboard.board.db import BUILTIN_ACCOUNT, Account, Board, BoardError, accounts
 from wfbench.policies import registry
 
 from wfbench.harness.isolation.package import pack

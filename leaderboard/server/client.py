@@ -222,7 +222,7 @@ def upload(server: str, token: str, policy: str, track: str, phase: str = "dev",
         UploadError: the package is refused (here or by the server), the server cannot be
             reached or refuses the upload, or the evaluation failed (its reason).
     """
-    from wfbench.leaderboard.hosted.hidden import PHASES  # the board's, checked here before packing
+    from wfbench.leaderboard.board.hidden import PHASES  # the board's, checked here before packing
 
     if phase not in PHASES:
         raise UploadError(f"--phase {phase!r} is not allowed; allowed: {', '.join(PHASES)}")

@@ -11,8 +11,9 @@ from typing import Any
 
 from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from wfbench.leaderboard.hosted.api import upload
-from wfbench.leaderboard.hosted.api.answers import (
+from wfbench.leaderboard.board.db import NotFound, NotYours
+from wfbench.leaderboard.server.api import upload
+from wfbench.leaderboard.server.api.answers import (
     Created,
     Problem,
     SubmissionDetail,
@@ -21,8 +22,7 @@ from wfbench.leaderboard.hosted.api.answers import (
     submission_json,
     summary_json,
 )
-from wfbench.leaderboard.hosted.api.deps import AccountDep, AdminDep, BaseDep, BoardDep, LimitDep, SubmissionDep
-from wfbench.leaderboard.hosted.db import NotFound, NotYours
+from wfbench.leaderboard.server.api.deps import AccountDep, AdminDep, BaseDep, BoardDep, LimitDep, SubmissionDep
 
 router = APIRouter(prefix="/api/submissions", tags=["submissions"],
                    responses={401: {"model": Problem, "description": "no token, or not a valid one"}})

@@ -21,7 +21,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import Connection, Engine
-from wfbench.leaderboard.hosted.db import (
+from wfbench.leaderboard.board.db import (
     BOARD_FAULT,
     FAILURE_KINDS,
     LOST,
@@ -164,7 +164,7 @@ def write_rows(c: Claim, new_rows: Iterable[Mapping[str, Any]], spent_s: float |
                then: Callable[[Connection, list[dict[str, Any]]], None] | None = None) -> int:
     """Store finished units in one transaction, after checking the fence; returns how many rows were new.
 
-    Each row has the keys of :data:`wfbench.leaderboard.hosted.db.ROW_FIELDS`; a missing or
+    Each row has the keys of :data:`wfbench.leaderboard.board.db.ROW_FIELDS`; a missing or
     non-finite budget measurement is stored as NULL. A unit already stored is skipped.
     ``then(conn, rows)``: called in the same transaction with the rows inserted, as stored
     (the local board adds their provenance).
@@ -215,7 +215,7 @@ def finish(c: Claim, state: str, reason: str = "", result: Mapping[str, Any] | N
     """End the job as ``done`` or ``failed`` (with a one-line ``reason``), storing the aggregate and the log.
 
     A failure ended here is the policy's own, final: ``kind`` is its word of
-    :data:`~wfbench.leaderboard.hosted.db.FAILURE_KINDS` (default: read from the reason).
+    :data:`~wfbench.leaderboard.board.db.FAILURE_KINDS` (default: read from the reason).
     A fault of the board's goes through :func:`release` instead.
 
     Raises:

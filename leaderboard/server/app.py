@@ -1,7 +1,7 @@
 """The web server of a hosted board (``wfbench serve``): the app over a board's database.
 
-:func:`create_app` wires the routers of :mod:`wfbench.leaderboard.hosted.api` over a
-:class:`~wfbench.leaderboard.hosted.db.Board`. The server never runs a policy: it stores
+:func:`create_app` wires the routers of :mod:`wfbench.leaderboard.server.api` over a
+:class:`~wfbench.leaderboard.board.db.Board`. The server never runs a policy: it stores
 the package and queues the submission, and ``wfbench worker`` evaluates it in the
 sandbox. Every refusal is one line, ``{"detail": ...}`` for the API and a small page for
 a browser. What each route answers, in which order an upload is refused, and what a
@@ -15,9 +15,9 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from wfbench.leaderboard.hosted import pages
-from wfbench.leaderboard.hosted.api import boards, html, submissions
-from wfbench.leaderboard.hosted.db import Board
+from wfbench.leaderboard.board.db import Board
+from wfbench.leaderboard.server import pages
+from wfbench.leaderboard.server.api import boards, html, submissions
 
 from wfbench.harness.isolation.package import MAX_PACKAGE_BYTES
 

@@ -6,8 +6,8 @@ from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
-from wfbench.leaderboard.hosted.db import Account, Board, Submission
-from wfbench.leaderboard.hosted.hidden import PHASES
+from wfbench.leaderboard.board.db import Account, Board, Submission
+from wfbench.leaderboard.board.hidden import PHASES
 
 
 def get_board(request: Request) -> Board:
@@ -66,7 +66,7 @@ AdminDep = Annotated[bool, Depends(is_admin)]
 
 
 def check_phase(phase: str) -> str:
-    """``phase`` if it is one of :data:`~wfbench.leaderboard.hosted.hidden.PHASES`; HTTPException 400 else."""
+    """``phase`` if it is one of :data:`~wfbench.leaderboard.board.hidden.PHASES`; HTTPException 400 else."""
     if phase not in PHASES:
         raise HTTPException(400, f"unknown phase {phase!r}; allowed: {', '.join(PHASES)}")
     return phase

@@ -3,5 +3,5 @@
 ``submissions`` (upload, list, read, withdraw) and ``boards`` (tracks, rankings) answer
 JSON under ``/api``; ``html`` serves the pages. ``deps`` holds the dependencies (the board,
 the account), ``answers`` the response models, ``upload`` the streamed upload form.
-:func:`wfbench.leaderboard.hosted.server.create_app` puts them together (docs/leaderboard.md).
+:func:`wfbench.leaderboard.server.app.create_app` puts them together (docs/leaderboard.md).
 """

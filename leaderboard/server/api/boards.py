@@ -5,9 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import APIRouter
-from wfbench.leaderboard.hosted import pages
-from wfbench.leaderboard.hosted.api.answers import BoardRanking, Problem, Tracks, board_json
-from wfbench.leaderboard.hosted.api.deps import BoardDep, check_phase, check_track
+from wfbench.leaderboard.server import pages
+from wfbench.leaderboard.server.api.answers import BoardRanking, Problem, Tracks, board_json
+from wfbench.leaderboard.server.api.deps import BoardDep, check_phase, check_track
 
 router = APIRouter(prefix="/api", tags=["boards"])
 

@@ -14,8 +14,8 @@ from datetime import UTC, datetime
 from typing import Any
 
 from pydantic import BaseModel, Field
-from wfbench.leaderboard.hosted import pages
-from wfbench.leaderboard.hosted.db import Board, BoardError, Submission
+from wfbench.leaderboard.board.db import Board, BoardError, Submission
+from wfbench.leaderboard.server import pages
 
 
 class Problem(BaseModel):

@@ -5,7 +5,7 @@ one host (:func:`connect`). On SQLite every transaction is ``BEGIN IMMEDIATE`` (
 time, which makes the queue's claims and fences safe there); on PostgreSQL the queue locks rows
 and a submission locks its account's row, so two uploads cannot both pass its quota.
 :class:`Board` is the API. The schema changes through Alembic revisions
-(:mod:`~wfbench.leaderboard.hosted.migrations`), which :meth:`Board.create` runs on every start: a
+(:mod:`~wfbench.leaderboard.board.migrations`), which :meth:`Board.create` runs on every start: a
 change to these tables needs a revision. What each table holds: ``docs/leaderboard.md``, "The
 database and its migrations".
 """
@@ -25,7 +25,7 @@ from typing import Any
 import pandas as pd
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
-from wfbench.leaderboard.hosted import hidden, migrations
+from wfbench.leaderboard.board import hidden, migrations
 from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, KPI_COLUMNS, ROW_COLUMNS, Entry
 from wfbench.leaderboard.tracks import TRACKS, Track
 
@@ -206,7 +206,7 @@ rows = sa.Table(
     sa.UniqueConstraint("submission_id", "scenario", "seed_index", name="one_row_per_unit"),
 )
 ROW_FIELDS = ("scenario", "seed_index", "seed", *ROW_COLUMNS, *BUDGET_ROW_COLUMNS)
-"""The keys of a row as :func:`wfbench.leaderboard.hosted.queue.write_rows` takes it."""
+"""The keys of a row as :func:`wfbench.leaderboard.board.queue.write_rows` takes it."""
 
 
 # -- connecting -----------------------------------------------------------------------------------------------
@@ -357,7 +357,7 @@ def _sub(r: Mapping[str, Any]) -> Submission:
     """The submission of a row of :data:`_SUBMISSION_QUERY`, its state as true as the lease says.
 
     A job whose worker stopped renewing its lease is not running any more: until another
-    worker claims it (:func:`~wfbench.leaderboard.hosted.queue.claim`), it is shown as
+    worker claims it (:func:`~wfbench.leaderboard.board.queue.claim`), it is shown as
     queued, with a note saying which worker was lost and when. A job put back after a
     board fault says so too. A withdrawn submission's state is ``withdrawn``.
     """
@@ -429,7 +429,7 @@ class Board:
 
         An empty database gets every revision; one made by an earlier wfbench is upgraded in
         place, in one transaction, whoever starts first (server or worker); see
-        :func:`wfbench.leaderboard.hosted.migrations.upgrade`.
+        :func:`wfbench.leaderboard.board.migrations.upgrade`.
         """
         try:
             migrations.upgrade(self.engine)
@@ -775,7 +775,7 @@ class Board:
         its word only (:meth:`shown_reason`). Rank it with its own :attr:`BoardView.track`,
         e.g. ``ranking(view, view.track)``. On the test board the rows' ``seed`` is the seed's
         index in the hidden list and the track's ``test_seeds`` are those indices
-        (:func:`~wfbench.leaderboard.hosted.hidden.board_track`): no hidden seed reaches a report.
+        (:func:`~wfbench.leaderboard.board.hidden.board_track`): no hidden seed reaches a report.
         """
         tr = self.track(track)
         try:

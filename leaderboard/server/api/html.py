@@ -5,10 +5,10 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import HTMLResponse, RedirectResponse
-from wfbench.leaderboard.hosted import pages
-from wfbench.leaderboard.hosted.api import upload
-from wfbench.leaderboard.hosted.api.answers import submission_json
-from wfbench.leaderboard.hosted.api.deps import (
+from wfbench.leaderboard.server import pages
+from wfbench.leaderboard.server.api import upload
+from wfbench.leaderboard.server.api.answers import submission_json
+from wfbench.leaderboard.server.api.deps import (
     BaseDep,
     BoardDep,
     LimitDep,

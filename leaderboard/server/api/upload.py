@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from fastapi import HTTPException, Request
 from starlette.datastructures import UploadFile
 from starlette.formparsers import MultiPartException, MultiPartParser
-from wfbench.leaderboard.hosted.api.deps import check_phase
-from wfbench.leaderboard.hosted.db import Account, Board, BoardError, QuotaExceeded, Submission
+from wfbench.leaderboard.board.db import Account, Board, BoardError, QuotaExceeded, Submission
+from wfbench.leaderboard.server.api.deps import check_phase
 
 from wfbench.harness.isolation.package import PackageError, check_entry, inspect
 
