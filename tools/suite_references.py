@@ -23,6 +23,7 @@ import time
 
 import wfbench
 from wfbench.core.seeds import describe
+from wfbench.harness.backends import Execution
 from wfbench.harness.suite import compute_reference
 from wfbench.scenarios import DATA, REFERENCE_SEEDS, get_suite, suite_scenarios
 
@@ -47,7 +48,7 @@ def main() -> None:
             print(f"{sc.id}: kept ({old['random_ref']:.6f}, {old['bound_ref']:.6f})")
             continue
         t0 = time.perf_counter()
-        data["scenarios"][sc.id] = compute_reference(sc, seeds, backend=args.backend)
+        data["scenarios"][sc.id] = compute_reference(sc, seeds, execution=Execution(backend=args.backend))
         r = data["scenarios"][sc.id]
         print(f"{sc.id}: random {r['random_ref']:.6f}, bound {r['bound_ref']:.6f} "
               f"({time.perf_counter() - t0:.1f} s)", flush=True)

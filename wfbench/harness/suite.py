@@ -130,16 +130,18 @@ def suite_summary(df: Any, seeds: Sequence[int], aggregates: dict[str, Any] | No
 
 
 def compute_reference(scenario: SuiteScenario, seeds: Iterable[int] = REFERENCE_SEEDS,
-                      backend: str = "serial", workers: int | None = None) -> dict[str, Any]:
+                      execution: Execution | None = None) -> dict[str, Any]:
     """The normalization constants of one scenario, as the reference file stores them.
 
     ``random_ref`` is the mean NSW of the ``random`` policy and ``bound_ref`` the mean
     proven upper bound over ``seeds``; ``hash`` is the scenario's, so a later change of
-    its definition is caught. ``tools/suite_references.py`` writes these.
+    its definition is caught. ``execution`` says where the ``random`` runs play
+    (default: serial, in this process); it changes no number. ``tools/suite_references.py``
+    writes these.
     """
     from wfbench.core.bound import score_upper_bound
 
     seeds = list(seeds)
-    random_ref = float(evaluate("random", scenario.config, seeds, backend=backend, workers=workers)["nsw"].mean())
+    random_ref = float(evaluate("random", scenario.config, seeds, execution=execution or Execution())["nsw"].mean())
     bound_ref = float(np.mean(score_upper_bound(scenario.config, seeds)))
     return {"random_ref": random_ref, "bound_ref": bound_ref, "hash": scenario.hash}
