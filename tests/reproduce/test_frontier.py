@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
 
 import wfbench.reproduce.frontier as target
 from wfbench.cli import main
+from wfbench.reproduce import pieces
 from wfbench.harness.backends import Execution
 from wfbench.reproduce import suite as suite_target
 from wfbench.scenarios import get_suite, normalize
@@ -34,7 +37,7 @@ def test_frontier__reads_stored_pieces_cut_to_the_seeds_and_plays_the_missing(ru
     assert not (out / "cache" / "heuristic").exists()  # read from the suite run, not played again
     played = pd.read_csv(out / "cache" / "solver" / "small-v1.csv")
     assert played["seed"].tolist() == [1, 2]
-    table = pd.read_csv(out / "frontier.csv").set_index("policy")
+    table = pd.read_csv(out / "frontier-train.csv").set_index("policy")
     stored = pd.read_csv(suite_out / "cache" / "heuristic" / "small-v1.csv").set_index("seed").loc[[1, 2]]
     expected = normalize(stored["nsw"].to_numpy(), "small-v1")
     assert table.loc["heuristic", "iqm"] == pytest.approx(np.mean(expected))  # IQM of 2 runs is their mean
@@ -43,21 +46,22 @@ def test_frontier__reads_stored_pieces_cut_to_the_seeds_and_plays_the_missing(ru
                                                                       / stored["episode_length"].sum())
     assert set(table["family"]) == {"heuristic", "random", "solver"}
     names = {p.name for p in result.files}
-    assert {"frontier.md", "frontier.csv", "frontier-verdict.csv", "frontier.png", "frontier.svg"} <= names
+    assert {"frontier-train.md", "frontier-train.csv", "frontier-train-verdict.csv", "frontier-train-run.json",
+            "frontier-train.png", "frontier-train.svg"} <= names  # the held-out split's files are frontier.*
     assert all(p.stat().st_size > 0 for p in result.files)
 
 
 def test_frontier__a_piece_of_other_seeds_or_another_hash_is_not_taken(tmp_path, run):
     suite_out = run[0]
     sc = get_suite("suite-v1").scenario("small")
-    assert target.find_piece([suite_out], "heuristic", sc, [3, 0])["seed"].tolist() == [3, 0]
-    assert target.find_piece([suite_out], "heuristic", sc, [0, 4]) is None  # seed 4 was never played
+    assert pieces.find([suite_out], "heuristic", sc, [3, 0])["seed"].tolist() == [3, 0]
+    assert pieces.find([suite_out], "heuristic", sc, [0, 4]) is None  # seed 4 was never played
     meta = suite_out / "cache" / "heuristic" / "small-v1.json"
     copy = tmp_path / "cache" / "heuristic"
     copy.mkdir(parents=True)
     (copy / "small-v1.csv").write_text((suite_out / "cache" / "heuristic" / "small-v1.csv").read_text())
     (copy / "small-v1.json").write_text(meta.read_text().replace(sc.hash, "0" * 16))
-    assert target.find_piece([tmp_path], "heuristic", sc, [0]) is None
+    assert pieces.find([tmp_path], "heuristic", sc, [0]) is None
 
 
 def _row(policy, side, iqm, low, high, cost):
@@ -94,7 +98,58 @@ def test_family__joins_each_kind_on_its_line():
     assert target.SIDES["search"] == target.SIDES["network"] == "learned"
 
 
+def test_frontier__without_options_it_draws_what_the_committed_frontier_was_drawn_from(tmp_path, run, monkeypatch):
+    suite_out, out, _, _ = run
+    settings = json.loads((out / "frontier-train-run.json").read_text())
+    assert settings == {"suite": "suite-v1", "split": "train", "seeds": [1, 2], "scenarios": ["small-v1"],
+                        "policies": ["heuristic", "random", "solver"]}
+    checkout = tmp_path / "checkout"
+    (checkout / target.COMMITTED).mkdir(parents=True)
+    (checkout / target.COMMITTED / "frontier-train-run.json").write_text(json.dumps({**settings, "seeds": [0, 3]}))
+    monkeypatch.setattr(target, "checkout_root", lambda: checkout)
+    assert target.default_reuse() == tuple(checkout / r for r in target.DEFAULT_REUSE)
+    again = tmp_path / "again"
+    said = []
+    target.frontier(again, split="train", policies=["heuristic", "random"], reuse=[suite_out],
+                    execution=Execution(), announce=said.append, **FAST)
+    assert pd.read_csv(again / "frontier-train.csv")["policy"].tolist() == ["heuristic", "random"]
+    assert json.loads((again / "frontier-train-run.json").read_text())["seeds"] == [0, 3]  # the committed seeds
+    assert said == ["every piece is stored: nothing to play"]  # seeds 0 and 3 are in the suite run's pieces
+
+
+def test_frontier__plan_only_says_what_it_would_play_and_plays_nothing(tmp_path, run, monkeypatch):
+    suite_out = run[0]
+    monkeypatch.setattr(pieces, "play", lambda *a: pytest.fail("the plan played a piece"))
+    result = target.frontier(tmp_path, seeds=[0, 1, 2, 3, 4, 5], policies=["heuristic", "ppo-general"],
+                             scenarios=["small"], split="train", reuse=[suite_out], execution=Execution(workers=2),
+                             plan_only=True, **FAST)
+    assert result.files == [] and not any(tmp_path.iterdir())
+    lines = result.text.splitlines()
+    per = pd.read_csv(suite_out / "cache" / "heuristic" / "small-v1.csv")["cpu_s"].mean()
+    assert lines[0].startswith("to play: 2 pieces, 8 episodes; about ")  # heuristic: 4, 5; ppo-general: 0-5
+    assert lines[0].endswith(", plus 1 pieces with no stored cost to estimate from")  # no piece of ppo-general
+    assert f"heuristic on small-v1: 2 seeds, about {2 * per:.0f} s" in result.text
+    assert "ppo-general on small-v1: 6 seeds, cost unknown" in result.text
+
+
+def test_pareto__each_point_on_the_front_beats_every_cheaper_one():
+    assert target.pareto([1.0, 2.0, 3.0, 0.5, 2.0], [0.5, 0.4, 0.6, 0.5, 0.55]) == [3, 4, 2]
+    assert target.pareto([1.0], [0.1]) == [0]
+
+
+def test_frontier_cli__plan_prints_the_plan_and_writes_nothing(tmp_path, capsys, run):
+    suite_out = run[0]
+    status = main(["reproduce", "frontier", "--plan", "--split", "train", "--scenarios", "small", "--seeds", "0-5",
+                   "--policies", "heuristic", "--reuse", str(suite_out), "--out", str(tmp_path / "o"),
+                   "--no-progress"])
+    out, err = capsys.readouterr()
+    assert status == 0 and err == ""
+    assert out.startswith("to play: 1 pieces, 2 episodes; about ") and "heuristic on small-v1: 2 seeds" in out
+    assert not (tmp_path / "o" / "cache").exists()
+
+
 @pytest.mark.parametrize(("argv", "message"), [
+    (["gap", "--plan"], "--plan applies to suite and frontier only, not to gap"),
     (["suite", "--split", "train"], "--split applies to frontier only, not to suite"),
     (["suite", "--reuse", "x"], "--reuse applies to frontier only, not to suite"),
     (["frontier", "--scenarios", "small"], "--scenarios: scenario small-v1 is in the train split, not heldout"),

@@ -81,13 +81,27 @@ def test_suite__a_rerun_reads_the_cache_and_writes_the_same_files(first, monkeyp
             assert after[name] == before[name], name
 
 
-def test_suite__other_seeds_are_not_taken_from_the_cache(first, monkeypatch):
+def test_suite__a_stored_piece_is_cut_to_fewer_seeds_and_extended_by_only_the_missing_ones(first, monkeypatch):
     out, _, _ = first
     ran = []
     real = target._run
-    monkeypatch.setattr(target, "_run", lambda policy, *a: (ran.append(policy), real(policy, *a))[1])
+    monkeypatch.setattr(target, "_run", lambda policy, sc, seeds, *a: (ran.append((policy, list(seeds))),
+                                                                       real(policy, sc, seeds, *a))[1])
     target.suite(out, seeds=[0], policies=("random",), scenarios=["small"], execution=Execution(), **FAST)
-    assert ran == ["random", "bound"]
+    assert ran == []
+    target.suite(out, seeds=[0, 1, 2], policies=("random",), scenarios=["small"], execution=Execution(), **FAST)
+    assert ran == [("random", [2]), ("bound", [2])]
+
+
+def test_suite__plan_only_says_what_is_missing_and_plays_nothing(first, monkeypatch):
+    out, _, _ = first
+    monkeypatch.setattr(target, "_run", lambda *a: pytest.fail("the plan played a piece"))
+    said = []
+    result = target.suite(out, seeds=[0, 1, 7], policies=("heuristic",), scenarios=["small"], execution=Execution(),
+                          announce=said.append, plan_only=True, **FAST)
+    assert result.files == [] and said == [result.text]
+    assert result.text.startswith("to play: 2 pieces, 2 episodes")
+    assert "heuristic on small-v1: 1 seeds" in result.text and "bound on small-v1: 1 seeds" in result.text
 
 
 @pytest.mark.parametrize(("argv", "message"), [

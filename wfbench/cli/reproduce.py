@@ -6,6 +6,7 @@ The targets are in :mod:`wfbench.reproduce`.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 from wfbench.cli.common import (
@@ -33,18 +34,21 @@ def add_parser(sub) -> None:
                     "the paper's, solver, tuned, learned and oracle ones; the learned where their checkpoint and "
                     "torch are)")
     rp.add_argument("--seeds", type=seeds_spec, default=None, help="suite, verify and frontier only: the seeds "
-                    "(suite and frontier default: test, 0-49, instead of --runs; verify default: each piece's first "
-                    "--runs seeds, see --runs)")
+                    "(suite default: test, 0-49, instead of --runs; frontier: the committed frontier's; verify "
+                    "default: each piece's first --runs seeds, see --runs)")
     rp.add_argument("--policies", default=None, help="suite, verify and frontier only: comma-separated "
                     "policies (default: every built-in policy, the shipped networks and the oracle; frontier: the "
-                    "heuristics, solvers, lookaheads, two networks and the oracle)")
+                    "committed frontier's)")
     rp.add_argument("--scenarios", default=None, help="suite, verify and frontier only: comma-separated "
-                    "scenario ids or presets of the suite (default: all; frontier: the split's)")
+                    "scenario ids or presets of the suite (default: all; frontier: the committed frontier's, else the "
+                    "split's)")
     rp.add_argument("--split", default=None, choices=["train", "heldout"], help="frontier only: the split "
                     "(default heldout)")
     rp.add_argument("--reuse", default=None, help="frontier only: comma-separated suite run folders whose cached "
-                    "pieces are read before anything is played (default: docs/results/frontier-v1 and "
-                    "docs/results/suite-v1-50, the committed runs)")
+                    "pieces are read before anything is played (default: the checkout's docs/results/frontier-v1 "
+                    "and docs/results/suite-v1-50, the committed runs, wherever the command runs from)")
+    rp.add_argument("--plan", action="store_true", help="suite and frontier only: print what would be played "
+                    "(the pieces no stored run holds) and its estimated CPU time, and play nothing")
     rp.add_argument("--no-networks", action="store_true", help="suite only: leave the shipped networks out")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)
@@ -81,12 +85,16 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
 
     try:
-        runs = args.runs if args.runs is not None else (1 if args.target == "verify" else 50)
+        # the frontier's defaults are the committed frontier's seeds (wfbench.reproduce.frontier.committed_settings)
+        runs = args.runs if args.runs is not None else (1 if args.target == "verify" else
+                                                        None if args.target == "frontier" else 50)
         result = reproduce(args.target, out, runs=runs, execution=execution, progress=step, **kwargs)
     finally:
         if bar:
             bar.close()
     print(result.text)
+    if kwargs.get("plan_only"):
+        return 0
     if args.target == "verify":
         return 1 if any(v.differences for v in result.verdicts) else 0
     print(f"\nwrote {', '.join(str(f) for f in result.files)} in {time.perf_counter() - t0:.1f} s")
@@ -105,6 +113,8 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
     given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios),
                             ("--no-networks", args.no_networks or None)) if v is not None]
     own = [o for o, v in (("--split", args.split), ("--reuse", args.reuse)) if v is not None]
+    if args.plan and args.target not in ("suite", "frontier"):
+        raise UsageError(f"--plan applies to suite and frontier only, not to {args.target}")
     if own and args.target != "frontier":
         raise UsageError(f"{own[0]} applies to frontier only, not to {args.target}")
     if args.target not in ("suite", "verify", "frontier"):
@@ -118,6 +128,10 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
     from wfbench.scenarios import get_suite
 
     kwargs: dict = {"networks": not args.no_networks} if args.target == "suite" else {}
+    if args.target in ("suite", "frontier"):
+        kwargs["plan_only"] = args.plan  # the plan is the output; otherwise it is said first, on stderr
+        if not args.plan:
+            kwargs["announce"] = lambda text: print(text, file=sys.stderr, flush=True)
     if args.split is not None:
         kwargs["split"] = args.split
     if args.reuse is not None:

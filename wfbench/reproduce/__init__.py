@@ -87,7 +87,7 @@ def output_folder(out: str | Path, what: str = "out") -> Path:
     return path
 
 
-def reproduce(target: str, out: str | Path = "results", runs: int = 50, execution: Execution = PROCESS,
+def reproduce(target: str, out: str | Path = "results", runs: int | None = 50, execution: Execution = PROCESS,
               progress: Progress = None,
               methods: str | Sequence[str] | None = None, **kwargs: Any) -> Output:
     """Regenerate one target into ``out``, as ``wfbench reproduce TARGET`` does.
@@ -98,7 +98,7 @@ def reproduce(target: str, out: str | Path = "results", runs: int = 50, executio
     Args:
         target: ``table2``, ``table3``, ``figure3``, ``gap`` or ``suite`` (:data:`TARGETS`).
         out: the output folder.
-        runs: episodes per cell or row.
+        runs: episodes per cell or row (``None``: frontier only, the committed frontier's seeds).
         execution: where the evaluations run (:class:`~wfbench.harness.backends.Execution`;
             default a pool of processes); the numbers do not depend on it.
         progress: called with the name of each evaluation as it starts.

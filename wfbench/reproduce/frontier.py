@@ -1,17 +1,22 @@
 """The verdict as score against compute: held-out IQM per policy beside what its decisions cost (issue #43).
 
 ``wfbench reproduce frontier`` reads a suite run's pieces (``out/cache``, then the ``reuse``
-folders; a piece with more seeds is cut to the chosen ones) and plays what is missing. It
-writes, per policy, the IQM of the normalized score with its interval beside the decision
-time p50, CPU ms per env-step and CPU s per episode, and the best deployable policy of the OR
-and learned sides within each budget of :data:`BUDGETS_MS`. docs/suite.md, "Score against
-compute", explains the columns and holds the committed run.
+folders; a piece with more seeds is cut to the chosen ones, one with fewer is extended by only
+the seeds it lacks: :mod:`wfbench.reproduce.pieces`) and plays what is missing, after saying
+what that is and about how long it takes. It writes, per policy, the IQM of the normalized
+score with its interval beside the decision time p50, CPU ms per env-step and CPU s per
+episode, the figure (each family's Pareto front against CPU ms per env-step), and the best
+deployable policy of the OR and learned sides within each budget of :data:`BUDGETS_MS`.
+Without options it reproduces the committed frontier (:data:`COMMITTED`, its
+``frontier-run.json``) from the committed pieces. docs/suite.md, "Score against compute",
+explains the columns and holds the committed run.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import os
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -22,8 +27,8 @@ from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.harness.backends import Execution
+from wfbench.reproduce import pieces, provenance
 from wfbench.reproduce.common import PROCESS, Output, Progress, write
-from wfbench.reproduce.suite import _cache_path, _run, _store
 from wfbench.reproduce.suite import family as suite_family
 from wfbench.scenarios import SuiteScenario, get_suite, normalize
 
@@ -31,7 +36,34 @@ BUDGETS_MS = (1.0, 10.0, 100.0)  # CPU ms per env-step: the issue's "about 1 ms,
 BASELINE = "solver-tuned"  # the probability of improvement is taken over it (the rollouts' base)
 SIDES = {"heuristic": "OR", "solver": "OR", "rollout": "OR", "mpc": "OR", "network": "learned", "search": "learned",
          "oracle": "reference", "random": "reference"}
-DEFAULT_REUSE = ("docs/results/frontier-v1", "docs/results/suite-v1-50")  # the committed runs, from a checkout
+COMMITTED = "docs/results/frontier-v1"  # the committed frontier: its pieces and its settings (frontier-run.json)
+DEFAULT_REUSE = (COMMITTED, "docs/results/suite-v1-50")  # the committed runs, relative to the checkout's root
+
+
+def stem(split: str) -> str:
+    """The name a frontier's files start with: ``frontier`` for the held-out split (the verdict), else split's."""
+    return "frontier" if split == "heldout" else f"frontier-{split}"
+
+
+def checkout_root() -> Path | None:
+    """The folder holding the committed results (``docs/results``): the checkout wfbench runs from, or None."""
+    from wfbench.core.paths import package_dir
+
+    root = package_dir("wfbench").parent
+    return root if (root / "docs" / "results").is_dir() else None
+
+
+def default_reuse() -> tuple[Path, ...]:
+    """The committed runs' folders, found from the checkout whatever the current folder (none when installed)."""
+    root = checkout_root()
+    return () if root is None else tuple(root / r for r in DEFAULT_REUSE)
+
+
+def committed_settings(split: str = "heldout") -> dict | None:
+    """The settings of the committed frontier of ``split`` (``frontier-run.json``), or None where there is none."""
+    root = checkout_root()
+    path = None if root is None else root / COMMITTED / f"{stem(split)}-run.json"  # what it was drawn from
+    return json.loads(path.read_text()) if path is not None and path.exists() else None
 
 
 def default_policies() -> list[str]:
@@ -56,7 +88,10 @@ def family(policy: str) -> str:
 def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, split: str = "heldout",
          suite_name: str = "suite-v1", **_: object) -> int:
     """The (policy, scenario) pieces :func:`frontier` reads or plays (for a progress bar)."""
-    return len(policies or default_policies()) * len(_chosen(get_suite(suite_name), scenarios, split))
+    settings = committed_settings(split) or {}
+    policies = policies or settings.get("policies") or default_policies()
+    scenarios = scenarios or settings.get("scenarios")
+    return len(policies) * len(_chosen(get_suite(suite_name), scenarios, split))
 
 
 def _chosen(suite, scenarios: Sequence[str] | None, split: str) -> list[SuiteScenario]:
@@ -68,22 +103,6 @@ def _chosen(suite, scenarios: Sequence[str] | None, split: str) -> list[SuiteSce
                              f"allowed: the {split} scenarios of {suite.name}")
         return chosen
     return [sc for sc in suite.scenarios if sc.split == split]
-
-
-def find_piece(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
-               seeds: list[int]) -> pd.DataFrame | None:
-    """The first stored piece of (policy, scenario) of this scenario hash whose seeds include ``seeds``, cut to them."""
-    for folder in folders:
-        path = _cache_path(folder, policy, scenario)
-        meta = path.with_suffix(".json")
-        if not (path.exists() and meta.exists()):
-            continue
-        m = json.loads(meta.read_text())
-        if m.get("hash") != scenario.hash or not set(seeds) <= set(m.get("seeds", [])):
-            continue
-        df = pd.read_csv(path, float_precision="round_trip")
-        return df.set_index("seed").loc[seeds].reset_index()
-    return None
 
 
 def cost_row(df: pd.DataFrame) -> dict[str, float]:
@@ -123,11 +142,12 @@ def verdicts(table: pd.DataFrame, budgets: Sequence[float] = BUDGETS_MS) -> list
     return out
 
 
-def frontier(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
+def frontier(out: Path, runs: int | None = None, execution: Execution = PROCESS, progress: Progress = None,
              seeds: str | Sequence[int] | None = None, policies: Sequence[str] | None = None,
              scenarios: Sequence[str] | None = None, split: str = "heldout",
-             reuse: Sequence[str | Path] = DEFAULT_REUSE, suite_name: str = "suite-v1", reps: int = 5000,
-             poi_reps: int = 1000, **_: object) -> Output:
+             reuse: Sequence[str | Path] | None = None, suite_name: str = "suite-v1", reps: int = 5000,
+             poi_reps: int = 1000, announce: Callable[[str], None] | None = None, plan_only: bool = False,
+             **_: object) -> Output:
     """Held-out IQM against decision cost per policy, the figure, and the verdict at each budget (module docstring).
 
     Args:
@@ -135,20 +155,39 @@ def frontier(out: Path, runs: int = 50, execution: Execution = PROCESS, progress
         runs: seeds 0..runs-1 when ``seeds`` is not given.
         execution: how missing pieces are played (:class:`~wfbench.harness.backends.Execution`).
         progress: called with the name of each piece as it is read or played.
-        seeds: the seeds (a set name or a list).
-        policies: the policies (default :func:`default_policies`).
-        scenarios: a subset of the split's scenarios (default all of them).
+        seeds: the seeds (a set name or a list). Seeds, policies and scenarios not given are the
+            committed frontier's (:func:`committed_settings`), else test seeds 0-49,
+            :func:`default_policies` and the split's scenarios.
+        policies: the policies.
+        scenarios: a subset of the split's scenarios.
         split: ``heldout`` (default) or ``train``.
-        reuse: suite run folders whose ``cache/`` pieces are read before anything is played.
+        reuse: suite run folders whose ``cache/`` pieces are read before anything is played
+            (default :func:`default_reuse`, the committed runs).
         suite_name: the suite.
         reps: bootstrap replications of the intervals.
         poi_reps: bootstrap replications of the probability of improvement's interval.
+        announce: called once with what will be played and its estimated CPU time
+            (:func:`wfbench.reproduce.pieces.describe_plan`) before anything is played.
+        plan_only: stop after announcing the plan (``files`` empty; the text is the plan).
     """
     s = get_suite(suite_name)
-    chosen = _chosen(s, scenarios, split)
-    seed_list = resolve_seeds(seeds) if seeds is not None else list(range(runs))
-    names = list(dict.fromkeys(policies)) if policies else default_policies()
-    folders = [out, *(Path(r) for r in reuse)]
+    settings = committed_settings(split) or {}
+    chosen = _chosen(s, scenarios or settings.get("scenarios"), split)
+    if seeds is not None:
+        seed_list = resolve_seeds(seeds)
+    elif runs is not None:
+        seed_list = list(range(runs))
+    else:
+        seed_list = [int(x) for x in settings.get("seeds", range(50))]
+    names = list(dict.fromkeys(policies or settings.get("policies") or default_policies()))
+    folders = [Path(out), *(Path(r) for r in (default_reuse() if reuse is None else reuse))]
+    provenance.start()  # the code this run starts with is the code its pieces record
+    todo = pieces.plan(folders, names, chosen, seed_list)
+    text = pieces.describe_plan(todo, execution.workers or os.cpu_count() or 1)
+    if announce:
+        announce(text)
+    if plan_only:
+        return Output(text, [])
     frames: dict[str, pd.DataFrame] = {}
     failures = []
     for name in names:
@@ -156,14 +195,11 @@ def frontier(out: Path, runs: int = 50, execution: Execution = PROCESS, progress
         for sc in chosen:
             if progress:
                 progress(f"{sc.id}: {name}")
-            df = find_piece(folders, name, sc, seed_list)
-            if df is None:
-                try:
-                    df, wall_s = _run(name, sc, seed_list, execution)
-                except Exception as exc:  # noqa: BLE001 - a long run reports a failing piece and goes on
-                    failures.append([sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]])
-                    continue
-                _store(_cache_path(out, name, sc), df, name, sc, seed_list, wall_s)
+            try:
+                df = pieces.obtain(folders, out, name, sc, seed_list, execution)
+            except Exception as exc:  # noqa: BLE001 - a long run reports a failing piece and goes on
+                failures.append([sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]])
+                continue
             df = df.copy()
             df.insert(0, "normalized", normalize(df[SCORE].to_numpy(), sc.id, s))
             df.insert(0, "split", sc.split)
@@ -212,10 +248,14 @@ def frontier(out: Path, runs: int = 50, execution: Execution = PROCESS, progress
     if failures:
         md += "\n\nFailed (not cached; a rerun tries them again):\n\n" + markdown_table(["Scenario", "Policy", "Error"],
                                                                                         failures)
-    files += write(out, "frontier", md, result)
-    (out / "frontier-verdict.csv").write_text(pd.DataFrame(v).to_csv(index=False))
-    files.append(out / "frontier-verdict.csv")
-    files += _figure(result, split, len(chosen), seeds_text, out / "frontier")
+    name = stem(split)
+    files += write(out, name, md, result)
+    (out / f"{name}-verdict.csv").write_text(pd.DataFrame(v).to_csv(index=False))
+    run = {"suite": s.name, "split": split, "seeds": seed_list, "scenarios": [sc.id for sc in chosen],
+           "policies": list(frames)}  # what it was drawn from: the defaults of the next run without options
+    (out / f"{name}-run.json").write_text(json.dumps(run, indent=1) + "\n")
+    files += [out / f"{name}-verdict.csv", out / f"{name}-run.json"]
+    files += _figure(result, split, len(chosen), seeds_text, out / name)
     return Output(md, files)
 
 
@@ -241,6 +281,17 @@ def _side_cell(v: dict, side: str) -> str:
     return "-" if v[f"{side}_policy"] is None else f"{v[f'{side}_policy']} ({v[f'{side}_iqm']:.3f})"
 
 
+def pareto(costs: Sequence[float], scores: Sequence[float]) -> list[int]:
+    """The indices on the Pareto front, cheapest first: each scores more than every cheaper point (ties: cheaper)."""
+    order = sorted(range(len(costs)), key=lambda i: (costs[i], -scores[i]))
+    front, best = [], -np.inf
+    for i in order:
+        if scores[i] > best:
+            front.append(i)
+            best = scores[i]
+    return front
+
+
 def _figure(result: pd.DataFrame, split: str, n: int, seeds_text: str, path_stem: Path) -> list[Path]:
     import matplotlib
 
@@ -249,29 +300,37 @@ def _figure(result: pd.DataFrame, split: str, n: int, seeds_text: str, path_stem
 
     from wfbench.analysis.plots import save_figure
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
+    fig, ax = plt.subplots(figsize=(9, 5.4))
     # a new family is appended, so that the committed figures keep their colours
     colors = dict(zip(["heuristic", "solver", "rollout", "mpc", "network", "oracle", "random", "other", "search"],
                       plt.get_cmap("tab10").colors, strict=False))
-    for ax, x, label in ((axes[0], "decision_ms_p50", "decision time p50 (ms per env-step, log)"),
-                         (axes[1], "cpu_s_per_episode", "CPU seconds per episode (log)")):
-        for fam, g in result.groupby("family", sort=False):
-            g = g.sort_values(x)
-            yerr = np.vstack([g["iqm"] - g["iqm_low"], g["iqm_high"] - g["iqm"]])
-            ax.errorbar(g[x], g["iqm"], yerr=yerr, marker="o", ms=4, capsize=2, color=colors.get(fam),
-                        linestyle="--" if fam == "oracle" else "-", label=fam)
-            for _, r in g.iterrows():
-                ax.annotate(r["policy"], (r[x], r["iqm"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
-        ax.set_xscale("log")
-        ax.set_xlabel(label)
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel(f"IQM of the normalized score, {split} (95% CI)")
-    axes[0].legend(fontsize=7, loc="lower right")
-    fig.suptitle(f"Score against compute: {split} split, {n} scenarios, seeds {seeds_text}")
+    x = "cpu_ms_per_step"
+    for budget in BUDGETS_MS:
+        ax.axvline(budget, color="0.6", linestyle=":", linewidth=1)
+    for fam, g in result.groupby("family", sort=False):
+        g = g.reset_index(drop=True)
+        front = pareto(g[x].tolist(), g["iqm"].tolist())
+        color = colors.get(fam)
+        yerr = np.vstack([g["iqm"] - g["iqm_low"], g["iqm_high"] - g["iqm"]])
+        ax.errorbar(g[x], g["iqm"], yerr=yerr, fmt="none", ecolor=color, capsize=2, alpha=0.6)
+        on = g.index.isin(front)
+        ax.scatter(g.loc[on, x], g.loc[on, "iqm"], color=color, s=18, zorder=3)
+        ax.scatter(g.loc[~on, x], g.loc[~on, "iqm"], facecolors="none", edgecolors=color, s=18, zorder=3)
+        ax.plot(g.loc[front, x], g.loc[front, "iqm"], color=color, linestyle="--" if fam == "oracle" else "-",
+                label=fam)
+        for _, r in g.iterrows():
+            ax.annotate(r["policy"], (r[x], r["iqm"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    ax.set_xscale("log")
+    ax.set_xlabel("CPU ms per env-step (log; observe, decide and simulate; dotted: the budgets)")
+    ax.set_ylabel(f"IQM of the normalized score, {split} (95% CI)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right", title="family: its Pareto front (hollow: dominated)", title_fontsize=7)
+    ax.set_title(f"Score against compute: {split} split, {n} scenarios, seeds {seeds_text}")
     fig.tight_layout()
     files = [save_figure(fig, path_stem.with_suffix(".png")), save_figure(fig, path_stem.with_suffix(".svg"))]
     plt.close(fig)
     return files
 
 
-__all__ = ["BUDGETS_MS", "default_policies", "family", "find_piece", "frontier", "size", "verdicts"]
+__all__ = ["BUDGETS_MS", "committed_settings", "default_policies", "default_reuse", "family", "frontier", "pareto",
+           "size", "stem", "verdicts"]

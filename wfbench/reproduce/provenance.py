@@ -85,8 +85,13 @@ def repository() -> Path | None:
     return Path(top) if Path(top).resolve() == root.resolve() else None
 
 
+@cache
 def commit() -> tuple[str | None, bool]:
-    """The checkout's commit and whether the files that compute results differ from it (None, False outside one)."""
+    """The checkout's commit and whether the files that compute results differ from it (None, False outside one).
+
+    Taken once per process, as :func:`code_sha256` is: a long run records the code it started
+    with (:func:`start`), not what the checkout holds when a piece ends.
+    """
     repo = repository()
     if repo is None:
         return None, False
@@ -128,6 +133,12 @@ def policy_inputs(policy: str) -> dict[str, str]:
         if f is not None and f.is_file():
             files[_repo_name(f)] = file_sha256(f)
     return dict(sorted(files.items()))
+
+
+def start() -> None:
+    """Take the commit and the code's hash now (a suite or frontier run calls it before it plays anything)."""
+    commit()
+    code_sha256()
 
 
 def current(policy: str) -> dict[str, Any]:

@@ -13,10 +13,8 @@ over training seeds".
 from __future__ import annotations
 
 import json
-import re
-import time
-import warnings
-from collections.abc import Sequence
+import os
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,9 +32,8 @@ from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.harness.backends import Execution
-from wfbench.harness.evaluation import evaluate
 from wfbench.policies.registry import LINEUPS
-from wfbench.reproduce import provenance
+from wfbench.reproduce import pieces, provenance
 from wfbench.reproduce.common import PROCESS, Output, Progress, write
 from wfbench.scenarios import Suite, SuiteScenario, get_suite, normalize
 
@@ -89,49 +86,11 @@ def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None 
     return (n_policies + 1) * len(_chosen(get_suite(suite_name), scenarios))
 
 
-def piece_folder(policy: str) -> str:
-    """The folder of ``policy``'s pieces under ``cache/``: its name made path-safe (``#`` becomes ``_``)."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
-
-
 def _cache_path(out: Path, policy: str, scenario: SuiteScenario) -> Path:
-    return out / "cache" / piece_folder(policy) / f"{scenario.id}.csv"
+    return pieces.piece_path(out, policy, scenario)
 
 
-def _cached(path: Path, scenario: SuiteScenario, seeds: list[int]) -> pd.DataFrame | None:
-    meta = path.with_suffix(".json")
-    if not (path.exists() and meta.exists()):
-        return None
-    m = json.loads(meta.read_text())
-    if m.get("hash") != scenario.hash or m.get("seeds") != seeds:
-        return None
-    df = pd.read_csv(path, float_precision="round_trip")  # the same bits as the run that wrote it
-    df.attrs["wall_s"] = m.get("wall_s")
-    return df
-
-
-def _store(path: Path, df: pd.DataFrame, policy: str, scenario: SuiteScenario, seeds: list[int],
-           wall_s: float) -> None:
-    """Write a piece and its ``.json``: what decides its reuse (hash, seeds) and what made it (the provenance)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(path, index=False)
-    meta = {"hash": scenario.hash, "seeds": seeds, "wall_s": wall_s, "provenance": provenance.current(policy)}
-    path.with_suffix(".json").write_text(json.dumps(meta))
-
-
-def _run(policy: str, scenario: SuiteScenario, seeds: list[int], execution: Execution) -> tuple[pd.DataFrame, float]:
-    from wfbench.policies.registry import ScenarioMismatchWarning
-
-    t0 = time.perf_counter()
-    if policy == "bound":
-        from wfbench.core.bound import score_upper_bound
-
-        df = pd.DataFrame({"seed": seeds, SCORE: score_upper_bound(scenario.config, seeds)})
-    else:
-        with warnings.catch_warnings():  # the networks run zero-shot on purpose: the mismatch is the point
-            warnings.simplefilter("ignore", ScenarioMismatchWarning)
-            df = evaluate(policy, scenario.config, seeds, execution=execution)
-    return df, time.perf_counter() - t0
+_run = pieces.play  # what plays a missing piece (module-level: the tests replace it)
 
 
 def _figure_profiles(agg, split: str, path_stem: Path) -> list[Path]:
@@ -189,7 +148,8 @@ def _figure_scaling(scaling: pd.DataFrame, path_stem: Path) -> list[Path]:
 def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
           seeds: str | Sequence[int] | None = None, policies: Sequence[str] | None = None,
           scenarios: Sequence[str] | None = None, networks: bool = True, suite_name: str = "suite-v1",
-          reps: int = 5000, poi_reps: int = 1000) -> Output:
+          reps: int = 5000, poi_reps: int = 1000, announce: Callable[[str], None] | None = None,
+          plan_only: bool = False) -> Output:
     """Every policy on every scenario of the suite, normalized and aggregated, with the bound and oracle checks.
 
     Args:
@@ -206,6 +166,9 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
         suite_name: the suite.
         reps: bootstrap replications of the aggregate's intervals.
         poi_reps: bootstrap replications of the probability of improvement's interval.
+        announce: called once with what will be played and its estimated CPU time
+            (:func:`wfbench.reproduce.pieces.describe_plan`) before anything is played.
+        plan_only: stop after announcing the plan (``files`` empty; the text is the plan).
 
     Returns:
         The text (scores, aggregate, checks) and the files written.
@@ -215,6 +178,13 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
     seed_list = resolve_seeds(seeds) if seeds is not None else list(range(runs))
     names, methods = with_members(list(dict.fromkeys(policies)) if policies else default_policies(networks))
     members = {m for ms in methods.values() for m in ms}
+    provenance.start()  # the code this run starts with is the code its pieces record
+    todo = pieces.plan([out], [*names, "bound"], chosen, seed_list)
+    text = pieces.describe_plan(todo, execution.workers or os.cpu_count() or 1)
+    if announce:
+        announce(text)
+    if plan_only:
+        return Output(text, [])
     frames: dict[str, list[pd.DataFrame]] = {n: [] for n in names}
     bound: dict[str, np.ndarray] = {}
     failures: list[tuple[str, str, str]] = []
@@ -223,16 +193,11 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
         for name in [*names, "bound"]:
             if progress:
                 progress(f"{sc.id}: {name}")
-            path = _cache_path(out, name, sc)
-            df = _cached(path, sc, seed_list)
-            if df is None:
-                try:
-                    df, wall_s = _run(name, sc, seed_list, execution)
-                except Exception as exc:  # noqa: BLE001 - a long run reports a failing pair and goes on
-                    failures.append((sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]))
-                    continue
-                _store(path, df, name, sc, seed_list, wall_s)
-                df.attrs["wall_s"] = wall_s
+            try:  # a stored piece, cut to the seeds, or only its missing seeds played (wfbench.reproduce.pieces)
+                df = pieces.obtain([out], out, name, sc, seed_list, execution, play_fn=_run)
+            except Exception as exc:  # noqa: BLE001 - a long run reports a failing pair and goes on
+                failures.append((sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]))
+                continue
             if name == "bound":
                 bound[sc.id] = df[SCORE].to_numpy()
                 continue

@@ -100,7 +100,7 @@ def pieces(folder: Path, policies: Sequence[str] | None = None, scenarios: Seque
     """
     suite = get_suite(suite_name)
     chosen = [suite.scenario(x) for x in scenarios] if scenarios else list(suite.scenarios)
-    from wfbench.reproduce.suite import piece_folder
+    from wfbench.reproduce.pieces import piece_folder
 
     by_dir = {piece_folder(p): p for p in [*_known_policies(), *(policies or [])]}
     wanted = set(policies) if policies else None

@@ -1,0 +1,77 @@
+"""A suite run's pieces: cut to the seeds asked, extended by only the seeds they lack, and planned before playing."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from wfbench.harness.backends import Execution
+from wfbench.reproduce import pieces
+from wfbench.scenarios import get_suite
+
+SMALL = get_suite("suite-v1").scenario("small")
+TIMING = ("cpu_s", "wall_s", "decision_ms_p50", "decision_ms_p99", "decision_ms_max")  # measured, not computed
+
+
+def _played(monkeypatch):
+    """Record every (policy, seeds) :func:`pieces.play` is asked for, and play it."""
+    calls, real = [], pieces.play
+    monkeypatch.setattr(pieces, "play", lambda policy, sc, seeds, ex: (calls.append((policy, list(seeds))),
+                                                                       real(policy, sc, seeds, ex))[1])
+    return calls
+
+
+def _results(df: pd.DataFrame) -> pd.DataFrame:
+    return df.drop(columns=[c for c in TIMING if c in df]).reset_index(drop=True)
+
+
+def test_a_piece_with_fewer_seeds_is_extended_by_only_the_missing_ones(tmp_path, monkeypatch):
+    calls = _played(monkeypatch)
+    committed, out = tmp_path / "committed", tmp_path / "out"
+    pieces.obtain([committed], committed, "heuristic-stochastic", SMALL, [0, 2], Execution())
+    merged = pieces.obtain([out, committed], out, "heuristic-stochastic", SMALL, [3, 0, 1, 2], Execution())
+    assert calls == [("heuristic-stochastic", [0, 2]), ("heuristic-stochastic", [3, 1])]
+    assert merged["seed"].tolist() == [3, 0, 1, 2]  # in the order asked
+    whole = pieces.obtain([tmp_path / "fresh"], tmp_path / "fresh", "heuristic-stochastic", SMALL, [3, 0, 1, 2],
+                          Execution())
+    pd.testing.assert_frame_equal(_results(merged), _results(whole))  # the same bits as one run of all four
+    stored = pd.read_csv(pieces.piece_path(out, "heuristic-stochastic", SMALL))
+    assert stored["seed"].tolist() == [0, 1, 2, 3]
+    meta = json.loads(pieces.piece_path(out, "heuristic-stochastic", SMALL).with_suffix(".json").read_text())
+    assert meta["seeds"] == [0, 1, 2, 3] and [p["seeds"] for p in meta["parts"]] == [[0, 2], [3, 1]]
+    assert all(p["provenance"]["code_sha256"] for p in meta["parts"])
+    assert pieces.provenance_of(meta, 1) == meta["parts"][1]["provenance"]
+    assert pieces.find([out], "heuristic-stochastic", SMALL, [2, 3]) is not None  # the next run finds all of it
+    calls.clear()
+    pieces.obtain([out, committed], out, "heuristic-stochastic", SMALL, [1, 2], Execution())
+    assert calls == []  # a subset of a stored piece is cut from it, not played
+
+
+def test_a_piece_of_another_scenario_hash_is_played_again(tmp_path, monkeypatch):
+    calls = _played(monkeypatch)
+    pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [0], Execution())
+    meta = pieces.piece_path(tmp_path, "heuristic", SMALL).with_suffix(".json")
+    meta.write_text(meta.read_text().replace(SMALL.hash, "0" * 16))
+    pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [0, 1], Execution())
+    assert calls == [("heuristic", [0]), ("heuristic", [0, 1])]
+    assert "parts" not in json.loads(meta.read_text())  # nothing of the other hash was kept
+
+
+def test_the_plan_estimates_from_the_stored_cost_and_says_what_it_cannot(tmp_path):
+    pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [0, 1], Execution())
+    paper = get_suite("suite-v1").scenario("paper-64")
+    todo = pieces.plan([tmp_path], ["heuristic", "solver"], [SMALL, paper], [0, 1, 2, 3])
+    per = pd.read_csv(pieces.piece_path(tmp_path, "heuristic", SMALL))["cpu_s"].mean()
+    by = {(m.policy, m.scenario): m for m in todo}
+    assert by["heuristic", "small-v1"].seeds == (2, 3) and by["heuristic", "small-v1"].cpu_s == pytest.approx(2 * per)
+    # no piece of heuristic on paper-64: its cost on the other scenario is the estimate
+    assert by["heuristic", "paper-64-v1"].cpu_s == pytest.approx(4 * per)
+    assert by["solver", "small-v1"].cpu_s is None
+    text = pieces.describe_plan(todo, workers=2)
+    assert text.splitlines()[0].startswith("to play: 4 pieces, 14 episodes; about ")
+    assert "(" in text.splitlines()[0] and "on 2 workers)" in text.splitlines()[0]
+    assert "plus 2 pieces with no stored cost to estimate from" in text
+    assert pieces.plan([tmp_path], ["heuristic"], [SMALL], [1]) == []
+    assert pieces.describe_plan([]) == "every piece is stored: nothing to play"

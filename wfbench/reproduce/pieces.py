@@ -1,0 +1,234 @@
+"""A suite run's pieces: found where stored, extended by only the seeds they lack, planned before they are played.
+
+A piece is one (policy, scenario) result over seeds: ``cache/POLICY/SCENARIO.csv`` (one row per
+seed, the evaluator's columns) beside a ``.json`` holding the scenario's ``hash``, the ``seeds``,
+``wall_s`` and the ``provenance`` (:mod:`wfbench.reproduce.provenance`). :func:`find` takes a
+stored piece of the same hash that holds the chosen seeds and cuts it to them. :func:`obtain`
+plays only the seeds no stored piece holds and writes the merged piece, whose ``parts`` say which
+seeds each provenance made: a seed's row does not depend on the batch it was played in
+(:mod:`wfbench.harness.backends`), so 20 committed seeds and 30 new ones make the same 50 rows as
+one run would. :func:`plan` lists what is missing with an estimate of its CPU time from the stored
+pieces' own cost, so a long job says what it will play before it starts. docs/suite.md, "How to
+run", explains the folders.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from wfbench.core.kpis import SCORE
+from wfbench.harness.backends import Execution
+from wfbench.reproduce import provenance
+from wfbench.scenarios import SuiteScenario
+
+
+def piece_folder(policy: str) -> str:
+    """The folder of ``policy``'s pieces under ``cache/``: its name made path-safe (``#`` becomes ``_``)."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
+
+
+def piece_path(out: Path, policy: str, scenario: SuiteScenario) -> Path:
+    """Where ``policy``'s piece of ``scenario`` is stored in the run folder ``out``."""
+    return Path(out) / "cache" / piece_folder(policy) / f"{scenario.id}.csv"
+
+
+def _meta(path: Path, scenario: SuiteScenario) -> dict | None:
+    meta = path.with_suffix(".json")
+    if not (path.exists() and meta.exists()):
+        return None
+    m = json.loads(meta.read_text())
+    return m if m.get("hash") == scenario.hash else None
+
+
+def _read(path: Path) -> pd.DataFrame:
+    return pd.read_csv(path, float_precision="round_trip")  # the same bits as the run that wrote it
+
+
+def parts_of(meta: dict) -> list[dict]:
+    """The parts of a piece: each ``{"seeds", "wall_s", "provenance"}`` (one part for a piece played at once)."""
+    if "parts" in meta:
+        return meta["parts"]
+    return [{"seeds": meta.get("seeds", []), "wall_s": meta.get("wall_s"), "provenance": meta.get("provenance")}]
+
+
+def provenance_of(meta: dict, seed: int) -> dict | None:
+    """The provenance of the part of a piece that played ``seed``."""
+    for part in parts_of(meta):
+        if seed in part["seeds"]:
+            return part.get("provenance")
+    return None
+
+
+def find(folders: Sequence[Path], policy: str, scenario: SuiteScenario, seeds: Sequence[int]) -> pd.DataFrame | None:
+    """The first stored piece of (policy, scenario) of this scenario hash whose seeds include ``seeds``, cut to them.
+
+    ``attrs["wall_s"]`` is the piece's wall time scaled to the seeds taken.
+    """
+    seeds = [int(s) for s in seeds]
+    for folder in folders:
+        path = piece_path(folder, policy, scenario)
+        m = _meta(path, scenario)
+        if m is None or not set(seeds) <= set(m.get("seeds", [])):
+            continue
+        df = _read(path).set_index("seed").loc[seeds].reset_index()
+        wall = m.get("wall_s")
+        df.attrs["wall_s"] = None if wall is None else wall * len(seeds) / max(1, len(m["seeds"]))
+        return df
+    return None
+
+
+def _partial(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
+             seeds: Sequence[int]) -> tuple[pd.DataFrame, dict] | None:
+    """The stored piece holding the most of ``seeds`` (the first such folder on a tie), its rows cut to them."""
+    best = None
+    for folder in folders:
+        path = piece_path(folder, policy, scenario)
+        m = _meta(path, scenario)
+        if m is None:
+            continue
+        have = [s for s in seeds if s in set(m.get("seeds", []))]
+        if have and (best is None or len(have) > len(best[2])):
+            best = (path, m, have)
+    if best is None:
+        return None
+    path, m, have = best
+    df = _read(path).set_index("seed").loc[have].reset_index()
+    kept = [{**p, "seeds": [s for s in p["seeds"] if s in set(have)]} for p in parts_of(m)]
+    return df, {"parts": [p for p in kept if p["seeds"]]}
+
+
+def store(path: Path, df: pd.DataFrame, policy: str, scenario: SuiteScenario, seeds: Sequence[int],
+          wall_s: float, earlier: Sequence[dict] = ()) -> None:
+    """Write a piece and its ``.json``; ``earlier`` are the parts (seeds, provenance) its older rows came from."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(path, index=False)
+    now = {"seeds": [int(s) for s in seeds], "wall_s": wall_s, "provenance": provenance.current(policy)}
+    meta = {"hash": scenario.hash, "seeds": [int(s) for s in df["seed"]],
+            "wall_s": wall_s + sum(p.get("wall_s") or 0.0 for p in earlier), "provenance": now["provenance"]}
+    if earlier:
+        meta["parts"] = [*earlier, now]
+    path.with_suffix(".json").write_text(json.dumps(meta))
+
+
+def play(policy: str, scenario: SuiteScenario, seeds: Sequence[int],
+         execution: Execution) -> tuple[pd.DataFrame, float]:
+    """Play ``policy`` (or the proven ``bound``) on ``seeds`` of ``scenario``: its rows and the wall seconds."""
+    from wfbench.harness.evaluation import evaluate
+    from wfbench.policies.registry import ScenarioMismatchWarning
+
+    t0 = time.perf_counter()
+    if policy == "bound":
+        from wfbench.core.bound import score_upper_bound
+
+        df = pd.DataFrame({"seed": list(seeds), SCORE: score_upper_bound(scenario.config, list(seeds))})
+    else:
+        with warnings.catch_warnings():  # the networks run zero-shot on purpose: the mismatch is the point
+            warnings.simplefilter("ignore", ScenarioMismatchWarning)
+            df = evaluate(policy, scenario.config, list(seeds), execution=execution)
+    return df, time.perf_counter() - t0
+
+
+def obtain(folders: Sequence[Path], out: Path, policy: str, scenario: SuiteScenario, seeds: Sequence[int],
+           execution: Execution, play_fn=None) -> pd.DataFrame:
+    """The piece of (policy, scenario) over ``seeds``: found, or its missing seeds played and merged into ``out``.
+
+    ``folders`` are searched in order (``out`` first, as a rule). What is played is written to
+    ``out``'s cache with the earlier rows it extends, so the next run finds all of it.
+    ``play_fn`` replaces :func:`play` (the suite passes its own, which tests replace).
+    """
+    seeds = [int(s) for s in seeds]
+    df = find(folders, policy, scenario, seeds)
+    if df is not None:
+        return df
+    part = _partial(folders, policy, scenario, seeds)
+    have = [] if part is None else part[0]["seed"].tolist()
+    missing = [s for s in seeds if s not in set(have)]
+    new, wall_s = (play_fn or play)(policy, scenario, missing, execution)
+    if part is None:
+        merged, earlier = new, []
+    else:
+        merged = pd.concat([part[0], new], ignore_index=True).sort_values("seed", kind="stable").reset_index(drop=True)
+        earlier = part[1]["parts"]
+    store(piece_path(out, policy, scenario), merged, policy, scenario, missing, wall_s, earlier)
+    merged = merged.set_index("seed").loc[seeds].reset_index()
+    merged.attrs["wall_s"] = wall_s + sum(p.get("wall_s") or 0.0 for p in earlier)
+    return merged
+
+
+@dataclass(frozen=True)
+class Missing:
+    """Seeds of one (policy, scenario) that no stored piece holds, and what they should cost (CPU s, or None)."""
+
+    policy: str
+    scenario: str
+    seeds: tuple[int, ...]
+    cpu_s: float | None
+
+
+def _cpu_per_episode(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
+                     others: Sequence[SuiteScenario]) -> float | None:
+    """CPU s per episode of ``policy`` on ``scenario`` from stored pieces: its own, else its mean elsewhere."""
+    for sc in [scenario, *others]:
+        for folder in folders:
+            path = piece_path(folder, policy, sc)
+            if _meta(path, sc) is not None:
+                df = _read(path)
+                if "cpu_s" in df:
+                    return float(df["cpu_s"].mean())
+    return None
+
+
+def plan(folders: Sequence[Path], policies: Sequence[str], scenarios: Sequence[SuiteScenario],
+         seeds: Sequence[int]) -> list[Missing]:
+    """What :func:`obtain` would play for each (policy, scenario), with its estimated CPU seconds."""
+    seeds = [int(s) for s in seeds]
+    todo = []
+    for policy in policies:
+        for sc in scenarios:
+            if find(folders, policy, sc, seeds) is not None:
+                continue
+            part = _partial(folders, policy, sc, seeds)
+            have = set() if part is None else set(part[0]["seed"])
+            missing = tuple(s for s in seeds if s not in have)
+            per = _cpu_per_episode(folders, policy, sc, [o for o in scenarios if o is not sc])
+            todo.append(Missing(policy, sc.id, missing, None if per is None else per * len(missing)))
+    return todo
+
+
+def describe_plan(todo: Sequence[Missing], workers: int = 1) -> str:
+    """The plan in a few lines: what will be played, and about how long it takes on ``workers`` workers."""
+    if not todo:
+        return "every piece is stored: nothing to play"
+    known = [m.cpu_s for m in todo if m.cpu_s is not None]
+    unknown = [m for m in todo if m.cpu_s is None]
+    total = sum(known)
+    lines = [f"to play: {len(todo)} pieces, {sum(len(m.seeds) for m in todo)} episodes; about "
+             f"{_duration(total)} of CPU ({_duration(total / max(1, workers))} on {max(1, workers)} "
+             f"worker{'s' if workers != 1 else ''})" + (f", plus {len(unknown)} pieces with no stored cost to "
+                                                          "estimate from" if unknown else "")]
+    for m in sorted(todo, key=lambda m: -(m.cpu_s or 0.0))[:12]:
+        lines.append(f"  {m.policy} on {m.scenario}: {len(m.seeds)} seeds, "
+                     + ("cost unknown" if m.cpu_s is None else f"about {_duration(m.cpu_s)}"))
+    if len(todo) > 12:
+        lines.append(f"  ... and {len(todo) - 12} more")
+    return "\n".join(lines)
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+__all__ = ["Missing", "describe_plan", "find", "obtain", "parts_of", "piece_folder", "piece_path", "plan", "play",
+           "provenance_of", "store"]
