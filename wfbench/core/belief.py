@@ -239,7 +239,7 @@ def _remember(b, H, x, y):
 
 
 @njit(cache=True)
-def observe_env(b, t, fac, per, fac_mask, status, notice, glob, H, m):
+def fold_observation(b, t, fac, per, fac_mask, status, notice, glob, H, m):
     """Fold the observation of environment ``b`` at step ``t`` into its history.
 
     Returns 0 (folded), 1 (a first observation after step 0: the history is unknown),
@@ -482,7 +482,7 @@ def fill_rows(envs, samples, end, H, S, Tr, m):
 @njit(cache=True)
 def observe_batch(t, fac, per, fac_mask, status, notice, glob, H, m, codes):
     for b in range(t.shape[0]):
-        codes[b] = observe_env(b, t[b], fac[b], per[b], fac_mask[b], status[b], notice[b], glob[b], H, m)
+        codes[b] = fold_observation(b, t[b], fac[b], per[b], fac_mask[b], status[b], notice[b], glob[b], H, m)
 
 
 # -- the belief ----------------------------------------------------------------------------------------------------
