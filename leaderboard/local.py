@@ -24,7 +24,7 @@ from joblib.externals.loky.backend.context import get_context
 from wfbench.leaderboard.board.db import Board, Submission
 from wfbench.leaderboard.board.worker import Progress, Run
 from wfbench.leaderboard.fingerprint import is_entry_point, policy_fingerprint
-from wfbench.leaderboard.rows import ROW_COLUMNS, Entry, SubmitError, scrub_paths
+from wfbench.leaderboard.rows import ROW_COLUMNS, SubmitError, scrub_paths
 from wfbench.leaderboard.store import add_provenance
 from wfbench.leaderboard.tracks import Track
 
@@ -228,7 +228,7 @@ class LocalRunner:
                  memory_mb: int | None, act_timeout_s: float | None):
         self.track, self.policy, self.execution = track, policy, execution
         self.wall_time_s, self.memory_mb = wall_time_s, memory_mb
-        self.entry: Entry | None = None  # set by the caller once the entry is open: the rows' provenance
+        self.entry: Submission | None = None  # set by the caller once the entry is open: the rows' provenance
         self.clock: Any = None  # the progress bar's RemainingTime, once running
         self.failure: LocalFailure | None = None
         self._deadline = time.monotonic() + wall_time_s

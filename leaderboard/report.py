@@ -92,9 +92,9 @@ def over_budget(rec: dict, max_decision_ms: float | None, max_cpu_s: float | Non
 
 def entry_record(name: str, sub, mine: pd.DataFrame) -> dict:
     """What every board shows of a submission: who, what (paths scrubbed), its status and whether it may rank."""
-    return {"name": name, "policy": scrub_paths(sub.policy), "submitter": sub.submitter, "status": sub.status,
+    return {"name": name, "policy": scrub_paths(sub.entry), "submitter": sub.account, "status": sub.status,
             "reason": scrub_paths(sub.reason), "seeds": len(mine), "builtin": sub.builtin,
-            "fingerprint": sub.fingerprint or "legacy", "deployable": not reads_future(sub.policy)}
+            "fingerprint": sub.fingerprint or "legacy", "deployable": not reads_future(sub.entry)}
 
 
 def add_budget(rec: dict, sub, mine: pd.DataFrame, max_decision_ms: float | None, max_cpu_s: float | None,
@@ -122,9 +122,15 @@ def normalized_rows(rows: pd.DataFrame, track: Track) -> tuple[pd.DataFrame, lis
     return out, problems
 
 
-def ranking(store: Any, track: Track, baseline: str = "heuristic", max_decision_ms: float | None = None,
-            max_cpu_s: float | None = None, reps: int = REPS) -> Ranking:
+def ranking(board: Any, track: Track, baseline: str = "heuristic", max_decision_ms: float | None = None,
+            max_cpu_s: float | None = None, reps: int = REPS, phase: str = "test") -> Ranking:
     """Rank the complete entries of ``track`` by the IQM of their normalized score over its rank split.
+
+    ``board`` is read through its ``entries(track, phase)`` and ``results(track, phase)``: a
+    :class:`~wfbench.leaderboard.board.db.Board` (a hosted board's ``phase``, ranked with
+    :meth:`~wfbench.leaderboard.board.db.Board.phase_track`), the local board
+    (:class:`~wfbench.leaderboard.store.Store`, whose entries are of the test phase) or a
+    read-only :class:`~wfbench.leaderboard.schema4.Schema4Store`.
 
     The rank split is the held-out scenarios, or all of them where none is held out
     (:attr:`~wfbench.leaderboard.tracks.Track.rank_split`). An entry is ranked when it is
@@ -145,10 +151,10 @@ def ranking(store: Any, track: Track, baseline: str = "heuristic", max_decision_
         split, ``p_improve_<split>`` over the baseline, the KPIs over its rows (mean, ``_q25``,
         ``_q75``), ``nsw_ci_low``/``_high``, the paired ``diff`` to the baseline, and the costs.
     """
-    rows, refused = store.results(track)
+    rows, refused = board.results(track, phase)
     rows, problems = normalized_rows(rows, track)
     refused = refused + problems
-    subs = {s.name: s for s in store.submissions(track.name)}
+    subs = {s.name: s for s in board.entries(track.name, phase)}
     n_units = len(track.units())
     out, left_out, frames = [], [], {}
     groups: dict[str, list[tuple[int, str, bool]]] = {}  # method -> (training seed, entry, complete) per member
@@ -157,7 +163,7 @@ def ranking(store: Any, track: Track, baseline: str = "heuristic", max_decision_
         complete = sub.status == "complete" and len(mine) == n_units and mine["normalized"].notna().all()
         rec = entry_record(name, sub, mine)
         rec["ranked"] = rec["deployable"] and complete
-        method = _member_of(sub.policy)
+        method = _member_of(sub.entry)
         rec["member_of"], rec["pick_of"], rec["seeds_of"], rec["members"] = method[0] if method else "", "", "", ""
         if method:  # a training seed: ranked through its method's row
             rec["ranked"] = False
@@ -293,11 +299,11 @@ def _method_record(method: str, members: list[tuple[int, str, bool]], subs: dict
     rec = entry_record(over_seeds(method, len(members)), first, mine)
     missing = [name for _, name, complete in members if not complete]
     rec.update(policy=f"{method} over training seeds " + ", ".join(str(k) for k, _, _ in members),
-               submitter=", ".join(dict.fromkeys(subs[n].submitter for n in names)),
+               submitter=", ".join(dict.fromkeys(subs[n].account for n in names)),
                status="complete" if not missing else "incomplete",
                reason=f"training seeds not complete: {', '.join(missing)}" if missing else "",
                builtin=False, fingerprint=",".join(subs[n].fingerprint or "legacy" for n in names),
-               deployable=all(not reads_future(subs[n].policy) for n in names), member_of="", pick_of="",
+               deployable=all(not reads_future(subs[n].entry) for n in names), member_of="", pick_of="",
                seeds_of=method, members=",".join(names))
     rec["ranked"] = rec["deployable"] and not missing
     add_budget(rec, first, mine, max_decision_ms, max_cpu_s, left_out)
@@ -502,8 +508,8 @@ def render(r: Ranking, fmt: str = "table", per_seed: bool = True) -> str:
     header, rows = cells(r)
     _, ref = cells(r, deployable=False)
     if not rows and not ref:
-        return (f"No submissions on track {r.track.name} yet: run 'wfbench leaderboard seed --track {r.track.name}' "
-                f"or 'wfbench leaderboard submit --track {r.track.name}'.")
+        return (f"No submissions on track {r.track.name} yet: run 'wfbench leaderboard baselines --track "
+                f"{r.track.name}' or 'wfbench leaderboard submit --track {r.track.name}'.")
     table = markdown_table if fmt == "md" else text_table
     gap = "\n\n" if fmt == "md" else "\n"
     out = (table(header, rows) if rows else "No deployable submissions yet.") + gap + caption(r)

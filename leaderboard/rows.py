@@ -1,7 +1,7 @@
-"""What a board's entry and result row are, for the local and the hosted board alike.
+"""What a board's result row is, for the local and the hosted board alike.
 
 The KPI, counter and budget columns of a row, the digest that covers a row's provenance and
-values, the :class:`Entry` the reports rank, and the one-line errors of a board. The local
+values, the columns of the rows the reports rank, and the one-line errors of a board. The local
 board (:mod:`wfbench.leaderboard.store`) and the hosted one (:mod:`wfbench.leaderboard.board`)
 both store rows of these columns; docs/leaderboard.md#what-a-row-holds.
 """
@@ -13,7 +13,6 @@ import json
 import math
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,35 +35,12 @@ class SubmitError(Exception):
     """The submission cannot start (unknown track or policy, name taken, bad limits): one line, exit 2."""
 
 
-@dataclass(frozen=True)
-class Entry:
-    """A submission as the reports rank it, on the local board or a phase of the hosted one."""
-
-    id: int
-    track: str
-    name: str
-    policy: str
-    submitter: str
-    track_hash: str
-    status: str  # running | complete | failed
-    reason: str
-    builtin: bool
-    fingerprint: str = ""  # "" for a legacy entry, stored before fingerprints
-    fingerprint_detail: str = ""  # JSON: what the fingerprint covers
-    # JSON: what the policy states about its cost (wfbench.harness.budget.policy_budget); "" where not recorded
-    budget: str = ""
-
-    @property
-    def legacy(self) -> bool:
-        return not self.fingerprint
-
-
 class NameTaken(StoreError):
     """The name is taken on the track by a policy with another fingerprint (or on another track version)."""
 
-    def __init__(self, existing: Entry, why: str):
+    def __init__(self, existing: Any, why: str):
         super().__init__(why)
-        self.existing = existing
+        self.existing = existing  # the entry that holds the name (a board Submission)
         self.why = why  # "fingerprint" or "track"
 
 

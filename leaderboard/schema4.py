@@ -1,7 +1,8 @@
 """Reading a local store of schema 4, the sqlite3 file wfbench wrote before the local board was the hosted one.
 
-:class:`Schema4Store` reads such a file as it is (never writing to it): its entries, its
-valid rows with the refused ones' messages, and its audit trail. The local board
+:class:`Schema4Store` reads such a file as it is (never writing to it): its entries (as the
+board's :class:`~wfbench.leaderboard.board.db.Submission` records), its valid rows with the
+refused ones' messages, and its audit trail; the reports rank it as a board. The local board
 (:mod:`wfbench.leaderboard.store`) imports it once from these; docs/leaderboard.md#one-board.
 Stores of schemas 1 to 3 are upgraded to 4 by an earlier wfbench (before issue #45) first.
 """
@@ -13,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
-from wfbench.leaderboard.rows import RESULT_FRAME_COLUMNS, Entry, StoreError, check_rows
+from wfbench.leaderboard.board.db import Submission
+from wfbench.leaderboard.rows import RESULT_FRAME_COLUMNS, StoreError, check_rows
 
 from wfbench.core.kpis import SCORE
 
@@ -22,6 +24,8 @@ SCHEMA_VERSION = 4
 ENTRY_FIELDS = ("track", "name", "policy", "submitter", "track_hash", "wfbench_version", "created_at", "status",
                 "reason", "builtin", "fingerprint", "fingerprint_detail", "budget")
 """A schema-4 entry's columns after its id (``submissions``; ``audit_submissions`` after its audit and entry ids)."""
+STATE = {"running": "running", "complete": "done", "failed": "failed"}
+"""A schema-4 entry's status word as the board's state (the board shows it as it was: ``SHOWN``)."""
 
 
 def is_schema4(conn: sqlite3.Connection, path: Path) -> bool:
@@ -39,10 +43,11 @@ def is_schema4(conn: sqlite3.Connection, path: Path) -> bool:
     return True
 
 
-def entry(r: dict[str, Any], id_: int) -> Entry:
-    """The :class:`Entry` of a schema-4 ``submissions`` or ``audit_submissions`` row."""
-    return Entry(id_, r["track"], r["name"], r["policy"], r["submitter"], r["track_hash"], r["status"], r["reason"],
-                 bool(r["builtin"]), r["fingerprint"], r["fingerprint_detail"], r["budget"])
+def submission(r: dict[str, Any]) -> Submission:
+    """A schema-4 ``submissions`` row as the board's record of a local entry (the test phase on published seeds)."""
+    return Submission(r["id"], 0, r["submitter"], r["track"], r["track_hash"], "test", "", r["policy"], r["name"],
+                      STATE[r["status"]], r["reason"], 0.0, 0.0, 0, None, "", None, builtin=bool(r["builtin"]),
+                      fingerprint=r["fingerprint"], fingerprint_detail=r["fingerprint_detail"], budget=r["budget"])
 
 
 class Schema4Store:
@@ -72,10 +77,12 @@ class Schema4Store:
         """Every row of a table, as dicts, in ``order``."""
         return [dict(r) for r in self.conn.execute(f"SELECT * FROM {name} ORDER BY {order}")]
 
-    def submissions(self, track: str | None = None) -> list[Entry]:
-        return [entry(r, r["id"]) for r in self.table("submissions", "id") if track in (None, r["track"])]
+    def entries(self, track: str | None = None, phase: str = "test") -> list[Submission]:
+        """Its entries (of ``track``), oldest first; ``phase``: a local store's are all of the test phase."""
+        return [submission(r) for r in self.table("submissions", "id") if track in (None, r["track"])
+                and phase == "test"]
 
-    def results(self, track: Any) -> tuple[pd.DataFrame, list[str]]:
+    def results(self, track: Any, phase: str = "test") -> tuple[pd.DataFrame, list[str]]:
         """Valid rows of the track (with the entry's name) and one message per refused row."""
         q = ("SELECT s.name, s.status, s.builtin, r.* FROM results r JOIN submissions s ON s.id = r.submission_id "
              "WHERE r.track = ? ORDER BY s.id, r.scenario, r.seed")

@@ -2,12 +2,12 @@
 
 An entry is a test-phase submission of the board (its policy spec the entry point, its
 submitter the account, its seeds the track's published test seeds, ``seed_index`` the
-seed itself); what the local board adds to the hosted schema stands in two tables of
-its own: ``local_entries`` (fingerprint, budget, built-in, and, for an entry off the
-board, why it left) and ``local_rows`` (each row's provenance and digest). Replacing or
-withdrawing an entry withdraws its submission: its rows stay, and :meth:`Store.audit`
-lists them. A store of schema 4 (the sqlite3 file of earlier versions) is imported once
-when opened, its file kept beside as ``NAME.schema4``. docs/leaderboard.md#one-board.
+seed itself); what only the local board records stands in the board's own columns
+(revision ``0003``): a submission's fingerprint, budget, built-in mark and, for an entry
+off the board, why it left; a row's provenance and digest. Replacing or withdrawing an
+entry withdraws its submission: its rows stay, and :meth:`Store.audit` lists them. A
+store of schema 4 (the sqlite3 file of earlier versions) is imported once when opened,
+its file kept beside as ``NAME.schema4``. docs/leaderboard.md#one-board.
 """
 
 from __future__ import annotations
@@ -29,69 +29,44 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Connection
 from wfbench.leaderboard import report
 from wfbench.leaderboard.board import db as board_db
-from wfbench.leaderboard.board.db import Board, accounts, kind_of_reason, packages, submissions
+from wfbench.leaderboard.board.db import (
+    PROVENANCE_COLUMNS,
+    SHOWN,
+    STATES,
+    Board,
+    Submission,
+    accounts,
+    kind_of_reason,
+    packages,
+    submissions,
+    submissions_where,
+)
 from wfbench.leaderboard.board.migrations import NewerBoardError, check_known
 from wfbench.leaderboard.rows import (
     BUDGET_ROW_COLUMNS,
     KPI_COLUMNS,
-    RESULT_FRAME_COLUMNS,
     ROW_COLUMNS,
-    Entry,
     NameTaken,
     StoreError,
     budget_value,
-    check_rows,
     default_path,
     row_digest,
     scrub_paths,
 )
-from wfbench.leaderboard.schema4 import Schema4Store, is_schema4
+from wfbench.leaderboard.schema4 import STATE, Schema4Store, is_schema4
 from wfbench.leaderboard.tracks import Track, get_track
 
 from wfbench.core.kpis import SCORE
 from wfbench.harness.budget import BUDGET_COLUMNS
 
-__all__ = ["KPI_COLUMNS", "ROW_COLUMNS", "BUDGET_ROW_COLUMNS", "Entry", "NameTaken", "Store", "StoreError", "Shown",
+__all__ = ["KPI_COLUMNS", "ROW_COLUMNS", "BUDGET_ROW_COLUMNS", "NameTaken", "Store", "StoreError", "Shown",
            "default_path", "row_digest", "scrub_paths", "show"]
 
 APPLICATION_ID = 0x57464232  # "WFB2": a local board (a schema-4 store is "WFB1")
 PHASE = "test"  # a local entry runs the track's published test seeds
-_STATE = {"running": "running", "complete": "done", "failed": "failed"}  # local status -> the board's state
-_STATUS = {"queued": "running", "running": "running", "done": "complete", "failed": "failed"}
-
-local_metadata = sa.MetaData()
-local_entries = sa.Table(
-    "local_entries", local_metadata,
-    sa.Column("submission_id", sa.Integer, sa.ForeignKey(submissions.c.id), primary_key=True),
-    sa.Column("builtin", sa.Boolean, nullable=False),
-    sa.Column("fingerprint", sa.String(16), nullable=False),  # "": a legacy entry, stored before fingerprints
-    sa.Column("fingerprint_detail", sa.Text, nullable=False),
-    sa.Column("budget", sa.Text, nullable=False),  # JSON: what the policy states about its cost; "": not recorded
-    sa.Column("wfbench_version", sa.String(40), nullable=False),
-    sa.Column("created_at", sa.String(40), nullable=False),
-    # once the entry is off the board (its submission withdrawn): replaced or withdrawn, why, when, in what order
-    sa.Column("action", sa.String(10), nullable=False, default=""),
-    sa.Column("note", sa.Text, nullable=False, default=""),
-    sa.Column("moved_at", sa.String(40), nullable=False, default=""),
-    sa.Column("audit_id", sa.Integer, nullable=True),
-)
-local_rows = sa.Table(
-    "local_rows", local_metadata,
-    sa.Column("submission_id", sa.Integer, sa.ForeignKey(submissions.c.id), nullable=False),
-    sa.Column("scenario", sa.String(100), nullable=False),
-    sa.Column("seed_index", sa.BigInteger, nullable=False),
-    sa.Column("track", sa.String(100), nullable=False),
-    sa.Column("track_hash", sa.String(64), nullable=False),
-    sa.Column("policy", sa.String(300), nullable=False),
-    sa.Column("submitter", sa.String(100), nullable=False),
-    sa.Column("fingerprint", sa.String(16), nullable=False),
-    sa.Column("wfbench_version", sa.String(40), nullable=False),
-    sa.Column("finished_at", sa.String(40), nullable=False),
-    sa.Column("digest", sa.String(64), nullable=False),
-    sa.UniqueConstraint("submission_id", "scenario", "seed_index", name="one_local_row_per_unit"),
-)
-_ENTRY_FIELDS = ("builtin", "fingerprint", "fingerprint_detail", "budget")
-_PROVENANCE = ("track", "track_hash", "policy", "submitter", "fingerprint", "wfbench_version", "finished_at", "digest")
+_ENTRY_FIELDS = ("builtin", "fingerprint", "fingerprint_detail", "budget", "wfbench_version", "created_at")
+"""What a local entry records beyond the hosted columns (revision ``0003`` put them in ``submissions``)."""
+_PROVENANCE = tuple(PROVENANCE_COLUMNS)
 
 
 def _now() -> str:
@@ -105,16 +80,8 @@ def _epoch(text: str) -> float:
         return 0.0
 
 
-_ENTRY_QUERY = (sa.select(submissions, accounts.c.name.label("account"), *(local_entries.c[c] for c in (
-    *_ENTRY_FIELDS, "wfbench_version", "created_at", "action", "note", "moved_at", "audit_id")))
-    .join(accounts, accounts.c.id == submissions.c.account_id)
-    .join(local_entries, local_entries.c.submission_id == submissions.c.id))
 _ON_BOARD = submissions.c.withdrawn.is_(None)
-
-
-def _entry(r: Any) -> Entry:
-    return Entry(r["id"], r["track"], r["name"], r["entry"], r["account"], r["track_hash"], _STATUS[r["state"]],
-                 r["reason"], bool(r["builtin"]), r["fingerprint"], r["fingerprint_detail"], r["budget"])
+_LOCAL = (submissions.c.phase == PHASE) & submissions.c.hidden_version.is_(None)
 
 
 class Store:
@@ -133,7 +100,7 @@ class Store:
             schema4 = self._check_file()
         elif not create:
             raise StoreError(f"store {self.path} does not exist; pass --db with the file that "
-                             "'wfbench leaderboard submit' or 'seed' wrote, or run one of them first")
+                             "'wfbench leaderboard submit' or 'baselines' wrote, or run one of them first")
         else:
             schema4 = False
             if self.path.parent.exists() and not self.path.parent.is_dir():
@@ -171,7 +138,7 @@ class Store:
                 conn.close()
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"{self.path} is not a usable wfbench store: {exc}") from None
-        if app == APPLICATION_ID and not {"submissions", "local_entries"} <= tables:
+        if app == APPLICATION_ID and "submissions" not in tables:
             raise StoreError(f"{self.path} is marked as a wfbench store but its tables are missing")
         if app != APPLICATION_ID and tables:
             raise StoreError(f"{self.path} is an SQLite database but not a wfbench store; pass --db with another path")
@@ -186,8 +153,7 @@ class Store:
             except NewerBoardError as exc:
                 raise StoreError(f"{self.path} was written by a newer wfbench (board schema {exc.revision}; this "
                                  f"wfbench reads up to {exc.head}): upgrade wfbench to read it") from None
-            board.create()
-            local_metadata.create_all(board.engine)
+            board.create()  # a board made before revision 0003 has its local tables moved into the board's
             with board.engine.begin() as conn:
                 conn.exec_driver_sql(f"PRAGMA application_id={APPLICATION_ID}")
         except sa.exc.OperationalError as exc:
@@ -265,22 +231,26 @@ class Store:
         return StoreError(f"cannot write {what} to {self.path}: {text}")
 
     # -- entries -----------------------------------------------------------------------------------
-    def submissions(self, track: str | None = None) -> list[Entry]:
+    def submissions(self, track: str | None = None) -> list[Submission]:
         """The entries on the board (of ``track``), oldest first."""
-        q = _ENTRY_QUERY.where(_ON_BOARD)
-        if track:
-            q = q.where(submissions.c.track == track)
         with self.engine.begin() as conn:
-            return [_entry(r) for r in conn.execute(q.order_by(submissions.c.id)).mappings()]
+            return _on_board(conn, track)
 
-    def find(self, track: str, name: str) -> Entry | None:
+    def find(self, track: str, name: str) -> Submission | None:
         with self.engine.begin() as conn:
-            r = _find(conn, track, name)
-        return _entry(r) if r else None
+            return _find(conn, track, name)
+
+    def entries(self, track: str, phase: str = PHASE) -> list[Submission]:
+        """The entries the ranking lists (:meth:`Board.entries <wfbench.leaderboard.board.db.Board.entries>`)."""
+        return self.board.entries(track, phase)
+
+    def results(self, track: Track, phase: str = PHASE) -> tuple[pd.DataFrame, list[str]]:
+        """Valid rows of the track (with the entry's name) and one message per refused row (:meth:`Board.results`)."""
+        return self.board.results(track, phase)
 
     def open_submission(self, track: Track, name: str, policy: str, submitter: str, version: str,
                         builtin: bool = False, fingerprint: str = "", fingerprint_detail: str = "",
-                        replace: bool = False, budget: str = "") -> tuple[Entry, str]:
+                        replace: bool = False, budget: str = "") -> tuple[Submission, str]:
         """The entry ``name`` of ``track`` for a policy with this fingerprint, its job queued, in one transaction.
 
         Returns the entry and what happened: ``"new"``, ``"resumed"`` (same fingerprint
@@ -297,8 +267,7 @@ class Store:
             raise StoreError(f"submission name {name!r} is not allowed; allowed: 1-100 characters, one line")
 
         def open_(conn: Connection) -> str:
-            r = _find(conn, track.name, name)
-            existing = _entry(r) if r else None
+            existing = _find(conn, track.name, name)
             action = "new"
             if existing is not None:
                 if replace:
@@ -314,8 +283,7 @@ class Store:
                     raise NameTaken(existing, "track")
                 else:
                     _set_state(conn, existing.id, "running", "")
-                    conn.execute(local_entries.update().where(local_entries.c.submission_id == existing.id)
-                                 .values(budget=budget))
+                    conn.execute(submissions.update().where(submissions.c.id == existing.id).values(budget=budget))
                     _queue(conn, existing.id)
                     return "resumed"
             _queue(conn, _add_entry(conn, track.name, track.hash, name, policy, submitter, "running", "", {
@@ -333,42 +301,43 @@ class Store:
             StoreError: no entry of that name on the track (the message names those there are).
         """
         def withdraw_(conn: Connection) -> int:
-            r = _find(conn, track, name)
-            if r is None:
-                there = conn.execute(sa.select(submissions.c.name).where((submissions.c.track == track) & _ON_BOARD)
-                                     .order_by(submissions.c.id)).scalars().all()
+            found = _find(conn, track, name)
+            if found is None:
+                there = [s.name for s in _on_board(conn, track)]
                 raise StoreError(f"no entry {name!r} on track {track} in {self.path}; entries there: "
                                  f"{', '.join(there) if there else 'none'}")
-            return _archive(conn, r["id"], "withdrawn", note or "withdrawn")
+            return _archive(conn, found.id, "withdrawn", note or "withdrawn")
 
         return self._write(f"the withdrawal of {name!r}", withdraw_)
 
     def audit(self, track: str | None = None) -> pd.DataFrame:
         """The audit trail: a row per result of an entry off the board (or per such entry without any), oldest first."""
-        e, r, p = local_entries, board_db.rows, local_rows
-        q = (sa.select(e.c.audit_id, submissions.c.track, submissions.c.name, submissions.c.entry.label("policy"),
-                       e.c.fingerprint, submissions.c.state.label("status"), e.c.action, e.c.note, e.c.moved_at,
-                       r.c.scenario, r.c.seed, r.c[SCORE], p.c.digest)
-             .select_from(e.join(submissions, submissions.c.id == e.c.submission_id)
-                          .outerjoin(r, r.c.submission_id == e.c.submission_id)
-                          .outerjoin(p, (p.c.submission_id == r.c.submission_id) & (p.c.scenario == r.c.scenario)
-                                     & (p.c.seed_index == r.c.seed_index)))
-             .where(e.c.audit_id.is_not(None)).order_by(e.c.audit_id, r.c.scenario, r.c.seed))
+        r = board_db.rows
+        q = (sa.select(submissions.c.audit_id, submissions.c.track, submissions.c.name,
+                       submissions.c.entry.label("policy"), submissions.c.fingerprint,
+                       submissions.c.state.label("status"), submissions.c.audit_action.label("action"),
+                       submissions.c.audit_note.label("note"), submissions.c.audit_at.label("moved_at"),
+                       r.c.scenario, r.c.seed, r.c[SCORE], r.c.digest)
+             .select_from(submissions.outerjoin(r, r.c.submission_id == submissions.c.id))
+             .where(submissions.c.audit_id.is_not(None)).order_by(submissions.c.audit_id, r.c.scenario, r.c.seed))
         if track:
             q = q.where(submissions.c.track == track)
         with self.engine.begin() as conn:
             df = pd.read_sql_query(q, conn)
-        return df.assign(status=df["status"].map(_STATUS))
+        return df.assign(status=df["status"].map(SHOWN))
 
-    def set_status(self, sub_id: int, status: str, reason: str = "") -> None:
-        self._write("the submission status", lambda c: _set_state(c, sub_id, _STATE[status], reason))
+    def set_status(self, sub_id: int, state: str, reason: str = "") -> None:
+        """Set an entry's state (``running``, ``done`` or ``failed``, with the failure's one-line reason)."""
+        if state not in STATES:
+            raise StoreError(f"state {state!r} is not allowed; allowed: {', '.join(STATES)}")
+        self._write("the submission status", lambda c: _set_state(c, sub_id, state, reason))
 
     def done_units(self, sub_id: int) -> set[tuple[str, int]]:
         """The (scenario, seed) pairs stored for an entry (scenario ``""`` on a one-scenario track)."""
         with self.engine.begin() as conn:
             return _done(conn, sub_id)
 
-    def add_results(self, sub: Entry, version: str, rows: Iterable[dict[str, Any]]) -> int:
+    def add_results(self, sub: Submission, version: str, rows: Iterable[dict[str, Any]]) -> int:
         """Store finished seeds in one transaction; returns how many were new.
 
         A row holds the KPIs, ``episode_length`` and ``invalid_actions``, and its budget
@@ -398,30 +367,18 @@ class Store:
 
         return self._write(f"{len(rows)} result(s) of {sub.name!r}", insert)
 
-    # -- reading -----------------------------------------------------------------------------------
-    def results(self, track: Track) -> tuple[pd.DataFrame, list[str]]:
-        """Valid rows of the track (with the entry's name) and one message per refused row."""
-        r, p = board_db.rows, local_rows
-        q = (sa.select(submissions.c.name, submissions.c.state, local_entries.c.builtin, r.c.submission_id, r.c.seed,
-                       *(p.c[c] for c in _PROVENANCE), *(r.c[c] for c in (*ROW_COLUMNS, *BUDGET_ROW_COLUMNS,
-                                                                           "scenario")))
-             .select_from(r.join(submissions, submissions.c.id == r.c.submission_id)
-                          .join(local_entries, local_entries.c.submission_id == submissions.c.id)
-                          .join(p, (p.c.submission_id == r.c.submission_id) & (p.c.scenario == r.c.scenario)
-                                & (p.c.seed_index == r.c.seed_index)))
-             .where((p.c.track == track.name) & _ON_BOARD).order_by(submissions.c.id, r.c.scenario, r.c.seed))
-        with self.engine.begin() as conn:
-            found = [{**d, "status": _STATUS[d.pop("state")]} for d in (dict(m) for m in conn.execute(q).mappings())]
-        keep, refused = check_rows(found, track)
-        return pd.DataFrame(keep, columns=list(RESULT_FRAME_COLUMNS)), refused
-
-
 # -- writing, inside the caller's transaction ---------------------------------------------------------
 
 
-def _find(conn: Connection, track: str, name: str) -> Any:
-    return conn.execute(_ENTRY_QUERY.where((submissions.c.track == track) & (submissions.c.name == name)
-                                           & _ON_BOARD)).mappings().first()
+def _find(conn: Connection, track: str, name: str) -> Submission | None:
+    found = submissions_where(conn, (submissions.c.track == track) & (submissions.c.name == name) & _ON_BOARD
+                              & _LOCAL)
+    return found[0] if found else None
+
+
+def _on_board(conn: Connection, track: str | None) -> list[Submission]:
+    """The local entries on the board (of ``track``), oldest first."""
+    return submissions_where(conn, _ON_BOARD & _LOCAL & (submissions.c.track == track if track else sa.true()))
 
 
 def _done(conn: Connection, sub_id: int) -> set[tuple[str, int]]:
@@ -446,9 +403,9 @@ def _account(conn: Connection, name: str) -> int:
         created=time.time())).inserted_primary_key[0]
 
 
-def _add_entry(conn: Connection, track: str, track_hash: str, name: str, policy: str, submitter: str, status: str,
+def _add_entry(conn: Connection, track: str, track_hash: str, name: str, policy: str, submitter: str, state: str,
                reason: str, entry: dict[str, Any], withdrawn: float | None = None) -> int:
-    """Insert an entry: its submission, its package (the entry's own record) and its ``local_entries`` row."""
+    """Insert an entry: its submission (``entry``: its :data:`_ENTRY_FIELDS`) and its package (its own record)."""
     sub_id = (conn.execute(sa.select(sa.func.max(submissions.c.id))).scalar() or 0) + 1
     # a local entry has no package to run: its package is its record, one per entry (the board's key needs one)
     data = json.dumps({"local entry": sub_id, "track": track, "name": name, "policy": policy,
@@ -456,15 +413,13 @@ def _add_entry(conn: Connection, track: str, track_hash: str, name: str, policy:
     sha = board_db.package_sha(data)
     now = time.time()
     conn.execute(packages.insert().values(sha256=sha, bytes=data, size=len(data), created=now))
-    state = _STATE[status]
     failed = state == "failed"
     conn.execute(submissions.insert().values(
         id=sub_id, account_id=_account(conn, submitter), track=track, track_hash=track_hash, phase=PHASE,
         package_sha=sha, entry=policy, name=name, state=state, reason=reason,
         created=_epoch(entry["created_at"]) or now, updated=now, attempts=0, hidden_version=None, log="",
         result=None, fault="policy" if failed else "", kind=kind_of_reason(reason) if failed else "", spent_s=0.0,
-        withdrawn=withdrawn))
-    conn.execute(local_entries.insert().values(submission_id=sub_id, **entry))
+        withdrawn=withdrawn, **entry))
     return sub_id
 
 
@@ -474,25 +429,24 @@ def _add_row(conn: Connection, sub_id: int, values: dict[str, Any], seed: int, f
     conn.execute(board_db.rows.insert().values(
         submission_id=sub_id, scenario=scenario, seed_index=seed, seed=seed, finished=finished,
         **{c: float(values[c]) for c in KPI_COLUMNS}, episode_length=int(values["episode_length"]),
-        invalid_actions=int(values["invalid_actions"]), **{c: values.get(c) for c in BUDGET_ROW_COLUMNS}))
-    if provenance is not None:
-        conn.execute(local_rows.insert().values(submission_id=sub_id, scenario=scenario, seed_index=seed,
-                                                **provenance))
+        invalid_actions=int(values["invalid_actions"]), **{c: values.get(c) for c in BUDGET_ROW_COLUMNS},
+        **(provenance or {})))
 
 
-def add_provenance(conn: Connection, sub: Entry, version: str, rows: list[dict[str, Any]]) -> None:
-    """Each new row's provenance and digest (``local_rows``), inside the caller's transaction.
+def add_provenance(conn: Connection, sub: Submission, version: str, rows: list[dict[str, Any]]) -> None:
+    """Each new row's provenance and digest (the ``rows`` table's own columns), inside the caller's transaction.
 
-    ``rows``: as stored in the board's ``rows`` table (the seed is the seed index); the
+    ``rows``: as just stored in the board's ``rows`` table (the seed is the seed index); the
     local worker's writes (:func:`wfbench.leaderboard.board.queue.write_rows`) call it.
     """
+    r = board_db.rows
     for values in rows:
         seed = int(values["seed"])
-        conn.execute(local_rows.insert().values(
-            submission_id=sub.id, scenario=values["scenario"], seed_index=seed, track=sub.track,
-            track_hash=sub.track_hash, policy=sub.policy, submitter=sub.submitter, fingerprint=sub.fingerprint,
-            wfbench_version=version, finished_at=_now(),
-            digest=row_digest(sub.name, sub.track, sub.track_hash, sub.policy, sub.submitter, version, seed, values,
+        conn.execute(r.update().where((r.c.submission_id == sub.id) & (r.c.scenario == values["scenario"])
+                                      & (r.c.seed_index == seed)).values(
+            track=sub.track, track_hash=sub.track_hash, policy=sub.entry, submitter=sub.account,
+            fingerprint=sub.fingerprint, wfbench_version=version, finished_at=_now(),
+            digest=row_digest(sub.name, sub.track, sub.track_hash, sub.entry, sub.account, version, seed, values,
                               sub.fingerprint)))
 
 
@@ -507,7 +461,7 @@ def _queue(conn: Connection, sub_id: int) -> None:
 
 def _archive(conn: Connection, sub_id: int, action: str, note: str, moved_at: str | None = None) -> int:
     """Take an entry off the board (its submission withdrawn, its rows kept), saying why; returns its row count."""
-    audit_id = (conn.execute(sa.select(sa.func.max(local_entries.c.audit_id))).scalar() or 0) + 1
+    audit_id = (conn.execute(sa.select(sa.func.max(submissions.c.audit_id))).scalar() or 0) + 1
     moved_at = moved_at or _now()
     conn.execute(submissions.update().where(submissions.c.id == sub_id).values(withdrawn=_epoch(moved_at) or
                                                                                time.time(), updated=time.time()))
@@ -515,8 +469,8 @@ def _archive(conn: Connection, sub_id: int, action: str, note: str, moved_at: st
     conn.execute(board_db.jobs.update().where((board_db.jobs.c.submission_id == sub_id)
                                             & board_db.jobs.c.state.in_(("queued", "running"))).values(
         state="failed", lease_owner=None, lease_until=None, fence=board_db.jobs.c.fence + 1))
-    conn.execute(local_entries.update().where(local_entries.c.submission_id == sub_id).values(
-        action=action, note=note, moved_at=moved_at, audit_id=audit_id))
+    conn.execute(submissions.update().where(submissions.c.id == sub_id).values(
+        audit_action=action, audit_note=note, audit_at=moved_at, audit_id=audit_id))
     return conn.execute(sa.select(sa.func.count()).select_from(board_db.rows)
                         .where(board_db.rows.c.submission_id == sub_id)).scalar()
 
@@ -524,10 +478,9 @@ def _archive(conn: Connection, sub_id: int, action: str, note: str, moved_at: st
 def _import_tables(conn: Connection, tables: dict[str, list[dict[str, Any]]]) -> None:
     """Every entry, row and audit row of a schema-4 store onto the board (inside the caller's transaction)."""
     def entry(s: dict[str, Any], withdrawn: float | None = None) -> int:
-        return _add_entry(conn, s["track"], s["track_hash"], s["name"], s["policy"], s["submitter"], s["status"],
-                          s["reason"], {"builtin": bool(s["builtin"]), **{k: s[k] for k in _ENTRY_FIELDS[1:]},
-                                        "wfbench_version": s["wfbench_version"], "created_at": s["created_at"]},
-                          withdrawn)
+        return _add_entry(conn, s["track"], s["track_hash"], s["name"], s["policy"], s["submitter"],
+                          STATE[s["status"]], s["reason"],
+                          {"builtin": bool(s["builtin"]), **{k: s[k] for k in _ENTRY_FIELDS[1:]}}, withdrawn)
 
     def rows(sub_id: int, found: list[dict[str, Any]]) -> None:
         for r in found:
@@ -544,8 +497,8 @@ def _import_tables(conn: Connection, tables: dict[str, list[dict[str, Any]]]) ->
     for a in tables["audit_submissions"]:
         sub_id = entry(a, _epoch(a["moved_at"]) or time.time())
         rows(sub_id, audited.get(a["audit_id"], []))
-        conn.execute(local_entries.update().where(local_entries.c.submission_id == sub_id).values(
-            action=a["action"], note=a["note"], moved_at=a["moved_at"], audit_id=a["audit_id"]))
+        conn.execute(submissions.update().where(submissions.c.id == sub_id).values(
+            audit_action=a["action"], audit_note=a["note"], audit_at=a["moved_at"], audit_id=a["audit_id"]))
 
 
 # -- showing -----------------------------------------------------------------------------------------------
@@ -581,5 +534,6 @@ def show(track: str | Track, db: Any = None, fmt: str = "table", baseline: str =
     tr = get_track(track) if isinstance(track, str) else track
     report.check_format(fmt)
     store = db if isinstance(db, Store | Schema4Store) else Store(db, create=False)  # showing never creates one
-    r = report.ranking(store, tr, baseline=baseline, max_decision_ms=max_decision_ms, max_cpu_s=max_cpu_s)
+    board = store.board if isinstance(store, Store) else store
+    r = report.ranking(board, tr, baseline=baseline, max_decision_ms=max_decision_ms, max_cpu_s=max_cpu_s)
     return Shown(report.render(r, fmt), list(r.refused), list(r.left_out))

@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import sqlalchemy as sa
+from wfbench.leaderboard.board.db import Submission
 from wfbench.leaderboard.board.worker import Worker
 from wfbench.leaderboard.fingerprint import fingerprint_change, is_entry_point, policy_fingerprint
 from wfbench.leaderboard.local import LocalRunner, RemainingTime
-from wfbench.leaderboard.rows import Entry, NameTaken, SubmitError
+from wfbench.leaderboard.rows import NameTaken, SubmitError
 from wfbench.leaderboard.store import Store
 from wfbench.leaderboard.tracks import Track, get_track
 from wfbench.policies import registry as _registry
@@ -43,7 +44,7 @@ BUILTIN_ENTRIES = _registry.LINEUPS["leaderboard"]  # the entries seed_builtins 
 
 @dataclass(frozen=True)
 class Outcome:
-    submission: Entry
+    submission: Submission
     status: str  # complete | failed
     reason: str  # one line; empty when complete
     new_rows: int
@@ -120,7 +121,7 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
         done = store.done_units(existing.id)
         if all(u in done for u in tr.units()):  # nothing to evaluate, and no user code to load
             if existing.status != "complete":
-                store.set_status(existing.id, "complete", "")
+                store.set_status(existing.id, "done", "")
             sub = store.find(tr.name, name)
             return Outcome(sub, "complete", "", 0, len(done), time.perf_counter() - t0)  # type: ignore[arg-type]
     with LocalRunner(tr, policy, execution, wall_time_s, memory_mb, act_timeout_s) as runner:
@@ -155,14 +156,14 @@ def submit(track: str | Track, policy: str, name: str, submitter: str | None = N
                    action, runner.clock.per_scenario() if runner.clock is not None else {})
 
 
-def _check_taken(existing: Entry, tr: Track, name: str, policy: str, fingerprint: str,
+def _check_taken(existing: Submission, tr: Track, name: str, policy: str, fingerprint: str,
                  detail: dict[str, Any] | None) -> None:
     """Raise the one-line SubmitError when ``name`` is taken by another fingerprint or track version."""
     how = ("pass --replace to evaluate this policy under that name (the old entry's rows are kept in the store's "
            "audit tables) or choose another --name")
     if existing.fingerprint != fingerprint:
         change = fingerprint_change(existing.fingerprint_detail, detail or {})
-        raise SubmitError(f"the name {name!r} on track {tr.name} is taken by a different policy ({existing.policy!r}, "
+        raise SubmitError(f"the name {name!r} on track {tr.name} is taken by a different policy ({existing.entry!r}, "
                           f"fingerprint {existing.fingerprint}; now {policy!r}, fingerprint {fingerprint}: {change}); "
                           f"{how}")
     if existing.track_hash != tr.hash:
@@ -180,7 +181,7 @@ def scenario_times(out: Outcome) -> str:
 
 
 def seed_tracks(track: str | Track | None = None) -> list[Track]:
-    """The tracks ``wfbench leaderboard seed`` fills: the one named, or every track marked ``seeded``.
+    """The tracks ``wfbench leaderboard baselines`` fills: the one named, or every track marked ``seeded``.
 
     A track that runs a whole suite is not marked (:func:`~wfbench.leaderboard.tracks.suite_track`): named only.
     """

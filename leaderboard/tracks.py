@@ -37,7 +37,7 @@ class Track:
             constants of ``suite.name`` apply to its scenarios (:func:`wfbench.scenarios.normalize`).
         description: one line.
         references: ``(scenario id, random_ref, bound_ref)`` for scenarios without published constants.
-        seeded: whether ``wfbench leaderboard seed`` fills it when no track is named (a long track is not).
+        seeded: whether ``wfbench leaderboard baselines`` fills it when no track is named (a long track is not).
     """
 
     name: str
@@ -139,7 +139,7 @@ def scenario_track(name: str, config: ScenarioConfig, public_seeds: tuple[int, .
 def suite_track(suite: str | Suite, description: str | None = None) -> Track:
     """The track of a suite (a name such as ``"suite-v1"`` or a :class:`~wfbench.scenarios.Suite`), named after it.
 
-    It runs every scenario of the suite, so ``wfbench leaderboard seed`` fills it only when named.
+    It runs every scenario of the suite, so ``wfbench leaderboard baselines`` fills it only when named.
     """
     s = get_suite(suite)
     return Track(name=s.name, suite=s, seeded=False, description=description or (

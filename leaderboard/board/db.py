@@ -26,7 +26,7 @@ import pandas as pd
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
 from wfbench.leaderboard.board import hidden, migrations
-from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, KPI_COLUMNS, ROW_COLUMNS, Entry
+from wfbench.leaderboard.rows import BUDGET_ROW_COLUMNS, KPI_COLUMNS, RESULT_FRAME_COLUMNS, ROW_COLUMNS, check_rows
 from wfbench.leaderboard.tracks import TRACKS, Track
 
 from wfbench import __version__
@@ -38,6 +38,8 @@ DEV_CONCURRENT = 2  # dev-phase jobs queued or running at once per account (the 
 QUOTA_WINDOW_S = 24 * 3600.0
 LOG_BYTES = 64 * 1024  # what is kept of a submission's log (its end)
 STATES = ("queued", "running", "done", "failed")
+SHOWN = {"queued": "running", "running": "running", "done": "complete", "failed": "failed", "withdrawn": "withdrawn"}
+"""A submission's state as both boards' reports show it (:attr:`Submission.status`): queued and running alike."""
 KEY_SECRET = "key_secret"
 URL_FORMS = ("a file path or sqlite:///PATH (SQLite), or postgresql+psycopg://USER:PASSWORD@HOST[:PORT]/DB "
              "(PostgreSQL)")
@@ -173,6 +175,18 @@ submissions = sa.Table(
     sa.Column("kind", sa.String(20), nullable=False, default="", server_default=""),  # a FAILURE_KINDS word
     sa.Column("spent_s", sa.Double, nullable=False, default=0.0, server_default="0"),
     sa.Column("withdrawn", sa.Double, nullable=True),  # when its owner withdrew it; NULL: on the board
+    # issue #54 (revision 0003): what a local entry records beyond the hosted columns ("" / false on a hosted board)
+    sa.Column("builtin", sa.Boolean, nullable=False, default=False, server_default=sa.false()),
+    sa.Column("fingerprint", sa.String(16), nullable=False, default="", server_default=""),  # "": before them
+    sa.Column("fingerprint_detail", sa.Text, nullable=False, default="", server_default=""),
+    sa.Column("budget", sa.Text, nullable=False, default="", server_default=""),  # JSON: the policy's stated cost
+    sa.Column("wfbench_version", sa.String(40), nullable=False, default="", server_default=""),
+    sa.Column("created_at", sa.String(40), nullable=False, default="", server_default=""),  # ISO time of a local one
+    # once a local entry is off the board: replaced or withdrawn, why, when, and its place in the audit trail
+    sa.Column("audit_action", sa.String(10), nullable=False, default="", server_default=""),
+    sa.Column("audit_note", sa.Text, nullable=False, default="", server_default=""),
+    sa.Column("audit_at", sa.String(40), nullable=False, default="", server_default=""),
+    sa.Column("audit_id", sa.Integer, nullable=True),
     sa.CheckConstraint("phase IN ('dev', 'test')", name="phase_known"),
     sa.CheckConstraint("state IN ('queued', 'running', 'done', 'failed')", name="state_known"),
     sa.UniqueConstraint("account_id", "package_sha", "entry", "track", "phase", name="same_package_per_account"),
@@ -192,6 +206,9 @@ jobs = sa.Table(
 sa.Index("jobs_state", jobs.c.state, jobs.c.lease_until)
 
 _COUNTS = ("episode_length", "invalid_actions")
+PROVENANCE_COLUMNS = {"track": 100, "track_hash": 64, "policy": 300, "submitter": 100, "fingerprint": 16,
+                      "wfbench_version": 40, "finished_at": 40, "digest": 64}
+"""A local row's provenance (column: its length), which :func:`~wfbench.leaderboard.rows.row_digest` covers."""
 rows = sa.Table(
     "rows", metadata,
     sa.Column("submission_id", sa.Integer, sa.ForeignKey("submissions.id"), nullable=False),
@@ -203,6 +220,8 @@ rows = sa.Table(
     *(sa.Column(c, sa.Double, nullable=True) for c in BUDGET_COLUMNS),
     sa.Column("machine", sa.Text, nullable=True),
     sa.Column("finished", sa.Double, nullable=False),
+    # issue #54 (revision 0003): a local entry's row carries its provenance and the digest over it; NULL otherwise
+    *(sa.Column(c, sa.String(n), nullable=True) for c, n in PROVENANCE_COLUMNS.items()),
     sa.UniqueConstraint("submission_id", "scenario", "seed_index", name="one_row_per_unit"),
 )
 ROW_FIELDS = ("scenario", "seed_index", "seed", *ROW_COLUMNS, *BUDGET_ROW_COLUMNS)
@@ -312,6 +331,27 @@ class Submission:
     kind: str = ""  # the failure's word of FAILURE_KINDS; "" otherwise
     spent_s: float = 0.0  # worker seconds it used, over every attempt
     withdrawn: float | None = None  # when its owner withdrew it (state "withdrawn")
+    builtin: bool = False  # one of wfbench's own entries (the local board's built-ins)
+    # what identifies the policy: a local entry's fingerprint ("" for one stored before fingerprints), a package's
+    # first 16 hex digits on a hosted board; and what it covers (JSON)
+    fingerprint: str = ""
+    fingerprint_detail: str = ""
+    budget: str = ""  # JSON: what the policy states about its cost; "" where not recorded
+
+    @property
+    def status(self) -> str:
+        """Its state as the reports show it (:data:`SHOWN`): ``running`` (queued too), ``complete`` or ``failed``."""
+        return SHOWN[self.state]
+
+    @property
+    def local(self) -> bool:
+        """An entry of the local board: the test phase on the track's published seeds (no hidden seed list)."""
+        return self.phase == "test" and self.hidden_version is None
+
+    @property
+    def legacy(self) -> bool:
+        """A local entry stored before fingerprints."""
+        return self.local and not self.fingerprint
 
 
 def token_hash(token: str) -> str:
@@ -373,10 +413,20 @@ def _sub(r: Mapping[str, Any]) -> Submission:
                 "next worker resumes it with the episodes still missing")
     if r["withdrawn"] is not None:
         state, note = "withdrawn", ""
+    fingerprint, detail = r["fingerprint"], r["fingerprint_detail"]
+    if not (r["phase"] == "test" and r["hidden_version"] is None):  # a package's: its hash names it
+        fingerprint = r["package_sha"].removeprefix("sha256:")[:16]
+        detail = json.dumps({"package": r["package_sha"], "entry": r["entry"]})
     return Submission(r["id"], r["account_id"], r["account"], r["track"], r["track_hash"], r["phase"],
                       r["package_sha"], r["entry"], r["name"], state, r["reason"], r["created"], r["updated"],
                       r["attempts"], r["hidden_version"], r["log"], json.loads(r["result"]) if r["result"] else None,
-                      note, r["fault"], r["kind"], float(r["spent_s"] or 0.0), r["withdrawn"])
+                      note, r["fault"], r["kind"], float(r["spent_s"] or 0.0), r["withdrawn"], bool(r["builtin"]),
+                      fingerprint, detail, r["budget"])
+
+
+def submissions_where(conn: Connection, where: Any) -> list[Submission]:
+    """The submissions ``where`` selects, oldest first, inside the caller's transaction."""
+    return [_sub(r) for r in conn.execute(_SUBMISSION_QUERY.where(where).order_by(submissions.c.id)).mappings()]
 
 
 MAX_ATTEMPTS = 3  # claims of one job before the queue gives up on it (queue.claim)
@@ -621,9 +671,10 @@ class Board:
 
         There, a reader other than the board's administrator sees only its word of
         :data:`FAILURE_KINDS` (:attr:`Submission.kind`): a policy must not pass anything
-        it observed on the hidden seeds out through its exception's text.
+        it observed on the hidden seeds out through its exception's text. A local entry,
+        which ran on the published seeds, shows its whole reason.
         """
-        if not sub.reason or sub.phase != "test" or admin or self.test_phase_ended(sub.track) is not None:
+        if not sub.reason or sub.phase != "test" or sub.local or admin or self.test_phase_ended(sub.track) is not None:
             return sub.reason
         return sub.kind or "raised"
 
@@ -767,15 +818,14 @@ class Board:
             raise BoardError("the board has no key secret: run Board.create() (wfbench serve does) first")
         return bytes.fromhex(value)
 
-    # -- the board as the local reports read it ---------------------------------------------------------------
-    def store_view(self, track: str, phase: str) -> BoardView:
-        """A snapshot of a phase of a track that :func:`wfbench.leaderboard.report.ranking` reads like a Store.
+    # -- the board as the reports rank it ----------------------------------------------------------------------
+    def phase_track(self, track: str, phase: str) -> Track:
+        """The track a phase of ``track`` is ranked with: its ``test_seeds`` are what the phase's rows carry.
 
-        Withdrawn submissions are left out; in a running test phase a failure's reason is
-        its word only (:meth:`shown_reason`). Rank it with its own :attr:`BoardView.track`,
-        e.g. ``ranking(view, view.track)``. On the test board the rows' ``seed`` is the seed's
-        index in the hidden list and the track's ``test_seeds`` are those indices
-        (:func:`~wfbench.leaderboard.board.hidden.board_track`): no hidden seed reaches a report.
+        The development phase ranks on the public seeds; the test phase on the hidden seeds
+        by their index (:func:`~wfbench.leaderboard.board.hidden.board_track`), the list's
+        commitment in the description: no hidden seed reaches a report. The local board
+        ranks its entries on the track itself.
         """
         tr = self.track(track)
         try:
@@ -786,16 +836,107 @@ class Board:
         note = (f"test phase on {h.count} hidden seeds (version {h.version}, commitment {h.commitment}), shown by "
                 "index" if h else "test phase on hidden seeds, none drawn yet") if phase == "test" \
             else "development phase on the public seeds"
-        view_track = hidden.board_track(tr, phase, h.count if h else 0, note)
+        return hidden.board_track(tr, phase, h.count if h else 0, note)
+
+    def entries(self, track: str, phase: str = "test") -> list[Submission]:
+        """What the ranking lists of a phase of ``track``: the submissions on the board, oldest first.
+
+        Each is named as the board shows it (:func:`entry_names`), its reason as a reader
+        sees it (:meth:`shown_reason`). A submission the board evaluated from a package
+        but made on another version of the track, or (test phase) on another hidden seed
+        list, is left out; :meth:`results` says why.
+        """
+        return self._standing(track, phase)[0]
+
+    def results(self, track: Track, phase: str = "test") -> tuple[pd.DataFrame, list[str]]:
+        """The rows the ranking may use of a phase of ``track``, and one message per refused row or submission.
+
+        The rows have :data:`~wfbench.leaderboard.rows.RESULT_FRAME_COLUMNS`, by entry, scenario
+        and seed. A local entry's row is checked against ``track`` and its digest
+        (:func:`~wfbench.leaderboard.rows.check_rows`). A hosted submission's rows are the
+        board's own; in the test phase their ``seed`` is the seed's index in the hidden list
+        (rank them with :meth:`phase_track`).
+        """
+        subs, refused = self._standing(track.name, phase)
+        local = [s for s in subs if s.local]
+        hosted = [s for s in subs if not s.local]
+        frames = []
+        if local:
+            q = (sa.select(submissions.c.name, submissions.c.state, submissions.c.builtin, rows.c.submission_id,
+                           rows.c.seed, *(rows.c[c] for c in PROVENANCE_COLUMNS if c not in ("finished_at", "digest")),
+                           rows.c.finished_at, rows.c.digest, *(rows.c[c] for c in (*ROW_COLUMNS, *BUDGET_ROW_COLUMNS,
+                                                                                     "scenario")))
+                 .select_from(rows.join(submissions, submissions.c.id == rows.c.submission_id))
+                 .where(submissions.c.id.in_([s.id for s in local]) & (rows.c.track == track.name))
+                 .order_by(submissions.c.id, rows.c.scenario, rows.c.seed))
+            with self.engine.begin() as conn:
+                found = [{**d, "status": SHOWN[d.pop("state")]} for d in map(dict, conn.execute(q).mappings())]
+            keep, bad = check_rows(found, track)
+            refused += bad
+            frames.append(pd.DataFrame(keep, columns=list(RESULT_FRAME_COLUMNS)))
+        if hosted:
+            frames.append(self._hosted_rows(track, phase, hosted))
+        if len(frames) != 1:
+            frames = [pd.concat(frames, ignore_index=True) if frames
+                      else pd.DataFrame([], columns=list(RESULT_FRAME_COLUMNS))]
+        return frames[0], refused
+
+    def _standing(self, track: str, phase: str) -> tuple[list[Submission], list[str]]:
+        """The submissions a ranking lists (named, reasons as shown) and why others of the phase are left out."""
+        try:
+            hidden.check_phase(phase)
+        except ValueError as exc:
+            raise BoardError(str(exc)) from None
         with self.engine.begin() as conn:
             subs = [_sub(r) for r in conn.execute(_SUBMISSION_QUERY.where(
                 (submissions.c.track == track) & (submissions.c.phase == phase)
                 & submissions.c.withdrawn.is_(None)).order_by(submissions.c.id)).mappings()]
-            frame = pd.read_sql_query(sa.select(rows).join(submissions, submissions.c.id == rows.c.submission_id)
-                                      .where((submissions.c.track == track) & (submissions.c.phase == phase))
+        names = entry_names(subs)
+        keep, refused = [], []
+        current = None
+        for s in subs:
+            if not s.local:
+                if current is None:
+                    tr = self.track(track)
+                    h = self.hidden_commitment(track) if phase == "test" else None
+                    current = (tr.hash, h.version if h else None)
+                if s.track_hash != current[0]:
+                    refused.append(f"submission {s.id} ({names[s.id]!r}) was made on another version of track "
+                                   f"{s.track} (hash {s.track_hash}, current {current[0]}); refused")
+                    continue
+                if phase == "test" and s.hidden_version != current[1]:
+                    refused.append(f"submission {s.id} ({names[s.id]!r}) ran on hidden seed list version "
+                                   f"{s.hidden_version}, not the current {current[1]}; refused")
+                    continue
+            keep.append(replace(s, name=names[s.id], reason=self.shown_reason(s)))
+        return keep, refused
+
+    def _hosted_rows(self, track: Track, phase: str, subs: list[Submission]) -> pd.DataFrame:
+        """The rows of hosted submissions in the reports' columns (no digest: the board's own rows)."""
+        by_id = {s.id: s for s in subs}
+        with self.engine.begin() as conn:
+            frame = pd.read_sql_query(sa.select(rows).where(rows.c.submission_id.in_(list(by_id)))
                                       .order_by(rows.c.submission_id, rows.c.scenario, rows.c.seed_index), conn)
-        subs = [replace(s, reason=self.shown_reason(s)) for s in subs]  # a running test phase: the word only
-        return BoardView(view_track, tr.hash, phase, h.version if h else None, subs, frame)
+        if phase == "test":
+            frame["seed"] = frame["seed_index"]  # the index, never the hidden seed
+        ids = frame["submission_id"]
+        return pd.DataFrame({
+            "name": [by_id[i].name for i in ids],
+            "status": [by_id[i].status for i in ids],
+            "builtin": False,
+            "submission_id": ids.to_numpy(),
+            "seed": frame["seed"].to_numpy(dtype=int),
+            "track": track.name, "track_hash": track.hash,
+            "policy": [by_id[i].entry for i in ids],
+            "submitter": [by_id[i].account for i in ids],
+            "wfbench_version": __version__, "finished_at": frame["finished"].to_numpy(),
+            **{c: frame[c].to_numpy() for c in ROW_COLUMNS},
+            "digest": "",
+            "fingerprint": [by_id[i].fingerprint for i in ids],
+            **{c: frame[c].to_numpy(dtype=float) for c in BUDGET_COLUMNS},
+            "machine": frame["machine"].to_numpy(),
+            "scenario": frame["scenario"].to_numpy(),
+        }, index=pd.RangeIndex(len(frame)))
 
 
 def entry_names(subs: list[Submission]) -> dict[int, str]:
@@ -804,68 +945,3 @@ def entry_names(subs: list[Submission]) -> dict[int, str]:
     for s in subs:
         count[s.name] = count.get(s.name, 0) + 1
     return {s.id: s.name if count[s.name] == 1 else f"{s.name} #{s.id}" for s in subs}
-
-
-_STATUS = {"queued": "running", "running": "running", "done": "complete", "failed": "failed"}
-
-
-class BoardView:
-    """A phase of a hosted track as :class:`wfbench.leaderboard.store.Store` shows a local track to the reports.
-
-    Each submission is an entry named by :func:`entry_names`, whose policy is its entry
-    point, submitter its account, fingerprint the first 16 hex digits of its package's
-    hash; queued and running ones show as ``running`` (not ranked yet). A submission made
-    on another version of the track, or (test phase) on another hidden seed list, stays
-    off the board with a line in the refused messages.
-    """
-
-    def __init__(self, track: Track, track_hash: str, phase: str, hidden_version: int | None,
-                 subs: list[Submission], frame: pd.DataFrame):
-        self.track = track  # what to rank with (hidden.board_track)
-        self.phase = phase
-        self.refused: list[str] = []
-        names = entry_names(subs)
-        keep = []
-        for s in subs:
-            if s.track_hash != track_hash:
-                self.refused.append(f"submission {s.id} ({names[s.id]!r}) was made on another version of track "
-                                    f"{s.track} (hash {s.track_hash}, current {track_hash}); refused")
-            elif phase == "test" and s.hidden_version != hidden_version:
-                self.refused.append(f"submission {s.id} ({names[s.id]!r}) ran on hidden seed list version "
-                                    f"{s.hidden_version}, not the current {hidden_version}; refused")
-            else:
-                keep.append(s)
-        self._subs = [Entry(
-            s.id, s.track, names[s.id], s.entry, s.account, track.hash, _STATUS[s.state], s.reason, False,
-            s.package_sha.removeprefix("sha256:")[:16], json.dumps({"package": s.package_sha, "entry": s.entry}),
-            "") for s in keep]
-        by_id = {s.id: s for s in self._subs}
-        frame = frame[frame["submission_id"].isin(list(by_id))].copy()
-        if phase == "test":
-            frame["seed"] = frame["seed_index"]  # the index, never the hidden seed
-        frame = frame.drop(columns="seed_index")
-        self._rows = pd.DataFrame({
-            "name": [by_id[i].name for i in frame["submission_id"]],
-            "status": [by_id[i].status for i in frame["submission_id"]],
-            "builtin": False,
-            "submission_id": frame["submission_id"].to_numpy(),
-            "seed": frame["seed"].to_numpy(dtype=int),
-            "track": track.name, "track_hash": track.hash,
-            "policy": [by_id[i].policy for i in frame["submission_id"]],
-            "submitter": [by_id[i].submitter for i in frame["submission_id"]],
-            "wfbench_version": __version__, "finished_at": frame["finished"].to_numpy(),
-            **{c: frame[c].to_numpy() for c in ROW_COLUMNS},
-            "digest": "",
-            "fingerprint": [by_id[i].fingerprint for i in frame["submission_id"]],
-            **{c: frame[c].to_numpy(dtype=float) for c in BUDGET_COLUMNS},
-            "machine": frame["machine"].to_numpy(),
-            "scenario": frame["scenario"].to_numpy(),
-        }, index=pd.RangeIndex(len(frame)))
-
-    def submissions(self, track: str | None = None) -> list[Entry]:
-        """The entries of this phase (``track``: accepted for Store's signature; the view holds one track)."""
-        return list(self._subs)
-
-    def results(self, track: Track | None = None) -> tuple[pd.DataFrame, list[str]]:
-        """The entries' rows, in Store.results' columns, and the refused messages."""
-        return self._rows.copy(), list(self.refused)

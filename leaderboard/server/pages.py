@@ -1,7 +1,7 @@
 """The HTML pages of a hosted board: the home page, a track's board per phase, a submission, an error.
 
 A board is the local leaderboard's own page (:mod:`wfbench.leaderboard.report`) over the hosted
-rows (:meth:`Board.store_view`), so both boards rank, show costs and name oracles alike; a test
+rows (:meth:`Board.entries`, :meth:`Board.results`), so both boards rank, show costs and name oracles alike; a test
 phase's rows carry seed indices and its page draws no per-seed figure: no page names a hidden
 seed. Every text a submitter chose is escaped. A submission's page refreshes itself while it is queued or running.
 ``docs/leaderboard.md``, "The hosted leaderboard".
@@ -77,8 +77,8 @@ def board_ranking(board, track: str, phase: str) -> Ranking:
         kept = _RANKINGS.setdefault(board, {})
         cached = kept.get((track, phase))
         if cached is None or cached[0] != stamp:
-            view = board.store_view(track, phase)
-            kept[(track, phase)] = cached = (stamp, report.ranking(view, view.track))
+            kept[(track, phase)] = cached = (stamp, report.ranking(board, board.phase_track(track, phase),
+                                                                   phase=phase))
     return cached[1]
 
 

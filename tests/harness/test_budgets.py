@@ -125,7 +125,7 @@ def _entry(store, name, rows, budget=None):
     sub, _ = store.open_submission(TINY, name, "heuristic", "me", "0", fingerprint=name,
                                    budget=json.dumps(budget or {"kind": "builtin"}))
     store.add_results(sub, "0", rows)
-    store.set_status(sub.id, "complete")
+    store.set_status(sub.id, "done")
 
 
 def test_ranking_within_a_budget_leaves_out_what_exceeds_it_and_says_why(tmp_path):

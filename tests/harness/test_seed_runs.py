@@ -188,7 +188,7 @@ def test_the_board_ranks_a_method_over_its_seeds_and_shows_each_seed(members, tm
         rows = [_row("small-v1", s, train + 0.01 * s) for s in TINY.test_seeds]
         rows += [_row("slow-64-v1", s, heldout + 0.01 * s) for s in TINY.test_seeds]
         store.add_results(sub, "0", rows)
-        store.set_status(sub.id, "complete")
+        store.set_status(sub.id, "done")
 
     entry("heuristic", "heuristic", 0.60, 0.60)
     entry("gen-0", "ppo-general#seed0", 0.70, 0.90)

@@ -224,15 +224,16 @@ def test_a_test_phase_submission_never_returns_its_seeds(board):
     assert board.rows(dev.id)["seed"].tolist() == [1000, 1001, 1002]
     rows = board.rows(test.id)
     assert "seed" not in rows and rows["seed_index"].tolist() == [0, 1, 2]
-    view = board.store_view("tiny", "test")
-    frame, _ = view.results(view.track)
-    assert frame["seed"].tolist() == [0, 1, 2] and view.track.test_seeds == (0, 1, 2)
-    shown = render(ranking(view, view.track), "table") + render(ranking(view, view.track), "csv")
+    track = board.phase_track("tiny", "test")
+    frame, _ = board.results(track, "test")
+    assert frame["seed"].tolist() == [0, 1, 2] and track.test_seeds == (0, 1, 2)
+    r = ranking(board, track, phase="test")
+    shown = render(r, "table") + render(r, "csv")
     assert h.commitment in shown, "the test board names the commitment"
     assert not any(str(s) in shown for s in h.seeds), "no hidden seed reaches the board"
 
 
-def test_store_view_ranks_the_phase_like_a_local_store(board):
+def test_a_phase_ranks_like_the_local_board(board):
     alice, bob = (board.account(board.add_account(n)) for n in ("alice", "bob"))
     subs = [board.submit(a, "tiny", "dev", board.put_package(name.encode()), f"{name}:P", name)[0]
             for a, name in ((alice, "low"), (bob, "high"), (alice, "broken"), (bob, "waiting"))]
@@ -241,7 +242,7 @@ def test_store_view_ranks_the_phase_like_a_local_store(board):
     c = queue.claim(board.engine, "tester", 30)
     queue.finish(c, "failed", "the policy raised ValueError: nope at p.py:3")
     again = board.submit(alice, "tiny", "dev", board.put_package(b"x"), "x:P", "high")[0]  # a name used twice
-    r = ranking(board.store_view("tiny", "dev"), board.store_view("tiny", "dev").track)
+    r = ranking(board, board.phase_track("tiny", "dev"), phase="dev")
     table = r.table.set_index("name")
     assert r.table["name"].tolist()[:2] == [f"high #{subs[1].id}", "low"], "ranked by mean NSW"
     assert table.loc["low", "nsw"] == pytest.approx(0.31) and table.loc["low", "rank"] == 2

@@ -68,6 +68,23 @@ def schema(engine) -> dict[str, dict]:
                 for t in seen.get_table_names()}
 
 
+def old_columns(now: dict[str, list[tuple]], before: dict[str, list[tuple]]) -> dict[str, list[tuple]]:
+    """``now``'s rows cut to the columns each table had ``before`` (a revision since added columns)."""
+    out = {}
+    for name, rows in now.items():
+        kept = {c for row in before.get(name, []) for c, _ in row}
+        out[name] = sorted((tuple((c, v) for c, v in row if c in kept) for row in rows), key=repr) if kept else rows
+    return out
+
+
+# what revision 0003 added (issue #54: the local board's columns), and what a hosted board holds in them
+LOCAL_DEFAULTS = {"submissions": {"builtin": False, "fingerprint": "", "fingerprint_detail": "", "budget": "",
+                                  "wfbench_version": "", "created_at": "", "audit_action": "", "audit_note": "",
+                                  "audit_at": "", "audit_id": None},
+                  "rows": dict.fromkeys(("track", "track_hash", "policy", "submitter", "fingerprint",
+                                         "wfbench_version", "finished_at", "digest"))}
+
+
 def differences(engine) -> list:
     with engine.connect() as conn:
         return compare_metadata(MigrationContext.configure(conn), metadata)
@@ -78,7 +95,7 @@ def test_an_empty_database_is_upgraded_to_head_and_matches_the_metadata(db_url):
     board.create()
     board.create()  # on every start: nothing more to do
     with board.engine.connect() as conn:
-        assert migrations.current(conn) == HEAD == "0002"
+        assert migrations.current(conn) == HEAD == "0003"
     assert set(sa.inspect(board.engine).get_table_names()) == {*metadata.tables, "alembic_version"}
     assert differences(board.engine) == []
     alice = board.account(board.add_account("alice"))
@@ -97,7 +114,10 @@ def test_a_board_made_before_alembic_is_upgraded_in_place_with_every_row(db_url,
     board.create()
     with board.engine.connect() as conn:
         assert migrations.current(conn) == HEAD
-    assert contents(board.engine) == before and len(before["rows"]) == 59
+    after = contents(board.engine)
+    assert old_columns(after, before) == before and len(before["rows"]) == 59
+    for table, defaults in LOCAL_DEFAULTS.items():  # the local board's columns, empty on a hosted board
+        assert all({c: v for c, v in row if c in defaults} == defaults for row in after[table]), table
     assert [(s.id, s.state, s.withdrawn is not None) for s in board.submissions()] == [
         (1, "done", False), (2, "failed", False), (3, "done", False), (4, "withdrawn", True), (5, "queued", False)]
     assert (board.submission(2).fault, board.submission(2).kind) == ("policy", "timed out")

@@ -13,6 +13,7 @@ import sqlalchemy as sa
 from fastapi.testclient import TestClient
 from wfbench.leaderboard.board import queue
 from wfbench.leaderboard.board.db import (
+    PROVENANCE_COLUMNS,
     Board,
     BoardError,
     QuotaExceeded,
@@ -63,7 +64,7 @@ def test_another_accounts_copy_of_a_builtin_does_not_squat_it(board):
     assert (board.submission(copy.id).account, board.submission(copy.id).name) == ("mallory", "my-heuristic")
     run_fake(board, copy, 0.9)
     run_fake(board, own, 0.4)
-    names = {s.name for s in board.store_view("tiny", "dev").submissions()}
+    names = {s.name for s in board.entries("tiny", "dev")}
     assert names == {"heuristic", "my-heuristic"}
 
 
@@ -92,8 +93,12 @@ V1_SUBMISSIONS = sa.Table(
     sa.UniqueConstraint("package_sha", "entry", "track", "phase", name="same_package_once"),
 )
 sa.Index("submissions_account", V1_SUBMISSIONS.c.account_id, V1_SUBMISSIONS.c.phase, V1_SUBMISSIONS.c.created)
-for table in (accounts, packages, hidden_seeds, secrets_table, jobs, rows):
+for table in (accounts, packages, hidden_seeds, secrets_table, jobs):
     table.to_metadata(V1)
+# rows as the first schema had them: without the local board's provenance (revision 0003)
+sa.Table("rows", V1, *(sa.Column(c.name, c.type, *([sa.ForeignKey("submissions.id")] if c.foreign_keys else []),
+                                 nullable=c.nullable) for c in rows.columns if c.name not in PROVENANCE_COLUMNS),
+         sa.UniqueConstraint("submission_id", "scenario", "seed_index", name="one_row_per_unit"))
 
 
 def test_a_board_made_before_per_account_dedupe_is_migrated_in_place(db_url):
@@ -218,7 +223,7 @@ def test_a_worker_running_a_withdrawn_submission_cannot_write(board):
     with pytest.raises(queue.LeaseLost):
         queue.write_rows(c, fake_rows(board.units(sub), 0.5))
     assert len(board.rows(sub.id)) == 0 and board.submission(sub.id).state == "withdrawn"
-    assert board.store_view("tiny", "dev").submissions() == []
+    assert board.entries("tiny", "dev") == []
 
 
 def test_cli_mine_and_withdraw(tmp_path, capsys):

@@ -42,7 +42,7 @@ def _entry(store, name, nsw_train, nsw_heldout):
     rows = [_row("small-v1", s, nsw_train + 0.01 * s) for s in TINY.test_seeds]
     rows += [_row("slow-64-v1", s, nsw_heldout + 0.01 * s) for s in TINY.test_seeds]
     store.add_results(sub, "0", rows)
-    store.set_status(sub.id, "complete")
+    store.set_status(sub.id, "done")
 
 
 def test_the_suite_track_is_listed_and_hashed_with_the_suite(capsys):
@@ -170,7 +170,7 @@ def test_a_one_scenario_track_is_a_suite_of_one_ranked_by_the_same_rule(db):
     for name, values in nsw.items():
         sub, _ = store.open_submission(short, name, "heuristic", "me", "0", fingerprint=name)
         store.add_results(sub, "0", [_row("", s, v) for s, v in zip(short.test_seeds, values, strict=True)])
-        store.set_status(sub.id, "complete")
+        store.set_status(sub.id, "done")
     r = report.ranking(store, short, baseline="low", reps=200)
     t = r.table.set_index("name")
     for name, values in nsw.items():  # the rank key: the IQM of the normalized score with suite-v1's constants
@@ -193,7 +193,7 @@ def test_a_scenario_without_constants_is_shown_and_not_ranked(db):
     store = Store(db)
     sub, _ = store.open_submission(own, "mine", "heuristic", "me", "0", fingerprint="mine")
     store.add_results(sub, "0", [_row("", s, 0.7) for s in own.test_seeds])
-    store.set_status(sub.id, "complete")
+    store.set_status(sub.id, "done")
     r = report.ranking(store, own, reps=200)
     assert r.table.loc[0, "rank"] is None and r.table.loc[0, "nsw"] == pytest.approx(0.7)
     assert r.refused == ["scenario own: suite 'own' has no reference constants (own.json); compute them with "

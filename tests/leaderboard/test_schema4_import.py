@@ -140,11 +140,11 @@ def test_the_import_keeps_entries_rows_and_the_audit_trail(tmp_path):
     db = tmp_path / "lb.sqlite"
     write_schema4(db)
     with Schema4Store(db) as old:
-        old_subs, (old_rows, old_refused), old_audit = old.submissions(), old.results(TINY), old.audit()
+        old_subs, (old_rows, old_refused), old_audit = old.entries(), old.results(TINY), old.audit()
     store = Store(db)
-    assert [(s.name, s.policy, s.status, s.reason, s.builtin, s.fingerprint, s.fingerprint_detail, s.budget,
+    assert [(s.name, s.entry, s.status, s.reason, s.builtin, s.fingerprint, s.fingerprint_detail, s.budget,
              s.legacy) for s in store.submissions(TINY.name)] == \
-        [(s.name, s.policy, s.status, s.reason, s.builtin, s.fingerprint, s.fingerprint_detail, s.budget, s.legacy)
+        [(s.name, s.entry, s.status, s.reason, s.builtin, s.fingerprint, s.fingerprint_detail, s.budget, s.legacy)
          for s in old_subs]
     rows, refused = store.results(TINY)
     assert refused == old_refused

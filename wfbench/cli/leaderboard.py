@@ -62,8 +62,7 @@ def add_parser(sub) -> None:
                     help="rank only entries whose p99 wall time per decision is at most this many milliseconds")
     lw.add_argument("--max-cpu-s", type=budget_limit, default=None,
                     help="rank only entries that used at most this many CPU seconds per episode")
-    ld = lsub.add_parser("baselines", aliases=["seed"], help="fill in the built-in entries (random, heuristic, "
-                         "solver, ...); 'seed' is the old name of this command")
+    ld = lsub.add_parser("baselines", help="fill in the built-in entries (random, heuristic, solver, ...)")
     ld.add_argument("--track", default=None, help="one track (default: every track but one that runs a whole "
                                                   "suite, such as suite-v1: that one only when named)")
     ld.add_argument("--db", default=None)
@@ -194,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"withdrew {args.name!r} from track {tr.name}: its entry and {n} rows moved to the audit tables "
                   f"of {store.path}")
             return 0
-        if args.lb_command in ("baselines", "seed"):
+        if args.lb_command == "baselines":
             execution = check_backend_args(args, progress=not args.no_progress)
             failed = 0
             for tr in seed_tracks(track(args.track) if args.track else None):  # unseeded tracks: only when named
