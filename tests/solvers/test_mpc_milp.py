@@ -87,3 +87,55 @@ def test_the_plan_solves_inside_the_highs_stdout_filter(monkeypatch):
     plain = plan_staffing(inst)
     assert entered == [1]
     assert plain.solution.tolist() == filtered.solution.tolist() and plain.objective == filtered.objective
+
+
+def _queue(max_headcount, **kw):
+    # one novice serving 0.5 a step, 1 request arriving a step, 2 waiting now; a hire works 2 steps after it
+    args = dict(demand=[1] * 10, capacity=[0.5, 0.5, 0.5], salary=SALARY, ready=novices(1, 10), paid=novices(1, 10),
+                hire_delay=2, notice_delay=1, max_headcount=max_headcount, backlog0=2.0, backlog_cost=10.0)
+    return StaffingInstance(**{**args, **kw})
+
+
+def test_the_queue_carries_what_capacity_does_not_serve_and_hiring_drains_it():
+    alone = plan_staffing(_queue(max_headcount=1))  # no slot: nobody can be hired
+    # by hand: 0.5 served a step, so the backlog grows by 0.5 a step from the 2 waiting
+    assert alone.status == "optimal" and alone.solution.tolist() == [0] * 10
+    assert alone.detail["served"].tolist() == pytest.approx([0.5] * 10)
+    assert alone.detail["backlog"].tolist() == pytest.approx([2 + 0.5 * (h + 1) for h in range(10)])
+    res = plan_staffing(_queue(max_headcount=5))
+    q = res.detail["backlog"]
+    hires = [a for a in res.solution.tolist() if a == 1]
+    assert len(hires) >= 2 and res.solution[0] == 1, "hires at once: the backlog is paid every step it waits"
+    assert q.max() < alone.detail["backlog"].max() and q[-1] == pytest.approx(0.0), "drained by the horizon's end"
+    assert np.all(res.detail["served"] <= res.detail["coverage"] + 1e-9), "served at most the people's capacity"
+    # arrivals - served is the backlog's change, step by step, from the 2 waiting
+    assert np.diff(np.concatenate([[2.0], q])) == pytest.approx(1.0 - res.detail["served"])
+    assert res.detail["productive"][0, -1] == 2, "once drained, the 2 novices that 1 request a step needs"
+
+
+def test_a_backlog_waiting_now_is_staffed_for_where_coverage_alone_is_not():
+    # capacity covers the arrivals exactly: without a queue nothing to do; with 3 waiting, a hire to drain them
+    inst = StaffingInstance(demand=[1] * 12, capacity=[1, 1, 1], salary=SALARY, ready=novices(1, 12),
+                            paid=novices(1, 12), hire_delay=1, notice_delay=1, max_headcount=3)
+    assert plan_staffing(inst).solution.tolist() == [0] * 12
+    res = plan_staffing(StaffingInstance(**{**inst.__dict__, "backlog0": 3.0, "backlog_cost": 10.0}))
+    assert res.solution[0] == 1 and res.detail["backlog"][-1] == pytest.approx(0.0)
+    none = plan_staffing(StaffingInstance(**{**inst.__dict__, "backlog0": 0.0, "backlog_cost": 10.0}))
+    assert none.solution.tolist() == [0] * 12 and none.detail["backlog"].sum() == pytest.approx(0.0)
+    # served at a full rate twice the capacity coverage asks for (a target utilization of 0.5): the novice drains
+    # the 3 waiting alone, one a step beside the arrivals; a hire would save 1 request-step for 2 steps' pay
+    fast = plan_staffing(StaffingInstance(**{**inst.__dict__, "backlog0": 3.0, "backlog_cost": 1.0,
+                                             "service": [2.0, 2.0, 2.0]}))
+    assert fast.solution.tolist() == [0] * 12 and fast.detail["backlog"][:4].tolist() == pytest.approx([2, 1, 0, 0])
+
+
+@pytest.mark.parametrize("field, bad, says", [
+    ("backlog0", -1.0, "backlog0 must be finite numbers >= 0"),
+    ("backlog0", "many", "backlog0 must be numbers"),
+    ("backlog_cost", -2.0, "backlog_cost = -2.0 is not allowed; allowed: a finite number >= 0"),
+    ("backlog_cost", "high", "backlog_cost = 'high' is not allowed; allowed: a finite number >= 0"),
+])
+def test_a_bad_queue_is_refused_in_one_line(field, bad, says):
+    with pytest.raises(SolverInputError, match=says) as err:
+        plan_staffing(_queue(max_headcount=5, **{field: bad}))
+    assert "\n" not in str(err.value)
