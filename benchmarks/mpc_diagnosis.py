@@ -14,7 +14,14 @@ Then it prints, per policy and world:
 - ``prod``: productive people the plan expected R and H steps ahead, against those observed;
 - ``need``: the productive people the model asks for (demand over capacity) and the size of
   each solve's swing in it, the churn's cause when it swings by more than the lags can absorb;
-- hires and let-goes an episode, against ``solver-tuned-train``'s, and the mean NSW.
+- ``backlog`` (``backlog=True`` only): the requests the plan expects waiting over the ``R`` steps
+  played, against those waiting in the simulator (open, nobody assigned);
+- hires and let-goes an episode, against ``solver-tuned-train``'s, and the mean NSW;
+- ``cpu``: the policy's CPU time per environment-step (``time.process_time`` around ``act``,
+  one thread: run it with ``NUMBA_NUM_THREADS=1``).
+
+Any registered MPC may be named in ``--policies`` (``mpc-ma-calibrated``, ``mpc-rates-backlog``),
+with its own knobs.
 
 Public seeds only (1000-1049; never the test seeds 0-49). Run:
 
@@ -55,18 +62,22 @@ def play(pol: MPC, config, seeds):
     pol.set_world(public_world(sim.config))
     pol.reset(sim.seeds)
     B, T = sim.B, config.horizon
-    seen = {k: np.zeros((B, T)) for k in ("req", "rep", "prod", "busy", "open", "afd", "pur", "head")}
+    seen = {k: np.zeros((B, T)) for k in ("req", "rep", "prod", "busy", "open", "wait", "afd", "pur", "head")}
     solves: list[dict] = []
     last_c = sim.state.counters.copy()
     while not sim.done:
         t = int(sim.state.t[0])
+        c0 = time.process_time()
         out = pol.act(obs)
+        pol.cpu_s = getattr(pol, "cpu_s", 0.0) + time.process_time() - c0
         for b in range(B):
             if pol.plan_t0[b] == t and pol.last[b] is not None:
                 d = pol.last[b].detail
                 solves.append({"b": b, "t": t, "demand": pol._last_demand[b].copy(),
                                "coverage": np.asarray(d["coverage"]), "prod": d["productive"].sum(0),
                                "pay": d["payroll"].sum(0), "cap": pol._last_cap[b].copy(),
+                               "backlog": np.asarray(d.get("backlog", np.full(len(d["shortfall"]), np.nan))),
+                               "optimal": pol.last[b].status == "optimal", "solve_s": pol.last[b].solve_time_s,
                                "hires": int(d["hires"][:, : -(-pol.R // BLOCK)].sum()),
                                "letgo": int(d["letgo"][:, : -(-pol.R // BLOCK)].sum())})
         sim.step(out)
@@ -80,6 +91,7 @@ def play(pol: MPC, config, seeds):
         seen["prod"][:, t] = on.sum(1)
         seen["busy"][:, t] = (on & (st >= TO_FACILITY) & (st <= RETURNING)).sum(1)
         seen["open"][:, t] = (s.fac_active & s.fac_down).sum(1)
+        seen["wait"][:, t] = (s.fac_active & s.fac_down & (s.fac_assigned < 0)).sum(1)
         seen["afd"][:, t] = s.last[:, K_AFD]
         seen["pur"][:, t] = s.last[:, K_PUR]
         seen["head"][:, t] = (st != EMPTY).sum(1)
@@ -105,7 +117,8 @@ class Recording(MPC):
 def recording(name: str, **knobs) -> Recording:
     src = policies.get(name)
     values = {**src.params(), **knobs}
-    return Recording(src.base, forecast=src.forecast, node_limit=src.node_limit, name=name, **values)
+    keep = {"calibrate": src.calibrate, **({"backlog": True} if getattr(src, "backlog", False) else {})}
+    return Recording(src.base, forecast=src.forecast, node_limit=src.node_limit, name=name, **{**keep, **values})
 
 
 def summarize(name, config, seeds, sim, seen, solves, base_counters, base_nsw, wall, R, trace=False):
@@ -133,7 +146,8 @@ def summarize(name, config, seeds, sim, seen, solves, base_counters, base_nsw, w
             "p_pred_H": s["prod"][end - t0 - 1], "p_obs_H": seen["prod"][b, end - 1],
             "need": float(s["demand"][: end - t0].mean() / max(model_rate * tu, 1e-9)),
             "short": float(np.maximum(s["demand"] - s["coverage"], 0).mean()),
-            "open": seen["open"][b, t0:r_end].mean(), "h": s["hires"], "l": s["letgo"], "b": b})
+            "open": seen["open"][b, t0:r_end].mean(), "h": s["hires"], "l": s["letgo"], "b": b,
+            "q_plan": float(np.mean(s["backlog"][: r_end - t0])), "q_obs": seen["wait"][b, t0:r_end].mean()})
     f = {k: np.array([r[k] for r in rows], dtype=float) for k in rows[0]}
     need_swing = []
     for b in range(len(seeds)):
@@ -157,6 +171,13 @@ def summarize(name, config, seeds, sim, seen, solves, base_counters, base_nsw, w
     print(f"  hires/let-goes an episode:  {c['hires'].mean():.1f} / {c['releases'].mean():.1f}  "
           f"(the plans' for the steps played: {f['h'].sum() / len(seeds):.1f} / {f['l'].sum() / len(seeds):.1f}); "
           f"base {base_counters['hires'].mean():.1f} / {base_counters['releases'].mean():.1f}")
+    if np.isfinite(f["q_plan"]).any():
+        print(f"  backlog (waiting) over R:   plan {f['q_plan'].mean():.2f} vs observed {f['q_obs'].mean():.2f}; "
+              f"|error| a solve {np.abs(f['q_plan'] - f['q_obs']).mean():.2f}")
+    steps = config.horizon * len(seeds)
+    print(f"  cpu per env-step:           {1e3 * getattr(sim, 'cpu_s', np.nan) / steps:.2f} ms; solves not optimal "
+          f"(node limit) {sum(not s['optimal'] for s in solves)} of {len(solves)}, the longest "
+          f"{max(s['solve_s'] for s in solves):.2f} s wall")
     print(f"  NSW {nsw.mean():.4f} ({', '.join(f'{v:.3f}' for v in nsw)}); base {base_nsw.mean():.4f}; "
           f"paired diff {np.mean(nsw - base_nsw):+.4f} ± {se(nsw - base_nsw):.4f}")
     if trace:
@@ -201,6 +222,7 @@ def main():
             pol = recording(name, **knobs)
             t0 = time.perf_counter()
             sim, seen, solves = play(pol, config, a.seeds)
+            sim.cpu_s = pol.cpu_s  # the policy's CPU seconds, carried to the summary
             summarize(label, config, a.seeds, sim, seen, solves, base.counters, base.means["nsw"],
                       time.perf_counter() - t0, pol.R, a.trace)
 

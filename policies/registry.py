@@ -126,6 +126,14 @@ LOOKAHEAD.update({
     "mpc-ma-calibrated": ("solver-tuned-train", "mpc:ma:calibrated", "mpc-ma with the capacity per person measured "
                           "from observed repairs; the base staffs until a window of requests is seen"),
 })
+# calibrated, with a fluid queue of repair requests in the MILP (issue #53's second design; docs/policies.md, "The
+# second design"): a preset field "mpc:FORECAST:backlog" turns on MPC(calibrate=True, backlog=True)
+LOOKAHEAD.update({
+    "mpc-rates-backlog": ("solver-tuned-train", "mpc:rates:backlog", "mpc-rates-calibrated whose MILP carries the "
+                          "repair backlog (a fluid queue seeded from the waiting requests, priced as downtime)"),
+    "mpc-ma-backlog": ("solver-tuned-train", "mpc:ma:backlog", "mpc-ma-calibrated whose MILP carries the repair "
+                       "backlog (a fluid queue seeded from the waiting requests, priced as downtime)"),
+})
 
 
 # tuned on suite-v1's training split, public seeds 1000-1004 (issue #43; docs/policies.md, "mpc"): a preset field
@@ -172,7 +180,7 @@ def _lookahead(name: str) -> Any:
         from wfbench.policies.lookahead import mpc
 
         forecast, _, option = preset[4:].partition(":")
-        return mpc.make(get(base), forecast, name=name, **({"calibrate": True} if option == "calibrated" else {}))
+        return mpc.make(get(base), forecast, name=name, **mpc.PRESET_OPTIONS[option])
     return make(get(base), preset, name=name)
 # -- end of deployable lookahead --------------------------------------------------------------------------------------
 

@@ -6,7 +6,8 @@ next ``H`` steps and plays the plan's workforce actions; dispatch is the base's 
 The demand forecast is named apart: ``rates`` (``mpc-rates``, the world's public model from
 ``set_world``) or ``ma`` (``mpc-ma``, a moving average of observed requests). Its knobs, the
 MILP's prices and a capacity scale are tunable (:attr:`MPC.tunable`); ``calibrate=True`` measures
-the capacity from observed repairs (issue #53's diagnosis). Nothing here reads the
+the capacity from observed repairs (issue #53's diagnosis), ``backlog=True`` plans a fluid queue of
+repair requests seeded from the requests waiting now (its second design). Nothing here reads the
 trace, a seed's generator or the true state. The model in full: ``docs/policies.md``, "mpc".
 """
 
@@ -45,6 +46,10 @@ ACTION_COST = 50.0  # per hire or let-go, salary units: what churn costs beyond 
 # headcount: trips are longer with fewer people), with PRIOR_REPAIRS of the model's own rate as a prior
 CALIBRATION_DECAY = 1.0 - 1.0 / 200.0
 PRIOR_REPAIRS = 5.0
+# backlog=True (issue #53's second design): a request waiting a step is priced at BACKLOG_WEIGHT times the score's
+# exchange rate of downtime for payroll, max_personnel * the top salary / the active facilities (u_WC and u_AFD
+# move by one unit for that many salary units and for a facility down all the time; 4 salary units on paper-64)
+BACKLOG_WEIGHT = 1.0
 # what a tuner may search (wfbench tune), and a tuned file may set; the defaults above sit inside
 TUNABLE: dict[str, Param] = {
     "H": Param(20, 300, "int"),
@@ -54,6 +59,11 @@ TUNABLE: dict[str, Param] = {
     "action_cost": Param(1.0, 1000.0, "float", log=True),
     "capacity_scale": Param(0.5, 2.0),
 }
+# a registry preset field "mpc:FORECAST[:OPTION]" (policies/registry.py, LOOKAHEAD): OPTION -> the knobs it sets
+PRESET_OPTIONS: dict[str, dict[str, bool]] = {"": {}, "calibrated": {"calibrate": True},
+                                              "backlog": {"calibrate": True, "backlog": True}}
+# with backlog=True the queue's price joins the tunable ones
+BACKLOG_TUNABLE: dict[str, Param] = {"backlog_weight": Param(0.1, 100.0, "float", log=True)}
 
 
 def knob(name: str, value: Any) -> int:
@@ -86,6 +96,12 @@ class MPC:
             (``rates``) instead of read off this step, and (``ma``) the base's workforce
             actions until a full window of requests is seen. The diagnosis that asked for it:
             docs/policies.md, "mpc".
+        backlog: False (the MILP covers new requests or pays a shortfall) or True: also a
+            fluid queue, requests served up to the productive people's full rate (the capacity
+            over the target utilization) and the rest waiting, seeded from the requests waiting
+            now (``requesting``), each priced a step at ``backlog_weight`` times the score's
+            exchange rate (:data:`BACKLOG_WEIGHT`).
+        backlog_weight: that factor (``backlog=True`` only), 0.1 to 100.
         node_limit: HiGHS's branch-and-bound nodes per solve, at most.
         name: the policy's name.
     """
@@ -97,7 +113,7 @@ class MPC:
                  window: int = DEFAULTS["window"], scenario: ScenarioConfig | None = None,
                  shortfall_cost: float = SHORTFALL_COST, action_cost: float = ACTION_COST,
                  capacity_scale: float = 1.0, node_limit: int = NODE_LIMIT, name: str | None = None,
-                 calibrate: bool = False):
+                 calibrate: bool = False, backlog: bool = False, backlog_weight: float = BACKLOG_WEIGHT):
         if not getattr(base, "compiled", False):
             raise ValueError(f"mpc base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
                              "allowed: a compiled composite (a registry composite or tuned file of one)")
@@ -112,6 +128,10 @@ class MPC:
         if not isinstance(calibrate, (bool, np.bool_)):
             raise ValueError(f"mpc calibrate = {calibrate!r} is not allowed; allowed: True or False")
         self.calibrate = bool(calibrate)
+        if not isinstance(backlog, (bool, np.bool_)):
+            raise ValueError(f"mpc backlog = {backlog!r} is not allowed; allowed: True or False")
+        self.backlog = bool(backlog)
+        self.backlog_weight = BACKLOG_TUNABLE["backlog_weight"].check(backlog_weight, "backlog_weight")
         self.name = name or f"mpc-{forecast}"
         self.config = None if scenario is None else require_config(scenario, f"{self.name} scenario=")
         self.timing: dict[str, float] = {}
@@ -123,12 +143,17 @@ class MPC:
             out["window"] = self.window
         if self.calibrate:
             out["calibrate"] = True
+        if self.backlog:
+            out["backlog"] = True
         return out
 
     @property
     def tunable(self) -> dict[str, Param]:
         """What a tuner may search, name -> range (``window`` only for the ``ma`` forecast)."""
-        return {k: p for k, p in TUNABLE.items() if k != "window" or self.forecast == "ma"}
+        out = {k: p for k, p in TUNABLE.items() if k != "window" or self.forecast == "ma"}
+        if self.backlog:
+            out.update(BACKLOG_TUNABLE)
+        return out
 
     def params(self) -> dict[str, float | int]:
         """The current value of each tunable parameter."""
@@ -142,7 +167,8 @@ class MPC:
                 raise ValueError(f"{self.name} has no tunable parameter {k!r}; allowed: {', '.join(self.tunable)}")
             values[k] = self.tunable[k].check(v, k)
         return MPC(self.base, forecast=self.forecast, scenario=self.config, node_limit=self.node_limit,
-                   name=name or self.name, calibrate=self.calibrate, **values)
+                   name=name or self.name, calibrate=self.calibrate,
+                   **({"backlog": True} if self.backlog else {}), **values)
 
     def set_world(self, config: ScenarioConfig) -> None:
         """The world's public parameters (the evaluator calls it before ``reset``); ``rates`` needs them."""
@@ -283,11 +309,17 @@ class MPC:
         if self.calibrate:  # the model's rate per busy person-step measured: about 1.35 times too low on paper-64
             expected = float(self.busy_steps[b] @ (fix / max(T, 1e-9)))
             cap = cap * (self.seen_repairs[b] + PRIOR_REPAIRS) / (expected + PRIOR_REPAIRS)
+        queue = {}
+        if self.backlog:  # the requests waiting now (open, nobody assigned), priced at the score's exchange rate
+            rate = world[W["max_personnel"]] * salary.max() / max(float(act.sum()), 1.0)
+            queue = {"backlog0": float((np.asarray(obs["requesting"])[b] == 1).sum()),
+                     "backlog_cost": self.backlog_weight * rate,  # served at the full rate: all busy, not the target
+                     "service": cap / max(world[W["target_utilization"]], 1e-9)}
         return StaffingInstance(demand=self._demand(b, t, obs), capacity=cap, salary=salary, ready=ready, paid=paid,
                                 hire_delay=int(world[W["hire_delay"]]), notice_delay=int(world[W["notice_delay"]]),
                                 max_headcount=int(world[W["max_personnel"]]),
                                 min_headcount=int(world[W["min_personnel"]]), shortfall_cost=self.shortfall_cost,
-                                action_cost=self.action_cost)
+                                action_cost=self.action_cost, **queue)
 
     def _positioning(self, b: int, obs: dict[str, np.ndarray], out: np.ndarray) -> None:
         fac = obs["facilities"][b]
@@ -351,4 +383,5 @@ def make(base: Any, forecast: str, name: str | None = None, **knobs: Any) -> MPC
     return MPC(base, forecast=forecast, name=name, **knobs)
 
 
-__all__ = ["DEFAULTS", "FORECASTS", "KNOBS", "MPC", "NODE_LIMIT", "TUNABLE", "knob", "make"]
+__all__ = ["BACKLOG_WEIGHT", "DEFAULTS", "FORECASTS", "KNOBS", "MPC", "NODE_LIMIT", "PRESET_OPTIONS", "TUNABLE",
+           "knob", "make"]

@@ -195,3 +195,57 @@ def _last_obs(config):
     sim = Simulator(config, [1000, 1001])
     sim.reset()
     return sim.observe()
+
+
+def test_the_backlog_presets_are_the_calibrated_mpc_with_its_queue_on():
+    for name, kind in (("mpc-rates-backlog", "rates"), ("mpc-ma-backlog", "ma")):
+        assert name in LOOKAHEAD and name not in names() and parse_spec(name).kind == "lookahead"
+        pol, calibrated = policies.get(name), policies.get(f"mpc-{kind}-calibrated")
+        assert isinstance(pol, MPC) and pol.forecast == kind and pol.name == name
+        assert pol.backlog is True and pol.calibrate is True and calibrated.backlog is False
+        assert pol.settings() == {**calibrated.settings(), "backlog": True}  # the same budget
+        assert "backlog" in parts(name)[1]
+    for name in ("mpc-rates", "mpc-ma", "mpc-rates-calibrated", "mpc-ma-calibrated"):
+        assert policies.get(name).backlog is False, f"{name}'s committed numbers are the model without a queue"
+
+
+def test_backlog_is_refused_unless_a_bool_and_its_price_is_tunable_in_its_place():
+    pol = policies.get("mpc-ma")
+    for bad in ("yes", 1, None):
+        with pytest.raises(ValueError) as err:
+            MPC(pol.base, backlog=bad)
+        assert str(err.value) == f"mpc backlog = {bad!r} is not allowed; allowed: True or False"
+    with pytest.raises(ValueError, match=r"backlog_weight = 0 is out of range; allowed: float in \[0.1, 100\]") as err:
+        MPC(pol.base, backlog=True, backlog_weight=0)
+    assert "\n" not in str(err.value)
+    on = policies.get("mpc-ma-backlog")
+    assert set(on.tunable) == {*pol.tunable, "backlog_weight"}, "coverage is still priced: the queue adds to it"
+    assert "backlog_weight" not in pol.tunable, "today's presets tune what they tuned"
+    again = on.with_params({"backlog_weight": 3.0, "H": 60})
+    assert again.backlog and again.calibrate and again.backlog_weight == 3.0 and again.H == 60
+
+
+def test_the_queue_is_seeded_from_the_requests_waiting_and_priced_at_the_exchange_rate():
+    config = ScenarioConfig.preset("small").replace(horizon=40)
+    pol = MPC(policies.get("solver-tuned-train"), forecast="rates", H=30, R=10, backlog=True, backlog_weight=2.0)
+    r = run_batch(pol, config, [1000, 1001])
+    assert pol.timing["solves"] == 2 * 4 and all(res.status == "optimal" for res in pol.last)
+    assert all("backlog" in res.detail for res in pol.last) and np.isfinite(r.means["nsw"]).all()
+    from wfbench import Simulator
+
+    sim = Simulator(config, [1000, 1001])
+    sim.reset()
+    for _ in range(25):  # nobody dispatched: requests wait
+        sim.step({"dispatch": np.full((2, sim.M), sim.N), "workforce": np.zeros(2, dtype=np.int64),
+                  "positioning": np.zeros((2, 2, sim.M))})
+    obs = sim.observe()
+    waiting = np.asarray(obs["requesting"]).sum(-1)
+    assert waiting.max() > 0, "the instance below must see a backlog"
+    for b in range(2):
+        inst = pol._instance(b, 25, obs)
+        active = np.asarray(obs["facility_mask"])[b].sum()
+        assert inst.backlog0 == waiting[b]
+        assert inst.backlog_cost == pytest.approx(2.0 * config.max_personnel * max(config.level_salaries) / active)
+    plain = MPC(pol.base, forecast="rates", H=30, R=10)
+    plain.__dict__.update({k: v for k, v in pol.__dict__.items() if k not in ("backlog", "backlog_weight")})
+    assert plain._instance(0, 25, obs).backlog0 is None, "without the knob, the MILP has no queue"
