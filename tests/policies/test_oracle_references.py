@@ -92,6 +92,24 @@ def test_suite_checks_each_oracle_against_its_own_reference():
     assert not outside_oracle("solver-tuned") and not outside_oracle("solver-tuned", "oracle-v2")
 
 
+def test_suite_checks_the_newest_reference_that_ran_against_its_candidates():
+    from wfbench.reproduce.suite import _checks
+    from wfbench.scenarios import get_suite
+
+    sc = get_suite("suite-v1").scenario("small-v1")
+
+    def rows(nsw):
+        return pd.DataFrame({"scenario": [sc.id] * 2, "seed": [0, 1], "nsw": [nsw, nsw]})
+
+    runs = {"solver-tuned": rows(0.6), "rollout-solver-tuned": rows(0.7), "oracle": rows(0.65)}
+    (check,), _ = _checks([sc], runs, {})
+    assert (check["oracle"], check["best_deployable"], check["oracle_at_least_deployable"]) == \
+        ("oracle", "solver-tuned", True)  # the rollout is no candidate of v1
+    (check,), _ = _checks([sc], {**runs, "oracle-v2": rows(0.69)}, {})
+    assert (check["oracle"], check["best_deployable"], check["oracle_at_least_deployable"]) == \
+        ("oracle-v2", "rollout-solver-tuned", False)
+
+
 # -- the hindsight rollout --------------------------------------------------------------------------------------------
 
 def test_oracle_rollout__reads_the_trace_and_improves_on_its_base_on_every_seed():
