@@ -139,3 +139,18 @@ def test_a_bad_queue_is_refused_in_one_line(field, bad, says):
     with pytest.raises(SolverInputError, match=says) as err:
         plan_staffing(_queue(max_headcount=5, **{field: bad}))
     assert "\n" not in str(err.value)
+
+
+def test_a_limit_before_an_incumbent_gives_no_actions_and_the_queue_they_leave(monkeypatch):
+    """HiGHS stopped with no plan: the no-action plan, its backlog played out as the queue's rows say."""
+    import scipy.optimize
+
+    class Stopped:
+        x, status, message = None, 1, "node limit reached"
+
+    monkeypatch.setattr(scipy.optimize, "milp", lambda *a, **k: Stopped())
+    res = plan_staffing(_queue(max_headcount=5), node_limit=1)
+    assert res.status == "time_limit" and res.solution.tolist() == [0] * 10
+    assert res.detail["served"].tolist() == pytest.approx([0.5] * 10)
+    assert res.detail["backlog"].tolist() == pytest.approx([2 + 0.5 * (h + 1) for h in range(10)])
+    assert res.detail["shortfall"].tolist() == pytest.approx([0.5] * 10), "coverage's shortfall beside the queue"
