@@ -47,8 +47,8 @@ ACTION_COST = 50.0  # per hire or let-go, salary units: what churn costs beyond 
 CALIBRATION_DECAY = 1.0 - 1.0 / 200.0
 PRIOR_REPAIRS = 5.0
 # backlog=True (issue #53's second design): a request waiting a step is priced at BACKLOG_WEIGHT times the score's
-# exchange rate of downtime for payroll, max_personnel * the top salary / the active facilities (u_WC and u_AFD
-# move by one unit for that many salary units and for a facility down all the time; 4 salary units on paper-64)
+# exchange rate of downtime for payroll, max_personnel * the top salary / the active facilities (a facility down a
+# step lowers u_AFD by 1 / active, a salary unit a step lowers u_WC by 1 / (max_personnel * top salary); 4 on paper-64)
 BACKLOG_WEIGHT = 1.0
 # what a tuner may search (wfbench tune), and a tuned file may set; the defaults above sit inside
 TUNABLE: dict[str, Param] = {
