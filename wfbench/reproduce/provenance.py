@@ -121,12 +121,13 @@ def policy_inputs(policy: str) -> dict[str, str]:
     built-ins reads none.
     """
     from wfbench.policies import registry
+    from wfbench.policies.oracle import references
 
     if policy == "bound":
         return {}
     specs = [policy]
-    if registry.parse_spec(policy).kind == "oracle":
-        specs = registry.oracle_candidates()
+    if policy in references.ORACLES:  # a best-in-hindsight oracle reads its reference's candidates' files
+        specs = registry.oracle_candidates(policy)
     files: dict[str, str] = {}
     for spec in specs:
         f = registry.parse_spec(spec).file
