@@ -19,7 +19,7 @@ from wfbench.scenarios.resolve import resolve_scenario
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("wfbench", "policies", "leaderboard", "solvers")
 TABLE = ROOT / "wfbench" / "core" / "kpis.py"
-REVISIONS = ROOT / "leaderboard" / "hosted" / "migrations" / "versions"  # the hosted board's Alembic revisions
+REVISIONS = ROOT / "leaderboard" / "board" / "migrations" / "versions"  # the board's Alembic revisions
 # where the utility columns may be named: defined (state), computed (dynamics), made a reward (reward)
 REWARD_HOMES = {ROOT / "wfbench" / "core" / name for name in ("reward.py", "dynamics.py", "state.py")}
 # a fork rebuilds the state's metrics row of the step it starts from out of the observed KPIs (the utilities are

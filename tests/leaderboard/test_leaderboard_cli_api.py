@@ -41,15 +41,14 @@ def test_show_is_what_the_command_prints(tiny, tmp_path, capsys):
     assert not (tmp_path / "none.sqlite").exists(), "showing never creates a store"
 
 
-def test_seed_fills_the_api_s_tracks(monkeypatch, capsys):
+def test_baselines_fills_the_api_s_tracks(monkeypatch, capsys):
     seeded = []
     monkeypatch.setattr(submit_mod, "seed_builtins", lambda tr, **kw: seeded.append(tr.name) or [])
     assert main(["leaderboard", "baselines", "--no-progress"]) == 0
     assert seeded == [t.name for t in seed_tracks()] == [t.name for t in TRACKS.values()
                                                          if t.name != "suite-v1"]
-    seeded.clear()
-    # "seed" is the old name of "baselines", kept as an alias
-    assert main(["leaderboard", "seed", "--track", "suite-v1", "--no-progress"]) == 0
+    seeded.clear()  # a track that runs a whole suite: only when named
+    assert main(["leaderboard", "baselines", "--track", "suite-v1", "--no-progress"]) == 0
     assert seeded == [t.name for t in seed_tracks("suite-v1")] == ["suite-v1"]
     assert seed_tracks(get_track("large")) == [get_track("large")]
 

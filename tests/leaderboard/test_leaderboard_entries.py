@@ -78,6 +78,9 @@ def test_an_edited_policy_is_refused_under_its_name_until_replaced(user_folder, 
     # the same code again: resumed, nothing evaluated
     assert _cli_submit(module, db) == 0
     assert "complete, 4 seeds stored (0 new)" in capsys.readouterr().out
+    kept = Store(db).find(TINY.name, "mine")
+    assert (kept.id, kept.fingerprint, kept.fingerprint_detail, kept.status) == \
+        (sub.id, sub.fingerprint, sub.fingerprint_detail, "complete")
 
     # the helper it imports changes what it runs: refused with one line, the entry kept as it was
     (folder / f"{module}_helper.py").write_text('INNER = "random"\n')
@@ -89,7 +92,7 @@ def test_an_edited_policy_is_refused_under_its_name_until_replaced(user_folder, 
     assert f"changed: {module}_helper)" in captured.err
     assert "pass --replace to evaluate this policy under that name" in captured.err
     assert "or choose another --name" in captured.err
-    assert Store(db).find(TINY.name, "mine") == sub
+    assert Store(db).find(TINY.name, "mine") == kept
     assert Store(db).results(TINY)[0].set_index("seed")["nsw"].equals(before)
     assert Store(db).audit().empty
 
