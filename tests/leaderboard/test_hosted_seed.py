@@ -1,4 +1,4 @@
-"""``wfbench serve seed`` (issue #34): the built-ins enter a hosted board once, as submissions of the admin account
+"""``wfbench serve baselines`` (issue #34): the built-ins enter a hosted board once, as submissions of the admin account
 'wfbench', run in the sandbox by a real worker, and fill the board's comparison with the heuristic."""
 
 from __future__ import annotations
@@ -66,11 +66,15 @@ def test_the_cli_seeds_a_track_and_says_what_it_did(tmp_path, capsys):
     assert out[1] == "heuristic on paper-64 (dev): submission 2 queued"
     assert f"oracle on paper-64 (dev): left out: {ORACLE_LEFT_OUT}" in out
     assert out[-1] == f"9 new submissions of account 'wfbench'; start 'wfbench worker --server {db}' to evaluate them"
-    assert main(["serve", "seed", "--db", db, "--tracks", "paper-64", "--phase", "dev"]) == 0  # the old name
+    assert main(["serve", "baselines", "--db", db, "--tracks", "paper-64", "--phase", "dev"]) == 0  # again
     out = capsys.readouterr().out.splitlines()
     assert out[1] == "heuristic on paper-64 (dev): already there, submission 2 (queued)" and out[-1].startswith("0 new")
-    assert main(["serve", "seed", "--db", db, "--phase", "final"]) == 2
+    assert main(["serve", "baselines", "--db", db, "--phase", "final"]) == 2
     assert "argument --phase: invalid choice: 'final' (choose from" in capsys.readouterr().err
+    assert main(["serve", "seed", "--db", db]) == 2  # the old name went with issue #54 (docs/changes.md)
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("wfbench: error: ") and "invalid choice: 'seed'" in err
+    assert "baselines" in err, "the line names the command to use"
 
 
 @pytest.mark.slow

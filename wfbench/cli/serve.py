@@ -40,11 +40,9 @@ def add_parser(sub) -> None:
     add.add_argument("name", help="the account's name")
     add.add_argument("--admin", action="store_true", help="an admin account")
     add.add_argument("--db", default=argparse.SUPPRESS, help=DB_HELP)  # after the subcommand too
-    # "seed" is the old spelling: it said "random seed" to every reader of the other commands
-    seed = ssub.add_parser("baselines", aliases=["seed"],
+    seed = ssub.add_parser("baselines",
                            help="enter the built-in policies (the baselines the reports compare with) as "
-                                "submissions of the admin account 'wfbench'; entering them again adds nothing "
-                                "('seed' is the old name of this command)")
+                                "submissions of the admin account 'wfbench'; entering them again adds nothing")
     seed.add_argument("--tracks", default=argparse.SUPPRESS,
                       help="comma-separated tracks to enter them on (default: all the board's)")
     seed.add_argument("--phase", choices=("dev", "test", "both"), default="both",
@@ -103,7 +101,7 @@ def worker_command(board) -> str:
 
 
 def seed(board, phase: str) -> int:
-    """``wfbench serve baselines`` (or ``seed``): one line per built-in, track and phase; what to start next."""
+    """``wfbench serve baselines``: one line per built-in, track and phase; what to start next."""
     from wfbench.leaderboard.board.db import BoardError
     from wfbench.leaderboard.board.seed import ACCOUNT, PHASES
     from wfbench.leaderboard.board.seed import seed as seed_builtins
@@ -136,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"account {args.name!r}{' (admin)' if args.admin else ''} made; its token, shown only now:")
         print(token)
         return 0
-    if args.serve_command in ("baselines", "seed"):
+    if args.serve_command == "baselines":
         return seed(board, args.phase)
     if args.serve_command == "end-test":
         import time
