@@ -15,6 +15,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from wfbench.policies import kernels as K
 
+from wfbench.core.config import ScenarioConfig, require_config
 from wfbench.core.observe import Obs
 from wfbench.core.rng import key_from_seed
 
@@ -30,6 +31,27 @@ class Policy(Protocol):
     def reset(self, seeds: Sequence[int]) -> None: ...
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]: ...
+
+
+class Attached:
+    """``attach``, which wfbench's runner calls before ``reset`` on a policy that reads the trace, and its check.
+
+    The hindsight oracles and their planner mix it in; they set ``config = None`` in their
+    ``__init__`` and take the scenario from :meth:`_attached` in ``reset``.
+    """
+
+    config: ScenarioConfig | None = None
+
+    def attach(self, config: ScenarioConfig) -> None:
+        """Tell it the scenario (the runner does, before ``reset``, for policies that read the trace)."""
+        self.config = require_config(config, f"{type(self).__name__}.attach")
+
+    def _attached(self) -> ScenarioConfig:
+        """The scenario ``attach`` gave; RuntimeError of one line saying the order of the calls otherwise."""
+        if self.config is None:
+            raise RuntimeError("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
+                               "(wfbench's runner does this for policies with reads_trace = True)")
+        return self.config
 
 
 def decision_key(env_seed: int, policy_seed: int, decision: str) -> np.uint64:

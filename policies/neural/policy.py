@@ -4,7 +4,8 @@ A checkpoint records its algorithm (``algo``: :data:`CHECKPOINT_ALGORITHMS`; non
 and loads as ``ALGO:PATH``; ``ppo:PATH`` loads any. :class:`NetworkPolicy` follows the policy
 protocol (``docs/policies.md``) and acts on the whole batch at once, in mode ``sample`` (the
 default: noise from one generator per environment keyed by its seed), ``greedy``,
-``greedy-dispatch`` or ``greedy-workforce`` (argmax of that one head, the others sampled). ``trained_on`` is the checkpoint's scenario. A dispatch-only checkpoint is
+``greedy-dispatch`` or ``greedy-workforce`` (argmax of that one head, the others sampled).
+``trained_on`` is the checkpoint's scenario. A dispatch-only checkpoint is
 deployed inside ``policies.Composite`` with ``threshold`` and ``spatial``; independent agents run
 each head from its own network. Modes and why: ``docs/rl.md``, "A checkpoint is a policy".
 """

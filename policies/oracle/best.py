@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 from wfbench.policies.oracle import cache as totals_cache
 from wfbench.policies.oracle.rollout import roll_forward
-from wfbench.policies.protocol import seeds_array
+from wfbench.policies.protocol import Attached, seeds_array
 
 from wfbench.core.actions import AGENTS, validate_actions
-from wfbench.core.config import ScenarioConfig, require_config
+from wfbench.core.config import ScenarioConfig
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import METRICS
 
@@ -70,7 +70,7 @@ class _Recording:
         return d, w, p
 
 
-class BestInHindsight:
+class BestInHindsight(Attached):
     """Per seed, the best of the candidate policies on that seed's known future (see the module docstring).
 
     Args:
@@ -103,16 +103,10 @@ class BestInHindsight:
     def __repr__(self) -> str:
         return f"BestInHindsight({self.name!r}, {len(self.candidates)} candidates)"
 
-    def attach(self, config: ScenarioConfig) -> None:
-        """Tell it the scenario (the runner does, before ``reset``, for policies that read the trace)."""
-        self.config = require_config(config, f"{type(self).__name__}.attach")
-
     # -- playing the candidates ------------------------------------------------------------------
     def reset(self, seeds: int | Sequence[int]) -> None:
         """Play every candidate on ``seeds`` and choose one per seed (``attach`` first)."""
-        if self.config is None:
-            raise RuntimeError("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
-                               "(wfbench's runner does this for policies with reads_trace = True)")
+        self._attached()
         seeds = seeds_array(seeds)
         if self.replay:
             from wfbench.policies.oracle.replay import reset_replaying

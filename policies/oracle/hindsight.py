@@ -20,10 +20,10 @@ from typing import Any
 import numpy as np
 from wfbench.policies import kernels as K
 from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
-from wfbench.policies.protocol import as_obs, seeds_array
+from wfbench.policies.protocol import Attached, as_obs, seeds_array
 
 from wfbench.core.actions import AGENTS
-from wfbench.core.config import ScenarioConfig, require_config
+from wfbench.core.config import ScenarioConfig
 from wfbench.core.lookahead import copy_state, fork
 from wfbench.core.simulator import Simulator
 
@@ -39,7 +39,7 @@ def _knob(name: str, value: Any) -> int:
     return int(value)
 
 
-class HindsightRollout:
+class HindsightRollout(Attached):
     """Rollout of the compiled composite ``base`` on the episode's true future (module docstring).
 
     Args:
@@ -71,15 +71,9 @@ class HindsightRollout:
     def settings(self) -> dict[str, int | None]:
         return {"H": self.H, "R": self.R}
 
-    def attach(self, config: ScenarioConfig) -> None:
-        """Tell it the scenario (the runner does, before ``reset``, for policies that read the trace)."""
-        self.config = require_config(config, f"{type(self).__name__}.attach")
-
     def reset(self, seeds: int | Sequence[int]) -> None:
         """Start the shadow of the coming batch (``attach`` first)."""
-        if self.config is None:
-            raise RuntimeError("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
-                               "(wfbench's runner does this for policies with reads_trace = True)")
+        self._attached()
         self._seeds = seeds_array(seeds)
         self.shadow = Simulator(self.config, [int(s) for s in self._seeds], keep_series=False, threads=1)
         self.shadow.reset()

@@ -27,10 +27,10 @@ from wfbench.policies.oracle.positioning import (
 )
 from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
 from wfbench.policies.oracle.workforce import workforce_candidates
-from wfbench.policies.protocol import DECISION_INDEX, as_obs, decision_key, hp_vector, seeds_array
+from wfbench.policies.protocol import DECISION_INDEX, Attached, as_obs, decision_key, hp_vector, seeds_array
 
 from wfbench.core.actions import AGENTS
-from wfbench.core.config import ScenarioConfig, require_config
+from wfbench.core.config import ScenarioConfig
 from wfbench.core.lookahead import copy_state, fork
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import EMPTY, IDLE, RETURNING
@@ -46,7 +46,7 @@ class ShadowDivergedError(RuntimeError):
     """The shadow simulator no longer shows what the policy observes."""
 
 
-class Planner:
+class Planner(Attached):
     """Hindsight planner for the decisions in ``decide`` (see the module docstring).
 
     Args:
@@ -103,14 +103,12 @@ class Planner:
     # -- protocol ------------------------------------------------------------------------------
     def attach(self, config: ScenarioConfig) -> None:
         """Tell the planner the scenario (the runner does, before ``reset``, for policies that read the trace)."""
-        self.config = require_config(config, f"{type(self).__name__}.attach")
+        super().attach(config)
         self._reset_seeds = None
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         """Start the shadow of the coming batch (``attach`` first)."""
-        if self.config is None:
-            raise RuntimeError("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
-                               "(wfbench's runner does this for policies with reads_trace = True)")
+        self._attached()
         seeds = seeds_array(seeds)
         if self._fresh and self._reset_seeds is not None and np.array_equal(seeds, self._reset_seeds):
             return  # already reset for these seeds (the parts of a composite share this planner)

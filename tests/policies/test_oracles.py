@@ -58,9 +58,12 @@ def test_oracles_are_registered_and_marked_as_reading_the_trace():
     assert mixed.parts["dispatch"].planner.base["workforce"][0] == K.W_STAFFING
 
 
-def test_an_oracle_needs_the_scenario_before_reset():
-    with pytest.raises(RuntimeError, match="attach"):
-        policies.get("oracle").reset([0])
+@pytest.mark.parametrize("name", ["oracle", "oracle-v2", "oracle-rollout", "oracle-planner"])
+def test_an_oracle_needs_the_scenario_before_reset(name):
+    with pytest.raises(RuntimeError) as err:
+        policies.get(name).reset([0])
+    assert str(err.value) == ("a hindsight oracle needs the scenario: call attach(config) before reset(seeds) "
+                              "(wfbench's runner does this for policies with reads_trace = True)")
 
 
 def test_the_planner_is_deterministic_and_a_seed_plays_the_same_alone_or_in_a_batch():
