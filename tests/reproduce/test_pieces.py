@@ -75,3 +75,6 @@ def test_the_plan_estimates_from_the_stored_cost_and_says_what_it_cannot(tmp_pat
     assert "plus 2 pieces with no stored cost to estimate from" in text
     assert pieces.plan([tmp_path], ["heuristic"], [SMALL], [1]) == []
     assert pieces.describe_plan([]) == "every piece is stored: nothing to play"
+    alone = pieces.plan([tmp_path], ["solver"], [SMALL], [0])
+    assert pieces.describe_plan(alone).splitlines()[0] == (
+        "to play: 1 pieces, 1 episodes; no stored piece of these policies to estimate their cost from")

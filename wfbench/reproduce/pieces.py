@@ -210,10 +210,14 @@ def describe_plan(todo: Sequence[Missing], workers: int = 1) -> str:
     known = [m.cpu_s for m in todo if m.cpu_s is not None]
     unknown = [m for m in todo if m.cpu_s is None]
     total = sum(known)
-    lines = [f"to play: {len(todo)} pieces, {sum(len(m.seeds) for m in todo)} episodes; about "
-             f"{_duration(total)} of CPU ({_duration(total / max(1, workers))} on {max(1, workers)} "
-             f"worker{'s' if workers != 1 else ''})" + (f", plus {len(unknown)} pieces with no stored cost to "
-                                                          "estimate from" if unknown else "")]
+    head = f"to play: {len(todo)} pieces, {sum(len(m.seeds) for m in todo)} episodes; "
+    if not known:
+        head += "no stored piece of these policies to estimate their cost from"
+    else:
+        head += (f"about {_duration(total)} of CPU ({_duration(total / max(1, workers))} on {max(1, workers)} "
+                 f"worker{'s' if workers != 1 else ''})")
+        head += f", plus {len(unknown)} pieces with no stored cost to estimate from" if unknown else ""
+    lines = [head]
     for m in sorted(todo, key=lambda m: -(m.cpu_s or 0.0))[:12]:
         lines.append(f"  {m.policy} on {m.scenario}: {len(m.seeds)} seeds, "
                      + ("cost unknown" if m.cpu_s is None else f"about {_duration(m.cpu_s)}"))
