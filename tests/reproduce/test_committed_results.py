@@ -77,6 +77,14 @@ def test_a_recorded_network_input_is_its_checkpoint_file():
     assert inputs[path] == provenance.file_sha256(ROOT / path)
 
 
+def test_a_lookahead_records_its_base_s_file_and_a_tuned_one_its_own_too():
+    net = "policies/neural/checkpoints/scalefree-general.pt"
+    assert provenance.policy_inputs("search-scalefree-general") == {net: provenance.file_sha256(ROOT / net)}
+    assert list(provenance.policy_inputs("mpc-ma-tuned-train")) == [
+        "policies/tuned/mpc-ma-suite-v1-train.json", "policies/tuned/solver-suite-v1-train.json"]
+    assert provenance.policy_inputs("heuristic") == {}
+
+
 def test_code_hash_of_a_checkout_equals_the_hash_from_git(tmp_path):
     repo = provenance.repository()
     if repo is None:

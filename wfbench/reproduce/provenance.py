@@ -129,10 +129,18 @@ def policy_inputs(policy: str) -> dict[str, str]:
     if policy in references.ORACLES:  # a best-in-hindsight oracle reads its reference's candidates' files
         specs = registry.oracle_candidates(policy)
     files: dict[str, str] = {}
-    for spec in specs:
-        f = registry.parse_spec(spec).file
+    seen: set[str] = set()
+    while specs:  # a lookahead reads its base's file too (a tuned MPC: its own, and its base's base's)
+        spec = specs.pop(0)
+        if spec in seen:
+            continue
+        seen.add(spec)
+        parsed = registry.parse_spec(spec)
+        f = parsed.file
         if f is not None and f.is_file():
             files[_repo_name(f)] = file_sha256(f)
+        if parsed.kind == "lookahead":
+            specs.append(registry.LOOKAHEAD[spec][0])
     return dict(sorted(files.items()))
 
 
