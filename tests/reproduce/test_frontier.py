@@ -10,8 +10,8 @@ import pytest
 
 import wfbench.reproduce.frontier as target
 from wfbench.cli import main
-from wfbench.reproduce import pieces
 from wfbench.harness.backends import Execution
+from wfbench.reproduce import pieces
 from wfbench.reproduce import suite as suite_target
 from wfbench.scenarios import get_suite, normalize
 
