@@ -67,42 +67,54 @@ def provenance_of(meta: dict, seed: int) -> dict | None:
     return None
 
 
-def find(folders: Sequence[Path], policy: str, scenario: SuiteScenario, seeds: Sequence[int]) -> pd.DataFrame | None:
-    """The first stored piece of (policy, scenario) of this scenario hash whose seeds include ``seeds``, cut to them.
+def _stored(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
+            seeds: Sequence[int]) -> tuple[pd.DataFrame, dict] | None:
+    """The stored piece holding the most of ``seeds`` (the first such folder on a tie), or None.
 
-    ``attrs["wall_s"]`` is the piece's wall time scaled to the seeds taken.
+    Its rows of those seeds in the order asked, and its parts cut to them (``wall_s`` scaled to
+    the seeds taken).
     """
-    seeds = [int(s) for s in seeds]
-    for folder in folders:
-        path = piece_path(folder, policy, scenario)
-        m = _meta(path, scenario)
-        if m is None or not set(seeds) <= set(m.get("seeds", [])):
-            continue
-        df = _read(path).set_index("seed").loc[seeds].reset_index()
-        wall = m.get("wall_s")
-        df.attrs["wall_s"] = None if wall is None else wall * len(seeds) / max(1, len(m["seeds"]))
-        return df
-    return None
-
-
-def _partial(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
-             seeds: Sequence[int]) -> tuple[pd.DataFrame, dict] | None:
-    """The stored piece holding the most of ``seeds`` (the first such folder on a tie), its rows cut to them."""
     best = None
     for folder in folders:
         path = piece_path(folder, policy, scenario)
         m = _meta(path, scenario)
         if m is None:
             continue
-        have = [s for s in seeds if s in set(m.get("seeds", []))]
+        held = set(m.get("seeds", []))
+        have = [s for s in seeds if s in held]
         if have and (best is None or len(have) > len(best[2])):
             best = (path, m, have)
     if best is None:
         return None
     path, m, have = best
     df = _read(path).set_index("seed").loc[have].reset_index()
-    kept = [{**p, "seeds": [s for s in p["seeds"] if s in set(have)]} for p in parts_of(m)]
-    return df, {"parts": [p for p in kept if p["seeds"]]}
+    taken = set(have)
+    parts = []
+    for p in parts_of(m):
+        mine = [s for s in p["seeds"] if s in taken]
+        if mine:
+            wall = p.get("wall_s")
+            parts.append({**p, "seeds": mine,
+                          "wall_s": None if wall is None else wall * len(mine) / max(1, len(p["seeds"]))})
+    return df, {"parts": parts}
+
+
+def _with_wall(df: pd.DataFrame, meta: dict) -> pd.DataFrame:
+    walls = [p["wall_s"] for p in meta["parts"]]
+    df.attrs["wall_s"] = None if any(w is None for w in walls) else sum(walls)
+    return df
+
+
+def find(folders: Sequence[Path], policy: str, scenario: SuiteScenario, seeds: Sequence[int]) -> pd.DataFrame | None:
+    """The first stored piece of (policy, scenario) of this scenario hash whose seeds include ``seeds``, cut to them.
+
+    ``attrs["wall_s"]`` is the piece's wall time scaled to the seeds taken.
+    """
+    seeds = [int(s) for s in seeds]
+    found = _stored(folders, policy, scenario, seeds)
+    if found is None or len(found[0]) < len(seeds):
+        return None
+    return _with_wall(*found)
 
 
 def store(path: Path, df: pd.DataFrame, policy: str, scenario: SuiteScenario, seeds: Sequence[int],
@@ -145,11 +157,10 @@ def obtain(folders: Sequence[Path], out: Path, policy: str, scenario: SuiteScena
     ``play_fn`` replaces :func:`play` (the suite passes its own, which tests replace).
     """
     seeds = [int(s) for s in seeds]
-    df = find(folders, policy, scenario, seeds)
-    if df is not None:
-        return df
-    part = _partial(folders, policy, scenario, seeds)
+    part = _stored(folders, policy, scenario, seeds)
     have = [] if part is None else part[0]["seed"].tolist()
+    if len(have) == len(seeds):  # every seed is stored: cut, nothing played
+        return _with_wall(*part)
     missing = [s for s in seeds if s not in set(have)]
     new, wall_s = (play_fn or play)(policy, scenario, missing, execution)
     if part is None:
@@ -193,11 +204,11 @@ def plan(folders: Sequence[Path], policies: Sequence[str], scenarios: Sequence[S
     todo = []
     for policy in policies:
         for sc in scenarios:
-            if find(folders, policy, sc, seeds) is not None:
-                continue
-            part = _partial(folders, policy, sc, seeds)
+            part = _stored(folders, policy, sc, seeds)
             have = set() if part is None else set(part[0]["seed"])
             missing = tuple(s for s in seeds if s not in have)
+            if not missing:
+                continue
             per = _cpu_per_episode(folders, policy, sc, [o for o in scenarios if o is not sc])
             todo.append(Missing(policy, sc.id, missing, None if per is None else per * len(missing)))
     return todo
