@@ -125,7 +125,7 @@ def test_show_does_not_create_a_missing_store(tmp_path, capsys):
     missing = tmp_path / "missing.db"
     code, out, err = run_cli(["leaderboard", "show", "--db", str(missing)], capsys)
     assert code == 2 and err == (f"wfbench: error: store {missing} does not exist; pass --db with the file that "
-                                 "'wfbench leaderboard submit' or 'seed' wrote, or run one of them first\n")
+                                 "'wfbench leaderboard submit' or 'baselines' wrote, or run one of them first\n")
     assert not missing.exists()
 
 
