@@ -5,7 +5,8 @@ the mean NSW over ``H`` steps of ``K`` worlds sampled from what it observed (:cl
 the base playing the later steps (:func:`wfbench.policies.oracle.rollout.roll_forward`); common worlds,
 ties to the base. It decides where the base hires or lets go and every ``R`` steps. The ``sparse:``
 presets, for ``city``: the base's :func:`sparse_twin`, a decision every R steps only, futures with
-spatial positioning (:func:`spatial_twin`). It reads no trace or seed: its model comes from
+spatial positioning (:func:`spatial_twin`); ``sparse="auto"`` plays them only on a world as large as
+``city`` (:func:`plays_sparse`). It reads no trace or seed: its model comes from
 :meth:`Rollout.set_world`, ``scenario=`` or the first observation. ``docs/policies.md``, "Lookahead policies".
 """
 
@@ -46,6 +47,11 @@ DECIDE = {"base": "where the base hires or lets go, and every R steps", "period"
 # spatial twin, so that a decision's cost on city does not grow with the p-median solves or with how often the base
 # hires (docs/policies.md, "Lookahead policies on city")
 SPARSE_PRESET = "sparse:"
+# sparse="auto" (the registry's rollout-solver-tuned presets, issue #53): the dense base on a world of at most this
+# many (facility slot, person slot) pairs, the sparse preset above it. Every suite-v1 world but city has at most
+# 200 x 200 = 40,000 pairs, where the dense assignment costs milliseconds; city has 1,000 x 1,000, where it costs
+# 0.6-1 s a step. The world's size is public, so the choice reads nothing a deployable policy may not.
+AUTO_SPARSE_PAIRS = 250_000
 
 
 def knob(name: str, value: Any) -> int:
@@ -102,12 +108,21 @@ def spatial_twin(base: Any) -> Composite:
     return Composite(base.parts["dispatch"], base.parts["workforce"], spatial, name=f"{base.name}-spatial")
 
 
-def sparse_flag(value: Any) -> bool:
-    """``value`` as the ``sparse`` knob; ValueError of one line otherwise."""
+def sparse_flag(value: Any) -> bool | str:
+    """``value`` as the ``sparse`` knob (True, False or ``"auto"``); ValueError of one line otherwise."""
+    if isinstance(value, str) and value == "auto":
+        return value
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"rollout knob sparse = {value!r} is not allowed; allowed: True or False (play the "
-                         "base's sparse twin, its assignment and p-median on the k nearest)")
+                         "base's sparse twin, its assignment and p-median on the k nearest), or 'auto' (the sparse "
+                         f"preset on a world of more than {AUTO_SPARSE_PAIRS:,} facility-person pairs, the dense base "
+                         "otherwise)")
     return bool(value)
+
+
+def plays_sparse(M: int, N: int) -> bool:
+    """Whether ``sparse="auto"`` plays the sparse preset on a world of ``M`` facility and ``N`` personnel slots."""
+    return M * N > AUTO_SPARSE_PAIRS
 
 
 def budget(name: str) -> tuple[int, int, int]:
@@ -163,7 +178,10 @@ class Rollout(RolloutBase):
         budget: a preset of :data:`BUDGETS` for the knobs not given; ``sparse:PRESET`` is that
             preset with ``sparse=True``, ``decide="period"`` and ``futures`` the sparse twin's
             :func:`spatial_twin` (the registry's ``rollout-solver-sparse-tuned`` presets, for ``city``).
-        sparse: play :func:`sparse_twin` of ``base`` (a bool).
+        sparse: play :func:`sparse_twin` of ``base`` (a bool); ``"auto"``: on a world larger than
+            :data:`AUTO_SPARSE_PAIRS` (:func:`plays_sparse`, read from the first observation of each
+            episode), what ``sparse:PRESET`` plays (the twin, ``decide="period"``, the twin's spatial
+            futures unless ``futures`` is given), and otherwise exactly what ``sparse=False`` plays.
         decide: when to roll out (:data:`DECIDE`): ``"base"``, where the base hires or lets go
             and every R steps; ``"period"``, every R steps only (the base's other actions pass).
         futures: a compiled composite that plays the futures after their first step; None: the base.
@@ -179,6 +197,11 @@ class Rollout(RolloutBase):
         if isinstance(budget, str) and budget.startswith(SPARSE_PRESET):  # the city presets (module docstring)
             budget, sparse, decide = budget[len(SPARSE_PRESET):], True, "period"
             futures = spatial_twin(sparse_twin(base)) if futures is None else futures
+        self._large = None  # sparse="auto": what a large world plays (base, decide, futures), else None
+        if sparse_flag(sparse) == "auto":
+            twin = sparse_twin(base)
+            self._large = (twin, "period", spatial_twin(twin) if futures is None else futures)
+            sparse = False
         if sparse_flag(sparse):
             base = sparse_twin(base)
         if not getattr(base, "compiled", False):
@@ -192,6 +215,7 @@ class Rollout(RolloutBase):
                              "kernels; allowed: None (the base) or a compiled composite")
         name = name or f"rollout-{getattr(base, 'name', 'base')}"
         self.sparse, self.decide, self.futures = bool(sparse), decide, futures
+        self._small = (base, decide, futures)  # what any world plays, or with sparse="auto" a small one
         super().__init__(base, K, H, R, budget, scenario, seed, name)
 
     # the name of before; the runner hands ``attach`` only to policies that read the trace
@@ -206,6 +230,10 @@ class Rollout(RolloutBase):
         B, M, N = obs["facilities"].shape[0], obs["facilities"].shape[1], obs["personnel"].shape[1]
         if len(self._seeds) != B:
             raise RuntimeError(f"{self.name}: reset with {len(self._seeds)} seed(s), observed {B} environment(s)")
+        if self._large is not None:  # sparse="auto": the world's size decides, each episode
+            large = plays_sparse(M, N)
+            self.base, self.decide, self.futures = self._large if large else self._small
+            self.sparse = large
         self.belief = Belief(config)
         self.belief.reset(self._seeds, self.seed)
         codes, hp, pstate = self.base.compiled_plan(self._seeds, M, N)
@@ -306,5 +334,6 @@ def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, 
     return Rollout(base, budget=budget_name, name=name, **knobs)
 
 
-__all__ = ["BUDGETS", "DECIDE", "DEFAULT_BUDGET", "KNOBS", "SPARSE_PRESET", "SPARSE_TWINS", "Rollout", "RolloutBase",
-           "budget", "candidate_rows", "knob", "make", "pick_best", "sparse_flag", "sparse_twin", "spatial_twin"]
+__all__ = ["AUTO_SPARSE_PAIRS", "BUDGETS", "DECIDE", "DEFAULT_BUDGET", "KNOBS", "SPARSE_PRESET", "SPARSE_TWINS",
+           "Rollout", "RolloutBase", "budget", "candidate_rows", "knob", "make", "pick_best", "plays_sparse",
+           "sparse_flag", "sparse_twin", "spatial_twin"]

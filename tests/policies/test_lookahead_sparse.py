@@ -117,3 +117,39 @@ def test_a_base_the_sparse_rollout_cannot_compile_gets_one_line(base, says):
     with pytest.raises(ValueError) as err:
         Rollout(policies.get(base), budget="sparse:10ms")
     assert str(err.value).startswith(says) and "\n" not in str(err.value)
+
+
+def test_auto_plays_the_sparse_preset_only_on_city_among_the_suites_worlds():
+    from wfbench.policies.lookahead.rollout import plays_sparse
+
+    from wfbench.scenarios import get_suite
+
+    large = {sc.id for sc in get_suite("suite-v1").scenarios
+             if plays_sparse(sc.config.max_facilities, sc.config.max_personnel)}
+    assert large == {"city-v1"}
+
+
+def test_auto_is_the_dense_rollout_on_a_small_world_bit_for_bit():
+    kw = {"K": 2, "H": 20, "R": 20, "scenario": SMALL}
+    tuned = policies.get("solver-tuned")
+    auto = Rollout(tuned, sparse="auto", **kw)
+    nsw_auto, acted_auto, _ = play(auto, SMALL, SEEDS[:2])
+    nsw_dense, acted_dense, _ = play(Rollout(tuned, **kw), SMALL, SEEDS[:2])
+    assert np.array_equal(nsw_auto, nsw_dense)
+    assert all(np.array_equal(a[k], b[k]) for a, b in zip(acted_auto, acted_dense, strict=True) for k in a)
+    assert not auto.sparse and auto.decide == "base" and auto.base is tuned
+
+
+def test_auto_above_its_size_is_the_sparse_preset_bit_for_bit(monkeypatch):
+    from wfbench.policies.lookahead import rollout as module
+
+    monkeypatch.setattr(module, "AUTO_SPARSE_PAIRS", 0)  # every world is large: small plays what city would
+    kw = {"K": 2, "H": 20, "scenario": SMALL}
+    tuned = policies.get("solver-tuned")
+    auto = Rollout(tuned, budget="10ms", sparse="auto", **kw)
+    nsw_auto, acted_auto, decided_auto = play(auto, SMALL, SEEDS[:2])
+    nsw_preset, acted_preset, decided_preset = play(Rollout(tuned, budget="sparse:10ms", **kw), SMALL, SEEDS[:2])
+    assert np.array_equal(nsw_auto, nsw_preset) and np.array_equal(decided_auto, decided_preset)
+    assert all(np.array_equal(a[k], b[k]) for a, b in zip(acted_auto, acted_preset, strict=True) for k in a)
+    assert auto.sparse and auto.decide == "period"
+    assert [p.name for p in auto.futures.parts.values()] == ["assignment-sparse", "staffing", "spatial"]
