@@ -24,7 +24,7 @@ import numpy as np
 import torch
 from wfbench.policies.neural.dist import gumbel, noise_shapes, sample
 from wfbench.policies.neural.model import featurize, obs_to_torch
-from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED
+from wfbench.policies.registry import checkpoint_file
 
 from wfbench.scenarios.resolve import resolve_scenario
 from wfbench.train.hindsight import HindsightConfig, Trainer
@@ -32,7 +32,7 @@ from wfbench.train.hindsight import HindsightConfig, Trainer
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--checkpoint", default=str(CHECKPOINT_DIR / LEARNED["ppo-joint"][0]))
+    ap.add_argument("--checkpoint", default=str(checkpoint_file("ppo-joint")))
     ap.add_argument("--scenario", default="paper-64")
     ap.add_argument("--model", default="cpu", help="the checkpoint's model preset")
     ap.add_argument("--envs", type=int, default=16)

@@ -18,7 +18,6 @@ from typing import Any
 
 from wfbench.leaderboard.rows import SubmitError
 from wfbench.policies import registry as _registry
-from wfbench.policies import tuned as _tuned
 
 from wfbench import __version__
 from wfbench.core.paths import package_dir
@@ -85,8 +84,8 @@ def policy_fingerprint(spec: str, policy: Any = None) -> tuple[str, dict[str, An
             detail["file"] = _file_digest(spec, p.file)
         elif p.kind == "oracle":  # it plays its candidates: their shipped files decide its numbers too
             detail["candidates"] = {
-                c: _file_digest(spec, _tuned.TUNED_DIR / _registry.TUNED[c][0]) if c in _registry.TUNED
-                else _file_digest(spec, _registry.CHECKPOINT_DIR / _registry.LEARNED[c][0]) if c in _registry.LEARNED
+                c: _file_digest(spec, _registry.tuned_file(c)) if _registry.entry(c).kind == "tuned"
+                else _file_digest(spec, _registry.checkpoint_file(c)) if _registry.entry(c).kind == "learned"
                 else c
                 for c in _registry.oracle_candidates()
             }

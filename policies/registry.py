@@ -1,10 +1,15 @@
-"""Policies by name: built-in composites, ``"D+W+P"`` composites of built-in decisions, tuned-policy files.
+"""Policies by name: the registered ones, ``"D+W+P"`` composites of built-in decisions, tuned-policy files.
 
-And ``module:attr`` entry points.
+And ``module:attr`` entry points. The registered names are one table,
+:data:`wfbench.policies.table.TABLE`, of :class:`~wfbench.policies.table.Entry` rows: this
+module registers the composites and imports the families that register theirs (the tuned
+files, the networks, the lookahead presets, the oracles), then reads the table to list and
+build (``docs/policies.md``, "Listing policies").
 """
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import importlib.util
 import re
@@ -13,200 +18,158 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from wfbench.policies import lookahead as _lookahead_family  # noqa: F401  (registers the lookahead presets)
 from wfbench.policies import tuned as _tuned
 from wfbench.policies.composite import Composite
 from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
+from wfbench.policies.oracle import references as _references  # noqa: F401  (registers the oracles)
+from wfbench.policies.table import (
+    FAMILIES,
+    TABLE,
+    BestOf,
+    Budget,
+    Checkpoint,
+    CompositeOf,
+    Entry,
+    HindsightRolloutOf,
+    MPCPreset,
+    SearchPreset,
+    TunedFile,
+    TunedLookahead,
+    register,
+)
 
 from wfbench.core.paths import CHECKPOINTS, data_path
 
-# name -> (dispatch, workforce, positioning, description)
-COMPOSITES: dict[str, tuple[str, str, str, str]] = {
-    "random": ("random", "random", "random", "uniformly random valid actions for all three decisions (Table 3 row 1)"),
-    "heuristic": ("nearest", "threshold", "spatial", "the paper's deterministic heuristics (Table 3 row 4)"),
-    "heuristic-stochastic": (
-        "inverse-distance", "threshold-epsilon", "spatial-gaussian", "the stochastic variants of the heuristics",
-    ),
-    "random-dispatch": (
-        "random", "threshold", "spatial", "random dispatch, heuristic workforce and positioning (row 2)",
-    ),
-    "random-positioning": (
-        "nearest", "threshold", "random", "heuristic dispatch and workforce, random positioning (row 3)",
-    ),
-    "fixed-workforce": ("nearest", "fixed", "none", "nearest dispatch, no hiring or letting go (Table 2)"),
-    "solver": ("assignment", "staffing", "facility-location", "the three solver-backed decisions (docs/solvers.md)"),
-    "solver-dispatch": (
-        "assignment", "threshold", "spatial", "optimal-assignment dispatch, heuristic workforce and positioning",
-    ),
-    "solver-workforce": ("nearest", "staffing", "spatial", "square-root staffing, heuristic dispatch and positioning"),
-    "solver-positioning": (
-        "nearest", "threshold", "facility-location", "p-median positioning, heuristic dispatch and workforce",
-    ),
-    "oracle-planner": (
-        "oracle", "oracle", "oracle", "the hindsight planner for all three decisions: reads the trace, not "
-        "deployable (docs/hindsight.md)",
-    ),
-    "oracle-dispatch": (
-        "oracle", "threshold", "spatial", "hindsight dispatch, heuristic workforce and positioning: not deployable",
-    ),
-    # added after the published tables: opt-in, not an oracle candidate (NOT_ORACLE_CANDIDATES)
-    "solver-sparse": (
-        "assignment-sparse", "staffing", "facility-location-sparse", "the solver composite with its assignment and "
-        "p-median solved on sparse candidate graphs (the k nearest; docs/solvers.md, \"Sparse candidate graphs\")",
-    ),
-}
+V1V2 = ("v1", "v2")  # the references of the oracle that play a policy registered before v1 was published
 
-# name -> description: oracles that are not composites (docs/hindsight.md, "The oracle")
-ORACLES: dict[str, str] = {
-    "oracle": "per seed, the best in hindsight of oracle-planner and every deployable built-in (the composites, the "
-              "tuned files and the shipped networks): reads the trace, not deployable (docs/hindsight.md)",
-    # issue #53: the references are versioned (wfbench.policies.oracle.references; docs/hindsight.md)
-    "oracle-v2": "reference v2: per seed, the best in hindsight of every deployable family, the lookaheads "
-                 "included, and oracle-rollout; replays recorded episodes and committed pieces (docs/hindsight.md)",
-    "oracle-rollout": "the rollout of solver-tuned on the true future, rolled to the end of the episode: reads the "
-                      "trace, not deployable (docs/hindsight.md, \"The hindsight rollout\")",
-}
-
-# name -> (file under policies/tuned/, description): tuned-policy files shipped with wfbench (docs/policies.md, Tuning)
-TUNED: dict[str, tuple[str, str]] = {
-    "heuristic-tuned": ("heuristic-paper-64.json", "the heuristic composite tuned on paper-64's public seeds "
-                        "(wfbench tune)"),
-    "solver-tuned": ("solver-paper-64.json", "the solver composite tuned jointly on paper-64's public seeds "
-                     "(wfbench tune)"),
-    "heuristic-tuned-train": ("heuristic-suite-v1-train.json", "the heuristic composite tuned on suite-v1's "
-                              "training split: the mean normalized score over its eight scenarios' public seeds "
-                              "(wfbench tune --scenarios suite-v1:train)"),
-    "solver-tuned-train": ("solver-suite-v1-train.json", "the solver composite tuned jointly on suite-v1's training "
-                           "split: the mean normalized score over its eight scenarios' public seeds (wfbench tune "
-                           "--scenarios suite-v1:train)"),
-}
+# the composites of built-in decisions, by name (wfbench.policies.table; the other families register in their own
+# modules: the tuned files in wfbench.policies.tuned, the networks in wfbench.policies.neural, the lookahead presets in
+# wfbench.policies.lookahead, the oracles that are not composites in wfbench.policies.oracle.references)
+register(
+    Entry("random", "composite", CompositeOf("random", "random", "random"),
+          "uniformly random valid actions for all three decisions (Table 3 row 1)", candidate_of=V1V2),
+    Entry("heuristic", "composite", CompositeOf("nearest", "threshold", "spatial"),
+          "the paper's deterministic heuristics (Table 3 row 4)", candidate_of=V1V2, budget=Budget.MS_1),
+    Entry("heuristic-stochastic", "composite", CompositeOf("inverse-distance", "threshold-epsilon", "spatial-gaussian"),
+          "the stochastic variants of the heuristics", candidate_of=V1V2),
+    Entry("random-dispatch", "composite", CompositeOf("random", "threshold", "spatial"),
+          "random dispatch, heuristic workforce and positioning (row 2)", candidate_of=V1V2),
+    Entry("random-positioning", "composite", CompositeOf("nearest", "threshold", "random"),
+          "heuristic dispatch and workforce, random positioning (row 3)", candidate_of=V1V2),
+    Entry("fixed-workforce", "composite", CompositeOf("nearest", "fixed", "none"),
+          "nearest dispatch, no hiring or letting go (Table 2)", candidate_of=V1V2),
+    Entry("solver", "composite", CompositeOf("assignment", "staffing", "facility-location"),
+          "the three solver-backed decisions (docs/solvers.md)", candidate_of=V1V2, budget=Budget.MS_1),
+    Entry("solver-dispatch", "composite", CompositeOf("assignment", "threshold", "spatial"),
+          "optimal-assignment dispatch, heuristic workforce and positioning", candidate_of=V1V2),
+    Entry("solver-workforce", "composite", CompositeOf("nearest", "staffing", "spatial"),
+          "square-root staffing, heuristic dispatch and positioning", candidate_of=V1V2),
+    Entry("solver-positioning", "composite", CompositeOf("nearest", "threshold", "facility-location"),
+          "p-median positioning, heuristic dispatch and workforce", candidate_of=V1V2),
+    # the hindsight planner's composites: the oracle family, read as composites
+    Entry("oracle-planner", "oracle", CompositeOf("oracle", "oracle", "oracle"),
+          "the hindsight planner for all three decisions: reads the trace, not deployable (docs/hindsight.md)",
+          reads_future=True, candidate_of=V1V2),
+    Entry("oracle-dispatch", "oracle", CompositeOf("oracle", "threshold", "spatial"),
+          "hindsight dispatch, heuristic workforce and positioning: not deployable", reads_future=True),
+    # added after the published tables: opt-in, a candidate of oracle-v2 only
+    Entry("solver-sparse", "composite", CompositeOf("assignment-sparse", "staffing", "facility-location-sparse"),
+          "the solver composite with its assignment and p-median solved on sparse candidate graphs (the k nearest; "
+          "docs/solvers.md, \"Sparse candidate graphs\")", candidate_of=("v2",)),
+)
+CHECKPOINT_DIR = data_path(CHECKPOINTS)  # policies/neural/checkpoints/ (wfbench/policies/... in a wheel)
 
 
-# -- deployable lookahead (issue #43) ---------------------------------------------------------------------------------
-# name -> (base, budget preset, description): a rollout of a compiled base on K sampled futures of H steps, one name
-# per budget preset (wfbench.policies.lookahead, docs/policies.md "Lookahead policies"). Asked for by name (get,
-# parse_spec); not yet in names(), deployable_names() or the oracle's candidates: entering those runs them in every
-# table, the identity check and the leaderboard's seeding, which issue #43 does with the frontier
-LOOKAHEAD: dict[str, tuple[str, str, str]] = {
-    "rollout-solver-tuned": ("solver-tuned", "10ms", "rollout of solver-tuned on sampled futures (K=4, H=80, R=20)"),
-    "rollout-solver-tuned-1ms": ("solver-tuned", "1ms", "rollout of solver-tuned, the 1 ms budget (K=2, H=80, "
-                                 "R=80)"),
-    "rollout-solver-tuned-100ms": ("solver-tuned", "100ms", "rollout of solver-tuned, the 100 ms budget (K=16, "
-                                   "H=120, R=10)"),
-    # the network as the base: the same knobs as the 1 ms preset cost far more (H forward passes a decision)
-    "rollout-scalefree-general": ("scalefree-general", "1ms", "rollout of the scale-free network on sampled "
-                                  "futures, the network playing them (K=2, H=80, R=80)"),
-}
-
-# for city (issue #53): a preset field "sparse:BUDGET" is BUDGET's knobs on solver-tuned's sparse twin (its tuned
-# parameters, assignment and p-median on the k nearest), a decision every R steps only, the futures positioned by
-# spatial averaging (wfbench.policies.lookahead.rollout.SPARSE_PRESET; docs/policies.md, "Lookahead policies on city")
-LOOKAHEAD.update({
-    "rollout-solver-sparse-tuned": ("solver-tuned", "sparse:10ms", "rollout of solver-tuned's sparse twin, for "
-                                    "city: K=4, H=80, a decision every R=20 steps, spatial positioning in the futures"),
-    "rollout-solver-sparse-tuned-1ms": ("solver-tuned", "sparse:1ms", "rollout-solver-sparse-tuned at the 1 ms "
-                                        "budget (K=2, H=80, R=80)"),
-    "rollout-solver-sparse-tuned-100ms": ("solver-tuned", "sparse:100ms", "rollout-solver-sparse-tuned at the "
-                                          "100 ms budget (K=16, H=120, R=10)"),
-})
+def entry(name: str) -> Entry:
+    """The registered entry of ``name``; ValueError of one line with the closest names otherwise."""
+    if name in TABLE:
+        return TABLE[name]
+    raise ValueError(unknown_message(name, "registered policy"))
 
 
-# the rolling-horizon MILP (issue #43): a preset field naming the forecast kind, "mpc:rates" or "mpc:ma"; the base
-# plays dispatch (its assignment), the MILP staffs and positions on the forecast (docs/policies.md, "mpc")
-LOOKAHEAD.update({
-    "mpc-rates": ("solver-tuned-train", "mpc:rates", "rolling-horizon staffing MILP (HiGHS) on the public rates and "
-                  "schedules, H=100, re-solved every R=20 steps; assignment dispatch"),
-    "mpc-ma": ("solver-tuned-train", "mpc:ma", "rolling-horizon staffing MILP (HiGHS) on a 100-step moving average "
-               "of observed requests (no demand model), H=100, R=20; assignment dispatch"),
-})
-# the same with its capacity measured from observed repairs (issue #53; docs/policies.md, "Why it churns"): a
-# preset field "mpc:FORECAST:calibrated" turns on MPC(calibrate=True)
-LOOKAHEAD.update({
-    "mpc-rates-calibrated": ("solver-tuned-train", "mpc:rates:calibrated", "mpc-rates with the capacity per person "
-                             "measured from observed repairs and the working share averaged over the window"),
-    "mpc-ma-calibrated": ("solver-tuned-train", "mpc:ma:calibrated", "mpc-ma with the capacity per person measured "
-                          "from observed repairs; the base staffs until a window of requests is seen"),
-})
-# calibrated, with a fluid queue of repair requests in the MILP (issue #53's second design; docs/policies.md, "The
-# second design"): a preset field "mpc:FORECAST:backlog" turns on MPC(calibrate=True, backlog=True)
-LOOKAHEAD.update({
-    "mpc-rates-backlog": ("solver-tuned-train", "mpc:rates:backlog", "mpc-rates-calibrated whose MILP carries the "
-                          "repair backlog (a fluid queue seeded from the waiting requests, priced as downtime)"),
-    "mpc-ma-backlog": ("solver-tuned-train", "mpc:ma:backlog", "mpc-ma-calibrated whose MILP carries the repair "
-                       "backlog (a fluid queue seeded from the waiting requests, priced as downtime)"),
-})
+def entries(family: str | None = None) -> list[Entry]:
+    """Every registered entry, grouped by family in :data:`FAMILIES`' order, or those of ``family``.
+
+    Raises:
+        ValueError: an unknown family; the message names the allowed ones.
+    """
+    if family is not None and family not in FAMILIES:
+        raise ValueError(f"unknown policy family {family!r}; allowed: {', '.join(FAMILIES)}")
+    return [e for f in FAMILIES if family in (None, f) for e in TABLE.values() if e.family == f]
 
 
-# tuned on suite-v1's training split, public seeds 1000-1004 (issue #43; docs/policies.md, "mpc"): a preset field
-# "tuned:FILE" names the tuned-policy file under policies/tuned/, whose base is the untuned lookahead
-LOOKAHEAD.update({
-    "mpc-rates-tuned-train": ("mpc-rates", "tuned:mpc-rates-suite-v1-train.json", "mpc-rates with its knobs, prices "
-                              "and capacity scale tuned on suite-v1's training split (wfbench tune)"),
-    "mpc-ma-tuned-train": ("mpc-ma", "tuned:mpc-ma-suite-v1-train.json", "mpc-ma with its knobs, prices and "
-                           "capacity scale tuned on suite-v1's training split (wfbench tune)"),
-})
+def unknown_message(name: str, what: str = "policy", also: str = "") -> str:
+    """One line for a name that is not registered: every registered name (by family), then the closest of them.
+
+    ``also`` names the other forms allowed where the name was read (", a tuned-policy file ...").
+    The suggestion is difflib's, over every family (lookaheads and oracles included).
+    """
+    close = [repr(n) for n in difflib.get_close_matches(name, list(TABLE), n=3) if n != name]
+    hint = "" if not close else "; did you mean " + (close[0] if len(close) == 1 else
+                                                    f"{', '.join(close[:-1])} or {close[-1]}") + "?"
+    return f"unknown {what} {name!r}; available: {', '.join(e.name for e in entries())}{also}{hint}"
 
 
-# search with the network (issue #52; docs/policies.md, "search-scalefree-general"): a preset field "search:BUDGET"
-# names a preset of wfbench.policies.lookahead.search (greedy futures ended at the network's value, a noise test)
-LOOKAHEAD.update({
-    "search-scalefree-general-1ms": ("scalefree-general", "search:1ms", "search with the scale-free network, the "
-                                     "1 ms budget (K=2, H=10, R=80, top=2, z=1)"),
-    "search-scalefree-general": ("scalefree-general", "search:10ms", "search with the scale-free network: greedy "
-                                 "futures ended at its value, a noise test (K=8, H=20, R=20, top=3, z=1)"),
-    "search-scalefree-general-100ms": ("scalefree-general", "search:100ms", "search with the scale-free network, "
-                                       "the 100 ms budget (K=32, H=20, R=10, top=4, z=1)"),
-})
+def names_of(kind: str) -> list[str]:
+    """Every registered name whose recipe is of ``kind`` (``parse_spec``'s), in registration order.
+
+    ``kind`` is composite, oracle, tuned, learned or lookahead; the networks are named whether
+    their checkpoint is shipped or not (:func:`learned_names`: those that are).
+    """
+    return _of_kind(kind)
 
 
-def _lookahead_file(name: str) -> Path | None:
-    """The tuned-policy file a tuned lookahead reads, or None."""
-    preset = LOOKAHEAD[name][1]
-    return _tuned.TUNED_DIR / preset[6:] if preset.startswith("tuned:") else None
+def _of_kind(kind: str, listed_only: bool = False) -> list[str]:
+    return [n for n, e in TABLE.items() if e.kind == kind and (e.listed or not listed_only)]
+
+
+def checkpoint_file(name: str) -> Path:
+    """The shipped checkpoint file of a network (``policies/neural/checkpoints/``; it may not be there)."""
+    recipe = entry(name).recipe
+    if not isinstance(recipe, Checkpoint):
+        raise ValueError(f"policy {name!r} is not a network; networks: {', '.join(_of_kind('learned'))}")
+    return CHECKPOINT_DIR / recipe.file
+
+
+def tuned_file(name: str) -> Path | None:
+    """The tuned-policy file a registered name reads (a tuned file or a tuned lookahead), or None."""
+    recipe = entry(name).recipe
+    return _tuned.TUNED_DIR / recipe.file if isinstance(recipe, TunedFile | TunedLookahead) else None
+
+
+def lookahead_base(name: str) -> str:
+    """The registered policy a lookahead preset (or oracle-rollout) plans with."""
+    return entry(name).recipe.base
+
+
+def seed_runs() -> dict[str, tuple[str, ...]]:
+    """The networks trained over seeds: method -> its training seeds' checkpoint files (:class:`Checkpoint`)."""
+    return {n: e.recipe.seeds for n, e in TABLE.items() if isinstance(e.recipe, Checkpoint) and e.recipe.seeds}
 
 
 def lookahead_names() -> list[str]:
-    """The deployable lookahead policies (:data:`LOOKAHEAD`), asked for by name."""
-    return list(LOOKAHEAD)
+    """The deployable lookahead policies (the rollout, mpc and search families), asked for by name."""
+    return _of_kind("lookahead")
 
 
 def _lookahead(name: str) -> Any:
-    from wfbench.policies.lookahead import make
+    from wfbench.policies import lookahead
 
-    base, preset, _ = LOOKAHEAD[name]
-    if preset.startswith("tuned:"):
-        path = _lookahead_file(name)
-        return _tuned.build(_tuned.read(path), get(base), path)
-    if preset.startswith("mpc:"):
+    recipe = entry(name).recipe
+    if isinstance(recipe, TunedLookahead):
+        path = _tuned.TUNED_DIR / recipe.file
+        return _tuned.build(_tuned.read(path), get(recipe.base), path)
+    if isinstance(recipe, MPCPreset):
         from wfbench.policies.lookahead import mpc
 
-        forecast, _, option = preset[4:].partition(":")
-        return mpc.make(get(base), forecast, name=name, **mpc.PRESET_OPTIONS[option])
-    return make(get(base), preset, name=name)
-# -- end of deployable lookahead --------------------------------------------------------------------------------------
+        return mpc.make(get(recipe.base), recipe.forecast, name=name, **mpc.PRESET_OPTIONS[recipe.option])
+    if isinstance(recipe, SearchPreset):
+        return lookahead.make(get(recipe.base), f"search:{recipe.budget}", name=name)
+    from wfbench.policies.lookahead.rollout import SPARSE_PRESET
 
-# name -> (checkpoint under policies/neural/checkpoints/, description): trained networks (docs/rl.md), each
-# named by the algorithm that trained it (its checkpoint's algo key: no key is ppo); a name is offered only when
-# its file is there, and loading it needs torch (the rl extra)
-LEARNED: dict[str, tuple[str, str]] = {
-    "ppo-joint": ("ppo-joint-paper-64.pt", "the joint PPO network (all three decisions) trained on paper-64"),
-    "ppo-dispatch": ("ppo-dispatch-paper-64.pt", "the dispatch-only PPO network trained on paper-64, heuristic "
-                     "workforce and positioning"),
-    "impala-joint": ("impala-joint-paper-64.pt", "the joint network trained with IMPALA (V-trace) on paper-64"),
-    "hindsight-joint": ("hindsight-joint-paper-64.pt", "the joint network trained by imitating the hindsight "
-                        "oracles (DAgger) on paper-64"),
-    "ppo-independent": ("ppo-independent-paper-64.pt", "three PPO networks, one per decision (independent "
-                        "agents), trained together on paper-64"),
-    "hindsight-ppo": ("hindsight-ppo-paper-64.pt", "ppo-joint with its workforce head improved by hindsight "
-                      "learning on its own action values (the known future, its own policy acting) on paper-64"),
-    "ppo-general": ("ppo-general.pt", "the joint PPO network trained across suite-v1's eight training scenarios "
-                    "(from ppo-joint's weights); the median of 5 training seeds (ppo-general#seedK)"),
-    "hindsight-general": ("hindsight-general.pt", "ppo-general with its workforce head improved by hindsight "
-                          "learning on its own action values across the training scenarios; the median of 5 seeds"),
-    "scalefree-general": ("scalefree-general.pt", "the scale-free network (observation version 2: lengths in "
-                          "travel time, the world's parameters as context) trained by PPO from scratch across "
-                          "suite-v1's eight training scenarios; the median of 5 training seeds"),
-}
-CHECKPOINT_DIR = data_path(CHECKPOINTS)  # policies/neural/checkpoints/ (wfbench/policies/... in a wheel)
+    budget = f"{SPARSE_PRESET}{recipe.budget}" if recipe.sparse else recipe.budget
+    return lookahead.make(get(recipe.base), budget, name=name)
 
 # The built-ins as each table lines them up, one table read by all (issue #33): the leaderboard's seeded entries
 # (wfbench.leaderboard.submit.seed_builtins), ``wfbench reproduce suite``'s policies before the networks and the
@@ -229,16 +192,10 @@ LINEUPS: dict[str, tuple[str, ...]] = {
 }
 
 
-# method -> the checkpoint files (under CHECKPOINT_DIR) of its training seeds: the same training command with only
-# the seed varied (issue #28, docs/suite.md "Learned methods over training seeds"). A method is reported by the
-# aggregate over these members; its LEARNED entry is the shipped pick, a copy of the file of one of them (the seed
-# whose mean score on the public seeds of the training scenarios is the median, wfbench.analysis.aggregate.median_seed).
-# Members are not in LEARNED, learned_names() or oracle_candidates(): the oracle plays the shipped pick only.
-SEED_RUNS: dict[str, tuple[str, ...]] = {
-    "ppo-general": tuple(f"ppo-general-seed{i}.pt" for i in range(5)),
-    "hindsight-general": tuple(f"hindsight-general-seed{i}.pt" for i in range(5)),
-    "scalefree-general": tuple(f"scalefree-general-seed{i}.pt" for i in range(5)),
-}
+# A network trained over seeds (issue #28, docs/suite.md "Learned methods over training seeds") lists its members'
+# files in its Checkpoint recipe (seed_runs()); it is reported by the aggregate over them, and its own file is the
+# shipped pick, a copy of one of them (the median seed, wfbench.analysis.aggregate.median_seed). Members are not
+# registered names, learned_names() or oracle candidates: the oracle plays the shipped pick only.
 SEED_SEP = "#seed"  # a member's spec: METHOD#seedK, METHOD#seedK@greedy
 _MEMBER = re.compile(r"^(?P<method>[A-Za-z0-9_.-]+)#seed(?P<k>[^@]*)(?:@(?P<mode>.*))?$")
 
@@ -251,9 +208,9 @@ def member_spec(method: str, k: int) -> str:
 def seed_members(method: str) -> list[str]:
     """The specs (``METHOD#seedK``) of ``method``'s training seeds whose checkpoint file exists, in seed order.
 
-    Empty for a policy that is not in :data:`SEED_RUNS` (or whose files are not there yet).
+    Empty for a policy that is not trained over seeds (:func:`seed_runs`), or whose files are not there yet.
     """
-    return [member_spec(method, k) for k, f in enumerate(SEED_RUNS.get(method, ()))
+    return [member_spec(method, k) for k, f in enumerate(seed_runs().get(method, ()))
             if (CHECKPOINT_DIR / f).is_file()]
 
 
@@ -280,10 +237,11 @@ def member_file(spec: str) -> Path:
     if parsed is None:
         raise ValueError(f"{spec!r} is not a training seed's spec; give METHOD{SEED_SEP}K[@greedy]")
     method, k, _ = parsed
-    if method not in SEED_RUNS:
+    runs = seed_runs()
+    if method not in runs:
         raise ValueError(f"policy {spec!r}: {method!r} has no training seeds; methods with seeds: "
-                         f"{', '.join(SEED_RUNS)}")
-    files = SEED_RUNS[method]
+                         f"{', '.join(runs)}")
+    files = runs[method]
     if not 0 <= k < len(files):
         raise ValueError(f"policy {spec!r}: {method!r} has training seeds 0-{len(files) - 1} "
                          f"({method}{SEED_SEP}0 ... {method}{SEED_SEP}{len(files) - 1}); present: "
@@ -296,10 +254,10 @@ def member_file(spec: str) -> Path:
 
 
 def shipped_member(method: str) -> str | None:
-    """The member whose checkpoint is byte for byte the shipped pick's (``LEARNED[method]``'s file), or None."""
-    if method not in LEARNED:
+    """The member whose checkpoint is byte for byte the shipped pick's (:func:`checkpoint_file`), or None."""
+    if method not in TABLE or TABLE[method].kind != "learned":
         return None
-    shipped = CHECKPOINT_DIR / LEARNED[method][0]
+    shipped = checkpoint_file(method)
     if not shipped.is_file():
         return None
     data = shipped.read_bytes()
@@ -312,29 +270,30 @@ def shipped_member(method: str) -> str | None:
 
 def learned_names() -> list[str]:
     """The trained networks shipped in ``policies/neural/checkpoints/`` (only those whose file exists)."""
-    return [n for n, (f, _) in LEARNED.items() if (CHECKPOINT_DIR / f).is_file()]
+    return [n for n in _of_kind("learned") if (CHECKPOINT_DIR / TABLE[n].recipe.file).is_file()]
 
 
 def names() -> list[str]:
-    return [*COMPOSITES, *ORACLES, *TUNED, *learned_names()]
+    """The listed policies: the composites, the oracles, the tuned files and the shipped networks, in that order.
+
+    The lookahead presets are registered but not listed (:func:`lookahead_names`; ``Entry.listed``).
+    """
+    listed = [n for kind in ("composite", "oracle", "tuned") for n in _of_kind(kind, listed_only=True)]
+    return [*listed, *(n for n in learned_names() if TABLE[n].listed)]
 
 
 def deployable_names() -> list[str]:
-    """The registered policies that do not read the trace: composites without an oracle part, tuned files, networks.
+    """The listed policies that do not read the trace: composites without an oracle part, tuned files, networks.
 
-    In the registry's order, which is the order in which the ``oracle`` breaks ties.
+    In the registry's order (the ``oracle``'s candidates are its reference's, :func:`oracle_candidates`).
     """
-    return [*_deployable_composites(), *TUNED, *learned_names()]
+    return [n for n in names() if not TABLE[n].reads_future]
 
 
-def _deployable_composites() -> list[str]:
-    return [n for n, (d, w, p, _) in COMPOSITES.items() if "oracle" not in (d, w, p)]
-
-
-# Policies added after the oracle's numbers were published (Table 3, the suite, the gap figure) that it does not
-# play: the oracle is the best in hindsight of a fixed set of candidates, so that adding a policy to wfbench does
-# not move a published reference (docs/hindsight.md, "The oracle"). They are compared with it, not inside it.
-NOT_ORACLE_CANDIDATES = frozenset({"heuristic-tuned-train", "solver-tuned-train", "scalefree-general", "solver-sparse"})
+# A policy added after the oracle's numbers were published (Table 3, the suite, the gap figure) is no candidate of
+# it: the oracle is the best in hindsight of a fixed, versioned list of candidates, so that adding a policy to
+# wfbench does not move a published reference (docs/hindsight.md, "The oracle"). Each entry says which references
+# play it (Entry.candidate_of); wfbench.policies.oracle.references holds their order.
 
 
 def oracle_candidates(name: str = "oracle") -> list[str]:
@@ -350,9 +309,10 @@ def oracle_candidates(name: str = "oracle") -> list[str]:
 
 def _available(name: str) -> bool:
     """Whether a candidate can be built here: a network's checkpoint, or a lookahead's base's, is shipped."""
-    if name in LOOKAHEAD:
-        return _available(LOOKAHEAD[name][0])
-    return name not in LEARNED or name in learned_names()
+    e = TABLE.get(name)
+    if e is not None and e.kind == "lookahead":
+        return _available(e.recipe.base)
+    return e is None or e.kind != "learned" or name in learned_names()
 
 
 def best_in_hindsight(name: str = "oracle") -> Any:
@@ -364,11 +324,15 @@ def best_in_hindsight(name: str = "oracle") -> Any:
     """
     from wfbench.policies.oracle import references
 
-    if name == "oracle-rollout":  # issue #53: not a best of candidates, the rollout on the true future
+    recipe = entry(name).recipe
+    if isinstance(recipe, HindsightRolloutOf):  # issue #53: not a best of candidates, the rollout on the true future
         from wfbench.policies.oracle.hindsight import HindsightRollout
 
-        return HindsightRollout(get("solver-tuned"), name=name)
-    nets = [n for n in oracle_candidates(name) if n in LEARNED]
+        return HindsightRollout(get(recipe.base), name=name)
+    if not isinstance(recipe, BestOf):
+        raise ValueError(f"policy {name!r} is not a best-in-hindsight oracle; allowed: "
+                         f"{', '.join(n for n, e in TABLE.items() if isinstance(e.recipe, BestOf))}")
+    nets = [n for n in oracle_candidates(name) if TABLE[n].kind == "learned"]
     if nets and importlib.util.find_spec("torch") is None:
         raise ValueError(f"policy {name!r} plays the shipped networks ({', '.join(nets)}) as candidates and needs "
                          "torch; install the rl extra: pip install 'wfbench[rl]' (oracle-planner needs no torch)")
@@ -399,11 +363,13 @@ class PolicySpec:
 
     ``kind`` is one of :data:`SPEC_KINDS`:
 
-    - ``composite``, ``oracle``, ``tuned``: a registered name (:data:`COMPOSITES`,
-      :data:`ORACLES`, :data:`TUNED`; a tuned name's ``path`` is its shipped file);
-    - ``learned``: a shipped network ``NAME[@MODE]`` (:data:`LEARNED`; ``path``: its file);
+    - ``composite``, ``oracle``, ``tuned``, ``lookahead``: a registered name, the kind of its
+      recipe (:class:`~wfbench.policies.table.Entry`; a tuned name's ``path`` is its shipped
+      file, as is a tuned lookahead's);
+    - ``learned``: a shipped network ``NAME[@MODE]`` (a :class:`~wfbench.policies.table.Checkpoint`
+      entry; ``path``: its file);
     - ``member``: training seed ``seed`` of the method ``name``, ``METHOD#seedK[@MODE]``
-      (:data:`SEED_RUNS`; ``seed`` is -1 when K is not a number);
+      (:func:`seed_runs`; ``seed`` is -1 when K is not a number);
     - ``checkpoint``: ``ALGO:PATH[@MODE]`` (``algo``, ``path``);
     - ``tuned-file``: ``tuned:PATH`` or a ``.json``/``.toml`` path (``path``);
     - ``parts``: ``D+W+P``, a composite of per-decision names (``parts``);
@@ -433,6 +399,13 @@ class PolicySpec:
             return member_file(self.text)
         return Path(self.path) if self.path else None
 
+    @property
+    def closest(self) -> list[str]:
+        """For an ``unknown`` spec, the registered names closest to its name (any family), best first."""
+        if self.kind != "unknown":
+            return []
+        return difflib.get_close_matches(self.name, list(TABLE), n=3)
+
 
 def parse_spec(spec: str) -> PolicySpec:
     """The one reading of a policy spec (see :class:`PolicySpec`; :func:`get` loads what it names).
@@ -442,18 +415,14 @@ def parse_spec(spec: str) -> PolicySpec:
     ``module:attr``; anything else is ``unknown``. Nothing is checked but the form: an
     unknown name, a missing file or a wrong part is :func:`get`'s to refuse.
     """
-    if spec in COMPOSITES:
-        return PolicySpec(spec, "composite", name=spec)
-    if spec in ORACLES:
-        return PolicySpec(spec, "oracle", name=spec)
-    if spec in TUNED:
-        return PolicySpec(spec, "tuned", name=spec, path=str(_tuned.TUNED_DIR / TUNED[spec][0]))
-    if spec in LOOKAHEAD:  # issue #43
-        tuned = _lookahead_file(spec)
-        return PolicySpec(spec, "lookahead", name=spec, path="" if tuned is None else str(tuned))
+    registered = TABLE.get(spec)
+    if registered is not None and registered.kind != "learned":  # composite, oracle, tuned, lookahead
+        tuned = tuned_file(spec)
+        return PolicySpec(spec, registered.kind, name=spec, path="" if tuned is None else str(tuned))
     name, at, mode = spec.partition("@")  # ppo-joint@greedy, ppo:PATH@greedy
-    if name in LEARNED:
-        return PolicySpec(spec, "learned", name=name, path=str(CHECKPOINT_DIR / LEARNED[name][0]),
+    registered = TABLE.get(name)
+    if registered is not None and registered.kind == "learned":
+        return PolicySpec(spec, "learned", name=name, path=str(CHECKPOINT_DIR / registered.recipe.file),
                           mode=mode if at else None)
     m = _MEMBER.match(spec)
     if m is not None:
@@ -526,8 +495,10 @@ def get(spec: Any) -> Any:
     suite-v1's training split) are the files shipped in ``policies/tuned/``. ``ALGO:PATH`` is a checkpoint of ``wfbench
     train --algo ALGO`` (``ppo``, ``impala``, ``hindsight``; ``ppo:PATH`` loads any of them;
     ``ALGO:PATH@greedy`` for argmax decisions, sampled by default), and ``ppo-joint``,
-    ``impala-joint``, ... the shipped ones (``LEARNED``). ``METHOD#seedK`` (``@greedy`` too) is
-    training seed K of a method of :data:`SEED_RUNS` (:func:`seed_members`).
+    ``impala-joint``, ... the shipped ones (:func:`learned_names`). ``METHOD#seedK`` (``@greedy`` too) is
+    training seed K of a method trained over seeds (:func:`seed_runs`, :func:`seed_members`). Every registered
+    name is one entry of :data:`wfbench.policies.table.TABLE` (``wfbench policies`` lists them); an unknown name
+    is refused with the closest registered ones.
     """
     if not isinstance(spec, str):
         if hasattr(spec, "act") and hasattr(spec, "reset"):
@@ -535,8 +506,8 @@ def get(spec: Any) -> Any:
         raise ValueError(f"{spec!r} is not a policy: it needs reset(seeds) and act(obs)")
     p = parse_spec(spec)
     if p.kind == "composite":
-        d, w, pos, _ = COMPOSITES[spec]
-        return Composite(d, w, pos, name=spec)
+        recipe = TABLE[spec].recipe
+        return Composite(recipe.dispatch, recipe.workforce, recipe.positioning, name=spec)
     if p.kind == "oracle":
         return best_in_hindsight(spec)
     if p.kind == "tuned":
@@ -574,50 +545,36 @@ def get(spec: Any) -> Any:
         if not (hasattr(obj, "act") and hasattr(obj, "reset")):
             raise ValueError(f"entry point {spec!r} is not a policy: it needs reset(seeds) and act(obs)")
         return obj
-    raise ValueError(f"unknown policy {spec!r}; available: {', '.join(names())}, a tuned-policy file "
-                     "(path.json, tuned:path) or a module:attr entry point")
-
-
-# name -> the labels of its dispatch, workforce and positioning in tables (Table 3): a network has no decision
-# names to take them from, so each says what decides (PPO, hindsight learning, or both)
-LEARNED_PARTS: dict[str, tuple[str, str, str]] = {
-    "ppo-joint": ("PPO", "PPO", "PPO"),
-    "ppo-dispatch": ("PPO", "Heuristic", "Heuristic"),
-    "impala-joint": ("IMPALA", "IMPALA", "IMPALA"),
-    "hindsight-joint": ("Hindsight learning", "Hindsight learning", "Hindsight learning"),
-    "ppo-independent": ("PPO (own net)", "PPO (own net)", "PPO (own net)"),
-    "hindsight-ppo": ("PPO", "PPO + hindsight learning", "PPO"),
-    "ppo-general": ("PPO (generalist)", "PPO (generalist)", "PPO (generalist)"),
-    "hindsight-general": ("PPO (generalist)", "PPO + hindsight learning (generalist)", "PPO (generalist)"),
-    "scalefree-general": ("PPO (scale-free)", "PPO (scale-free)", "PPO (scale-free)"),
-}
+    raise ValueError(unknown_message(spec, also=", a tuned-policy file (path.json, tuned:path) or a module:attr "
+                                                "entry point"))
 
 
 def parts(name: str) -> tuple[str, str, str]:
     """How tables name the dispatch, workforce and positioning of the registered policy ``name``.
 
-    A composite's parts are the labels of its decisions (``wfbench.policies.decisions.LABELS``), a
-    tuned file's are its base's with " (tuned)", a network's are in :data:`LEARNED_PARTS`.
+    The entry's own ``decisions`` when it has them (a network's say what decides, an oracle's
+    are "Hindsight oracle"); else a composite's are the labels of its decisions
+    (``wfbench.policies.decisions.LABELS``), a tuned file's are its base's with " (tuned)", a
+    lookahead's are its base's with its workforce rolled out, or planned by the MILP (mpc).
     """
     from wfbench.policies.decisions import DECISIONS, label
 
-    if name in COMPOSITES:
-        return tuple(label(decision, n) for decision, n in zip(DECISIONS, COMPOSITES[name][:3], strict=True))
-    if name in ORACLES:
-        return ("Hindsight oracle",) * 3
-    if name in TUNED:
-        base = _tuned.read(_tuned.TUNED_DIR / TUNED[name][0]).base
+    e = TABLE.get(name)
+    if e is None:
+        raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join(TABLE)}")
+    recipe = e.recipe
+    if e.decisions:
+        return e.decisions
+    if isinstance(recipe, CompositeOf):
+        return tuple(label(decision, n) for decision, n in
+                     zip(DECISIONS, (recipe.dispatch, recipe.workforce, recipe.positioning), strict=True))
+    if isinstance(recipe, TunedFile):
+        base = _tuned.read(_tuned.TUNED_DIR / recipe.file).base
         return tuple(f"{p} (tuned)" for p in parts(base))
-    if name in LEARNED_PARTS:
-        return LEARNED_PARTS[name]
-    if name in LOOKAHEAD and LOOKAHEAD[name][1].startswith("tuned:"):
-        return tuple(f"{p} (tuned)" for p in parts(LOOKAHEAD[name][0]))
-    if name in LOOKAHEAD:  # issue #43: the base's parts, its workforce rolled out or planned (mpc)
-        d, w, pos = parts(LOOKAHEAD[name][0])
-        if LOOKAHEAD[name][1].startswith("mpc:"):
-            forecast, _, option = LOOKAHEAD[name][1][4:].partition(":")
-            how = f"{forecast}, {option}" if option else forecast
-            return d, f"Staffing MILP on {how}", f"Forecast demand ({how})"
-        return d, f"{w} + rollout", pos
-    registered = [*COMPOSITES, *ORACLES, *TUNED, *LEARNED]
-    raise ValueError(f"{name!r} is not a registered policy; registered: {', '.join(registered)}")
+    if isinstance(recipe, TunedLookahead):
+        return tuple(f"{p} (tuned)" for p in parts(recipe.base))
+    d, w, pos = parts(recipe.base)  # issue #43: the base's parts, its workforce rolled out or planned (mpc)
+    if isinstance(recipe, MPCPreset):
+        how = f"{recipe.forecast}, {recipe.option}" if recipe.option else recipe.forecast
+        return d, f"Staffing MILP on {how}", f"Forecast demand ({how})"
+    return d, f"{w} + rollout", pos

@@ -8,8 +8,8 @@ public seeds it was not selected on (``--seeds``, default 1010-1019), on every w
 was trained on, in the suite's normalized score (:func:`wfbench.train.scoring.score_worlds`).
 The shipped pick is the seed with the median score (:func:`wfbench.analysis.aggregate.median_seed`,
 the rule fixed before any test seed was run; docs/suite.md, "Learned methods over training
-seeds"). Writes each run's file under its name in ``wfbench.policies.registry.SEED_RUNS``
-(``METHOD-seedK.pt``), the shipped pick's (``LEARNED[METHOD]``, ``METHOD.pt``) as a byte copy
+seeds"). Writes each run's file under its name in ``wfbench.policies.registry.seed_runs()``
+(``METHOD-seedK.pt``), the shipped pick's (``checkpoint_file(METHOD)``, ``METHOD.pt``) as a byte copy
 of the pick (the registry finds the pick by that equality) and ``METHOD-selection.json``:
 the scores, the seeds, the rule and the pick. Test seeds are refused.
 """
@@ -23,7 +23,7 @@ import warnings
 from pathlib import Path
 
 import torch
-from wfbench.policies.registry import LEARNED, SEED_RUNS, member_spec, parse_member
+from wfbench.policies.registry import checkpoint_file, member_spec, parse_member, seed_runs
 
 from wfbench import policies
 from wfbench.analysis.aggregate import median_seed
@@ -44,11 +44,11 @@ def main() -> None:
     seeds = resolve_seeds(a.seeds)
     if not set(seeds) <= set(SEED_SETS["public"]):
         raise SystemExit(f"--seeds {a.seeds}: the pick is made on public seeds (1000-1049) only")
-    if a.method not in SEED_RUNS or a.method not in LEARNED:
-        raise SystemExit(f"--method {a.method}: allowed: a method of wfbench.policies.registry.SEED_RUNS and LEARNED "
-                         f"({', '.join(m for m in SEED_RUNS if m in LEARNED)})")
+    if a.method not in seed_runs():
+        raise SystemExit(f"--method {a.method}: allowed: a network trained over seeds "
+                         f"(wfbench.policies.registry.seed_runs(): {', '.join(seed_runs())})")
     runs = [Path(r) for r in a.runs.split(",")]
-    files = SEED_RUNS[a.method]
+    files = seed_runs()[a.method]
     if len(runs) != len(files):
         raise SystemExit(f"--runs: {len(runs)} runs, but {a.method} has {len(files)} training seeds")
     out = Path(a.out)
@@ -70,7 +70,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     for run, name in zip(runs, files, strict=True):
         shutil.copyfile(run / "best.pt", out / name)
-    shutil.copyfile(out / files[parse_member(pick)[1]], out / LEARNED[a.method][0])
+    shutil.copyfile(out / files[parse_member(pick)[1]], out / checkpoint_file(a.method).name)
     record = {"method": a.method, "rule": "the median of the seeds' mean normalized score on the public seeds of "
               "the training scenarios (wfbench.analysis.aggregate.median_seed)", "seeds": seeds, "scores": scores,
               "pick": pick, "members": detail}

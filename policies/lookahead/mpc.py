@@ -59,7 +59,8 @@ TUNABLE: dict[str, Param] = {
     "action_cost": Param(1.0, 1000.0, "float", log=True),
     "capacity_scale": Param(0.5, 2.0),
 }
-# a registry preset field "mpc:FORECAST[:OPTION]" (policies/registry.py, LOOKAHEAD): OPTION -> the knobs it sets
+# the option of a registered MPC preset (wfbench.policies.table.MPCPreset, in wfbench.policies.lookahead) -> the knobs
+# it sets
 PRESET_OPTIONS: dict[str, dict[str, bool]] = {"": {}, "calibrated": {"calibrate": True},
                                               "backlog": {"calibrate": True, "backlog": True}}
 # with backlog=True the queue's price joins the tunable ones

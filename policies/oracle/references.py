@@ -9,8 +9,10 @@ reference. ``v1`` is the candidate list of the ``oracle`` that made every table 
 the lookahead presets included, and the hindsight rollout (``oracle-rollout``,
 :mod:`wfbench.policies.oracle.hindsight`). ``docs/hindsight.md``, "Versioned references".
 
-This module is below the registry (``wfbench.policies`` layers): it holds the lists and
-builds an oracle from a ``resolve`` function the registry hands it.
+This module is below the registry (``wfbench.policies`` layers): it holds the lists,
+builds an oracle from a ``resolve`` function the registry hands it, and registers the
+oracles that are not composites in :data:`wfbench.policies.table.TABLE` (the planner's
+composites, ``oracle-planner`` and ``oracle-dispatch``, are the registry's).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from collections.abc import Callable
 from typing import Any
 
 from wfbench.policies.oracle.best import BestInHindsight
+from wfbench.policies.table import BestOf, Budget, Entry, HindsightRolloutOf, register
 
 # the oracle of every table published up to issue #53: the compiled built-ins, the planner, the shipped networks
 V1: tuple[str, ...] = (
@@ -84,4 +87,21 @@ def make(name: str, resolve: Callable[[str], Any], available: Callable[[str], bo
     return BestInHindsight(candidates(ref, available), resolve, name=name, replay=ref in REPLAYING)
 
 
-__all__ = ["ORACLES", "REFERENCES", "REPLAYING", "V1", "V2", "candidates", "make", "outside", "reference"]
+# the oracles that are not composites, by name (docs/hindsight.md, "The oracle"): each reads the trace
+HINDSIGHT = ("Hindsight oracle",) * 3  # how tables name its three decisions
+register(
+    Entry("oracle", "oracle", BestOf("v1"),
+          "per seed, the best in hindsight of oracle-planner and every deployable built-in (the composites, the tuned "
+          "files and the shipped networks): reads the trace, not deployable (docs/hindsight.md)",
+          decisions=HINDSIGHT, reads_future=True, budget=Budget.MS_10),
+    Entry("oracle-v2", "oracle", BestOf("v2"),
+          "reference v2: per seed, the best in hindsight of every deployable family, the lookaheads included, and "
+          "oracle-rollout; replays recorded episodes and committed pieces (docs/hindsight.md)",
+          decisions=HINDSIGHT, reads_future=True),
+    Entry("oracle-rollout", "oracle", HindsightRolloutOf("solver-tuned"),
+          "the rollout of solver-tuned on the true future, rolled to the end of the episode: reads the trace, not "
+          "deployable (docs/hindsight.md, \"The hindsight rollout\")",
+          decisions=HINDSIGHT, reads_future=True, candidate_of=("v2",)),
+)
+
+__all__ = ["HINDSIGHT", "ORACLES", "REFERENCES", "REPLAYING", "V1", "V2", "candidates", "make", "outside", "reference"]

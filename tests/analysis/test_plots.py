@@ -6,7 +6,7 @@ import importlib.util
 
 import pandas as pd
 import pytest
-from wfbench.policies.registry import LEARNED, learned_names
+from wfbench.policies.registry import learned_names, names_of
 
 from wfbench.analysis.plots import figure_format
 from wfbench.cli import main
@@ -166,7 +166,7 @@ def test_figure3_draws_every_kind_of_method(tmp_path):
     for m in ("random", "heuristic", "solver", "heuristic-tuned", "solver-tuned", "oracle-dispatch", "oracle"):
         assert m in methods
     if importlib.util.find_spec("torch") is not None:
-        assert set(learned_names()) <= set(methods) and set(learned_names()) <= set(LEARNED)
+        assert set(learned_names()) <= set(methods) and set(learned_names()) <= set(names_of("learned"))
     assert methods == tuple(m for m in FIGURE3_METHODS if m in methods), "in the groups' order"
     # cheap: one method of three groups, two episodes (the learned ones: docs/reproduction.md's full run)
     result = figure3(tmp_path, runs=2, execution=Execution(), methods=("random", "heuristic-tuned", "oracle-dispatch"))

@@ -7,6 +7,7 @@ checkpoint in a temporary CHECKPOINT_DIR, the second with a perturbed bias so th
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -14,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from wfbench.policies import registry
+from wfbench.policies.table import Checkpoint
 
 import wfbench.reproduce.suite as target
 from wfbench.analysis.aggregate import median_seed, pool_seeds, score_matrix, seed_scores
@@ -42,9 +44,14 @@ def checkpoints(tmp_path_factory):
 @pytest.fixture()
 def members(checkpoints, monkeypatch):
     monkeypatch.setattr(registry, "CHECKPOINT_DIR", checkpoints)
-    monkeypatch.setattr(registry, "SEED_RUNS", {"ppo-general": ("ppo-general-seed0.pt", "ppo-general-seed1.pt"),
-                                                "hindsight-general": ("hindsight-general-seed0.pt",)})
-    monkeypatch.setattr(registry, "LEARNED", {"ppo-general": ("ppo-general.pt", "a test pick")})
+    # the registry's networks, their files looked for in the temporary folder: ppo-general's pick and two seeds are
+    # there, hindsight-general's one seed and every other network's file are not
+    table = dict(registry.TABLE)
+    table["ppo-general"] = dataclasses.replace(registry.TABLE["ppo-general"], recipe=Checkpoint(
+        "ppo-general.pt", seeds=("ppo-general-seed0.pt", "ppo-general-seed1.pt")), summary="a test pick")
+    table["hindsight-general"] = dataclasses.replace(registry.TABLE["hindsight-general"], recipe=Checkpoint(
+        "hindsight-general.pt", seeds=("hindsight-general-seed0.pt",)), summary="not there")
+    monkeypatch.setattr(registry, "TABLE", table)
     return checkpoints
 
 

@@ -159,11 +159,12 @@ def test_the_oracle_fingerprint_covers_the_files_of_its_candidates(tmp_path, mon
     assert set(detail["candidates"]) == set(registry.oracle_candidates())
     tuned_dir = tmp_path / "tuned"
     tuned_dir.mkdir()
-    for file, _ in registry.TUNED.values():
+    files = [registry.tuned_file(n).name for n in registry.names_of("tuned")]
+    for file in files:
         (tuned_dir / file).write_bytes((registry._tuned.TUNED_DIR / file).read_bytes())
     monkeypatch.setattr(registry._tuned, "TUNED_DIR", tuned_dir)
     assert policy_fingerprint("oracle")[0] == before, "the same bytes elsewhere: the same fingerprint"
-    first = next(iter(registry.TUNED.values()))[0]
+    first = files[0]
     (tuned_dir / first).write_bytes((tuned_dir / first).read_bytes() + b"\n")
     assert policy_fingerprint("oracle")[0] != before, "an edited candidate file must change the oracle's fingerprint"
 

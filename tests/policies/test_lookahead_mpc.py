@@ -6,7 +6,7 @@ Public seeds only (1000-1049).
 import numpy as np
 import pytest
 from wfbench.policies.lookahead import MPC
-from wfbench.policies.registry import LOOKAHEAD, names, parse_spec, parts
+from wfbench.policies.registry import lookahead_names, names, parse_spec, parts
 
 from wfbench import ScenarioConfig, policies
 from wfbench.harness.runner import run_batch
@@ -39,7 +39,7 @@ def test_bad_forecast_and_base_and_a_missing_world_are_refused_in_one_line():
 
 def test_both_kinds_are_registered_apart_and_not_in_names():
     for name, kind in (("mpc-rates", "rates"), ("mpc-ma", "ma")):
-        assert name in LOOKAHEAD and name not in names() and parse_spec(name).kind == "lookahead"
+        assert name in lookahead_names() and name not in names() and parse_spec(name).kind == "lookahead"
         pol = policies.get(name)
         assert isinstance(pol, MPC) and pol.forecast == kind and pol.name == name
         assert kind in parts(name)[1]
@@ -48,7 +48,7 @@ def test_both_kinds_are_registered_apart_and_not_in_names():
 
 def test_the_calibrated_presets_are_the_same_mpc_with_calibrate_on():
     for name, kind in (("mpc-rates-calibrated", "rates"), ("mpc-ma-calibrated", "ma")):
-        assert name in LOOKAHEAD and name not in names() and parse_spec(name).kind == "lookahead"
+        assert name in lookahead_names() and name not in names() and parse_spec(name).kind == "lookahead"
         pol, plain = policies.get(name), policies.get(f"mpc-{kind}")
         assert isinstance(pol, MPC) and pol.forecast == kind and pol.name == name
         assert pol.calibrate is True and plain.calibrate is False
@@ -132,7 +132,7 @@ def test_the_tuned_presets_load_their_shipped_files():
     for kind in ("rates", "ma"):
         name = f"mpc-{kind}-tuned-train"
         spec = parse_spec(name)
-        assert name in LOOKAHEAD and name not in names() and spec.kind == "lookahead"
+        assert name in lookahead_names() and name not in names() and spec.kind == "lookahead"
         shipped = json.loads(spec.file.read_text())
         assert spec.file.name == f"mpc-{kind}-suite-v1-train.json" and shipped["base"] == f"mpc-{kind}"
         assert shipped["scenario"] == "suite-v1:train" and all(1000 <= s <= 1049 for s in shipped["seeds"])
@@ -199,7 +199,7 @@ def _last_obs(config):
 
 def test_the_backlog_presets_are_the_calibrated_mpc_with_its_queue_on():
     for name, kind in (("mpc-rates-backlog", "rates"), ("mpc-ma-backlog", "ma")):
-        assert name in LOOKAHEAD and name not in names() and parse_spec(name).kind == "lookahead"
+        assert name in lookahead_names() and name not in names() and parse_spec(name).kind == "lookahead"
         pol, calibrated = policies.get(name), policies.get(f"mpc-{kind}-calibrated")
         assert isinstance(pol, MPC) and pol.forecast == kind and pol.name == name
         assert pol.backlog is True and pol.calibrate is True and calibrated.backlog is False

@@ -6,7 +6,7 @@ Public seeds only (1000-1049): nothing is selected on the test seeds.
 import numpy as np
 import pytest
 from wfbench.policies.lookahead.network_rollout import NetworkRollout
-from wfbench.policies.registry import LOOKAHEAD, parse_spec
+from wfbench.policies.registry import lookahead_base, parse_spec
 
 import wfbench
 from wfbench import ScenarioConfig, Simulator, policies
@@ -24,7 +24,7 @@ def test_a_base_that_is_not_a_whole_network_is_refused_in_one_line():
 
 def test_it_is_registered_with_its_knobs():
     assert parse_spec("rollout-scalefree-general").kind == "lookahead"
-    assert LOOKAHEAD["rollout-scalefree-general"][0] == "scalefree-general"
+    assert lookahead_base("rollout-scalefree-general") == "scalefree-general"
     pol = policies.get("rollout-scalefree-general")
     assert isinstance(pol, NetworkRollout) and pol.settings() == {"K": 2, "H": 80, "R": 80}
 

@@ -6,7 +6,7 @@ Public seeds only (1000-1049): nothing is selected on the test seeds.
 import numpy as np
 import pytest
 from wfbench.policies.lookahead import BUDGETS, Rollout
-from wfbench.policies.registry import LOOKAHEAD, parse_spec
+from wfbench.policies.registry import entries, parse_spec
 
 from wfbench import ScenarioConfig, Simulator, policies
 
@@ -31,13 +31,14 @@ def test_bad_budget_and_base_are_refused_in_one_line():
 
 
 def test_the_presets_are_registered_by_budget():
-    for name, (_base, preset, _) in LOOKAHEAD.items():
-        if preset.startswith(("mpc:", "tuned:", "search:")):  # the MILP's (test_lookahead_mpc.py), the search's
-            continue
+    rollouts = entries("rollout")  # the MILP's are test_lookahead_mpc.py's, the search's test_search.py's
+    assert len(rollouts) == 7
+    for e in rollouts:
+        name = e.name
         assert parse_spec(name).kind == "lookahead"
         pol = policies.get(name)
-        sparse = preset.startswith("sparse:")  # the city presets (test_lookahead_sparse.py)
-        assert pol.name == name and tuple(pol.settings().values()) == BUDGETS[preset.removeprefix("sparse:")]
+        sparse = e.recipe.sparse  # the city presets (test_lookahead_sparse.py)
+        assert pol.name == name and tuple(pol.settings().values()) == BUDGETS[e.recipe.budget]
         if isinstance(pol, Rollout):  # of a compiled base (the network's: test_lookahead_network.py)
             assert pol.sparse == sparse and pol.decide == ("period" if sparse else "base")
             assert (pol.futures is None) != sparse

@@ -12,6 +12,7 @@ from wfbench.policies import registry
 from wfbench.policies.oracle import cache, episodes, pieces, references
 from wfbench.policies.oracle.best import BestInHindsight
 from wfbench.policies.oracle.hindsight import HindsightRollout
+from wfbench.policies.table import CompositeOf, Entry, RolloutPreset, TunedFile
 
 import wfbench
 from wfbench import policies
@@ -67,14 +68,19 @@ def test_references__the_oracle_plays_v1_exactly_and_v2_every_deployable_family(
                 *(f"mpc-{k}{o}" for k in ("rates", "ma") for o in ("", "-calibrated", "-tuned-train"))}
     assert set(references.V2) == families and len(set(references.V2)) == len(references.V2)
     assert [n for n in references.V2 if n in references.V1] == list(references.V1)  # v1's tie order kept
-    assert all(n in registry.names() or n in registry.LOOKAHEAD for n in references.V2)
+    assert all(n in registry.names() or n in registry.lookahead_names() for n in references.V2)
 
 
 def test_references__a_policy_added_to_the_registry_enters_no_existing_reference(monkeypatch):
     before = {name: registry.oracle_candidates(name) for name in references.ORACLES}
-    monkeypatch.setitem(registry.COMPOSITES, "heuristic-new", ("nearest", "threshold", "spatial", "new"))
-    monkeypatch.setitem(registry.LOOKAHEAD, "rollout-heuristic-new", ("heuristic-new", "1ms", "new"))
-    monkeypatch.setitem(registry.TUNED, "solver-new-tuned", ("solver-paper-64.json", "new"))
+    monkeypatch.setitem(registry.TABLE, "heuristic-new", Entry("heuristic-new", "composite",
+                                                                CompositeOf("nearest", "threshold", "spatial"), "new"))
+    monkeypatch.setitem(registry.TABLE, "rollout-heuristic-new", Entry("rollout-heuristic-new", "rollout",
+                                                                        RolloutPreset("heuristic-new", "1ms"), "new",
+                                                                        listed=False))
+    monkeypatch.setitem(registry.TABLE, "solver-new-tuned", Entry("solver-new-tuned", "tuned",
+                                                                   TunedFile("solver-paper-64.json"), "new"))
+    assert {"heuristic-new", "solver-new-tuned"} <= set(registry.deployable_names())
     assert {name: registry.oracle_candidates(name) for name in references.ORACLES} == before
 
 

@@ -37,11 +37,13 @@ def test_oracles_are_registered_and_marked_as_reading_the_trace():
     assert isinstance(best, BestInHindsight) and best.reads_trace
     # its candidates: every deployable registered policy (none reads the trace) and the planner, except those added
     # after its numbers were published (a fixed set, so that a new policy does not move them)
-    assert set(best.candidates) == {*registry.deployable_names(), "oracle-planner"} - registry.NOT_ORACLE_CANDIDATES
+    later = {"heuristic-tuned-train", "solver-tuned-train", "scalefree-general", "solver-sparse"}
+    assert set(best.candidates) == {*registry.deployable_names(), "oracle-planner"} - later
     assert not any(getattr(policies.get(n), "reads_trace", False) for n in registry.deployable_names())
-    assert set(registry.learned_names()) - registry.NOT_ORACLE_CANDIDATES <= set(best.candidates)
+    assert set(registry.learned_names()) - later <= set(best.candidates)
     assert "solver-tuned" in best.candidates
-    assert not registry.NOT_ORACLE_CANDIDATES & set(best.candidates)
+    assert not later & set(best.candidates)
+    assert {n for n in registry.deployable_names() if "v1" not in registry.entry(n).candidate_of} == later
     full = policies.get("oracle-planner")
     assert full.reads_trace and not full.compiled
     assert not policies.get("heuristic").reads_trace

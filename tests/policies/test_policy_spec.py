@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import pytest
-from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED, LINEUPS, TUNED, get, parse_member, parse_spec
+from wfbench.policies.registry import CHECKPOINT_DIR, LINEUPS, get, parse_member, parse_spec
 from wfbench.policies.tuned import TUNED_DIR
 
 # spec -> (kind, name, path, seed, mode, algo, attr, parts)
 TABLE = [
     ("heuristic", "composite", "heuristic", "", None, None, "", "", ()),
     ("oracle", "oracle", "oracle", "", None, None, "", "", ()),
-    ("heuristic-tuned", "tuned", "heuristic-tuned", str(TUNED_DIR / TUNED["heuristic-tuned"][0]), None, None, "", "",
+    ("heuristic-tuned", "tuned", "heuristic-tuned", str(TUNED_DIR / "heuristic-paper-64.json"), None, None, "", "",
      ()),
-    ("ppo-joint", "learned", "ppo-joint", str(CHECKPOINT_DIR / LEARNED["ppo-joint"][0]), None, None, "", "", ()),
-    ("ppo-joint@greedy", "learned", "ppo-joint", str(CHECKPOINT_DIR / LEARNED["ppo-joint"][0]), None, "greedy", "",
+    ("mpc-ma-tuned-train", "lookahead", "mpc-ma-tuned-train", str(TUNED_DIR / "mpc-ma-suite-v1-train.json"), None,
+     None, "", "", ()),
+    ("mpc-ma", "lookahead", "mpc-ma", "", None, None, "", "", ()),
+    ("oracle-planner", "composite", "oracle-planner", "", None, None, "", "", ()),
+    ("ppo-joint", "learned", "ppo-joint", str(CHECKPOINT_DIR / "ppo-joint-paper-64.pt"), None, None, "", "", ()),
+    ("ppo-joint@greedy", "learned", "ppo-joint", str(CHECKPOINT_DIR / "ppo-joint-paper-64.pt"), None, "greedy", "",
      "", ()),
     ("ppo-general#seed3", "member", "ppo-general", "", 3, None, "", "", ()),
     ("ppo-general#seed3@greedy", "member", "ppo-general", "", 3, "greedy", "", "", ()),

@@ -20,7 +20,7 @@ from wfbench.policies.lookahead.search import (
     value_map,
     value_slope,
 )
-from wfbench.policies.registry import LOOKAHEAD, parse_spec
+from wfbench.policies.registry import lookahead_base, parse_spec
 
 import wfbench
 from wfbench import ScenarioConfig, Simulator, policies
@@ -115,7 +115,7 @@ def test_an_unknown_budget_or_a_base_that_is_no_network_is_refused_in_one_line()
 def test_the_presets_are_registered_by_budget_and_the_rollout_is_unchanged():
     for name, budget in (("search-scalefree-general-1ms", "1ms"), ("search-scalefree-general", "10ms"),
                          ("search-scalefree-general-100ms", "100ms")):
-        assert parse_spec(name).kind == "lookahead" and LOOKAHEAD[name][0] == "scalefree-general"
+        assert parse_spec(name).kind == "lookahead" and lookahead_base(name) == "scalefree-general"
         pol = policies.get(name)
         K, H, R, top, z = BUDGETS[budget]
         assert isinstance(pol, NetworkSearch) and pol.name == name

@@ -213,10 +213,11 @@ def test_staffing_learns_the_travel_speed():
 
 # -- the sparse solver rules (docs/solvers.md, "Sparse candidate graphs") ---------------------------------------------
 def test_sparse_rules_are_opt_in_and_not_oracle_candidates():
-    from wfbench.policies.registry import COMPOSITES, oracle_candidates, parts
+    from wfbench.policies.registry import entry, oracle_candidates, parts
+    from wfbench.policies.table import CompositeOf
 
-    assert COMPOSITES["solver-sparse"][:3] == ("assignment-sparse", "staffing", "facility-location-sparse")
-    assert COMPOSITES["solver"][:3] == ("assignment", "staffing", "facility-location")
+    assert entry("solver-sparse").recipe == CompositeOf("assignment-sparse", "staffing", "facility-location-sparse")
+    assert entry("solver").recipe == CompositeOf("assignment", "staffing", "facility-location")
     assert parts("solver-sparse") == ("Assignment (sparse)", "Staffing", "p-median (sparse)")
     assert "solver-sparse" not in oracle_candidates()
     # the dense rules keep their codes (published tables dispatch on them)

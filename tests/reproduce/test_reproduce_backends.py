@@ -153,18 +153,18 @@ def test_reproduce_gap_draws_the_methods_and_the_bound(tmp_path):
 
 def test_reproduce_rows_name_their_decisions_from_the_policy_registry():
     from wfbench.policies.decisions import DECISIONS, LABELS
-    from wfbench.policies.registry import COMPOSITES, LEARNED, ORACLES, TUNED, parts
+    from wfbench.policies.registry import names_of, parts
 
     from wfbench.reproduce.table3 import LEARNED_ROWS, ORACLE_ROWS, SOLVER_ROWS, TUNED_ROWS
 
     assert {d: set(t) for d, t in LABELS.items()} == {d: set(t) for d, t in DECISIONS.items()}, \
         "every built-in decision has a label for the tables (wfbench.policies.decisions.LABELS)"
-    for name in [*COMPOSITES, *ORACLES, *TUNED, *LEARNED]:
+    registered = [n for kind in ("composite", "oracle", "tuned", "learned", "lookahead") for n in names_of(kind)]
+    for name in registered:
         assert len(parts(name)) == 3 and all(parts(name)), name
     assert parts("solver-positioning") == ("Heuristic", "Heuristic", "p-median")
     assert parts("solver-tuned") == ("Assignment (tuned)", "Staffing (tuned)", "p-median (tuned)")
     assert parts("oracle-dispatch") == ("Hindsight oracle", "Heuristic", "Heuristic")
-    assert {p for rows in (SOLVER_ROWS, ORACLE_ROWS, TUNED_ROWS, LEARNED_ROWS) for _, p in rows} <= {
-        *COMPOSITES, *ORACLES, *TUNED, *LEARNED}
+    assert {p for rows in (SOLVER_ROWS, ORACLE_ROWS, TUNED_ROWS, LEARNED_ROWS) for _, p in rows} <= set(registered)
     with pytest.raises(ValueError, match="not a registered policy"):
         parts("nosuch")

@@ -384,23 +384,23 @@ def test_rl__train_command_runs_every_algorithm(tmp_path, capsys, algo):
 @pytest.mark.slow
 def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(capsys):
     """Every shipped checkpoint is listed and loads; ppo-joint scores what it recorded on its public selection seeds."""
-    from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED, learned_names
+    from wfbench.policies.registry import checkpoint_file, learned_names, names_of
 
-    assert set(learned_names()) == set(LEARNED), "a registered network has no shipped file"
+    assert set(learned_names()) == set(names_of("learned")), "a registered network has no shipped file"
     assert cli_main(["policies"]) == 0
     listed = capsys.readouterr().out
-    for name in LEARNED:
+    for name in names_of("learned"):
         assert name in listed
         pol = policies.get(name)
         assert pol.name == name
-    best = torch.load(CHECKPOINT_DIR / LEARNED["ppo-joint"][0], weights_only=False)["best"]
+    best = torch.load(checkpoint_file("ppo-joint"), weights_only=False)["best"]
     assert set(best["seeds"]) <= set(range(1000, 1050)), "selected on public seeds only"
     df = wfbench.evaluate("ppo-joint", "paper-64", best["seeds"], backend="serial")
     assert df["nsw"].mean() == pytest.approx(best["score"], abs=5e-3)
     assert (df["invalid_actions"] == 0).all()
     # hindsight-ppo is ppo-joint with its workforce head trained by hindsight learning, nothing else
-    improved = torch.load(CHECKPOINT_DIR / LEARNED["hindsight-ppo"][0], weights_only=False)
-    base = torch.load(CHECKPOINT_DIR / LEARNED["ppo-joint"][0], weights_only=False)["model"]
+    improved = torch.load(checkpoint_file("hindsight-ppo"), weights_only=False)
+    base = torch.load(checkpoint_file("ppo-joint"), weights_only=False)["model"]
     changed = {k.split(".")[0] for k, v in improved["model"].items() if not torch.equal(v, base[k])}
     assert changed == {"wf_head"}, changed
     assert improved["algo"] == "hindsight" and improved["train_config"]["value_rollout"] == "learner"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 from wfbench.policies.neural import ALIAS, CHECKPOINT_ALGORITHMS
-from wfbench.policies.registry import CHECKPOINT_DIR, LEARNED
+from wfbench.policies.registry import checkpoint_file
 
 from wfbench import policies
 from wfbench.train.config import BaseConfig
@@ -50,13 +50,13 @@ def test_registry__a_checkpoint_records_its_algorithm_and_loads_by_its_prefix(tm
 
 
 def test_registry__shipped_checkpoints_load_by_their_algorithm_old_ones_without_algo_as_ppo():
-    ppo = CHECKPOINT_DIR / LEARNED["ppo-joint"][0]
+    ppo = checkpoint_file("ppo-joint")
     if not ppo.is_file():
         pytest.skip("the shipped checkpoints are not in this checkout")
     assert "algo" not in torch.load(ppo, weights_only=False)  # written before the key existed: PPO's
     assert policies.get(f"ppo:{ppo}").name == f"ppo:{ppo}"
     with pytest.raises(ValueError, match=r"was trained by ppo, not impala; allowed: ppo:"):
         policies.get(f"impala:{ppo}")
-    impala = CHECKPOINT_DIR / LEARNED["impala-joint"][0]
+    impala = checkpoint_file("impala-joint")
     assert policies.get(f"impala:{impala}").name == f"impala:{impala}"
     assert policies.get("ppo-joint").name == "ppo-joint" and policies.get("impala-joint").name == "impala-joint"

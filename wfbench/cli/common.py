@@ -99,6 +99,8 @@ def with_suggestion(message: str) -> str:
     the message (whose text, list included, stays as it was); the message is left as it is
     when it names no unknown name or nothing allowed is close.
     """
+    if "; did you mean " in message:  # the registry's own (wfbench.policies.registry.unknown_message)
+        return message
     choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
     if choice:
         hint = did_you_mean(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)))

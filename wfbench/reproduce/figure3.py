@@ -10,15 +10,16 @@ import pandas as pd
 from wfbench.core.kpis import KPI_LABELS, MEASURED
 from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
-from wfbench.policies.registry import LEARNED, LINEUPS, learned_names
+from wfbench.policies.registry import LINEUPS, learned_names, names_of
 from wfbench.reproduce.common import PROCESS, Output, Progress, write
 
 # the methods of Figure 3, in groups drawn side by side; the paper's figure has the first group and PPO. The
-# learned group holds every network of the registry (wfbench.policies.registry.LEARNED), drawn where it is shipped
+# learned group holds every network of the registry (wfbench.policies.registry.names_of), drawn where it is shipped
 FIGURE3_GROUPS = (
     ("Paper rows 1-4", ("random", "random-dispatch", "random-positioning", "heuristic")),
     ("Solvers and tuned", LINEUPS["figure3-solver"]),
-    ("Learned (RL)", ("ppo-dispatch", "ppo-joint", *[n for n in LEARNED if n not in ("ppo-dispatch", "ppo-joint")])),
+    ("Learned (RL)", ("ppo-dispatch", "ppo-joint",
+                      *[n for n in names_of("learned") if n not in ("ppo-dispatch", "ppo-joint")])),
     ("Hindsight oracles (read the future)", ("oracle-dispatch", "oracle")),
 )
 FIGURE3_METHODS = tuple(m for _, ms in FIGURE3_GROUPS for m in ms)
@@ -29,13 +30,13 @@ FIGURE3_COLORS = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#93786
 def figure3_methods() -> tuple[str, ...]:
     """The methods Figure 3 draws here: all of :data:`FIGURE3_METHODS` but the learned ones not available.
 
-    A learned policy (``wfbench.policies.registry.LEARNED``) needs its shipped checkpoint and torch.
+    A learned policy (``wfbench.policies.registry.names_of("learned")``) needs its shipped checkpoint and torch.
     """
     import importlib.util
 
     have_torch = importlib.util.find_spec("torch") is not None
     available = set(learned_names()) if have_torch else set()
-    return tuple(m for m in FIGURE3_METHODS if m not in LEARNED or m in available)
+    return tuple(m for m in FIGURE3_METHODS if m not in names_of("learned") or m in available)
 
 
 def size(methods: tuple[str, ...] | None = None) -> int:

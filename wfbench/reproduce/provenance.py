@@ -140,7 +140,7 @@ def policy_inputs(policy: str) -> dict[str, str]:
         if f is not None and f.is_file():
             files[_repo_name(f)] = file_sha256(f)
         if parsed.kind == "lookahead":
-            specs.append(registry.LOOKAHEAD[spec][0])
+            specs.append(registry.lookahead_base(spec))
     return dict(sorted(files.items()))
 
 

@@ -15,7 +15,7 @@ from wfbench.analysis.tables import markdown_table
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate, format_kpi, summarize
-from wfbench.policies.registry import LEARNED, LINEUPS, learned_names, parts
+from wfbench.policies.registry import LINEUPS, learned_names, names_of, parts
 from wfbench.reproduce.common import DIRECTION, PROCESS, Output, Progress, write
 from wfbench.reproduce.paper import table3_rows
 
@@ -34,7 +34,7 @@ LEARNED_ROWS = [("L1", "ppo-independent"), ("L2", "hindsight-joint"), ("L3", "hi
 
 def _shipped(policy: str) -> bool:
     """False for a learned policy whose checkpoint is not shipped; True for every other policy."""
-    return policy not in LEARNED or policy in learned_names()
+    return policy not in names_of("learned") or policy in learned_names()
 
 
 def size() -> int:
