@@ -168,6 +168,8 @@ def _lookahead(name: str) -> Any:
         return lookahead.make(get(recipe.base), f"search:{recipe.budget}", name=name)
     from wfbench.policies.lookahead.rollout import SPARSE_PRESET
 
+    if recipe.sparse == "auto":  # the sparse preset on a world as large as city only (issue #53)
+        return lookahead.make(get(recipe.base), recipe.budget, name=name, sparse="auto")
     budget = f"{SPARSE_PRESET}{recipe.budget}" if recipe.sparse else recipe.budget
     return lookahead.make(get(recipe.base), budget, name=name)
 

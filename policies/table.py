@@ -128,17 +128,24 @@ class HindsightRolloutOf:
 class RolloutPreset:
     """A rollout of ``base`` on sampled futures at a budget preset (``1ms``, ``10ms``, ``100ms``).
 
-    ``sparse``: the city preset, on the sparse twin of ``base``, a decision every R steps only,
-    the futures positioned by spatial averaging (``Rollout(budget="sparse:BUDGET")``).
+    ``sparse``: True, the city preset, on the sparse twin of ``base``, a decision every R steps
+    only, the futures positioned by spatial averaging (``Rollout(budget="sparse:BUDGET")``);
+    ``"auto"``, that preset on a world as large as city and the dense rollout on any other
+    (``Rollout(sparse="auto")``); False, the dense rollout everywhere.
     """
 
     kind: ClassVar[str] = "lookahead"
     base: str
     budget: str
-    sparse: bool = False
+    sparse: bool | str = False
+
+    def __post_init__(self) -> None:
+        if not (self.sparse is True or self.sparse is False or self.sparse == "auto"):
+            raise ValueError(f"rollout preset sparse = {self.sparse!r} is not allowed; allowed: False, True, 'auto'")
 
     def describe(self) -> str:
-        return f"a lookahead on {self.base}, the {self.budget} preset" + (", sparse (for city)" if self.sparse else "")
+        where = {True: ", sparse (for city)", "auto": ", sparse on city-sized worlds"}.get(self.sparse, "")
+        return f"a lookahead on {self.base}, the {self.budget} preset{where}"
 
 
 @dataclass(frozen=True)

@@ -58,16 +58,18 @@ def make(base: Any, budget_name: str | None = None, name: str | None = None, **k
 # (wfbench.policies.lookahead.rollout.BUDGETS); the network as the base costs far more at the same knobs (H forward
 # passes a decision). sparse, for city (issue #53): the budget's knobs on solver-tuned's sparse twin (its tuned
 # parameters, assignment and p-median on the k nearest), a decision every R steps only, the futures positioned by
-# spatial averaging (docs/policies.md, "Lookahead policies on city")
+# spatial averaging (docs/policies.md, "Lookahead policies on city"); "auto" plays that on a world as large as city and
+# the dense rollout, bit for bit, on every other world (issue #53)
 ROLLOUTS = (
-    Entry("rollout-solver-tuned", "rollout", RolloutPreset("solver-tuned", "10ms"),
-          "rollout of solver-tuned on sampled futures (K=4, H=80, R=20)",
+    Entry("rollout-solver-tuned", "rollout", RolloutPreset("solver-tuned", "10ms", sparse="auto"),
+          "rollout of solver-tuned on sampled futures (K=4, H=80, R=20); on city, its sparse preset",
           listed=False, candidate_of=("v2",), budget=Budget.MS_100),
-    Entry("rollout-solver-tuned-1ms", "rollout", RolloutPreset("solver-tuned", "1ms"),
-          "rollout of solver-tuned, the 1 ms budget (K=2, H=80, R=80)",
+    Entry("rollout-solver-tuned-1ms", "rollout", RolloutPreset("solver-tuned", "1ms", sparse="auto"),
+          "rollout of solver-tuned, the 1 ms budget (K=2, H=80, R=80); on city, its sparse preset",
           listed=False, candidate_of=("v2",), budget=Budget.MS_10),
-    Entry("rollout-solver-tuned-100ms", "rollout", RolloutPreset("solver-tuned", "100ms"),
-          "rollout of solver-tuned, the 100 ms budget (K=16, H=120, R=10)",
+    Entry("rollout-solver-tuned-100ms", "rollout", RolloutPreset("solver-tuned", "100ms", sparse="auto"),
+          "rollout of solver-tuned, the 100 ms budget (K=16, H=120, R=10); on city, its sparse "
+          "preset",
           listed=False, candidate_of=("v2",)),
     Entry("rollout-scalefree-general", "rollout", RolloutPreset("scalefree-general", "1ms"),
           "rollout of the scale-free network on sampled futures, the network playing them (K=2, H=80, R=80)",

@@ -193,12 +193,13 @@ class Rollout(RolloutBase):
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  budget: str = DEFAULT_BUDGET, scenario: ScenarioConfig | None = None, seed: int = 0,
-                 name: str | None = None, sparse: bool = False, decide: str = "base", futures: Any = None):
+                 name: str | None = None, sparse: bool | str = False, decide: str = "base", futures: Any = None):
         if isinstance(budget, str) and budget.startswith(SPARSE_PRESET):  # the city presets (module docstring)
             budget, sparse, decide = budget[len(SPARSE_PRESET):], True, "period"
             futures = spatial_twin(sparse_twin(base)) if futures is None else futures
+        self.sparse_knob = sparse_flag(sparse)  # as given: True (a sparse: preset too), False or "auto"
         self._large = None  # sparse="auto": what a large world plays (base, decide, futures), else None
-        if sparse_flag(sparse) == "auto":
+        if self.sparse_knob == "auto":
             twin = sparse_twin(base)
             self._large = (twin, "period", spatial_twin(twin) if futures is None else futures)
             sparse = False

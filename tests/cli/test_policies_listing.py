@@ -52,7 +52,7 @@ def test_it_groups_by_family_in_order_with_decisions_and_budget_class(capsys):
     listed = _policy_lines(lines)
     assert listed["heuristic"].endswith("; decisions: Heuristic | Heuristic | Heuristic; budget: <= 1 ms")
     assert listed["rollout-solver-tuned-1ms"].startswith("rollout-solver-tuned-1ms a lookahead on solver-tuned, "
-                                                         "the 1ms preset: ")
+                                                         "the 1ms preset, sparse on city-sized worlds: ")
     assert listed["rollout-solver-tuned-1ms"].endswith("; budget: <= 10 ms")
     assert listed["mpc-ma-backlog"].endswith("Staffing MILP on ma, backlog | Forecast demand (ma, backlog); "
                                              "budget: not measured")

@@ -37,11 +37,15 @@ def test_the_presets_are_registered_by_budget():
         name = e.name
         assert parse_spec(name).kind == "lookahead"
         pol = policies.get(name)
-        sparse = e.recipe.sparse  # the city presets (test_lookahead_sparse.py)
+        sparse = e.recipe.sparse is True  # the city presets (test_lookahead_sparse.py)
         assert pol.name == name and tuple(pol.settings().values()) == BUDGETS[e.recipe.budget]
         if isinstance(pol, Rollout):  # of a compiled base (the network's: test_lookahead_network.py)
+            assert pol.sparse_knob == e.recipe.sparse  # "auto": dense until a world as large as city is seen
             assert pol.sparse == sparse and pol.decide == ("period" if sparse else "base")
             assert (pol.futures is None) != sparse
+    assert [e.name for e in rollouts if e.recipe.sparse == "auto"] == ["rollout-solver-tuned",
+                                                                       "rollout-solver-tuned-1ms",
+                                                                       "rollout-solver-tuned-100ms"]
     assert Rollout(policies.get("solver-tuned"), budget="1ms", H=7).settings() == {"K": 2, "H": 7, "R": 80}
 
 

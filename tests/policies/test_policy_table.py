@@ -130,7 +130,7 @@ def test_every_name_builds_its_recipe_under_its_name():
                     TunedLookahead: MPC}.get(type(e.recipe))
         if isinstance(e.recipe, RolloutPreset):
             expected = NetworkRollout if TABLE[e.recipe.base].kind == "learned" else Rollout
-            assert expected is NetworkRollout or p.sparse == e.recipe.sparse, e.name
+            assert expected is NetworkRollout or p.sparse_knob == e.recipe.sparse, e.name
         if type(e.recipe).__name__ == "HindsightRolloutOf":
             expected = HindsightRollout
         if expected is not None:
