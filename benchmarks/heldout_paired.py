@@ -1,0 +1,62 @@
+"""A policy on the held-out scenarios' test seeds, paired by seed with a committed piece of another policy.
+
+For a policy that is not (yet) a row of the committed suite, e.g. a training run's checkpoint:
+it is played here (one core), and each scenario's mean NSW is set beside the reference
+policy's committed pieces (``docs/results/suite-v1-50/cache`` and ``docs/results/frontier-v1/cache``)
+on the same seeds, with the paired difference and its standard error, and the CPU ms per
+env-step the frontier uses. Reported numbers only: nothing here is tuned or selected on.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/heldout_paired.py distill:docs/results/distill-general/seed0/best.pt \\
+        --against scalefree-general --seeds 0-19
+"""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+FOLDERS = (ROOT / "docs/results/suite-v1-50/cache", ROOT / "docs/results/frontier-v1/cache")
+HELDOUT = ("large-v1", "table2-g128-f50-s25-v1", "table2-g32-f100-s25-v1", "slow-64-v1", "churn-64-v1",
+           "novice-64-v1", "real-nyc-v1")
+
+
+def committed(policy: str, scenario: str) -> pd.DataFrame:
+    for folder in FOLDERS:
+        path = folder / policy / f"{scenario}.csv"
+        if path.exists():
+            return pd.read_csv(path).set_index("seed")
+    raise SystemExit(f"heldout_paired: no committed piece of {policy!r} on {scenario} in "
+                     + ", ".join(str(f.relative_to(ROOT)) for f in FOLDERS))
+
+
+def main() -> None:
+    import wfbench
+    from wfbench.core.seeds import resolve_seeds
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("policy", help="a policy spec (registry name, ALGO:PATH, ...)")
+    ap.add_argument("--against", default="scalefree-general", help="the committed policy to pair with")
+    ap.add_argument("--seeds", default="0-19", help="test seeds (default 0-19)")
+    ap.add_argument("--scenarios", default=",".join(HELDOUT), help="held-out scenario ids (default: all but city)")
+    args = ap.parse_args()
+    seeds = resolve_seeds(args.seeds)
+    print("| scenario | NSW, policy | NSW, " + args.against + " | paired difference (± s.e.) | CPU ms / env-step |")
+    print("|---|---|---|---|---|")
+    for sc in args.scenarios.split(","):
+        with warnings.catch_warnings():  # zero-shot on a held-out world is the point
+            warnings.simplefilter("ignore")
+            df = wfbench.evaluate(args.policy, sc, seeds=seeds, backend="serial", threads=1)
+        ref = committed(args.against, sc).loc[seeds]
+        d = df["nsw"].to_numpy() - ref["nsw"].to_numpy()
+        ms = 1e3 * df["cpu_s"].sum() / df["episode_length"].sum()
+        print(f"| {sc} | {df['nsw'].mean():.4f} | {ref['nsw'].mean():.4f} | {d.mean():+.4f} ± "
+              f"{d.std(ddof=1) / np.sqrt(len(d)):.4f} | {ms:.2f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
