@@ -21,7 +21,7 @@ import numpy as np
 from wfbench.policies import kernels as K
 from wfbench.policies.builtin import BuiltinDecision
 from wfbench.policies.composite import Composite
-from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
+from wfbench.policies.oracle.rollout import RollBuffers, roll_candidates
 from wfbench.policies.protocol import as_obs, seeds_array
 from wfbench.policies.rules import CODES
 
@@ -274,14 +274,8 @@ class Rollout(RolloutBase):
         n = len(rows_env)
         env_idx = np.asarray(rows_env, dtype=np.int64)
         self.belief.sample_into(self.fork, env_idx, np.asarray(rows_k, dtype=np.int64), self.H)
-        for src, dst in zip(self.pstate, self.fork_pstate, strict=True):
-            np.take(src, env_idx, axis=0, out=dst[:n])
-        buf = self.buffers
-        buf.first_d[:n] = d[env_idx]
-        buf.first_w[:n] = rows_a
-        buf.first_p[:n] = p[env_idx]
-        score = roll_forward(self.fork, self.H, self.f_codes, self.f_hp, self.fork_pstate, first=True, buffers=buf,
-                             rows=n)[:n]
+        score = roll_candidates(self.fork, self.H, self.f_codes, self.f_hp, self.pstate, self.fork_pstate,
+                                self.buffers, env_idx, rows_a, d, p)
         self.timing["decisions"] += len(envs)
         self.timing["rolls"] += n
         self.last_scores = pick_best(score, envs, cands, self.K, w, self.B)

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from wfbench.policies import kernels as K
-from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
+from wfbench.policies.oracle.rollout import RollBuffers, roll_candidates
 from wfbench.policies.protocol import Attached, as_obs, seeds_array
 
 from wfbench.core.actions import AGENTS
@@ -116,14 +116,8 @@ class HindsightRollout(Attached):
         rows_a = np.array([a for b in cands for a in cands[b]], dtype=np.int64)
         n = rows_env.size
         copy_state(self.fork, self.shadow, rows_env)
-        for src, dst in zip(self.pstate, self.fork_pstate, strict=True):
-            np.take(src, rows_env, axis=0, out=dst[:n])
-        buf = self.buffers
-        buf.first_d[:n] = d[rows_env]
-        buf.first_w[:n] = rows_a
-        buf.first_p[:n] = p[rows_env]
-        score = roll_forward(self.fork, self.steps, self.codes, self.hp, self.fork_pstate, first=True, buffers=buf,
-                             rows=n)[:n]
+        score = roll_candidates(self.fork, self.steps, self.codes, self.hp, self.pstate, self.fork_pstate,
+                                self.buffers, rows_env, rows_a, d, p)
         scores = np.full((self.B, N_WORKFORCE), np.nan)
         i = 0
         for b, allowed in cands.items():

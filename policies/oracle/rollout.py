@@ -113,4 +113,23 @@ def roll_forward(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, fir
     return buffers.score
 
 
-__all__ = ["RollBuffers", "roll_forward", "roll_range"]
+def roll_candidates(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, fork_pstate, buffers: RollBuffers,
+                    env_rows: np.ndarray, first_w, d: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Score candidate workforce actions: :func:`roll_forward` of rows 0..n-1 of ``sim``, each from its environment.
+
+    Row i (its world already written into ``sim``) starts from the kernel state ``pstate`` of
+    environment ``env_rows[i]``, copied into ``fork_pstate``, and takes that environment's
+    dispatch ``d`` and positioning ``p`` with the workforce action ``first_w[i]`` as its first
+    step. Returns the (n,) sums of NSW over the steps run. The rollout's and the hindsight
+    rollout's decisions (:mod:`wfbench.policies.lookahead.rollout`, :mod:`.hindsight`) both score this way.
+    """
+    n = len(env_rows)
+    for src, dst in zip(pstate, fork_pstate, strict=True):
+        np.take(src, env_rows, axis=0, out=dst[:n])
+    buffers.first_d[:n] = d[env_rows]
+    buffers.first_w[:n] = first_w
+    buffers.first_p[:n] = p[env_rows]
+    return roll_forward(sim, steps, codes, hp, fork_pstate, first=True, buffers=buffers, rows=n)[:n]
+
+
+__all__ = ["RollBuffers", "roll_candidates", "roll_forward", "roll_range"]
