@@ -1,7 +1,7 @@
 """A Griffe extension for the API reference: the docstrings' conventions, read as written.
 
 - Some docstrings name other objects the reST way (``:class:`Simulator```,
-  ``:func:`~wfbench.core.lookahead.fork```); Markdown would show the role's name as text.
+  ``:func:`~wfbench.core.fork.fork```); Markdown would show the role's name as text.
   Each becomes the code span Sphinx would display: the target, or its last component
   after ``~``, or the title of ``title <target>``.
 - A ``Returns:`` or ``Yields:`` section here is prose (the type is the signature's

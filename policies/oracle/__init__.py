@@ -9,7 +9,7 @@ the best in hindsight of the planner and every deployable built-in), ``reference
 versioned candidate lists: ``oracle`` is v1, ``oracle-v2`` is v2), ``hindsight``
 (``oracle-rollout``), ``replay``, ``episodes`` and ``pieces`` (the replaying references'
 totals from recorded episodes and committed suite pieces). ``docs/hindsight.md``
-explains them; the look-ahead itself is :mod:`wfbench.core.lookahead`.
+explains them; the look-ahead itself is :mod:`wfbench.core.fork`.
 """
 
 from wfbench.policies.oracle.best import BestInHindsight

@@ -24,7 +24,7 @@ from wfbench.policies.protocol import Attached, as_obs, seeds_array
 
 from wfbench.core.actions import AGENTS
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.lookahead import copy_state, fork
+from wfbench.core.fork import copy_state, fork
 from wfbench.core.simulator import Simulator
 
 N_WORKFORCE = 7  # the workforce actions: no-op, three hires, three let-gos

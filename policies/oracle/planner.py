@@ -6,7 +6,7 @@ joint action (:meth:`Planner.record`, called by :class:`policies.Composite` afte
 :class:`ShadowDivergedError` if it differs. ``decide`` runs the base kernels, then scores the
 workforce, positioning and dispatch candidates (:mod:`wfbench.policies.oracle.workforce`,
 :mod:`~wfbench.policies.oracle.positioning`, :mod:`~wfbench.policies.oracle.dispatch`) by
-compiled roll-forwards of a preallocated fork (:func:`wfbench.core.lookahead.copy_state`,
+compiled roll-forwards of a preallocated fork (:func:`wfbench.core.fork.copy_state`,
 :func:`wfbench.policies.oracle.rollout.roll_forward`); ``docs/hindsight.md``, "How the planner works".
 """
 
@@ -31,7 +31,7 @@ from wfbench.policies.protocol import DECISION_INDEX, Attached, as_obs, decision
 
 from wfbench.core.actions import AGENTS
 from wfbench.core.config import ScenarioConfig
-from wfbench.core.lookahead import copy_state, fork
+from wfbench.core.fork import copy_state, fork
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import EMPTY, IDLE, RETURNING
 

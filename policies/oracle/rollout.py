@@ -1,7 +1,7 @@
 """Compiled roll-forward: step a batch from its current state under built-in kernels.
 
 :func:`roll_forward` is :func:`wfbench.policies.rollout.rollout` without the reset and for a
-number of steps, usually on a fork (:func:`wfbench.core.lookahead.fork`), with an optional
+number of steps, usually on a fork (:func:`wfbench.core.fork.fork`), with an optional
 explicit first action. It calls the same ``step_env``, ``observe_env`` and ``act_env`` as
 ``Simulator.step``, so it plays the episode the simulator would (tested). It returns the sum of
 ``NSW_t`` per environment and can record where requests open (the known future demand)

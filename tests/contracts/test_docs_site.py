@@ -34,7 +34,7 @@ KEY_NAMES = {
     "policies": ["wfbench.policies.protocol.Policy", "wfbench.policies.protocol.Policy.act",
                  "wfbench.policies.protocol.Policy.reset",
                  "wfbench.policies.registry.get", "wfbench.policies.composite.Composite"],
-    "oracles": ["wfbench.core.lookahead.fork", "wfbench.core.bound.score_upper_bound",
+    "oracles": ["wfbench.core.fork.fork", "wfbench.core.bound.score_upper_bound",
                 "wfbench.policies.oracle.planner.Planner"],
     "solvers": ["wfbench.solvers.assignment.solve", "wfbench.solvers.facility_location.solve_p_median",
                 "wfbench.solvers.staffing.square_root_staffing", "wfbench.solvers.result.SolveResult"],

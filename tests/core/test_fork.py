@@ -16,8 +16,8 @@ from scipy import stats
 
 from wfbench import ScenarioConfig, Simulator, policies
 from wfbench.core.belief import Belief, PublicModel, belief_key, row_key
-from wfbench.core.lookahead import fork as true_fork
-from wfbench.core.lookahead import state_equal
+from wfbench.core.fork import fork as true_fork
+from wfbench.core.fork import state_equal
 from wfbench.core.schedule import RateSchedule
 from wfbench.core.state import EMPTY, ONBOARDING
 from wfbench.core.trace import NEVER, trace

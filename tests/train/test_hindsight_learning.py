@@ -270,7 +270,7 @@ def test_heads_only_values_run_keeps_the_networks_other_parts(tmp_path):
 
 
 def test_learner_values_are_roll_forwards_in_copies_that_leave_the_episode_alone(tmp_path):
-    from wfbench.core.lookahead import fork, state_equal
+    from wfbench.core.fork import fork, state_equal
 
     tr = Trainer(_cfg(tmp_path, beta0=0.0, workforce_target="improve", value_rollout="learner", value_horizon=1,
                       value_every=4), progress=False, log=False)

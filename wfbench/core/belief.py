@@ -1,6 +1,6 @@
 """Simulators built from what a policy sees: sampled worlds for deployable lookahead (issue #43).
 
-Where :mod:`wfbench.core.lookahead` forks the *true* state (the hindsight oracles), a
+Where :mod:`wfbench.core.fork` forks the *true* state (the hindsight oracles), a
 :class:`Belief` keeps per environment only what the observations reveal, reconstructs the hidden
 windows and timers from past observations (exact from ``t = 0``), and writes simulator states
 that re-observe as the observation, every unobserved part drawn fresh from the public model

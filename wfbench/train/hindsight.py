@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from wfbench.core.fork import copy_state, fork, fork_index
 from wfbench.core.kpis import SCORE
-from wfbench.core.lookahead import copy_state, fork, fork_index
 from wfbench.core.simulator import Simulator
 from wfbench.policies.composite import Composite
 from wfbench.policies.neural import scalefree
@@ -478,7 +478,7 @@ class Trainer:
     def learner_scores(self, mine: dict[str, np.ndarray]) -> np.ndarray:
         """The sum of ``NSW_t`` of each roll-forward: (B, S, A), S = ``value_samples``.
 
-        Every environment is copied ``A * value_samples`` times (:func:`wfbench.core.lookahead.fork`:
+        Every environment is copied ``A * value_samples`` times (:func:`wfbench.core.fork.fork`:
         the copies meet the same future). Copy (s, a) takes this step's learner action
         (``mine``) with workforce code ``a``, then the learner acts, sampled, for
         ``value_horizon - 1`` more steps from its memory of now; the copies of sample s

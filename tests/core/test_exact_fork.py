@@ -1,4 +1,4 @@
-"""Exact look-ahead (wfbench.core.lookahead, wfbench.policies.oracle.rollout): a fork follows its source exactly."""
+"""Exact look-ahead (wfbench.core.fork, wfbench.policies.oracle.rollout): a fork follows its source exactly."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ from wfbench.policies import kernels as K
 from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
 
 from wfbench import ScenarioConfig, Simulator, policies
-from wfbench.core.lookahead import copy_state, fork, fork_index, state_equal
+from wfbench.core.fork import copy_state, fork, fork_index, state_equal
 from wfbench.core.state import K_NSW
 
 CONFIG = ScenarioConfig.preset("small").replace(horizon=120)
