@@ -50,7 +50,7 @@ def main() -> None:
     for sc in args.scenarios.split(","):
         with warnings.catch_warnings():  # zero-shot on a held-out world is the point
             warnings.simplefilter("ignore")
-            df = wfbench.evaluate(args.policy, sc, seeds=seeds, backend="serial", threads=1)
+            df = wfbench.evaluate(args.policy, sc, seeds=seeds, execution=wfbench.Execution(threads=1))
         ref = committed(args.against, sc).loc[seeds]
         d = df["nsw"].to_numpy() - ref["nsw"].to_numpy()
         ms = 1e3 * df["cpu_s"].sum() / df["episode_length"].sum()
