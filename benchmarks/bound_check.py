@@ -32,7 +32,7 @@ ORACLES = ["oracle-planner", "oracle-dispatch"]  # the planners; the oracle (bes
 
 def play(name: str, config: ScenarioConfig, seeds: list[int]) -> np.ndarray:
     """Episode scores of a policy (the runner hands a trace-reading oracle its scenario)."""
-    return wfbench.evaluate(name, config, seeds=seeds, backend="serial")["nsw"].to_numpy()
+    return wfbench.evaluate(name, config, seeds=seeds)["nsw"].to_numpy()
 
 
 def check(scenario: str, n_seeds: int, n_oracle: int) -> dict:

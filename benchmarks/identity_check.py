@@ -131,14 +131,14 @@ def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | No
             for name in policies():
                 t0 = time.perf_counter()
                 n = 1 if scenario in ONE_SEED else min(seeds, SLOW_SEEDS) if name in SLOW else seeds
-                save_rows(wfbench.evaluate(name, scenario, list(range(n)), backend="serial", progress=False),
+                save_rows(wfbench.evaluate(name, scenario, list(range(n))),
                           out / f"eval__{scenario}__{name}.pkl")
                 print(f"evaluate {name:22s} {scenario:14s} {n} seeds {time.perf_counter() - t0:6.1f} s", flush=True)
     if only is None or "lookahead" in only:
         for scenario in [x for x in LOOKAHEAD_SCENARIOS if chosen is None or x in chosen]:
             for name in lookaheads():
                 t0 = time.perf_counter()
-                save_rows(wfbench.evaluate(name, scenario, [0], backend="serial", progress=False),
+                save_rows(wfbench.evaluate(name, scenario, [0]),
                           out / f"eval__{scenario}__{name}.pkl")
                 print(f"lookahead {name:22s} {scenario:14s} 1 seed {time.perf_counter() - t0:6.1f} s", flush=True)
     if only is None or "reproduce" in only:

@@ -80,7 +80,7 @@ def main() -> None:
             steps, values, _ = zip(*s["public/workforce_cost_sample"], strict=True)
             axes[1, 1].plot(steps, values, marker="o", ms=3, color=color, label=label)
     seeds = resolve_seeds(cfg["eval_seeds"])
-    ref = wfbench.evaluate(a.reference, cfg["scenario"], seeds, backend="serial")
+    ref = wfbench.evaluate(a.reference, cfg["scenario"], seeds)
     for ax in (axes[0, 1], axes[1, 0]):
         ax.axhline(ref["nsw"].mean(), color="grey", ls=":", label=f"{a.reference} (same seeds)")
     axes[1, 1].axhline(ref["workforce_cost"].mean(), color="grey", ls=":", label=a.reference)

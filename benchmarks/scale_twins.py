@@ -29,6 +29,7 @@ from wfbench.analysis.tables import markdown_table
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.observation_v2 import scaled_world
 from wfbench.core.seeds import describe, resolve_seeds
+from wfbench.harness.backends import Execution
 from wfbench.harness.budget import machine, machine_line
 from wfbench.harness.evaluation import evaluate
 from wfbench.scenarios import get_suite
@@ -83,7 +84,8 @@ def main() -> None:
                 if (sid, k, pol) in have:
                     rows.append(have[(sid, k, pol)])
                     continue
-                df = evaluate(pol, config, seeds, backend="process", workers=a.workers, act_timeout_s=None)
+                df = evaluate(pol, config, seeds, act_timeout_s=None,
+                              execution=Execution(backend="process", workers=a.workers))
                 member = parse_member(pol)
                 row = {"world": sid, "k": k, "policy": pol, "method": member[0] if member else pol,
                        "nsw": float(df["nsw"].mean()), "seeds": a.seeds}

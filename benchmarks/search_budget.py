@@ -66,11 +66,11 @@ def main() -> None:
     print("| policy | NSW mean | paired diff to base (± s.e.) | CPU ms per env-step | hires | let-goes | "
           "deviations per episode | wall s |")
     print("|---|---|---|---|---|---|---|---|")
-    base_nsw = wfbench.evaluate(a.base, a.scenario, s, backend="serial")["nsw"].to_numpy()
+    base_nsw = wfbench.evaluate(a.base, a.scenario, s)["nsw"].to_numpy()
     for spec in [*a.policies, *a.knobs]:
         name, policy = entry(spec, a.base)
         t0 = time.perf_counter()
-        df = wfbench.evaluate(policy, a.scenario, s, backend="serial", act_timeout_s=None)
+        df = wfbench.evaluate(policy, a.scenario, s, act_timeout_s=None)
         wall = time.perf_counter() - t0
         d = df["nsw"].to_numpy() - base_nsw
         ms = 1e3 * df["cpu_s"].sum() / df["episode_length"].sum()

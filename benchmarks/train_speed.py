@@ -1,9 +1,10 @@
 """Training speed of the PPO trainer: env-steps/s and where the time goes, per model size.
 
-    python benchmarks/train_speed.py [--scenario paper-64] [--models cpu,small,paper] [--threads 1,2]
+    python benchmarks/train_speed.py [--scenario paper-64 | --scenarios suite-v1:train]
+                                     [--models cpu,small,paper] [--threads 1,2]
                                      [--agents joint,independent] [--updates 2] [--num-envs 32]
-                                     [--num-steps 32] [--device cpu|cuda] [--bf16] [--compile]
-                                     [--json out.json]
+                                     [--num-steps 32] [--epochs 2] [--minibatches 2]
+                                     [--device cpu|cuda] [--bf16] [--compile] [--json out.json]
 
 For each model and thread count: one warm-up update (compiles, allocates), then
 ``--updates`` timed updates of the real trainer (``wfbench.train.ppo.Trainer``: rollout
@@ -11,7 +12,9 @@ and PPO update, 2 epochs x 2 minibatches), split into the simulator (step and ob
 the heuristic parts of the dispatch variant included), observation -> tensors, the
 rollout forward pass with sampling, and the update (forward and backward over the
 rollout). ``--agents independent`` measures one network per decision (three networks).
-Checkpoints and public-seed scoring are off. Numbers go to docs/performance.md.
+Checkpoints and public-seed scoring are off. ``--scenarios`` trains across worlds as
+``wfbench train --scenarios`` does (the training split: every batch holds every world).
+Numbers go to docs/performance.md.
 
 ``--device cuda`` runs the trainer on the GPU (the clock is read after
 ``torch.cuda.synchronize()``; the row adds the GPU's name and its peak memory),
@@ -36,7 +39,8 @@ from wfbench.train.ppo import TrainConfig, Trainer
 
 
 def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int, num_steps: int,
-            agents: str = "joint", device: str = "cpu", bf16: bool = False, compile: bool = False) -> dict:
+            agents: str = "joint", device: str = "cpu", bf16: bool = False, compile: bool = False,
+            scenarios: str = "", epochs: int = 2, minibatches: int = 2) -> dict:
     cuda = device == "cuda"
 
     def sync():
@@ -44,7 +48,7 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
             torch.cuda.synchronize()
 
     with tempfile.TemporaryDirectory() as tmp:
-        cfg = TrainConfig(scenario=scenario, model=model, num_envs=num_envs, num_steps=num_steps,
+        cfg = TrainConfig(scenario=scenario, scenarios=scenarios, epochs=epochs, minibatches=minibatches, model=model, num_envs=num_envs, num_steps=num_steps,
                           steps=num_envs * num_steps * (updates + 1), eval_every=0, checkpoint_every=10**9,
                           run_dir=tmp, threads=threads, device=device, agents=agents, bf16=bf16, compile=compile)
         tr = Trainer(cfg, progress=False, log=False, amp=torch.bfloat16 if bf16 else None)
@@ -64,7 +68,7 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
     gpu = {}
     if cuda:
         gpu = {"gpu": torch.cuda.get_device_name(), "gpu_peak_gib": torch.cuda.max_memory_allocated() / 2**30}
-    return {"scenario": scenario, "model": model, "agents": agents, "parameters": count_parameters(tr.model),
+    return {"scenario": scenarios or scenario, "epochs": epochs, "minibatches": minibatches, "model": model, "agents": agents, "parameters": count_parameters(tr.model),
             "threads": threads, "device": device, "bf16": bf16, "compile": compile, "num_envs": num_envs,
             "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
             "cpu_s": cpu, "env_steps_per_cpu_s": steps / cpu, "load_avg_before": load0,
@@ -74,12 +78,16 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
 def main(argv: list[str] | None = None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="paper-64")
+    ap.add_argument("--scenarios", default="", help="train across worlds, e.g. suite-v1:train (then --scenario "
+                    "is unused)")
     ap.add_argument("--models", default="cpu,small,paper")
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--agents", default="joint")
     ap.add_argument("--updates", type=int, default=2)
     ap.add_argument("--num-envs", type=int, default=32)
     ap.add_argument("--num-steps", type=int, default=32)
+    ap.add_argument("--epochs", type=int, default=2)
+    ap.add_argument("--minibatches", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--bf16", action="store_true", help="bf16 autocast of the forward passes (CPU too)")
@@ -91,11 +99,11 @@ def main(argv: list[str] | None = None) -> list[dict]:
     for _ in range(a.repeat):
         for model, agents, threads in settings:
             r = measure(a.scenario, model, threads, a.updates, a.num_envs, a.num_steps, agents, a.device, a.bf16,
-                        a.compile)
+                        a.compile, a.scenarios, a.epochs, a.minibatches)
             rows.append(r)
             how = f"{a.device}{' bf16' if a.bf16 else ''}{' compiled' if a.compile else ''}"
             gpu = f"  GPU peak {r['gpu_peak_gib']:.1f} GiB" if "gpu_peak_gib" in r else ""
-            print(f"{r['scenario']:9s} {r['model']:6s} {agents:11s} {how} {r['parameters']:>8,d} params  "
+            print(f"{r['scenario']:9s} {r['num_envs']}x{a.num_steps} {a.epochs}x{a.minibatches} {r['model']:6s} {agents:11s} {how} {r['parameters']:>8,d} params  "
                   f"threads {threads}  "
                   f"{r['env_steps_per_s']:7.0f} env-steps/s  simulator {r['simulator_share']:.0%}  "
                   f"obs->tensor {r['obs_to_tensor_share']:.0%}  forward {r['forward_share']:.0%}  "
@@ -108,7 +116,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     print(json.dumps(machine))
     if a.json:
         with open(a.json, "w") as fh:
-            json.dump({"machine": machine, "rows": rows, "num_envs": a.num_envs, "num_steps": a.num_steps}, fh,
+            json.dump({"machine": machine, "rows": rows, "num_envs": a.num_envs, "num_steps": a.num_steps,
+                       "epochs": a.epochs, "minibatches": a.minibatches}, fh,
                       indent=2)
     return rows
 

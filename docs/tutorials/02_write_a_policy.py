@@ -120,7 +120,7 @@ print(mine, "| the class lives in", LongestDownFirst.__module__)
 # dispatch. Same seeds, so the difference is paired by seed.
 
 # %%
-table = compare([mine, "heuristic"], SCENARIO, seeds=SEEDS, baseline="heuristic", backend="serial")
+table = compare([mine, "heuristic"], SCENARIO, seeds=SEEDS, baseline="heuristic")
 print(format_comparison(table))
 runs = table.attrs["runs"]
 assert (runs[mine.name]["invalid_actions"] == 0).all()  # only free people, only open requests, nobody twice
@@ -128,15 +128,15 @@ assert (runs[mine.name]["invalid_actions"] == 0).all()  # only free people, only
 # %% [markdown]
 # ## Every backend
 #
-# `wfbench.evaluate(..., backend=...)` runs the same episodes in this process
-# (`serial`), in a pool of worker processes (`process`) or as Ray tasks (`ray`). A seed
+# `wfbench.evaluate(..., execution=wfbench.Execution(backend=...))` runs the same
+# episodes in this process (`serial`), in a pool of worker processes (`process`) or as Ray tasks (`ray`). A seed
 # gives the same numbers on all three, which the next cells check. What travels to the
 # workers is the policy object, pickled by cloudpickle:
 #
 # - a class defined in the notebook (here, through `exec`) lives in `__main__`, and
 #   cloudpickle sends it **by value**: its code goes with the object, and the workers
 #   need nothing installed but wfbench. Both `process` and `ray` run it, also on a
-#   Ray cluster (`address=`);
+#   Ray cluster (`Execution(backend="ray", address=...)`);
 # - a class **imported** from a module (`from my_policy import LongestDownFirst`) goes
 #   **by reference**: each worker imports the module itself. The `process` workers get
 #   this notebook's folder and `sys.path`, so they find the module wherever this
@@ -147,8 +147,8 @@ assert (runs[mine.name]["invalid_actions"] == 0).all()  # only free people, only
 #   (checked with Ray 2.60).
 #
 # Ray is started here with its log quieted; without this call `wfbench.evaluate` starts
-# a local Ray instance itself, and `address="auto"` (or `"ray://host:10001"`) joins an
-# existing cluster.
+# a local Ray instance itself, and `address="auto"` (or `"ray://host:10001"`) in the
+# `Execution` joins an existing cluster.
 
 # The frames carry, beside the results, what each run cost (`decision_ms_p50`,
 # `decision_ms_p99`, `cpu_s`): measurements of this machine at this moment, which differ
@@ -164,7 +164,7 @@ ray.init(num_cpus=os.cpu_count(), include_dashboard=False, logging_level="ERROR"
 
 by_backend = {"serial": runs[mine.name]}  # compare ran it in this process above
 for backend in ("process", "ray"):
-    by_backend[backend] = wfbench.evaluate(mine, SCENARIO, seeds=SEEDS, backend=backend)
+    by_backend[backend] = wfbench.evaluate(mine, SCENARIO, seeds=SEEDS, execution=wfbench.Execution(backend=backend))
 for backend, df in by_backend.items():
     print(f"{backend:8s} mean NSW {df['nsw'].mean():.6f}")
     assert results_only(df).equals(results_only(by_backend["serial"])), f"{backend} differs from serial"

@@ -33,7 +33,7 @@ def _svg(path, min_bytes=10_000) -> str:
 
 @pytest.fixture(scope="module")
 def small_comparison():
-    return compare(["heuristic", "random", "solver"], "small", 4, backend="serial")
+    return compare(["heuristic", "random", "solver"], "small", 4)
 
 
 @pytest.mark.slow
@@ -60,11 +60,11 @@ def test_compare_plot_writes_every_format(small_comparison, tmp_path):
 
 def test_compare_plot_argument_checks_the_suffix_first(tmp_path):
     with pytest.raises(ValueError, match=r"suffix '\.jpg'; allowed: \.png, \.svg, \.pdf"):
-        compare(["random"], "small", 1, backend="serial", plot=tmp_path / "c.jpg")
+        compare(["random"], "small", 1, plot=tmp_path / "c.jpg")
     with pytest.raises(ValueError, match="has no suffix"):
         figure_format(tmp_path / "c")
     assert figure_format("a/B.SVG") == "svg"
-    df = compare(["random"], "small", 2, backend="serial", plot=tmp_path / "c.svg")
+    df = compare(["random"], "small", 2, plot=tmp_path / "c.svg")
     assert "random" in _svg(tmp_path / "c.svg") and len(df) == 2
 
 

@@ -61,8 +61,8 @@ def test_one_scenario_and_a_suite_get_the_same_act_timeout(flag, limit, mini_run
     assert main([*base, "--scenario", "small"]) == 0
     assert main([*base, "--suite", "suite-v1", "--split", "train"]) == 0
     assert mini_run["act_timeout_s"] == limit
-    evaluate_suite("tests.lb_policies:Slow", _mini(), [0], split="train", backend="serial")  # the API's default
-    evaluation.evaluate("tests.lb_policies:Slow", "small", [0], backend="serial")
+    evaluate_suite("tests.lb_policies:Slow", _mini(), [0], split="train")  # the API's default
+    evaluation.evaluate("tests.lb_policies:Slow", "small", [0])
     limits = [lp.guard.act_timeout_s for lp in dict.fromkeys(loaded)]  # evaluate_suite hands its load on
     assert limits[0] == limits[1] == limit and limits[2] == limits[3] == DEFAULT_ACT_TIMEOUT_S
     capsys.readouterr()

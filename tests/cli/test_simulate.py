@@ -54,7 +54,7 @@ def test_simulate_in_python_raises_the_policy_error():
 
 def test_a_whole_episode_has_the_kpis_of_its_evaluation():
     episode = wfbench.simulate("heuristic", "small", 3)
-    row = wfbench.evaluate("heuristic", "small", seeds=[3], backend="serial").iloc[0]
+    row = wfbench.evaluate("heuristic", "small", seeds=[3]).iloc[0]
     assert episode.steps == episode.scenario.horizon and episode.frames == 0 and episode.gif is None
     assert episode.kpis == pytest.approx({k: row[k] for k in episode.kpis}, rel=1e-12)
 

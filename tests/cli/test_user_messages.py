@@ -131,7 +131,7 @@ def test_warning__evaluate_suite_is_quiet_on_the_heldout_split():
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        evaluate_suite(zero_shot(), _mini(), [0], backend="serial")
+        evaluate_suite(zero_shot(), _mini(), [0])
     mismatch = [str(w.message) for w in caught if issubclass(w.category, ScenarioMismatchWarning)]
     assert len(mismatch) == 1 and "'small'" in mismatch[0], mismatch  # the training split's; none for large-v1
 

@@ -9,6 +9,7 @@ import pytest
 from wfbench.policies import get
 
 from wfbench import ScenarioConfig, Simulator, trace
+from wfbench.harness.backends import Execution
 from wfbench.harness.budget import results_only
 from wfbench.harness.evaluation import evaluate
 from wfbench.harness.runner import run_batch
@@ -92,8 +93,8 @@ def test_fingerprint_separates_what_numba_types_apart():
 
 
 def test_backends_agree():
-    serial = evaluate("heuristic-stochastic", "small", 6, backend="serial")
-    process = evaluate("heuristic-stochastic", "small", 6, backend="process", workers=2)
+    serial = evaluate("heuristic-stochastic", "small", 6)
+    process = evaluate("heuristic-stochastic", "small", 6, execution=Execution(backend="process", workers=2))
     assert results_only(serial).equals(results_only(process))  # the budget columns are measurements
 
 

@@ -61,7 +61,7 @@ NEW_SCENARIOS = ["surge-64", "clustered-64", "slow-64", "churn-64", "novice-64",
 
 def _scores(policy, scenario, seeds):
     """Episode scores per seed (the runner hands a trace-reading oracle its scenario)."""
-    return wfbench.evaluate(policy, scenario, seeds=seeds, backend="serial")["nsw"].to_numpy()
+    return wfbench.evaluate(policy, scenario, seeds=seeds)["nsw"].to_numpy()
 
 
 def _check_never_exceeded(scenario, seeds, oracle_seeds):
@@ -96,7 +96,7 @@ def test_bound__each_step_of_the_argument_holds_on_the_series(scenario, n):
     config = ScenarioConfig.preset(scenario)
     parts = [bound_parts(config, s) for s in range(n)]
     for policy in ["heuristic", "random", "solver", *_adversaries()]:
-        _, series = wfbench.evaluate(policy, scenario, seeds=n, backend="serial", return_series=True)
+        _, series = wfbench.evaluate(policy, scenario, seeds=n, return_series=True)
         for s, p in enumerate(parts):
             assert np.all(series[s, : p.first_failure, K_NSW] == 0.0), (policy, s)
             t0 = p.first_failure
@@ -123,7 +123,7 @@ def test_bound__is_zero_when_nothing_can_fail():
     """With no failure in the episode nobody ever works, every NSW_t is 0, and so is the bound."""
     config = ScenarioConfig.preset("small").replace(request_interval=1e12)
     assert np.all(score_upper_bound(config, 5) == 0.0)
-    assert np.all(wfbench.evaluate("heuristic", config, seeds=5, backend="serial")["nsw"] == 0.0)
+    assert np.all(wfbench.evaluate("heuristic", config, seeds=5)["nsw"] == 0.0)
 
 
 def test_bound__occupancies_follow_the_slots_of_the_simulator():
@@ -161,7 +161,7 @@ def test_bound__holds_at_the_edges_of_the_rules():
     parts = [bound_parts(config, s) for s in seeds]
     assert np.all(bound < 1.0)
     for policy in BUILTIN + _adversaries():
-        df, series = wfbench.evaluate(policy, config, seeds=seeds, backend="serial", return_series=True)
+        df, series = wfbench.evaluate(policy, config, seeds=seeds, return_series=True)
         assert np.all(df["nsw"].to_numpy() <= bound), policy
         for s, p in enumerate(parts):
             assert np.all(series[s, : p.first_failure, K_NSW] == 0.0), (policy, s)
@@ -192,7 +192,7 @@ def test_bound__holds_against_the_best_policies_on_the_new_scenarios(scenario):
     config = ScenarioConfig.preset(scenario)
     parts = [bound_parts(config, s) for s in seeds]
     for policy in ["heuristic", *_adversaries()]:
-        df, series = wfbench.evaluate(policy, scenario, seeds=seeds, backend="serial", return_series=True)
+        df, series = wfbench.evaluate(policy, scenario, seeds=seeds, return_series=True)
         assert np.all(df["nsw"].to_numpy() <= bound), (scenario, policy)
         for s, p in enumerate(parts):
             assert np.all(series[s, : p.first_failure, K_NSW] == 0.0), (scenario, policy, s)
@@ -213,7 +213,7 @@ def test_bound__holds_on_the_city_world():
     assert 0.5 < bound[0] < 0.98, bound
     p = bound_parts(config, 0)
     for policy in ["heuristic", *_adversaries()]:
-        df, series = wfbench.evaluate(policy, config, seeds=[0], backend="serial", return_series=True)
+        df, series = wfbench.evaluate(policy, config, seeds=[0], return_series=True)
         assert df["nsw"].iloc[0] <= bound[0], policy
         assert np.all(series[0, : p.first_failure, K_NSW] == 0.0), policy
         assert np.all(series[0, :, K_UWC] <= p.wc_utility + 1e-6), policy

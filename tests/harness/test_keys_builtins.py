@@ -69,7 +69,7 @@ class Keyed:
 
 
 def _rows(policy) -> pd.DataFrame:
-    return results_only(evaluate(policy, SCENARIO, SEEDS, backend="serial", act_timeout_s=None))
+    return results_only(evaluate(policy, SCENARIO, SEEDS, act_timeout_s=None))
 
 
 def _keyed(name: str, board: str) -> tuple[pd.DataFrame, Keyed]:

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from wfbench.core.config import ScenarioConfig
+from wfbench.harness.backends import Execution
 from wfbench.harness.budget import results_only
 from wfbench.harness.evaluation import evaluate
 
@@ -68,6 +69,11 @@ def cluster(monkeypatch, tmp_path):
         c.shutdown()
 
 
+def on_cluster(c) -> Execution:
+    """Every seed its own Ray task on the test's cluster."""
+    return Execution(backend="ray", address=c.address, workers=len(SEEDS))
+
+
 def _alive_nodes() -> int:
     import ray
 
@@ -76,8 +82,8 @@ def _alive_nodes() -> int:
 
 def test_two_nodes_give_the_serial_rows(cluster):
     c, _ = cluster
-    serial = evaluate(Patient(), SLOW, SEEDS, backend="serial")
-    spread = evaluate(Patient(), SLOW, SEEDS, backend="ray", address=c.address, workers=len(SEEDS))
+    serial = evaluate(Patient(), SLOW, SEEDS)
+    spread = evaluate(Patient(), SLOW, SEEDS, execution=on_cluster(c))
     assert _alive_nodes() == 2
     assert spread.attrs["budget"]["workers"] == len(SEEDS)
     assert results_only(spread).equals(results_only(serial))
@@ -85,7 +91,7 @@ def test_two_nodes_give_the_serial_rows(cluster):
 
 def test_a_node_lost_mid_run_is_retried_and_changes_nothing(cluster):
     c, node = cluster
-    serial = evaluate(Patient(), SLOW, SEEDS, backend="serial")
+    serial = evaluate(Patient(), SLOW, SEEDS)
     resets = Path(os.environ[RESETS])
     resets.write_text("")
     removed = {}
@@ -101,7 +107,7 @@ def test_a_node_lost_mid_run_is_retried_and_changes_nothing(cluster):
     started = time.monotonic()
     killer = threading.Thread(target=kill_second_node)
     killer.start()
-    spread = evaluate(Patient(), SLOW, SEEDS, backend="ray", address=c.address, workers=len(SEEDS))
+    spread = evaluate(Patient(), SLOW, SEEDS, execution=on_cluster(c))
     finished = time.monotonic()
     killer.join()
     assert started < removed["at"] < finished, "the node must die while the run goes on"

@@ -156,7 +156,7 @@ def _fails(package: Path, limits: Limits = TIGHT) -> SandboxError:
 def test_clean_package_scores_bit_for_bit_as_evaluate(bwrap, tmp_path, monkeypatch):
     package = _package(tmp_path, RULE.replace("class Rule", "class Policy"))
     monkeypatch.syspath_prepend(str(package))
-    direct = evaluate("pol:Policy", SHORT, [5, 3, 4], backend="serial")
+    direct = evaluate("pol:Policy", SHORT, [5, 3, 4])
     sandboxed = evaluate_sandboxed(package, "pol:Policy", SHORT, [5, 3, 4], None, SECRET, CONTEXT, chunk_size=2)
     pd.testing.assert_frame_equal(results_only(sandboxed), results_only(direct), check_exact=True)
     assert sandboxed.attrs["policy"] == "pol:Policy" and sandboxed.attrs["budget"]["chunks"] == 2
@@ -500,7 +500,7 @@ def _digests(folders) -> dict[str, str]:
 @pytest.mark.slow
 def test_a_wrapped_builtin_scores_bit_for_bit_as_evaluate(bwrap, tmp_path):
     warm_cache(get("heuristic"), SHORT)
-    direct = evaluate("heuristic", SHORT, [5, 3], backend="serial")
+    direct = evaluate("heuristic", SHORT, [5, 3])
     sandboxed = evaluate_sandboxed(_package(tmp_path, WRAPPED), "pol:Policy", SHORT, [5, 3], None, SECRET, CONTEXT,
                                    chunk_size=1)
     pd.testing.assert_frame_equal(results_only(sandboxed), results_only(direct), check_exact=True)

@@ -290,7 +290,7 @@ def test_hostile_packages_fail_with_their_reason_beside_a_clean_job(hosted, tmp_
     clean = board.submission(ids["clean"])
     assert clean.state == "done", clean.reason
     rows = board.rows(clean.id).sort_values("seed_index")
-    direct = evaluate(_load(RULE, "clean_reference")(), TRACK.config, list(TRACK.public_seeds), backend="serial")
+    direct = evaluate(_load(RULE, "clean_reference")(), TRACK.config, list(TRACK.public_seeds))
     assert np.array_equal(_kpis(rows), _kpis(direct)), "the clean job's rows differ from a clean run"
 
 
@@ -343,8 +343,8 @@ def test_a_spy_finds_no_hidden_seed_and_reports_so_through_its_actions(hosted, t
     spy = SPY.replace("WANTED", repr(wanted))
     # the spy's search works: handed the hidden seeds, it reports them by hiring (its rows differ from the rule's)
     Spy, Rule = _load(spy, "spy_reference"), _load(RULE, "rule_reference")
-    told = evaluate(Spy(), TRACK.config, seeds, backend="serial")
-    honest = evaluate(Rule(), TRACK.config, seeds, backend="serial")
+    told = evaluate(Spy(), TRACK.config, seeds)
+    honest = evaluate(Rule(), TRACK.config, seeds)
     assert not np.array_equal(_kpis(told), _kpis(honest)), "the spy's report must show in its rows"
 
     token = board.add_account("eve")
@@ -390,9 +390,9 @@ def test_an_oracle_rebuilt_from_what_a_policy_is_handed_scores_no_better(hosted)
         def act(self, obs):
             return self.oracle.act(obs)
 
-    keyed = evaluate(Cheater(lambda s: opaque_keys(s, secret, context)), TRACK.config, seeds, backend="serial")
-    leaked = evaluate(Cheater(lambda s: s), TRACK.config, seeds, backend="serial")
-    deployable = {name: evaluate(name, TRACK.config, seeds, backend="serial")["nsw"].to_numpy()
+    keyed = evaluate(Cheater(lambda s: opaque_keys(s, secret, context)), TRACK.config, seeds)
+    leaked = evaluate(Cheater(lambda s: s), TRACK.config, seeds)
+    deployable = {name: evaluate(name, TRACK.config, seeds)["nsw"].to_numpy()
                   for name in LINEUPS["suite"]}
     best = np.max(np.stack(list(deployable.values())), axis=0)
     assert keyed["nsw"].mean() < deployable["heuristic"].mean(), (keyed["nsw"].tolist(), deployable["heuristic"])

@@ -19,6 +19,7 @@ from wfbench.policies.registry import LINEUPS
 
 from wfbench.cli import main
 from wfbench.core.config import ScenarioConfig
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 
 TINY = scenario_track(name="tiny", config=ScenarioConfig.preset("small").replace(name="tiny", horizon=20),
@@ -86,7 +87,8 @@ def test_a_worker_runs_the_seeded_builtins_in_the_sandbox_and_the_heuristic_colu
     subs = {s.name: s for s in board.submissions("tiny", "dev")}
     assert {s.state for s in subs.values()} == {"done"}, [s.reason for s in subs.values()]
     rows = board.rows(subs["heuristic"].id).set_index("seed")[list(ROW_COLUMNS)]
-    direct = evaluate("heuristic", TINY.config, list(TINY.public_seeds), threads=1).set_index("seed")[list(ROW_COLUMNS)]
+    direct = evaluate("heuristic", TINY.config, list(TINY.public_seeds), execution=Execution(threads=1))
+    direct = direct.set_index("seed")[list(ROW_COLUMNS)]
     pd.testing.assert_frame_equal(rows.sort_index(), direct.sort_index(), check_exact=True, check_dtype=False)
     table = pages.board_ranking(board, "tiny", "dev").table.set_index("name")
     assert table.loc["heuristic", "ranked"] and table.loc["random", "ranked"]

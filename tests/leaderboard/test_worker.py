@@ -26,6 +26,7 @@ from wfbench.leaderboard.store import ROW_COLUMNS
 from wfbench.leaderboard.tracks import scenario_track
 
 from wfbench.core.config import ScenarioConfig
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.harness.guard import PolicyError
 
@@ -39,7 +40,7 @@ TINY = scenario_track(name="tiny", config=ScenarioConfig.preset("small").replace
 
 def builtin_evaluator(package_dir, entry, config, seeds, limits, key_secret, key_context, chunk_size=None):
     """A deterministic stand-in for the sandbox: the built-in POLICY on ``seeds``, in this process."""
-    return evaluate(POLICY, config, list(seeds), threads=1)
+    return evaluate(POLICY, config, list(seeds), execution=Execution(threads=1))
 
 
 def slow_evaluator(delay):
@@ -65,7 +66,8 @@ def submit(board, phase="dev", data=b"package bytes"):
 
 def clean_rows(seeds):
     """What a clean run stores: the built-in policy evaluated directly, by seed."""
-    return evaluate(POLICY, TINY.config, list(seeds), threads=1).set_index("seed")[list(ROW_COLUMNS)]
+    rows = evaluate(POLICY, TINY.config, list(seeds), execution=Execution(threads=1))
+    return rows.set_index("seed")[list(ROW_COLUMNS)]
 
 
 def stored(board, sub):

@@ -74,5 +74,5 @@ def test_the_network_s_own_action_wins_ties():
 
 
 def test_the_evaluator_hands_it_the_world_and_scores_it():
-    df = wfbench.evaluate("rollout-scalefree-general", SMALL, [1003], backend="serial")
+    df = wfbench.evaluate("rollout-scalefree-general", SMALL, [1003])
     assert df["episode_length"].iloc[0] == SMALL.horizon and 0 < df["nsw"].iloc[0] <= 1

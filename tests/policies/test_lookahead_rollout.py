@@ -83,6 +83,6 @@ def test_a_rollout_slower_than_the_act_limit_fails_like_any_slow_policy_in_one_l
 
     pol = policies.get("rollout-solver-tuned-100ms")
     with pytest.raises(PolicyError) as err:
-        evaluate(pol, "paper-64", [1000], backend="serial", act_timeout_s=0.05)
+        evaluate(pol, "paper-64", [1000], act_timeout_s=0.05)
     assert str(err.value).startswith("policy 'rollout-solver-tuned-100ms' did not return from act within the act "
                                      "timeout of 0.05 s") and "\n" not in str(err.value)

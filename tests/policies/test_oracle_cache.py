@@ -91,14 +91,14 @@ def test_a_hit_skips_the_play_and_gives_the_same_choice(store, plays):
 
 def test_the_runner_fills_the_cache_for_the_oracle(store, plays):
     for name in ("heuristic", "solver"):
-        wfbench.evaluate(name, SHORT, seeds=[0, 1, 2], backend="serial")
+        wfbench.evaluate(name, SHORT, seeds=[0, 1, 2])
     o = _oracle(["random", "heuristic", "solver"], SHORT, [0, 1, 2])
     assert plays == [3] and o.cached == {"random": 0, "heuristic": 3, "solver": 3}
 
 
 def test_a_user_policy_is_not_stored_by_the_runner(store):
     """Only a registry name's rollout is stored: a tuner's thousands of trial composites would fill the disk."""
-    wfbench.evaluate(policies.get("heuristic"), SHORT, seeds=[0, 1], backend="serial")
+    wfbench.evaluate(policies.get("heuristic"), SHORT, seeds=[0, 1])
     assert not any(store.rglob("*.npz"))
 
 
@@ -127,7 +127,7 @@ def test_off_looks_up_and_stores_nothing(store, plays, monkeypatch):
     monkeypatch.setenv(cache.ENV, "off")
     o = _oracle(["heuristic"], SHORT, [0, 1])
     assert plays == [2, 2] and o.cached == {"heuristic": 0}
-    wfbench.evaluate("solver", SHORT, seeds=[0, 1], backend="serial")
+    wfbench.evaluate("solver", SHORT, seeds=[0, 1])
     assert cache.directory() is None and len(list(store.rglob("*.npz"))) == 1
 
 
@@ -156,7 +156,7 @@ def recorded(monkeypatch):
 
 def test_a_network_the_runner_played_on_the_same_batch_is_played_again_only_to_be_replayed(store, recorded):
     seeds = [0, 1, 2]
-    wfbench.evaluate("ppo-joint", SHORT, seeds=seeds, backend="serial")
+    wfbench.evaluate("ppo-joint", SHORT, seeds=seeds)
     alone = _oracle(["ppo-joint"], SHORT, seeds)  # the best everywhere: played once, for its actions
     assert recorded == ["ppo-joint"] and alone.cached == {"ppo-joint": 3}
     recorded.clear()
@@ -186,7 +186,7 @@ def test_the_oracles_rows_are_bit_identical_with_a_networks_totals_from_the_runn
     off = _oracle(candidates, SHORT, seeds)
     monkeypatch.setenv(cache.ENV, str(store))
     for name in ("ppo-joint", "hindsight-joint"):
-        wfbench.evaluate(name, SHORT, seeds=seeds, backend="serial")
+        wfbench.evaluate(name, SHORT, seeds=seeds)
     recorded.clear()
     on = _oracle(candidates, SHORT, seeds)
     assert on.choice == off.choice
@@ -205,13 +205,13 @@ def test_the_oracles_rows_are_bit_identical_with_a_networks_totals_from_the_runn
 def _rows(config, seeds, monkeypatch, store, warm_with=()):
     """The oracle's per-seed rows without the cache, then with a cache filled by the runner on ``warm_with``."""
     monkeypatch.setenv(cache.ENV, "off")
-    off = wfbench.evaluate("oracle", config, seeds=seeds, backend="serial")
+    off = wfbench.evaluate("oracle", config, seeds=seeds)
     monkeypatch.setenv(cache.ENV, str(store))
     for name, part in warm_with:
-        wfbench.evaluate(name, config, seeds=part, backend="serial")
-    cold = wfbench.evaluate("oracle", config, seeds=seeds, backend="serial")
+        wfbench.evaluate(name, config, seeds=part)
+    cold = wfbench.evaluate("oracle", config, seeds=seeds)
     cache.clear_memory()
-    warm = wfbench.evaluate("oracle", config, seeds=seeds, backend="serial")  # every compiled candidate from disk
+    warm = wfbench.evaluate("oracle", config, seeds=seeds)  # every compiled candidate from disk
     return off, cold, warm
 
 

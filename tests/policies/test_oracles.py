@@ -159,7 +159,7 @@ def test_evaluate_hands_the_scenario_to_an_oracle_and_matches_the_local_loop_on_
 
     means, _, _ = play("oracle-dispatch", SHORT, [3, 4])
     for backend in ("serial", "process"):
-        df = wfbench.evaluate("oracle-dispatch", SHORT, seeds=[3, 4], backend=backend)
+        df = wfbench.evaluate("oracle-dispatch", SHORT, seeds=[3, 4], execution=wfbench.Execution(backend=backend))
         np.testing.assert_array_equal(df["nsw"].to_numpy(), means["nsw"], err_msg=backend)
 
 
@@ -213,7 +213,7 @@ def _oracle_against_every_deployable(scenario, seeds, every_network=True):
         stopped = np.isnan(pol.scores[:, pol.candidates.index(name)]).all()
         if not every_network and name in registry.learned_names() and stopped:
             continue
-        theirs = wfbench.evaluate(name, config, seeds=seeds, backend="serial")["nsw"].to_numpy()
+        theirs = wfbench.evaluate(name, config, seeds=seeds)["nsw"].to_numpy()
         assert np.all(nsw >= theirs), (scenario, name, nsw, theirs)
         k = pol.candidates.index(name)
         played = ~np.isnan(pol.scores[:, k])  # NaN: stopped early, provably below the best
@@ -265,7 +265,7 @@ def test_the_oracle_refuses_without_torch_rather_than_drop_the_networks(monkeypa
 def test_the_oracle_plays_a_seed_the_same_alone_or_in_a_batch():
     import wfbench
 
-    both = wfbench.evaluate("oracle", SHORT, seeds=[1, 2], backend="serial")
-    alone = wfbench.evaluate("oracle", SHORT, seeds=[2], backend="serial")
+    both = wfbench.evaluate("oracle", SHORT, seeds=[1, 2])
+    alone = wfbench.evaluate("oracle", SHORT, seeds=[2])
     assert both["nsw"].iloc[1] == alone["nsw"].iloc[0]
     assert both["hires"].iloc[1] == alone["hires"].iloc[0]

@@ -150,7 +150,7 @@ def test_ppo_trains_it_deterministically_and_the_checkpoint_says_its_observation
     pol = from_checkpoint(path)
     assert pol.observation_version == 2
     from wfbench.harness.evaluation import evaluate
-    df = evaluate(pol, "small", [1000, 1001], backend="serial", act_timeout_s=None)
+    df = evaluate(pol, "small", [1000, 1001], act_timeout_s=None)
     assert len(df) == 2 and df["nsw"].between(0, 1).all()
 
 

@@ -174,9 +174,9 @@ def test_search_is_not_below_its_network_on_small_public_worlds():
     """
     seeds = list(range(1000, 1006))
     config = ScenarioConfig.preset("small")
-    base = wfbench.evaluate("scalefree-general", config, seeds, backend="serial")["nsw"].to_numpy()
+    base = wfbench.evaluate("scalefree-general", config, seeds)["nsw"].to_numpy()
     pol = NetworkSearch(policies.get("scalefree-general"), K=8, H=20, R=20, top=3, z=1.0)
-    got = wfbench.evaluate(pol, config, seeds, backend="serial", act_timeout_s=None)["nsw"].to_numpy()
+    got = wfbench.evaluate(pol, config, seeds, act_timeout_s=None)["nsw"].to_numpy()
     assert (got - base).mean() >= -0.005, f"search {got.mean():.4f} below its network {base.mean():.4f}"
 
 

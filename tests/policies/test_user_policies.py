@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from wfbench.cli import main
+from wfbench.harness.backends import Execution
 from wfbench.harness.evaluation import evaluate
 from wfbench.harness.guard import PolicyError, PolicyLoadError, load_policy
 
@@ -96,7 +97,7 @@ def test_time_under_the_numba_compiler_lock_does_not_count():
 
 def test_a_policy_defined_in_a_script_fails_in_a_worker_with_its_own_line():
     with pytest.raises(PolicyError) as err:
-        evaluate(f"{SPEC}:Raises", "small", 4, backend="process", workers=2)
+        evaluate(f"{SPEC}:Raises", "small", 4, execution=Execution(backend="process", workers=2))
     assert str(err.value) == (f"policy '{SPEC}:Raises' failed in act at {HOSTILE}:{line_of('boom at step 3')}: "
                               "RuntimeError: boom at step 3")
     assert f'File "{HOSTILE}", line {line_of("boom at step 3")}, in act' in err.value.trace, "the worker's trace"

@@ -17,11 +17,11 @@ from wfbench.scenarios import Suite, get_suite
 # runs them from a script without a __main__ guard, with a registry policy and a class from __main__
 
 
-def test_backend_errors():
-    with pytest.raises(ValueError, match="unknown backend 'gpu'; available: serial, process, ray"):
-        evaluate("heuristic", "small", 2, backend="gpu")
-    with pytest.raises(ValueError, match="address='auto' only applies to backend 'ray'"):
-        evaluate("heuristic", "small", 2, backend="serial", address="auto")
+def test_the_run_options_are_one_execution_value_and_nothing_else():
+    with pytest.raises(TypeError, match=r"^evaluate\(\) got an unexpected keyword argument 'backend'$"):
+        evaluate("heuristic", "small", 2, backend="process")
+    with pytest.raises(ValueError, match=r"^execution = 'process' is not allowed; allowed: an Execution or None$"):
+        evaluate("heuristic", "small", 2, execution="process")
 
 
 @pytest.mark.parametrize(("options", "message"), [
@@ -39,14 +39,11 @@ def test_an_execution_is_checked_once_when_it_is_made(options, message):
         Execution().replace(**options)
 
 
-def test_evaluate_takes_one_execution_or_its_keywords_not_both():
-    run = Execution(threads=1, chunk_size=1)
-    by_value = evaluate("heuristic", "small", 3, execution=run)
-    by_keywords = evaluate("heuristic", "small", 3, backend="serial", threads=1)
-    assert by_value.attrs["budget"]["chunks"] == 3 and by_keywords.attrs["budget"]["chunks"] == 1
-    assert results_only(by_value).equals(results_only(by_keywords)), "a chunk size moves no number"
-    with pytest.raises(ValueError, match=r"^threads, workers given beside execution=; allowed: execution= alone"):
-        evaluate("heuristic", "small", 2, execution=run, workers=2, threads=1)
+def test_a_chunk_size_moves_no_number():
+    by_seed = evaluate("heuristic", "small", 3, execution=Execution(threads=1, chunk_size=1))
+    at_once = evaluate("heuristic", "small", 3, execution=Execution(threads=1))
+    assert by_seed.attrs["budget"]["chunks"] == 3 and at_once.attrs["budget"]["chunks"] == 1
+    assert results_only(by_seed).equals(results_only(at_once))
 
 
 def test_the_suite_and_comparison_functions_hand_one_execution_to_every_evaluation():
@@ -63,10 +60,10 @@ def test_the_suite_and_comparison_functions_hand_one_execution_to_every_evaluati
                 test_seeds=(0, 1))
     paired = compare_suite(["random"], one, [0, 1], poi_reps=10, execution=run)
     assert [f.attrs["budget"]["small-v1"]["chunks"] for f in paired.runs.values()] == [2, 2]
-    for call in (lambda: evaluate_suite("heuristic", "suite-v1", [0], execution=run, backend="process"),
-                 lambda: compare(["random"], "small", [0], execution=run, progress=True),
-                 lambda: compare_suite(["random"], "suite-v1", [0], execution=run, workers=2)):
-        with pytest.raises(ValueError, match=r"given beside execution=; allowed: execution= alone"):
+    for name, call in (("evaluate_suite", lambda: evaluate_suite("heuristic", "suite-v1", [0], backend="process")),
+                       ("compare", lambda: compare(["random"], "small", [0], progress=True)),
+                       ("compare_suite", lambda: compare_suite(["random"], "suite-v1", [0], workers=2))):
+        with pytest.raises(TypeError, match=rf"^{name}\(\) got an unexpected keyword argument"):
             call()
 
 

@@ -41,7 +41,7 @@ def test_suite__writes_scores_aggregate_profiles_scaling_and_checks(first):
 def test_suite__scores_are_the_evaluator_s_normalized(first):
     out, _, _ = first
     scores = pd.read_csv(out / "suite-scores.csv").set_index("policy")
-    heuristic = wfbench.evaluate("heuristic", "small", [0, 1], backend="serial")["nsw"].to_numpy()
+    heuristic = wfbench.evaluate("heuristic", "small", [0, 1])["nsw"].to_numpy()
     assert scores.loc["heuristic", "nsw"] == pytest.approx(heuristic.mean(), abs=1e-12)
     assert scores.loc["heuristic", "normalized"] == pytest.approx(normalize(heuristic, "small-v1").mean(), abs=1e-12)
     from wfbench.core.bound import score_upper_bound

@@ -110,16 +110,16 @@ def test_normalize__refuses_constants_of_another_definition():
 
 
 def test_evaluate_suite__one_row_per_scenario_and_seed_with_the_normalized_score():
-    df = evaluate_suite("heuristic", _mini(), seeds=[0, 1], backend="serial")
+    df = evaluate_suite("heuristic", _mini(), seeds=[0, 1])
     assert list(df.columns[:3]) == ["scenario", "split", "normalized"]
     assert list(df["scenario"]) == ["small-v1", "small-v1", "large-v1", "large-v1"]
     assert list(df["split"]) == ["train", "train", "heldout", "heldout"]
     assert list(df["seed"]) == [0, 1, 0, 1]
-    alone = wfbench.evaluate("heuristic", "large", [0, 1], backend="serial")
+    alone = wfbench.evaluate("heuristic", "large", [0, 1])
     np.testing.assert_array_equal(df["nsw"].to_numpy()[2:], alone["nsw"].to_numpy())
     np.testing.assert_array_equal(df["normalized"].to_numpy()[2:], normalize(alone["nsw"].to_numpy(), "large-v1"))
     assert df.attrs["suite"] == "suite-v1" and df.attrs["policy"] == "heuristic"
-    held = evaluate_suite("heuristic", _mini(), seeds=[0], split="heldout", backend="serial")
+    held = evaluate_suite("heuristic", _mini(), seeds=[0], split="heldout")
     assert list(held["scenario"]) == ["large-v1"]
 
 
@@ -181,7 +181,7 @@ def test_cli_evaluate_suite__a_row_per_scenario_then_the_aggregate_per_split(cap
     ids = get_suite("suite-v1").ids("train")
     lines = out.splitlines()
     assert [x.split()[0] for x in lines[1:1 + len(ids)]] == ids
-    df = evaluate_suite("heuristic", "suite-v1", [0, 1], scenarios=["small"], backend="serial")
+    df = evaluate_suite("heuristic", "suite-v1", [0, 1], scenarios=["small"])
     small = next(x for x in lines if x.startswith("small-v1"))
     assert f"{df['normalized'].mean():.3f}" in small.split()
     agg = next(x for x in lines if x.startswith("train ") and "heuristic" in x)

@@ -21,5 +21,5 @@ def assert_trained_and_plays(a, b, algo: str, tmp_path) -> None:
     assert ckpt["algo"] == algo and ckpt["obs_version"] == 2 and ckpt["model_config"]["arch"] == "scalefree"
     pol = policies.get(f"{algo}:{path}")
     assert scalefree.obs_version(pol.model) == 2 and pol.observation_version == 2
-    df = wfbench.evaluate(f"{algo}:{path}", "small", seeds=[1000], backend="serial")
+    df = wfbench.evaluate(f"{algo}:{path}", "small", seeds=[1000])
     assert len(df) == 1 and df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()

@@ -89,7 +89,7 @@ def test_pure_teacher_collection_scores_what_the_teacher_scores(tmp_path, teache
         seeds = seeds or [int(s) for s in tr.sim.seeds]
         episodes += res["episodes"]
     # the teacher "oracle" is the planner: the registry's oracle-planner (its "oracle" takes the best of more)
-    df = wfbench.evaluate("oracle-planner" if teacher == "oracle" else teacher, "small", seeds, backend="serial")
+    df = wfbench.evaluate("oracle-planner" if teacher == "oracle" else teacher, "small", seeds)
     assert episodes[0]["nsw"] == pytest.approx(float(df["nsw"].mean()), abs=1e-12)
 
 
@@ -127,7 +127,7 @@ def test_checkpoint_is_a_policy_resumes_and_starts_ppo(tmp_path):
     assert list((run / "tb").iterdir())
     ckpt = torch.load(run / "best.pt", weights_only=False)
     assert ckpt["best"]["seeds"] == [1000, 1001]
-    df = wfbench.evaluate(f"ppo:{run / 'best.pt'}", "small", [1000, 1001], backend="serial")
+    df = wfbench.evaluate(f"ppo:{run / 'best.pt'}", "small", [1000, 1001])
     assert float(df["nsw"].mean()) == pytest.approx(ckpt["best"]["score"], abs=1e-9)
     assert (df["invalid_actions"] == 0).all()
 

@@ -163,7 +163,7 @@ def test_impala__train_resume_evaluate_end_to_end(tmp_path):
 
     # the checkpoint is a policy (the PPO checkpoint format), sampled by default and greedy on request
     for spec in (f"ppo:{run / 'best.pt'}", f"ppo:{run / 'latest.pt'}@greedy"):
-        df = wfbench.evaluate(spec, "small", seeds=[0, 1], backend="serial")
+        df = wfbench.evaluate(spec, "small", seeds=[0, 1])
         assert df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()
     assert policies.get(f"ppo:{run / 'best.pt'}").mode == "sample"
 

@@ -252,5 +252,5 @@ def test_impala_ray__cli_trains_on_a_local_ray_instance(local_ray, tmp_path, mon
     # public-seed scores during training are the thread path's, tested in test_impala.py
     spec = f"ppo:{run / 'latest.pt'}"
     assert policies.get(spec).mode == "sample"
-    df = wfbench.evaluate(spec, "small", seeds=[1000], backend="serial")
+    df = wfbench.evaluate(spec, "small", seeds=[1000])
     assert df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()

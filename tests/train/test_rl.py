@@ -210,7 +210,7 @@ def test_rl__train_resume_evaluate_end_to_end(tmp_path, capsys):
     assert any(not torch.equal(latest["model"][k], resumed["model"][k]) for k in latest["model"])
     # the checkpoint is a policy, sampled by default and greedy on request
     for spec in (f"ppo:{run / 'best.pt'}", f"ppo:{run / 'latest.pt'}@greedy"):
-        df = wfbench.evaluate(spec, "small", seeds=[0, 1], backend="serial")
+        df = wfbench.evaluate(spec, "small", seeds=[0, 1])
         assert df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()
     sampled = policies.get(f"ppo:{run / 'best.pt'}")
     assert sampled.mode == "sample" and policies.get(f"ppo:{run / 'best.pt'}@greedy").mode == "greedy"
@@ -240,7 +240,7 @@ def test_rl__a_run_without_evaluation_writes_its_last_weights_as_best_pt(tmp_pat
     assert best["model"].keys() == latest["model"].keys()
     assert all(torch.equal(best["model"][k], latest["model"][k]) for k in latest["model"])
     assert "optimizer" not in best  # a policy, not a resume point
-    df = wfbench.evaluate(f"ppo:{run / 'best.pt'}", "small", seeds=[0], backend="serial")
+    df = wfbench.evaluate(f"ppo:{run / 'best.pt'}", "small", seeds=[0])
     assert df["nsw"].between(0, 1).all()
 
 
@@ -285,7 +285,7 @@ def test_rl__independent_agents_train_as_one_network_per_decision(tmp_path, caps
                    if k.startswith(f"members.{d}.")), f"agent {d} did not learn"
     tr.save(tmp_path / "set.pt")
     pol = policies.get(f"ppo:{tmp_path / 'set.pt'}")  # a trained set is a policy like any other
-    df = wfbench.evaluate(pol, "small", seeds=[0, 1], backend="serial")
+    df = wfbench.evaluate(pol, "small", seeds=[0, 1])
     assert df["nsw"].between(0, 1).all() and (df["invalid_actions"] == 0).all()
     with pytest.raises(ValueError, match="agents 'independent' needs variant 'joint'"):
         _cfg(tmp_path, agents="independent", variant="dispatch").validate()
@@ -301,7 +301,7 @@ def test_rl__dispatch_variant_deploys_with_the_heuristics(tmp_path):
     pol = policies.get(f"ppo:{tmp_path / 'run' / 'latest.pt'}")
     assert isinstance(pol, policies.Composite)
     assert [getattr(p, "name", "") for p in pol.parts.values()][1:] == ["threshold", "spatial"]
-    df = wfbench.evaluate(pol, "small", seeds=[0], backend="serial")
+    df = wfbench.evaluate(pol, "small", seeds=[0])
     assert df["nsw"].between(0, 1).all()
 
 
@@ -364,7 +364,7 @@ def test_rl__train_command_runs_every_algorithm(tmp_path, capsys, algo):
     assert saved["algo"] == algo and saved["train_config"]["model"] == "tiny"
     if algo == "impala":
         assert saved["train_config"]["rho_bar"] == 0.9
-    df = wfbench.evaluate(f"ppo:{run / 'latest.pt'}", "small", [1000], backend="serial")
+    df = wfbench.evaluate(f"ppo:{run / 'latest.pt'}", "small", [1000])
     assert df["nsw"].between(0, 1).all()
     # resume without --algo: the checkpoint says which trainer; a different --algo is refused
     assert cli_main(["train", "--resume", str(run / "latest.pt"), "--steps", "96", "--no-progress",
@@ -395,7 +395,7 @@ def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(c
         assert pol.name == name
     best = torch.load(checkpoint_file("ppo-joint"), weights_only=False)["best"]
     assert set(best["seeds"]) <= set(range(1000, 1050)), "selected on public seeds only"
-    df = wfbench.evaluate("ppo-joint", "paper-64", best["seeds"], backend="serial")
+    df = wfbench.evaluate("ppo-joint", "paper-64", best["seeds"])
     assert df["nsw"].mean() == pytest.approx(best["score"], abs=5e-3)
     assert (df["invalid_actions"] == 0).all()
     # hindsight-ppo is ppo-joint with its workforce head trained by hindsight learning, nothing else
@@ -405,7 +405,7 @@ def test_rl__shipped_networks_are_policies_and_reproduce_their_selection_score(c
     assert changed == {"wf_head"}, changed
     assert improved["algo"] == "hindsight" and improved["train_config"]["value_rollout"] == "learner"
     assert set(improved["best"]["seeds"]) <= set(range(1000, 1050)), "selected on public seeds only"
-    df = wfbench.evaluate("hindsight-ppo", "paper-64", improved["best"]["seeds"], backend="serial")
+    df = wfbench.evaluate("hindsight-ppo", "paper-64", improved["best"]["seeds"])
     assert df["nsw"].mean() == pytest.approx(improved["best"]["score"], abs=5e-3)
 
 
@@ -462,7 +462,7 @@ def test_rl__evaluating_a_network_on_another_scenario_warns_once():
     """Through the evaluator on the process backend (two workers, two chunks) and the command line: one warning."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        wfbench.evaluate("ppo-joint", "small", seeds=[0, 1], backend="process", workers=2)
+        wfbench.evaluate("ppo-joint", "small", seeds=[0, 1], execution=wfbench.Execution(backend="process", workers=2))
     mismatch = [str(w.message) for w in caught if "was trained on scenario" in str(w.message)]
     assert mismatch == ["policy 'ppo-joint' was trained on scenario 'paper-64' and is evaluated on 'small': it runs, "
                         "but what it learned is of another scenario"], mismatch

@@ -28,7 +28,7 @@ def _run(tmp_path, trials=3, scenarios=TWO, **kw):
 
 def _mean_normalized(policy, ids, seeds):
     """The mean over the worlds of each one's mean normalized score, as the suite computes it."""
-    df = evaluate_suite(policy, seeds=seeds, scenarios=ids, backend="serial")
+    df = evaluate_suite(policy, seeds=seeds, scenarios=ids)
     per_world = df.groupby("scenario")["normalized"].mean()
     assert sorted(per_world.index) == sorted(ids)
     return float(per_world.mean()), per_world.to_dict()

@@ -18,8 +18,8 @@ from wfbench.analysis.stats import bootstrap_ci, paired_difference
 from wfbench.analysis.tables import markdown_table, text_table
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
-from wfbench.harness.backends import Execution
-from wfbench.harness.evaluation import evaluate, format_kpi, one_execution, resolve_seeds, summarize
+from wfbench.harness.backends import SERIAL, Execution, check_execution
+from wfbench.harness.evaluation import evaluate, format_kpi, resolve_seeds, summarize
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.scenarios.resolve import resolve_scenario
 
@@ -28,10 +28,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,
-            baseline: str = "heuristic", backend: str = "serial", workers: int | None = None,
-            address: str | None = None, progress: bool = False,
-            act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, plot: str | Path | None = None,
-            threads: int | None = None, execution: Execution | None = None) -> pd.DataFrame:
+            baseline: str = "heuristic", *, act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S,
+            plot: str | Path | None = None, execution: Execution | None = None) -> pd.DataFrame:
     """One row per policy (baseline included): KPI summaries, NSW 95% interval, paired NSW difference.
 
     Every policy runs on the same seeds, so the difference to the baseline is paired by
@@ -47,18 +45,13 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
             :mod:`wfbench.core.seeds`) or a sequence of seeds.
         baseline: the policy the differences are taken to (a name or entry point).
-        backend: ``serial``, ``process`` or ``ray`` (:func:`wfbench.harness.evaluation.evaluate`).
-        workers: processes or Ray tasks.
-        address: Ray cluster address.
-        progress: show a progress bar per policy.
         act_timeout_s: limit of each ``reset``/``act`` call of a user's policy.
         plot: also write the comparison's figure here (:func:`plot_comparison`); the suffix
             picks the format (``.png``, ``.svg`` or ``.pdf``); the path is checked before anything
             runs (:func:`check_plot_path`).
-        threads: numba threads of the ``serial`` backend.
-        execution: ``backend``, ``workers``, ``address``, ``progress`` and ``threads`` as one
-            :class:`~wfbench.harness.backends.Execution`, handed to every policy's evaluation;
-            give it or those keywords, not both.
+        execution: where and how the episodes play, one
+            :class:`~wfbench.harness.backends.Execution` handed to every policy's evaluation
+            (:func:`wfbench.harness.evaluation.evaluate`); ``None``: serial, in this process.
 
     Returns:
         The comparison, one row per policy.
@@ -67,8 +60,7 @@ def compare(policies: Sequence[Any], scenario: str | ScenarioConfig, seeds: int 
         ValueError: a bad scenario, seed list or plot path; :class:`wfbench.harness.guard.PolicyLoadError`
             (a ValueError) for a spec that names no policy.
     """
-    run = one_execution(execution, {"backend": backend, "workers": workers, "threads": threads,
-                                    "progress": progress, "address": address})
+    run = check_execution(execution, SERIAL)
     if plot is not None:
         check_plot_path(plot)  # a bad suffix or folder fails before the runs, not after them
     config = resolve_scenario(scenario)
@@ -222,10 +214,8 @@ def format_suite_comparison(result: SuiteComparison, fmt: str = "table") -> str:
 
 
 def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int | str | Iterable[int] = "test",
-                  baseline: str = "heuristic", split: str | None = None, backend: str = "serial",
-                  workers: int | None = None, address: str | None = None, progress: bool = False,
-                  act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, seed: int = 0,
-                  poi_reps: int = 1000, threads: int | None = None,
+                  baseline: str = "heuristic", split: str | None = None, *,
+                  act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, seed: int = 0, poi_reps: int = 1000,
                   execution: Execution | None = None) -> SuiteComparison:
     """Policies over a suite, paired per scenario and seed with a baseline, and aggregated per split.
 
@@ -240,16 +230,12 @@ def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int |
         seeds: the seeds of every scenario (default the test set).
         baseline: the policy the differences and the improvement are taken over.
         split: ``"train"``, ``"heldout"`` or ``None`` for both.
-        backend: ``serial``, ``process`` or ``ray``.
-        workers: processes or Ray tasks.
-        address: Ray cluster address.
-        progress: show a progress bar per policy and scenario.
         act_timeout_s: limit of each ``reset``/``act`` call of a user's policy (``None``: none).
         seed: the aggregate's bootstrap seed.
         poi_reps: bootstrap replications of the probability of improvement's interval.
-        threads: numba threads of the ``serial`` backend.
-        execution: the run options as one :class:`~wfbench.harness.backends.Execution`
-            (as for :func:`compare`); give it or the keywords, not both.
+        execution: where and how the episodes play, one
+            :class:`~wfbench.harness.backends.Execution` (as for :func:`compare`); ``None``:
+            serial, in this process.
 
     Returns:
         The :class:`SuiteComparison`.
@@ -258,8 +244,7 @@ def compare_suite(policies: Sequence[Any], suite: Any = "suite-v1", seeds: int |
     from wfbench.harness.suite import evaluate_suite
     from wfbench.scenarios import get_suite
 
-    run = one_execution(execution, {"backend": backend, "workers": workers, "threads": threads,
-                                    "progress": progress, "address": address})
+    run = check_execution(execution, SERIAL)
     s = get_suite(suite)
     s.ids(split)  # an unknown split fails before anything runs
     seed_list = resolve_seeds(seeds)

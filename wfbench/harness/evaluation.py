@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.kpis import KPI_LABELS, KPI_NAMES
 from wfbench.core.seeds import resolve_seeds
-from wfbench.harness.backends import BACKENDS, Execution, check_execution, run_chunks
+from wfbench.harness.backends import BACKENDS, SERIAL, Execution, check_execution, run_chunks
 from wfbench.harness.budget import BUDGET_COLUMNS, policy_budget, results_only
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, LoadedPolicy, load_policy
 from wfbench.harness.runner import BatchResult, results_frame
@@ -32,15 +32,9 @@ from wfbench.scenarios.resolve import resolve_scenario
 
 __all__ = ["BACKENDS", "BUDGET_COLUMNS", "KPI_LABELS", "KPI_NAMES", "Execution", "evaluate", "format_kpi",
            "resolve_seeds", "results_only", "summarize"]
-# evaluate's keywords that one Execution replaces, at their defaults
-LOOSE = {"backend": "serial", "workers": None, "threads": None, "progress": False, "address": None}
 
-
-def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50,
-             backend: str = "serial",
-             workers: int | None = None, threads: int | None = None, progress: bool = False,
-             return_series: bool = False, address: str | None = None,
-             act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S,
+def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Iterable[int] = 50, *,
+             return_series: bool = False, act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S,
              execution: Execution | None = None) -> pd.DataFrame | tuple[pd.DataFrame, np.ndarray]:
     """Score ``policy`` on ``scenario`` over ``seeds``; one row per seed, in seed order.
 
@@ -53,22 +47,17 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
             here, or a :class:`ScenarioConfig`.
         seeds: a count ``n`` (seeds ``0..n-1``), a named set (``"test"``, ``"public"``, ``"train:N"``;
             :mod:`wfbench.core.seeds`) or a sequence of seeds.
-        backend: ``"serial"`` (this process; built-in composites use ``threads``
-            numba threads, all cores by default), ``"process"`` (a pool of ``workers``
-            processes over chunks of seeds; works from a script without a
-            ``__main__`` guard and from a notebook) or ``"ray"`` (Ray tasks;
-            ``address`` joins an existing cluster). See :mod:`wfbench.harness.backends`; the
-            numbers do not depend on the backend.
-        workers: processes or Ray tasks for the parallel backends (default: all cores).
-        threads: numba threads for the ``serial`` backend.
-        progress: show a progress bar.
         return_series: also return the per-step metrics, (seeds, horizon, metrics).
-        address: Ray cluster address for ``backend="ray"``.
         act_timeout_s: time limit in seconds of each ``reset`` and ``act`` call of a
             policy that is not a built-in registry name; ``None`` or 0 for no limit.
-        execution: ``backend``, ``workers``, ``threads``, ``progress`` and ``address`` (and a
-            chunk size) as one :class:`~wfbench.harness.backends.Execution`, as the
-            orchestrators pass them; give it or those keywords, not both.
+        execution: where and how the episodes play, as one
+            :class:`~wfbench.harness.backends.Execution`: its ``backend`` is ``"serial"``
+            (this process; built-in composites use ``threads`` numba threads, all cores by
+            default), ``"process"`` (a pool of ``workers`` processes over chunks of seeds;
+            works from a script without a ``__main__`` guard and from a notebook) or
+            ``"ray"`` (Ray tasks; ``address`` joins an existing cluster), and it carries
+            ``chunk_size`` and ``progress``. ``None``: serial, in this process. The numbers
+            do not depend on it (:mod:`wfbench.harness.backends`).
 
     Returns:
         The DataFrame (columns ``seed``, the KPIs, utilities, ``episode_length``, the
@@ -77,15 +66,14 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
         ``wfbench.core.state.METRICS``.
 
     Raises:
-        ValueError: a bad scenario, seed list, backend or limit, or ``execution`` beside
-            one of the keywords it replaces;
+        ValueError: a bad scenario, seed list or limit, or an ``execution`` that is not an
+            :class:`~wfbench.harness.backends.Execution`;
             :class:`wfbench.harness.guard.PolicyLoadError` (a ValueError) for a spec that names
             no policy.
         wfbench.harness.guard.PolicyError: the policy raised, hung past ``act_timeout_s`` or
             returned a malformed action; its message names the policy, file and line.
     """
-    given = {"backend": backend, "workers": workers, "threads": threads, "progress": progress, "address": address}
-    run = one_execution(execution, given)
+    run = check_execution(execution, SERIAL)
     config = resolve_scenario(scenario)
     seed_list = resolve_seeds(seeds)
     loaded = load_policy(policy, act_timeout_s)
@@ -112,23 +100,6 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
         series = np.concatenate([r.series for r in results if r.series is not None], axis=0)
         return df, series[rank]
     return df
-
-
-def one_execution(execution: Execution | None, given: dict[str, Any]) -> Execution:
-    """The run's :class:`Execution`: ``execution``, or one made of the loose keywords ``given``.
-
-    Raises:
-        ValueError: ``execution`` beside a loose keyword not at its default (:data:`LOOSE`),
-            or a bad option (:class:`Execution`'s check).
-    """
-    if execution is None:
-        return Execution(**given)
-    check_execution(execution, Execution())
-    loose = sorted(k for k, v in given.items() if v != LOOSE[k])
-    if loose:
-        raise ValueError(f"{', '.join(loose)} given beside execution=; allowed: execution= alone, or the keywords "
-                         f"{', '.join(LOOSE)} without it")
-    return execution
 
 
 def budget_record(results: Sequence[BatchResult], loaded: LoadedPolicy, spec: Any,

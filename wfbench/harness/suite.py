@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from wfbench.harness.backends import Execution
-from wfbench.harness.evaluation import evaluate, one_execution
+from wfbench.harness.backends import SERIAL, Execution, check_execution
+from wfbench.harness.evaluation import evaluate
 from wfbench.harness.guard import DEFAULT_ACT_TIMEOUT_S, load_policy
 from wfbench.policies.registry import ScenarioMismatchWarning
 from wfbench.scenarios.score import REFERENCE_SEEDS, normalize
@@ -19,9 +19,8 @@ __all__ = ["compute_reference", "evaluate_suite", "suite_cells", "suite_summary"
 
 
 def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | str | Iterable[int] = "test",
-                   split: str | None = None, scenarios: Sequence[str] | None = None, backend: str = "serial",
-                   workers: int | None = None, address: str | None = None, progress: bool = False,
-                   act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S, threads: int | None = None,
+                   split: str | None = None, scenarios: Sequence[str] | None = None, *,
+                   act_timeout_s: float | None = DEFAULT_ACT_TIMEOUT_S,
                    execution: Execution | None = None) -> Any:
     """Score ``policy`` on every scenario of a suite (or of one split): one row per (scenario, seed).
 
@@ -37,29 +36,23 @@ def evaluate_suite(policy: Any, suite: str | Suite = "suite-v1", seeds: int | st
         seeds: the seeds of every scenario (default ``"test"``, 0-49).
         split: ``"train"``, ``"heldout"`` or ``None`` for both.
         scenarios: a subset of the suite's ids (or unambiguous preset names); default all of the split.
-        backend: ``serial``, ``process`` or ``ray``, as for :func:`wfbench.evaluate`.
-        workers: processes or Ray tasks.
-        address: Ray cluster address.
-        progress: show a progress bar per scenario.
         act_timeout_s: limit in seconds of each ``reset``/``act`` call of a policy that is not a
             built-in registry name, as for :func:`wfbench.evaluate`: default
             :data:`wfbench.harness.guard.DEFAULT_ACT_TIMEOUT_S`, ``None`` or 0 for no limit.
-        threads: numba threads of the ``serial`` backend.
-        execution: the options above as one :class:`~wfbench.harness.backends.Execution`,
-            handed to every scenario's evaluation; give it or the keywords, not both.
+        execution: where and how the episodes play, one
+            :class:`~wfbench.harness.backends.Execution` handed to every scenario's evaluation
+            (as for :func:`wfbench.evaluate`); ``None``: serial, in this process.
 
     Returns:
         The DataFrame; ``attrs`` holds ``suite``, ``suite_hash``, ``policy``, ``split`` and, where the
         evaluator reports one, ``budget`` per scenario id.
 
     Raises:
-        ValueError: an unknown suite, split or scenario, or a bad seed list or backend.
+        ValueError: an unknown suite, split or scenario, or a bad seed list.
     """
     import pandas as pd
 
-    run = one_execution(execution, {"backend": backend, "workers": workers, "threads": threads,
-                                    "progress": progress, "address": address})
-
+    run = check_execution(execution, SERIAL)
     s = get_suite(suite)
     ids = s.ids(split)  # an unknown split fails here
     chosen = [s.scenario(i) for i in ids] if scenarios is None else [s.scenario(x) for x in scenarios]
@@ -142,6 +135,6 @@ def compute_reference(scenario: SuiteScenario, seeds: Iterable[int] = REFERENCE_
     from wfbench.core.bound import score_upper_bound
 
     seeds = list(seeds)
-    random_ref = float(evaluate("random", scenario.config, seeds, execution=execution or Execution())["nsw"].mean())
+    random_ref = float(evaluate("random", scenario.config, seeds, execution=execution)["nsw"].mean())
     bound_ref = float(np.mean(score_upper_bound(scenario.config, seeds)))
     return {"random_ref": random_ref, "bound_ref": bound_ref, "hash": scenario.hash}

@@ -45,7 +45,7 @@ def score_public(policy: Callable[[str], Any], scenario, eval_seeds: str, select
         return score_worlds(policy, scenario, seeds, select)
     res: dict = {}
     for mode in SELECT_MODES:
-        df = evaluate(policy(mode), scenario, seeds, backend="serial", act_timeout_s=None)
+        df = evaluate(policy(mode), scenario, seeds, act_timeout_s=None)
         res[mode] = float(df["nsw"].mean())
         res[f"{mode}_workforce_cost"] = float(df["workforce_cost"].mean())
     res["seeds"] = seeds
@@ -66,7 +66,7 @@ def score_worlds(policy: Callable[[str], Any], worlds: WorldSet, seeds: list[int
     """
     nsw, cost = {}, {}
     for w in worlds.worlds:
-        df = evaluate(policy(mode), w.config, seeds, backend="serial", act_timeout_s=None)
+        df = evaluate(policy(mode), w.config, seeds, act_timeout_s=None)
         nsw[w.name], cost[w.name] = float(df["nsw"].mean()), float(df["workforce_cost"].mean())
     try:
         per_world = {name: float(normalize(v, name)) for name, v in nsw.items()}
