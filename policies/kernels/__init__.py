@@ -8,6 +8,9 @@ environment, indexed by (step, purpose, item): a seed gives the same decisions a
 or inside any batch. Modules, as :mod:`wfbench.policies.oracle`, by decision: ``common``
 (rule codes, the ``hp`` layout, the policy state), ``dispatch``, ``workforce``,
 ``positioning``, and ``act`` (all three for one environment). This package re-exports their names.
+``forward`` is the roll-forward over them, imported by its own path: it steps a batch from its
+current state under these kernels, and the oracles and the deployable lookaheads both score
+their candidates with it.
 """
 
 from wfbench.policies.kernels.act import act_batch, act_env

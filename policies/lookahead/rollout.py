@@ -2,7 +2,7 @@
 
 At a workforce decision, :class:`Rollout` scores the base's action and its allowed neighbours by
 the mean NSW over ``H`` steps of ``K`` worlds sampled from what it observed (:class:`wfbench.core.belief.Belief`),
-the base playing the later steps (:func:`wfbench.policies.oracle.rollout.roll_forward`); common worlds,
+the base playing the later steps (:func:`wfbench.policies.kernels.forward.roll_forward`); common worlds,
 ties to the base. It decides where the base hires or lets go and every ``R`` steps. The ``sparse:``
 presets, for ``city``: the base's :func:`sparse_twin`, a decision every R steps only, futures with
 spatial positioning (:func:`spatial_twin`); ``sparse="auto"`` plays them only on a world as large as
@@ -21,7 +21,7 @@ import numpy as np
 from wfbench.policies import kernels as K
 from wfbench.policies.builtin import BuiltinDecision
 from wfbench.policies.composite import Composite
-from wfbench.policies.oracle.rollout import RollBuffers, roll_candidates
+from wfbench.policies.kernels.forward import RollBuffers, roll_candidates
 from wfbench.policies.protocol import as_obs, seeds_array
 from wfbench.policies.rules import CODES
 

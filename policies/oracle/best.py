@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from wfbench.policies.kernels.forward import roll_forward
 from wfbench.policies.oracle import cache as totals_cache
-from wfbench.policies.oracle.rollout import roll_forward
 from wfbench.policies.protocol import Attached, seeds_array
 
 from wfbench.core.actions import AGENTS, validate_actions

@@ -5,7 +5,7 @@ a pure function of the seed, :mod:`wfbench.core.rng`). Its candidates are the ba
 nearest-first dispatch (always first) and, for each of at most ``max_requests`` requests the
 base serves first, holding back the person sent, the nearest person who would fix it, and the
 runner-up, each swapped in. Each is scored by an exact roll-forward of the shadow
-(:mod:`wfbench.policies.oracle.rollout`) under the base; the base wins ties
+(:mod:`wfbench.policies.kernels.forward`) under the base; the base wins ties
 (``docs/hindsight.md``, "Dispatch oracle").
 """
 

@@ -5,7 +5,7 @@ compiled base acts, and where the base hires or lets go, and every ``R`` steps, 
 workforce action (the base's first, so it wins ties) is scored by the NSW of ``H`` steps with the
 base playing the later steps. Its one future is the episode's own: a copy of the real state,
 trace included (a shadow ``Simulator(config, seeds)`` stepped with its own actions), rolled
-forward by :func:`wfbench.policies.oracle.rollout.roll_forward`. With ``H`` to the end of the
+forward by :func:`wfbench.policies.kernels.forward.roll_forward`. With ``H`` to the end of the
 episode a score is the exact rest of the episode, so the policy is one step of exact policy
 improvement over its base, and scores at least the base on every seed. It reads the trace: not
 deployable (``docs/hindsight.md``, "The hindsight rollout").
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from wfbench.policies import kernels as K
-from wfbench.policies.oracle.rollout import RollBuffers, roll_candidates
+from wfbench.policies.kernels.forward import RollBuffers, roll_candidates
 from wfbench.policies.protocol import Attached, as_obs, seeds_array
 
 from wfbench.core.actions import AGENTS

@@ -7,7 +7,7 @@ joint action (:meth:`Planner.record`, called by :class:`policies.Composite` afte
 workforce, positioning and dispatch candidates (:mod:`wfbench.policies.oracle.workforce`,
 :mod:`~wfbench.policies.oracle.positioning`, :mod:`~wfbench.policies.oracle.dispatch`) by
 compiled roll-forwards of a preallocated fork (:func:`wfbench.core.fork.copy_state`,
-:func:`wfbench.policies.oracle.rollout.roll_forward`); ``docs/hindsight.md``, "How the planner works".
+:func:`wfbench.policies.kernels.forward.roll_forward`); ``docs/hindsight.md``, "How the planner works".
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from wfbench.policies import kernels as K
+from wfbench.policies.kernels.forward import RollBuffers, roll_forward
 from wfbench.policies.oracle.dispatch import dispatch_candidates, next_visit_fixes
 from wfbench.policies.oracle.positioning import (
     demand_clients,
@@ -25,7 +26,6 @@ from wfbench.policies.oracle.positioning import (
     one_hot_map,
     release_targets,
 )
-from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
 from wfbench.policies.oracle.workforce import workforce_candidates
 from wfbench.policies.protocol import DECISION_INDEX, Attached, as_obs, decision_key, hp_vector, seeds_array
 

@@ -1,7 +1,7 @@
 """The positioning oracle's maps: hire at the p-median of the known future demand, let go the cheapest loss.
 
 The known future demand is the cells where requests open in an exact roll-forward
-(:func:`wfbench.policies.oracle.rollout.roll_forward` with ``record=True``), each a client
+(:func:`wfbench.policies.kernels.forward.roll_forward` with ``record=True``), each a client
 weighted by its requests. :func:`hire_sites` gives the p-median's unmatched median
 (:func:`wfbench.solvers.facility_location.solve_p_median`, matched to the homes by
 :func:`wfbench.solvers.assignment.solve`) and the best single addition; :func:`release_targets`

@@ -1,9 +1,9 @@
-"""Exact look-ahead (wfbench.core.fork, wfbench.policies.oracle.rollout): a fork follows its source exactly."""
+"""Exact look-ahead (wfbench.core.fork, wfbench.policies.kernels.forward): a fork follows its source exactly."""
 
 import numpy as np
 import pytest
 from wfbench.policies import kernels as K
-from wfbench.policies.oracle.rollout import RollBuffers, roll_forward
+from wfbench.policies.kernels.forward import RollBuffers, roll_forward
 
 from wfbench import ScenarioConfig, Simulator, policies
 from wfbench.core.fork import copy_state, fork, fork_index, state_equal

@@ -253,7 +253,7 @@ def test_replaying_oracle__passes_over_a_piece_from_other_code_in_the_checkouts_
 
 def test_provenance_matches_when_every_decisive_file_is_the_commits():
     files = episodes.decisive_files(policies.get("rollout-solver-tuned"))
-    assert {"policies/lookahead/rollout.py", "policies/oracle/rollout.py", "wfbench/core/simulator.py",
+    assert {"policies/lookahead/rollout.py", "policies/kernels/forward.py", "wfbench/core/simulator.py",
             "wfbench/core/belief.py"} <= set(files)
     head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
     clean = [f for f in files if subprocess.run(["git", "diff", "--quiet", "HEAD", "--", f]).returncode == 0]

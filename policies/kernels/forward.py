@@ -1,10 +1,12 @@
-"""Compiled roll-forward: step a batch from its current state under built-in kernels.
+"""The roll-forward: step a batch from its current state under the built-in kernels, compiled.
 
-:func:`roll_forward` is :func:`wfbench.policies.rollout.rollout` without the reset and for a
-number of steps, usually on a fork (:func:`wfbench.core.fork.fork`), with an optional
-explicit first action. It calls the same ``step_env``, ``observe_env`` and ``act_env`` as
-``Simulator.step``, so it plays the episode the simulator would (tested). It returns the sum of
-``NSW_t`` per environment and can record where requests open (the known future demand)
+The oracles (:mod:`wfbench.policies.oracle`) and the deployable lookaheads
+(:mod:`wfbench.policies.lookahead`) both score with it. :func:`roll_forward` is
+:func:`wfbench.policies.rollout.rollout` without the reset and for a number of steps,
+usually on a fork (:func:`wfbench.core.fork.fork`), with an optional explicit first action.
+It calls the same ``step_env``, ``observe_env`` and ``act_env`` as ``Simulator.step``, so it
+plays the episode the simulator would (tested). It returns the sum of ``NSW_t`` per
+environment and can record where requests open (the known future demand)
 (``docs/hindsight.md``, "Exact look-ahead").
 """
 
@@ -12,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from wfbench.policies.kernels import act_env
+from wfbench.policies.kernels.act import act_env
 
 from wfbench.core.dynamics import step_env
 from wfbench.core.entrypoints import bind
@@ -121,7 +123,8 @@ def roll_candidates(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, 
     environment ``env_rows[i]``, copied into ``fork_pstate``, and takes that environment's
     dispatch ``d`` and positioning ``p`` with the workforce action ``first_w[i]`` as its first
     step. Returns the (n,) sums of NSW over the steps run. The rollout's and the hindsight
-    rollout's decisions (:mod:`wfbench.policies.lookahead.rollout`, :mod:`.hindsight`) both score this way.
+    rollout's decisions (:mod:`wfbench.policies.lookahead.rollout`, :mod:`wfbench.policies.oracle.hindsight`)
+    both score this way.
     """
     n = len(env_rows)
     for src, dst in zip(pstate, fork_pstate, strict=True):
