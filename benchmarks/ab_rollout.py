@@ -3,7 +3,7 @@
     python benchmarks/ab_rollout.py /path/to/checkout_a
     python benchmarks/ab_rollout.py /path/to/checkout_b    # alternate a, b, a, b ...
 
-Times ``wfbench.policies.rollout.rollout_parallel`` on an already built batch (the traces are
+Times ``wfbench.policies.episode.play_parallel`` on an already built batch (the traces are
 not in the clock), heuristic policy, ``paper-64``, best of 3 (of 20 at B = 1). The
 checkout given is put first on ``sys.path``, so one virtual environment serves both.
 Run the two checkouts alternately: this machine's speed drifts from minute to minute
@@ -20,7 +20,7 @@ sys.path.insert(0, sys.argv[1])
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 from wfbench.policies import get  # noqa: E402
-from wfbench.policies.rollout import rollout_parallel  # noqa: E402
+from wfbench.policies.episode import play_parallel  # noqa: E402
 
 from wfbench.core.simulator import Simulator  # noqa: E402
 from wfbench.harness.runner import run_batch  # noqa: E402
@@ -39,7 +39,7 @@ for B, threads in ((1, 1), (1024, 1), (1024, 2)):
     for _ in range(3 if B > 1 else 20):
         codes, hp, pstate = get("heuristic").compiled_plan(list(range(B)), sim.M, sim.N)
         t0 = time.perf_counter()
-        rollout_parallel(sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch, workforce,
+        play_parallel(sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch, workforce,
                          positioning)
         best = min(best, time.perf_counter() - t0)
     rates.append(f"B={B}, {threads} thread(s): {B * config.horizon / best:,.0f} env-steps/s")

@@ -4,7 +4,7 @@
 
 Each measurement is a fresh process that imports wfbench from one checkout (put first
 on ``PYTHONPATH``; one virtual environment serves both) and times
-``wfbench.policies.rollout.rollout`` of the heuristic on ``paper-64`` (traces built before the
+``wfbench.policies.episode.play_episodes`` of the heuristic on ``paper-64`` (traces built before the
 clock, best of 3 whole batches) on each thread count. The processes alternate
 A, B, A, B, ... so that the drift of a shared machine hits both. Each checkout gets its
 own numba cache (``NUMBA_CACHE_DIR`` and ``WFBENCH_CACHE_DIR`` under ``--cache``); the
@@ -23,7 +23,7 @@ from pathlib import Path
 CHILD = r"""
 import json, sys, time
 from wfbench.policies import get
-from wfbench.policies.rollout import rollout
+from wfbench.policies.episode import play_episodes
 from wfbench.core.simulator import Simulator
 from wfbench.scenarios.resolve import resolve_scenario
 B, counts = int(sys.argv[1]), [int(t) for t in sys.argv[2].split(",")]
@@ -37,7 +37,7 @@ for threads in counts:
     for _ in range(3):
         plan = get("heuristic").compiled_plan(seeds, sim.M, sim.N)
         t0 = time.perf_counter()
-        rollout(sim, *plan, threads=threads)
+        play_episodes(sim, *plan, threads=threads)
         best = min(best, time.perf_counter() - t0)
     out[threads] = B * sim.config.horizon / best
 print("RESULT " + json.dumps(out))

@@ -8,7 +8,7 @@ compiled from scratch:
 
 - ``simulator``: ``Simulator(resolve_scenario("paper-64"), [0])``: reset, ``step_observe``, ``step``,
   ``observe`` (what an environment compiles);
-- ``rollout``: ``wfbench.policies.rollout.rollout`` of the heuristic on ``paper-64``, one seed,
+- ``rollout``: ``wfbench.policies.episode.play_episodes`` of the heuristic on ``paper-64``, one seed,
   one thread (the compiled whole-episode rollout with the built-in kernels; what
   ``wfbench evaluate`` compiles).
 
@@ -67,10 +67,10 @@ if target in ("simulator", "both"):
     sim.observe()
 if target in ("rollout", "both"):
     from wfbench.policies import get
-    from wfbench.policies.rollout import rollout
+    from wfbench.policies.episode import play_episodes
     from wfbench.core.simulator import Simulator
     sim = Simulator(resolve_scenario("paper-64"), [0], keep_series=False)
-    rollout(sim, *get("heuristic").compiled_plan([0], sim.M, sim.N), threads=1)
+    play_episodes(sim, *get("heuristic").compiled_plan([0], sim.M, sim.N), threads=1)
 wall = time.perf_counter() - t_start
 print("RESULT " + json.dumps({"wall_s": wall, "cpu_s": time.process_time(), "functions": times}))
 """

@@ -4,7 +4,7 @@ Which rules there are, their codes and what a tuner may change are the rows of
 :data:`wfbench.policies.rules.RULES`.
 
 A :class:`BuiltinDecision` is a policy for one agent; a composite made only of them can
-run a whole episode in compiled code (:mod:`wfbench.policies.rollout`) with results identical to
+run a whole episode in compiled code (:mod:`wfbench.policies.episode`) with results identical to
 stepping it through ``act``.
 """
 

@@ -3,7 +3,7 @@
 ``Composite(dispatch=..., workforce=..., positioning=...)`` takes for each decision a
 policy object or the name of a built-in decision policy (:data:`wfbench.policies.decisions.DECISIONS`).
 A composite made only of built-in kernels can run whole episodes compiled
-(:meth:`Composite.compiled_plan`, :func:`wfbench.policies.rollout.rollout`).
+(:meth:`Composite.compiled_plan`, :func:`wfbench.policies.episode.play_episodes`).
 """
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ class Composite:
         return all(isinstance(p, BuiltinDecision) for p in self.parts.values())
 
     def compiled_plan(self, seeds: Sequence[int], M: int, N: int) -> tuple[np.ndarray, np.ndarray, K.PolicyState]:
-        """Codes, hyper-parameters and fresh state for :func:`wfbench.policies.rollout.rollout`."""
+        """Codes, hyper-parameters and fresh state for :func:`wfbench.policies.episode.play_episodes`."""
         if not self.compiled:
             raise ValueError(f"{self!r} has parts that are not built-in kernels")
         seeds = seeds_array(seeds)

@@ -2,7 +2,7 @@
 
 Every kernel reads only the observation (:class:`wfbench.core.observe.Obs`) and its own
 policy state, so the same kernel serves ``Policy.act(obs)`` and the compiled whole-
-episode rollout (:mod:`wfbench.policies.rollout`), which therefore give identical results.
+episode runner (:mod:`wfbench.policies.episode`), which therefore give identical results.
 Randomized kernels draw from :func:`wfbench.core.rng.uniform` with the policy's own key per
 environment, indexed by (step, purpose, item): a seed gives the same decisions alone
 or inside any batch. Modules, as :mod:`wfbench.policies.oracle`, by decision: ``common``

@@ -2,7 +2,7 @@
 
 The oracles (:mod:`wfbench.policies.oracle`) and the deployable lookaheads
 (:mod:`wfbench.policies.lookahead`) both score with it. :func:`roll_forward` is
-:func:`wfbench.policies.rollout.rollout` without the reset and for a number of steps,
+:func:`wfbench.policies.episode.play_episodes` without the reset and for a number of steps,
 usually on a fork (:func:`wfbench.core.fork.fork`), with an optional explicit first action.
 It calls the same ``step_env``, ``observe_env`` and ``act_env`` as ``Simulator.step``, so it
 plays the episode the simulator would (tested). It returns the sum of ``NSW_t`` per

@@ -28,8 +28,8 @@ from wfbench.core.jit import ENV_CACHE_DIR, PACKAGES, source_digest
 
 ENV = "WFBENCH_ORACLE_CACHE"
 OFF = ("off", "0", "false", "no", "")
-# the runner's rollout, the oracle's roll-forward and the simulator that makes the trace and resets: (package, file)
-CODE_FILES = (("wfbench.policies", "rollout.py"), ("wfbench.policies", "kernels/forward.py"),
+# the episode runner, the roll-forward and the simulator that makes the trace and resets: (package, file)
+CODE_FILES = (("wfbench.policies", "episode.py"), ("wfbench.policies", "kernels/forward.py"),
               ("wfbench", "core/simulator.py"))
 
 _MEMORY: dict[str, dict[tuple[int, bytes], float]] = {}  # key -> (seed, keys bytes) -> total

@@ -99,7 +99,7 @@ def test_the_digest_covers_every_numba_module_and_what_it_imports():
     names = {module_name(p) for p in numba_modules}
     # the modules with compiled code at the time of writing, and wherever they moved
     assert {"wfbench.core.dynamics", "wfbench.core.observe", "wfbench.core.rng", "wfbench.policies.kernels.act",
-            "wfbench.policies.kernels.dispatch", "wfbench.policies.rollout", "wfbench.solvers.lap"} <= names
+            "wfbench.policies.kernels.dispatch", "wfbench.policies.episode", "wfbench.solvers.lap"} <= names
     for path in numba_modules:
         expected = ast_closure(path.resolve())
         assert {Path(p) for p in jit.dependencies(path)} == expected, path
@@ -108,7 +108,7 @@ def test_the_digest_covers_every_numba_module_and_what_it_imports():
             assert all(p.relative_to(ROOT).parts[0] == "solvers" for p in expected), path
         else:
             assert jit.is_ours(path), path
-    rollout = {p.relative_to(ROOT).as_posix() for p in map(Path, jit.dependencies(ROOT / "policies/rollout.py"))}
+    rollout = {p.relative_to(ROOT).as_posix() for p in map(Path, jit.dependencies(ROOT / "policies/episode.py"))}
     assert {"wfbench/core/dynamics.py", "wfbench/core/observe.py", "wfbench/core/state.py", "wfbench/core/rng.py",
             "policies/kernels/act.py", "policies/kernels/dispatch.py", "policies/kernels/workforce.py",
             "policies/kernels/positioning.py", "policies/kernels/common.py", "solvers/lap.py"} <= rollout
@@ -145,7 +145,7 @@ def test_functions_of_other_files_keep_numba_locators(tmp_path):
 
 def test_digests_follow_imports_only():
     observe = jit.source_digest(ROOT / "wfbench/core/observe.py")
-    rollout = jit.source_digest(ROOT / "policies/rollout.py")
+    rollout = jit.source_digest(ROOT / "policies/episode.py")
     assert observe != rollout and len(observe) == 64
     # the simulator core does not depend on the policies
     assert not any("policies" in p for p in jit.dependencies(ROOT / "wfbench/core/observe.py"))

@@ -5,9 +5,9 @@ Public seeds only (1000-1049). Costs are measured by ``benchmarks/lookahead_city
 
 import numpy as np
 import pytest
+from wfbench.policies.episode import play_episodes
 from wfbench.policies.lookahead import BUDGETS, Rollout
 from wfbench.policies.lookahead.rollout import sparse_twin, spatial_twin
-from wfbench.policies.rollout import rollout as compiled_episodes
 
 from wfbench import ScenarioConfig, Simulator, policies
 
@@ -20,7 +20,7 @@ def nsw_of(composite, config, seeds):
     """Whole episodes of a compiled composite (the compiled rollout, no lookahead)."""
     sim = Simulator(config, seeds, threads=1)
     codes, hp, pstate = composite.compiled_plan(seeds, sim.M, sim.N)
-    compiled_episodes(sim, codes, hp, pstate, threads=1)
+    play_episodes(sim, codes, hp, pstate, threads=1)
     return sim.episode_means()["nsw"]
 
 

@@ -1,7 +1,7 @@
 """numba's on-disk cache for wfbench, keyed by every source file the compiled code depends on.
 
 numba's cache checks only the cached function's own file, so an edit of an inlined module
-(``dynamics.py`` in ``policies/rollout.py``) kept the old code running. Importing this module
+(``dynamics.py`` in ``policies/episode.py``) kept the old code running. Importing this module
 registers :class:`DigestLocator`, whose source stamp for a cached function of ``wfbench`` or
 ``policies`` is a digest of its file, every in-project file it imports at module level,
 transitively (:func:`dependencies`), and the numba, numpy and Python versions. It must be imported
@@ -39,10 +39,10 @@ ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
 # Cold compile time (wall, seconds) after the first entry point a process compiles,
 # measured on the development VM (docs/performance.md, "Cold start"); used until this
 # machine has recorded its own. reset_batch: a Simulator (reset, step, observe);
-# rollout_range: the compiled rollout that ``wfbench evaluate`` runs.
+# play_range: the compiled episode runner that ``wfbench evaluate`` runs.
 ESTIMATE_S = {
     "wfbench.core.dynamics.reset_batch": 45,
-    "wfbench.policies.rollout.rollout_range": 75,
+    "wfbench.policies.episode.play_range": 75,
 }
 DEFAULT_ESTIMATE_S = 60
 TIMES_FILE = "wfbench-compile-times.json"

@@ -53,7 +53,7 @@ def reference_times() -> dict[str, float]:
 def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) -> float:
     from wfbench.core.simulator import Simulator
     from wfbench.policies import get
-    from wfbench.policies.rollout import rollout
+    from wfbench.policies.episode import play_episodes
 
     seeds = list(range(B))
     sim = Simulator(config, seeds, keep_series=False)
@@ -62,7 +62,7 @@ def _rollout_rate(config: ScenarioConfig, B: int, threads: int, repeats: int) ->
         # every episode starts with its reset; the policy state is a fresh one each time
         codes, hp, pstate = get("heuristic").compiled_plan(seeds, sim.M, sim.N)
         t0 = time.perf_counter()
-        rollout(sim, codes, hp, pstate, threads)
+        play_episodes(sim, codes, hp, pstate, threads)
         best = min(best, time.perf_counter() - t0)
     return B * config.horizon / best
 

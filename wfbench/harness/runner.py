@@ -1,10 +1,11 @@
 """One batch of full episodes, and the per-seed result rows.
 
-:func:`run_batch` runs every seed of a chunk as one batch: a composite of built-in kernels as one
-compiled rollout, any other policy through a batched ``reset`` / ``act`` / ``step`` loop (a user's
+:func:`run_batch` runs every seed of a chunk as one batch: a composite of built-in kernels
+through the compiled episode runner (:mod:`wfbench.policies.episode`), any other policy
+through a batched ``reset`` / ``act`` / ``step`` loop (a user's
 through its :class:`~wfbench.harness.guard.Guard`). A policy with ``reads_trace = True`` gets
 ``attach(config)`` before ``reset``; one with ``set_world`` gets :func:`public_world` (the laws of
-the world, no seed or trace). A compiled rollout of a registry name leaves its NSW totals in the
+the world, no seed or trace). A compiled run of a registry name leaves its NSW totals in the
 oracle's totals cache. A batch also measures its cost (:mod:`wfbench.harness.budget`).
 :func:`results_frame` makes one row per seed. ``docs/hindsight.md``; ``docs/policies.md``, "The
 world's public parameters: set_world".
@@ -29,8 +30,8 @@ from wfbench.core.state import COUNTERS, INVALID_COUNTERS, METRICS
 from wfbench.harness.budget import machine
 from wfbench.harness.guard import LoadedPolicy, load_policy
 from wfbench.policies import Composite
+from wfbench.policies.episode import play_episodes
 from wfbench.policies.oracle import cache as totals_cache
-from wfbench.policies.rollout import rollout
 
 K_NSW = METRICS.index("nsw")
 
@@ -104,7 +105,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
         config: the scenario, resolved (a name is resolved by :class:`Simulator` only, at its edge).
         seeds: one environment per seed.
         keep_series: also keep the per-step metrics.
-        threads: numba threads of a compiled rollout (default: all cores).
+        threads: numba threads of the compiled episode runner (default: all cores).
 
     Returns:
         The batch's episode means, counters and steps (and series).
@@ -130,7 +131,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
             codes, hp, pstate = policy.compiled_plan(seeds, sim.M, sim.N)
             keys = pstate.keys.copy()  # before the episode, for the totals cache
             c0, r0 = compiling.cpu, time.process_time()
-            rollout(sim, codes, hp, pstate, threads)
+            play_episodes(sim, codes, hp, pstate, threads)
             # one compiled call: its CPU time over the environment-steps it ran (wfbench.harness.budget)
             cpu = max(0.0, time.process_time() - r0 - (compiling.cpu - c0))
             step_ms = cpu * 1e3 / max(1, int(sim.state.t.sum()))
@@ -174,13 +175,13 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
 def prime(loaded: LoadedPolicy, config: ScenarioConfig) -> None:
     """Compile (or load from numba's cache) what :func:`run_batch` will run for ``loaded`` on ``config``.
 
-    A two-step episode of one seed on ``config``'s shapes: the compiled rollout of a
+    A two-step episode of one seed on ``config``'s shapes: the compiled episodes of a
     built-in composite, a built-in policy's own loop, or for a user's policy (whose code
     does not run here) the simulator's reset, step and observe with empty actions. The
     process and Ray backends call it before starting their workers, so that on a cold
     cache the core compiles once, here, and the workers load it from disk instead of
     each compiling the same code (and printing the notice) at the same time. On a warm
-    cache it only loads: about 0.1 s for the simulator, 0.4 s for a compiled rollout.
+    cache it only loads: about 0.1 s for the simulator, 0.4 s for the compiled episode runner.
     """
     short = config.replace(horizon=2)
     if loaded.guard is None:

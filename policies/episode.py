@@ -1,8 +1,9 @@
-"""Whole episodes in compiled code for composites of built-in policies.
+"""The episode runner: whole episodes in compiled code for composites of built-in policies.
 
-``rollout`` resets every environment and runs it to the horizon (observe, act with the built-in
-kernels, step), calling the same kernels as ``Simulator.step`` and ``BuiltinDecision.act``, so
-its results equal stepping the policy through the Python API (a test checks it). The batch is
+:func:`play_episodes` resets every environment and runs it to the horizon (observe, act with
+the built-in kernels, step), calling the same kernels as ``Simulator.step`` and
+``BuiltinDecision.act``, so its results equal stepping the policy through the Python API (a
+test checks it). The batch is
 split into contiguous ranges, one per thread (``wfbench.core.entrypoints.run_split``), without
 changing a bit; the kernel releases the GIL. Why not a ``prange`` loop: ``docs/performance.md``,
 "Cold start".
@@ -21,7 +22,7 @@ from wfbench.core.observe import observe_env
 
 
 @njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the episode loop (dynamics.step_env)
-def rollout_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
+def play_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
     """Whole episodes of environments lo..hi-1: reset, then observe, act and step to the horizon."""
     for b in range(lo, hi):
         reset_env(b, S, Tr, P)
@@ -31,13 +32,13 @@ def rollout_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, posit
             step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
 
 
-def rollout_parallel(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning) -> None:
+def play_parallel(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning) -> None:
     """Every episode of the batch on ``numba.get_num_threads()`` threads (the former ``prange`` kernel's call)."""
     args = (S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning)
-    run_split(bind(rollout_range, 0, 0, *args), S.t.shape[0], numba.get_num_threads(), *args)
+    run_split(bind(play_range, 0, 0, *args), S.t.shape[0], numba.get_num_threads(), *args)
 
 
-def rollout(sim, codes: np.ndarray, hp: np.ndarray, pstate, threads: int | None = None) -> None:
+def play_episodes(sim, codes: np.ndarray, hp: np.ndarray, pstate, threads: int | None = None) -> None:
     """Run every episode of the simulator ``sim`` with a compiled composite's plan.
 
     ``codes``, ``hp`` and ``pstate`` come from ``Composite.compiled_plan``; ``threads``
@@ -50,4 +51,4 @@ def rollout(sim, codes: np.ndarray, hp: np.ndarray, pstate, threads: int | None 
     positioning = np.zeros((B, 2, sim.M), dtype=np.float64)
     cap = numba.config.NUMBA_NUM_THREADS
     args = (sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch, workforce, positioning)
-    run_split(bind(rollout_range, 0, 0, *args), B, max(1, min(cap if threads is None else threads, B, cap)), *args)
+    run_split(bind(play_range, 0, 0, *args), B, max(1, min(cap if threads is None else threads, B, cap)), *args)
