@@ -226,7 +226,7 @@ class Collector:
 
     @torch.no_grad()
     def collect(self, net, T: int, log_prob: Callable, values: Callable | None = None,
-                model=None) -> dict[str, Any]:
+                model=None, keep_features: bool = False) -> dict[str, Any]:
         """A rollout of T steps of the B environments with ``net`` (sampled actions), in preallocated tensors.
 
         ``log_prob(out, x, acts)`` gives the behaviour log-probabilities of a step (B,) or
@@ -237,7 +237,9 @@ class Collector:
         int64 (zeros for a head the network lacks), ``logp``, ``value``, ``reward`` and
         ``done`` (T, B) float32 (done: the episode ended after the step), ``init_state``
         (the LSTM state before the first step) and ``episodes`` (the KPIs of the whole
-        episodes that ended).
+        episodes that ended). ``keep_features``: also ``feats`` (T, B, ...) per key, the
+        network's inputs of the T steps as the forward pass read them, so that a learner
+        does not featurize ``raw`` again (the same bits: featurizing is row by row).
         """
         model = net if model is None else model
         if self.sim is None:
@@ -258,6 +260,8 @@ class Collector:
             if t == 0:  # the buffers of what the first step shows the shapes and types of
                 roll["raw"] = {k: torch.empty((T + 1, *v.shape), dtype=v.dtype, device=dev) for k, v in raw.items()}
                 roll["logp"] = torch.empty((T, *logp.shape), device=dev)
+                if keep_features:
+                    roll["feats"] = {k: torch.empty((T, *v.shape), dtype=v.dtype, device=dev) for k, v in x.items()}
                 if values is not None:
                     roll["value"] = torch.empty((T, *values(out).shape), device=dev)
             action = env_action(acts, M)  # the dispatch variant's network has the dispatch head only
@@ -267,6 +271,9 @@ class Collector:
                 action["workforce"], action["positioning"] = h["workforce"], h["positioning"]
             for k, v in raw.items():
                 roll["raw"][k][t] = v
+            if keep_features:
+                for k, v in x.items():
+                    roll["feats"][k][t] = v
             roll["starts"][t] = self.starts
             for k, v in acts.items():
                 roll[k][t] = v

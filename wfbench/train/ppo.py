@@ -153,7 +153,7 @@ class Trainer:
         """T steps of the B environments (:meth:`Collector.collect`), then GAE per agent."""
         c, T = self.run.config, self.run.config.num_steps
         roll = self.env.collect(self.net, T, lambda out, x, acts: self.agent_log_probs(out, x, acts)[0],
-                                self.values, model=self.model)
+                                self.values, model=self.model, keep_features=True)
         self.run.global_step += T * self.sim.B
         t0 = time.perf_counter()
         with torch.no_grad(), autocast(self.run.device, self.run.amp):
@@ -182,10 +182,13 @@ class Trainer:
                                                   "ent_dispatch", "ent_workforce", "ent_positioning")}
         mb = B // c.minibatches
         perm_gen = torch.Generator().manual_seed(c.seed * 7919 + self.update)
-        # the features of the T steps (not the last observation), once per update rather than once per
-        # minibatch and epoch: featurize is row by row, so a minibatch's rows are the same bits either way
-        with torch.no_grad():
-            feats = scalefree.features(self.model, {k: v[:-1] for k, v in roll["raw"].items()})
+        # the features of the T steps (not the last observation) as the rollout's forward passes read them,
+        # rather than once per minibatch and epoch: featurize is row by row, so a minibatch's rows are the same
+        # bits either way (a rollout made without them, e.g. a test's, is featurized here)
+        feats = roll.get("feats")
+        if feats is None:
+            with torch.no_grad():
+                feats = scalefree.features(self.model, {k: v[:-1] for k, v in roll["raw"].items()})
         for _ in range(c.epochs):
             perm = torch.randperm(B, generator=perm_gen).to(self.run.device)
             for i in range(c.minibatches):
