@@ -48,7 +48,8 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
             torch.cuda.synchronize()
 
     with tempfile.TemporaryDirectory() as tmp:
-        cfg = TrainConfig(scenario=scenario, scenarios=scenarios, epochs=epochs, minibatches=minibatches, model=model, num_envs=num_envs, num_steps=num_steps,
+        cfg = TrainConfig(scenario=scenario, scenarios=scenarios, epochs=epochs, minibatches=minibatches,
+                          model=model, num_envs=num_envs, num_steps=num_steps,
                           steps=num_envs * num_steps * (updates + 1), eval_every=0, checkpoint_every=10**9,
                           run_dir=tmp, threads=threads, device=device, agents=agents, bf16=bf16, compile=compile)
         tr = Trainer(cfg, progress=False, log=False, amp=torch.bfloat16 if bf16 else None)
@@ -68,7 +69,8 @@ def measure(scenario: str, model: str, threads: int, updates: int, num_envs: int
     gpu = {}
     if cuda:
         gpu = {"gpu": torch.cuda.get_device_name(), "gpu_peak_gib": torch.cuda.max_memory_allocated() / 2**30}
-    return {"scenario": scenarios or scenario, "epochs": epochs, "minibatches": minibatches, "model": model, "agents": agents, "parameters": count_parameters(tr.model),
+    return {"scenario": scenarios or scenario, "epochs": epochs, "minibatches": minibatches, "model": model,
+            "agents": agents, "parameters": count_parameters(tr.model),
             "threads": threads, "device": device, "bf16": bf16, "compile": compile, "num_envs": num_envs,
             "env_steps": steps, "wall_s": wall, "env_steps_per_s": steps / wall,
             "cpu_s": cpu, "env_steps_per_cpu_s": steps / cpu, "load_avg_before": load0,
@@ -103,7 +105,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
             rows.append(r)
             how = f"{a.device}{' bf16' if a.bf16 else ''}{' compiled' if a.compile else ''}"
             gpu = f"  GPU peak {r['gpu_peak_gib']:.1f} GiB" if "gpu_peak_gib" in r else ""
-            print(f"{r['scenario']:9s} {r['num_envs']}x{a.num_steps} {a.epochs}x{a.minibatches} {r['model']:6s} {agents:11s} {how} {r['parameters']:>8,d} params  "
+            print(f"{r['scenario']:9s} {r['num_envs']}x{a.num_steps} {a.epochs}x{a.minibatches} {r['model']:6s} "
+                  f"{agents:11s} {how} {r['parameters']:>8,d} params  "
                   f"threads {threads}  "
                   f"{r['env_steps_per_s']:7.0f} env-steps/s  simulator {r['simulator_share']:.0%}  "
                   f"obs->tensor {r['obs_to_tensor_share']:.0%}  forward {r['forward_share']:.0%}  "

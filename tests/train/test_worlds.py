@@ -133,3 +133,22 @@ def test_worlds__hindsight_learning_takes_the_worlds_in_turn(tmp_path):
     small = data["facility_mask"][:2]  # the first chunk is small's: 8 slots, padded to 50
     assert small[..., :8].any() and not small[..., 8:].any()
     assert set(data["dispatch"][:2, :, 8:].unique().tolist()) == {50}, "a padded facility's label is the no-op"
+
+
+def test_across_worlds_ppo_takes_16_environments_a_world_unless_told(tmp_path):
+    import json
+
+    from wfbench.cli.train import default_num_envs
+    from wfbench.train.hindsight import HindsightConfig
+    from wfbench.train.ppo import TrainConfig
+
+    assert default_num_envs(TrainConfig, {"scenarios": "suite-v1:train"}) == 128
+    assert default_num_envs(TrainConfig, {"scenario": "small"}) is None, "one world: the config's 32"
+    assert default_num_envs(HindsightConfig, {"scenarios": TWO}) is None, "its batches take the worlds in turn"
+    for name, given, envs in (("default", [], 32), ("given", ["--num-envs", "4"], 4)):
+        run = tmp_path / name
+        assert cli_main(["train", "--scenarios", TWO, "--model", "tiny", *given, "--num-steps", "4",
+                         "--steps", str(4 * envs), "--epochs", "1", "--minibatches", "1", "--eval-every", "0",
+                         "--no-progress", "--no-tensorboard", "--run-dir", str(run)]) == 0
+        saved = json.loads((run / "config.json").read_text())
+        assert saved["num_envs"] == envs, name

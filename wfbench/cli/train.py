@@ -41,7 +41,8 @@ def add_parser(sub) -> None:
                          "algorithm's joint network; docs/rl.md), or a preset of the paper's network: cpu (no "
                          "attention, fastest on CPU), tiny, small or paper (~0.5M parameters); the default of "
                          "--variant dispatch and --agents independent is their config's")
-    tr.add_argument("--num-envs", type=positive, default=None, help="environments side by side (default 32)")
+    tr.add_argument("--num-envs", type=positive, default=None,
+                    help="environments side by side (default 32; ppo across worlds, --scenarios: 16 per world)")
     tr.add_argument("--num-steps", type=positive, default=None, help="steps per rollout (default 32)")
     tr.add_argument("--epochs", type=positive, default=None, help="PPO epochs per rollout (default 2)")
     tr.add_argument("--minibatches", type=positive, default=None, help="minibatches of whole sequences (default 2)")
@@ -95,6 +96,20 @@ def default_model(config_cls: type, given: dict) -> str:
     return ARCH if config_cls.scalefree_ok and joint else config_cls().model
 
 
+def default_num_envs(config_cls: type, given: dict) -> int | None:
+    """The batch of a ``wfbench train --scenarios`` without ``--num-envs``: ``envs_per_world`` per world.
+
+    For a trainer whose every batch holds every world (PPO: ``TrainConfig.envs_per_world``);
+    None (the config's default) for one world, or a trainer that takes the worlds in turn.
+    """
+    per_world = config_cls.envs_per_world
+    if per_world is None or not given.get("scenarios"):
+        return None
+    from wfbench.train.worlds import world_set
+
+    return per_world * len(world_set(given["scenarios"]).worlds)
+
+
 def run(args: argparse.Namespace) -> int:
     from wfbench.cli.settings import train_settings
 
@@ -115,6 +130,10 @@ def run(args: argparse.Namespace) -> int:
         given = train_settings(get_algorithm(algo).config_class(), given, algo, args.set or [])
         if not args.resume and "model" not in given:
             given["model"] = default_model(get_algorithm(algo).config_class(), given)
+        if not args.resume and "num_envs" not in given:
+            envs = default_num_envs(get_algorithm(algo).config_class(), given)
+            if envs is not None:
+                given["num_envs"] = envs
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     try:

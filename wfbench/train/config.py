@@ -65,6 +65,9 @@ class BaseConfig:
     init: str = ""  # a checkpoint whose network weights start this run (fine-tuning); nothing else is taken
     model_overrides: dict = field(default_factory=dict)
     scalefree_ok = False  # a class attribute, not a setting: whether this trainer trains the scale-free network
+    # a class attribute too: the environments per world of a batch that holds every world (--scenarios), when
+    # --num-envs is not given; None for a trainer whose batches take the worlds in turn (num_envs as given)
+    envs_per_world = None
 
     def validate(self) -> ScenarioConfig | WorldSet:
         """The shared checks, the algorithm's (:meth:`check`), then the network's config (a bad preset says so).

@@ -53,6 +53,10 @@ class TrainConfig(ActorCriticConfig):
     compile: bool = False  # torch.compile of the network (any device; made for CUDA)
     value_warmup: int = 0  # first updates that fit the value head alone, the policy frozen (fine-tuning --init)
     scalefree_ok = True  # PPO trains the scale-free network (--model scalefree)
+    # across worlds, 16 environments a world unless --num-envs says otherwise: 128 on suite-v1's eight training
+    # worlds, the batch of the shipped scalefree-general; 32 in all would leave each world 4 environments and cost
+    # twice the CPU per env-step (docs/performance.md, "Training across the training split")
+    envs_per_world = 16
 
     def check(self) -> None:
         if self.variant not in VARIANTS:
