@@ -82,6 +82,15 @@ class TrainConfig(ActorCriticConfig):
         return network_config(self.model, VARIANTS[self.variant], self.model_overrides)
 
 
+def _rows(v: torch.Tensor, envs: torch.Tensor) -> torch.Tensor:
+    """The (T, B, ...) tensor's environments ``envs``, as T * len(envs) rows, time major.
+
+    ``index_select`` rather than ``v[:, envs]``: the same copy, about half the time of
+    advanced indexing on the features of a minibatch (docs/performance.md).
+    """
+    return v.index_select(1, envs).flatten(0, 1)
+
+
 class Trainer:
     """A PPO run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
 
@@ -200,8 +209,8 @@ class Trainer:
                 if self.update_envs is not None and self.update_envs < mb:
                     self._chunked_step(feats, roll, idx, stats)
                     continue
-                x = {k: v[:, idx].flatten(0, 1) for k, v in feats.items()}
-                acts = {k: roll[k][:, idx].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
+                x = {k: _rows(v, idx) for k, v in feats.items()}
+                acts = {k: _rows(roll[k], idx) for k in ("dispatch", "workforce", "positioning")}
                 state = tuple(s[:, idx] for s in roll["init_state"])
                 with autocast(self.run.device, self.run.amp):
                     out, _ = self.net(x, state, roll["starts"][:-1, idx])
@@ -210,13 +219,13 @@ class Trainer:
                 # (rows, A): one column per agent, each with its own ratio, advantage and critic; the
                 # losses are summed over the agents (independent networks: independent gradients)
                 logp, ent, parts = self.agent_log_probs(out, x, acts)
-                old_logp = roll["logp"][:, idx].flatten(0, 1)
-                adv = roll["adv"][:, idx].flatten(0, 1)
+                old_logp = _rows(roll["logp"], idx)
+                adv = _rows(roll["adv"], idx)
                 adv = (adv - adv.mean(0)) / (adv.std(0) + 1e-8)
                 ratio = (logp - old_logp).exp()
                 pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).mean(0).sum()
                 value = self.values(out)
-                old_v, ret = roll["value"][:, idx].flatten(0, 1), roll["ret"][:, idx].flatten(0, 1)
+                old_v, ret = _rows(roll["value"], idx), _rows(roll["ret"], idx)
                 v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
                 v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).mean(0).sum()
                 entropy = ent.mean()
