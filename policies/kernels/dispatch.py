@@ -85,21 +85,33 @@ def dispatch_nearest(b, O, out, reqs, people):
 
 
 @njit(cache=True, inline="always")
+def _nobody_sent(O, out, used):
+    """Begin a step of the per-request rules: every request to the no-op, nobody used; returns (M, N)."""
+    N = O.personnel.shape[1]
+    out[:] = N
+    used[:] = False
+    return O.facilities.shape[1], N
+
+
+@njit(cache=True, inline="always")
+def _free(b, O, used, p):
+    """Whether person ``p`` can still be sent this step: dispatchable and not yet picked."""
+    return O.dispatchable[b, p] == 1 and not used[p]
+
+
+@njit(cache=True, inline="always")
 def dispatch_inverse_distance(b, O, out, key, t, used, w):
     """For each open request in slot order, sample a free person with probability ~ 1 / (1 + distance).
 
     ``used`` (N,) bool and ``w`` (N,) float are scratch space.
     """
-    M = O.facilities.shape[1]
-    N = O.personnel.shape[1]
-    out[:] = N
-    used[:] = False
+    M, N = _nobody_sent(O, out, used)
     for f in range(M):
         if O.requesting[b, f] != 1:
             continue
         total = 0.0
         for p in range(N):
-            if O.dispatchable[b, p] == 1 and not used[p]:
+            if _free(b, O, used, p):
                 w[p] = 1.0 / (1.0 + _dist(O, b, f, p))
                 total += w[p]
             else:
@@ -125,22 +137,19 @@ def dispatch_random(b, O, out, key, t, used):
 
     ``used`` (N,) bool is scratch space.
     """
-    M = O.facilities.shape[1]
-    N = O.personnel.shape[1]
-    out[:] = N
-    used[:] = False
+    M, N = _nobody_sent(O, out, used)
     for f in range(M):
         if O.requesting[b, f] != 1:
             continue
         n_free = 0
         for p in range(N):
-            if O.dispatchable[b, p] == 1 and not used[p]:
+            if _free(b, O, used, p):
                 n_free += 1
         k = int(uniform(key, STREAM_POLICY_DISPATCH, t, f, 1) * (n_free + 1))
         if k == n_free:
             continue  # the no-op
         for p in range(N):
-            if O.dispatchable[b, p] == 1 and not used[p]:
+            if _free(b, O, used, p):
                 if k == 0:
                     out[f] = p
                     used[p] = True
