@@ -112,6 +112,30 @@ def _first_unmatched(col4row, med):
 
 
 @njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
+def _medians(is_open, ns, p_med):
+    """The p-median's medians: the indices of the ``p_med`` open sites among ``ns``, in order."""
+    med = np.empty(p_med, dtype=np.int64)
+    k = 0
+    for i in range(ns):
+        if is_open[i]:
+            med[k] = i
+            k += 1
+    return med
+
+
+@njit(cache=True, inline="always")
+def _farthest_site(w, to_home):
+    """The hire site when every site has someone: the largest ``w[j] * to_home[j]`` (the first on ties)."""
+    best = -1.0
+    hire = -1
+    for j in range(w.shape[0]):
+        if w[j] * to_home[j] > best:
+            best = w[j] * to_home[j]
+            hire = j
+    return hire
+
+
+@njit(cache=True, _nrt=True)  # allocates; called from code compiled without the runtime
 def _facility_clients(b, O, S, hp, out, t):
     """What both facility-location rules start from: the refresh, the open sites and each site's client weight.
 
@@ -189,12 +213,7 @@ def positioning_facility(b, O, S, hp, out, t):
     zero = np.zeros(ns)
     is_open = greedy_open(C, zero, p_med)
     local_search(C, zero, is_open, p_med, 1000, 1e-9)
-    med = np.empty(p_med, dtype=np.int64)
-    k = 0
-    for i in range(ns):
-        if is_open[i]:
-            med[k] = i
-            k += 1
+    med = _medians(is_open, ns, p_med)
     hire = -1
     if p_med > h:
         if h == 0:
@@ -211,15 +230,12 @@ def positioning_facility(b, O, S, hp, out, t):
             hire = _first_unmatched(col4row, med)
     else:
         # every site already has someone: the site whose demand is farthest from any home
-        best = -1.0
+        to_home = np.full(ns, np.inf)
         for j in range(ns):
             f = sites[j]
-            near = np.inf
             for r in range(h):
-                near = min(near, dist_to(O, b, f, hx[r], hy[r]))
-            if w[j] * near > best:
-                best = w[j] * near
-                hire = j
+                to_home[j] = min(to_home[j], dist_to(O, b, f, hx[r], hy[r]))
+        hire = _farthest_site(w, to_home)
     out[0, sites[hire]] = 1.0
     # let-go map: removal cost of each retained person (clients move to their second nearest home)
     if h >= 2:
@@ -298,12 +314,7 @@ def positioning_facility_sparse(b, O, S, hp, out, t):
     # hire map
     p_med = min(h + 1, ns)
     is_open, _ = p_median_sparse(ns, cand[:, :kc].copy(), ccost, count, far, p_med, 1000, 1e-9)
-    med = np.empty(p_med, dtype=np.int64)
-    k = 0
-    for i in range(ns):
-        if is_open[i]:
-            med[k] = i
-            k += 1
+    med = _medians(is_open, ns, p_med)
     hire = -1
     # each site's two nearest homes (the let-go map; the nearest alone for the hire site below)
     kh = min(2, h)
@@ -334,12 +345,10 @@ def positioning_facility_sparse(b, O, S, hp, out, t):
             hire = _first_unmatched(col4row, med)
     else:
         # every site already has someone: the site whose demand is farthest from any home
-        best = -1.0
-        for j in range(ns):
-            near = hd[j, 0] if h > 0 else np.inf
-            if w[j] * near > best:
-                best = w[j] * near
-                hire = j
+        to_home = np.full(ns, np.inf)
+        if h > 0:
+            to_home[:] = hd[:, 0]
+        hire = _farthest_site(w, to_home)
     out[0, sites[hire]] = 1.0
     # let-go map: removal cost of each retained person (clients move to their second nearest home)
     if h >= 2:
