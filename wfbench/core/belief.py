@@ -21,6 +21,7 @@ from numba import njit
 
 from wfbench.core import jit as _jit  # noqa: F401  (first: keys the numba cache of what follows)
 from wfbench.core.config import ScenarioConfig, require_config
+from wfbench.core.dynamics import write_metrics
 from wfbench.core.observation_v2 import WORLD_DYNAMIC, WORLD_FEATURES, world_parameters
 from wfbench.core.observe import (
     FAC_DOWNTIME,
@@ -47,15 +48,6 @@ from wfbench.core.simulator import Simulator
 from wfbench.core.state import (
     EMPTY,
     IDLE,
-    K_AFD,
-    K_HEAD,
-    K_LOGH,
-    K_NSW,
-    K_PUR,
-    K_UAFD,
-    K_UPUR,
-    K_UWC,
-    K_WC,
     RETURNING,
     SERVICING,
     TO_FACILITY,
@@ -349,6 +341,17 @@ def _arrival_cell(key, n, b, H, m):
     return x, y
 
 
+@njit(cache=True, inline="always")
+def _copy_ring(src, dst, b, i, x, on, W):
+    """Slot ``x``'s window of 0/1 flags from ``src[b, x]`` into ``dst[i, x]`` (zeros when not ``on``); its sum."""
+    total = np.int64(0)
+    for j in range(W):
+        v = src[b, x, j] if on else np.uint8(0)
+        dst[i, x, j] = v
+        total += v
+    return total
+
+
 @njit(cache=True)
 def fill_row(i, b, k, end, H, S, Tr, m):
     """Row ``i`` of the fork's state and trace: sample ``k`` of environment ``b``'s belief, arrivals up to ``end``."""
@@ -365,12 +368,7 @@ def fill_row(i, b, k, end, H, S, Tr, m):
     for f in range(M):
         on = H.fac_mask[b, f] == 1
         S.fac_active[i, f] = on
-        total = np.int64(0)
-        for j in range(W):
-            v = H.fac_ring[b, f, j] if on else np.uint8(0)
-            S.fac_ring[i, f, j] = v
-            total += v
-        S.fac_sum[i, f] = total
+        S.fac_sum[i, f] = _copy_ring(H.fac_ring, S.fac_ring, b, i, f, on, W)
         S.fac_visits[i, f] = 0
         S.fac_ok_since[i, f] = t
         if on:
@@ -404,12 +402,7 @@ def fill_row(i, b, k, end, H, S, Tr, m):
         S.per_status[i, p] = st
         S.per_dispatched[i, p] = -1
         on = st != EMPTY
-        total = np.int64(0)
-        for j in range(W):
-            v = H.per_ring[b, p, j] if on else np.uint8(0)
-            S.per_ring[i, p, j] = v
-            total += v
-        S.per_sum[i, p] = total
+        S.per_sum[i, p] = _copy_ring(H.per_ring, S.per_ring, b, i, p, on, W)
         if on:
             S.per_level[i, p] = np.int64(H.per[b, p, PER_LEVEL])
             S.per_hx[i, p] = np.int64(H.per[b, p, PER_HOME_X])
@@ -437,16 +430,14 @@ def fill_row(i, b, k, end, H, S, Tr, m):
     g = H.glob[b]
     row = S.last[i]
     row[:] = 0.0
-    row[K_WC] = np.float64(g[G_WC]) * m.max_cost
-    row[K_PUR] = np.float64(g[G_PUR])
-    row[K_AFD] = np.float64(g[G_AFD])
-    row[K_NSW] = np.float64(g[G_NSW])
-    row[K_UWC] = 1.0 - row[K_WC] / m.max_cost
-    row[K_UAFD] = 1.0 - row[K_AFD]
-    row[K_UPUR] = row[K_NSW] ** 3 / max(row[K_UWC] * row[K_UAFD], 1e-300)
+    wc = np.float64(g[G_WC]) * m.max_cost
+    afd = np.float64(g[G_AFD])
+    nsw = np.float64(g[G_NSW])
+    u_wc = 1.0 - wc / m.max_cost
+    u_afd = 1.0 - afd
+    u_pur = nsw ** 3 / max(u_wc * u_afd, 1e-300)
     head = np.float64(np.rint(np.float64(g[G_HEAD]) * N))
-    row[K_HEAD] = head
-    row[K_LOGH] = np.log(head) if head > 0 else 0.0
+    write_metrics(row, wc, np.float64(g[G_PUR]), afd, nsw, u_wc, u_pur, u_afd, head)
     # arrivals from t + 1 to end: a Poisson process on the cumulative hazard's scale
     A = Tr.arr_t.shape[1]
     n = 0

@@ -478,14 +478,8 @@ def advance(b, S, Tr, P):
 
 
 @njit(cache=True, inline="always")
-def record_metrics(b, S, P, afd, pur, wc, head):
-    """WC, PUR, AFD, the utilities and NSW of step t into ``last``, ``totals`` and ``series``."""
-    t = S.t[b]
-    u_wc = 1.0 - wc / P.max_cost
-    u_pur = utility_pur(pur, P.target, P.tolerance)
-    u_afd = 1.0 - afd
-    nsw = (u_wc * u_pur * u_afd) ** THIRD
-    row = S.last[b]
+def write_metrics(row, wc, pur, afd, nsw, u_wc, u_pur, u_afd, head):
+    """One step's metrics into ``row`` (laid out as ``METRICS``): the KPIs, their utilities, NSW, the headcount."""
     row[K_WC] = wc
     row[K_PUR] = pur
     row[K_AFD] = afd
@@ -495,6 +489,18 @@ def record_metrics(b, S, P, afd, pur, wc, head):
     row[K_UAFD] = u_afd
     row[K_HEAD] = head
     row[K_LOGH] = np.log(head) if head > 0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def record_metrics(b, S, P, afd, pur, wc, head):
+    """WC, PUR, AFD, the utilities and NSW of step t into ``last``, ``totals`` and ``series``."""
+    t = S.t[b]
+    u_wc = 1.0 - wc / P.max_cost
+    u_pur = utility_pur(pur, P.target, P.tolerance)
+    u_afd = 1.0 - afd
+    nsw = (u_wc * u_pur * u_afd) ** THIRD
+    row = S.last[b]
+    write_metrics(row, wc, pur, afd, nsw, u_wc, u_pur, u_afd, head)
     totals = S.totals
     for k in range(row.shape[0]):
         totals[b, k] += row[k]
