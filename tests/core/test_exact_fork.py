@@ -9,21 +9,15 @@ from wfbench import ScenarioConfig, Simulator, policies
 from wfbench.core.fork import copy_state, fork, fork_index, state_equal
 from wfbench.core.state import K_NSW
 
+from . import play
+
 CONFIG = ScenarioConfig.preset("small").replace(horizon=120)
 SEEDS = [3, 8, 21]
 
 
 def random_actions(sim: Simulator, obs: dict, rng: np.random.Generator) -> dict:
     """Valid-looking random actions (some impossible ones too, which the simulator counts)."""
-    B, M, N = sim.B, sim.M, sim.N
-    dispatch = np.full((B, M), N, dtype=np.int64)
-    for b in range(B):
-        free = list(np.flatnonzero(obs["dispatchable"][b]))
-        for f in np.flatnonzero(obs["requesting"][b]):
-            if free and rng.random() < 0.8:
-                dispatch[b, f] = free.pop(int(rng.integers(len(free))))
-    workforce = np.where(rng.random(B) < 0.08, rng.integers(1, 7, size=B), 0).astype(np.int64)
-    return {"dispatch": dispatch, "workforce": workforce, "positioning": rng.random((B, 2, M))}
+    return play.random_actions(sim.B, sim.M, sim.N, obs, rng, hire_rate=0.08)
 
 
 def heuristic_actions(pol):

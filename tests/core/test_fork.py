@@ -22,22 +22,12 @@ from wfbench.core.schedule import RateSchedule
 from wfbench.core.state import EMPTY, ONBOARDING
 from wfbench.core.trace import NEVER, trace
 
+from .play import random_actions
+
 SMALL = ScenarioConfig.preset("small").replace(horizon=240)
 OBSERVED = ("facilities", "personnel", "facility_mask", "personnel_mask", "personnel_status", "under_notice",
             "dispatchable", "requesting", "globals", "workforce_mask", "dispatch_mask")
 NOOP = None
-
-
-def random_actions(B, M, N, obs, rng):
-    """Dispatch most open requests, hire and let go now and then (the history then has every kind of event)."""
-    dispatch = np.full((B, M), N, dtype=np.int64)
-    for b in range(B):
-        free = list(np.flatnonzero(obs["dispatchable"][b]))
-        for f in np.flatnonzero(obs["requesting"][b]):
-            if free and rng.random() < 0.8:
-                dispatch[b, f] = free.pop(int(rng.integers(len(free))))
-    workforce = np.where(rng.random(B) < 0.1, rng.integers(1, 7, size=B), 0).astype(np.int64)
-    return {"dispatch": dispatch, "workforce": workforce, "positioning": rng.random((B, 2, M))}
 
 
 def noop(sim):
@@ -84,7 +74,8 @@ def test_the_fork_reobserves_the_observation_and_holds_the_true_history(config):
             assert np.array_equal(S.per_leave[b], F.per_leave[i])
         events["notices"] += int((S.per_leave >= 0).sum())
         events["servicing"] += int((S.per_status == 4).sum())
-        sim.step(random_actions(sim.B, sim.M, sim.N, obs, rng))
+        # hire and let go now and then: the history then has every kind of event
+        sim.step(random_actions(sim.B, sim.M, sim.N, obs, rng, hire_rate=0.1))
         obs = sim.observe()
     events["hires"] = int(sim.counters()["hires"].sum())
     assert min(events.values()) > 0, events  # the history had hires, notices and visits to reconstruct
