@@ -21,7 +21,7 @@ def mini_run(monkeypatch):
 
     def run(policy, suite, seeds, **kw):
         seen["act_timeout_s"] = kw["act_timeout_s"]
-        seen["df"] = real(policy, _mini(), seeds, split=kw["split"], backend="serial",
+        seen["df"] = real(policy, _mini(), seeds, split=kw["split"],
                           act_timeout_s=kw["act_timeout_s"])
         return seen["df"]
 
