@@ -44,12 +44,12 @@ SCRIPT = textwrap.dedent("""
     out = {}
     for backend in ("serial", "process", "ray"):
         for label, policy in (("builtin", "heuristic-stochastic"), ("main-class", Mine())):
-            df = wfbench.evaluate(policy, "small", seeds=seeds, backend=backend, workers=2)
+            df = wfbench.evaluate(policy, "small", seeds=seeds, execution=wfbench.Execution(backend=backend, workers=2))
             # JSON keeps every float exactly; the budget columns are measurements, not results
             out[f"{label} {backend}"] = results_only(df).to_dict("list")
     for backend in ("process", "ray"):
         try:
-            wfbench.evaluate(Breaks(), "small", seeds=seeds, backend=backend, workers=2)
+            wfbench.evaluate(Breaks(), "small", seeds=seeds, execution=wfbench.Execution(backend=backend, workers=2))
         except PolicyError as exc:
             out[f"error {backend}"] = str(exc)
     print(json.dumps(out))
