@@ -182,7 +182,7 @@ class Idle:
         return {"dispatch": np.full((B, M), N), "workforce": np.zeros(B, dtype=np.int64),
                 "positioning": np.ones((B, 2, M))}
 
-df = wfbench.evaluate(Idle(), "small", seeds=4, backend="process", workers=2)
+df = wfbench.evaluate(Idle(), "small", seeds=4, execution=wfbench.Execution(backend="process", workers=2))
 assert len(df) == 4
 """ + SCRIPT
 
