@@ -262,7 +262,7 @@ class Trainer:
         c = self.run.config
         T = roll["starts"].shape[0] - 1
         n = idx.numel() * T
-        adv_all = roll["adv"][:, idx].flatten(0, 1)
+        adv_all = _rows(roll["adv"], idx)
         mean, std = adv_all.mean(0), adv_all.std(0) + 1e-8
         warm = self.update < c.value_warmup
         opt = self.vopt if warm else self.opt
@@ -271,20 +271,20 @@ class Trainer:
         sums = {k: 0.0 for k in ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac")}
         parts_sum: dict[str, float] = {}
         for sub in idx.split(self.update_envs):
-            x = {k: v[:, sub].flatten(0, 1) for k, v in feats.items()}
-            acts = {k: roll[k][:, sub].flatten(0, 1) for k in ("dispatch", "workforce", "positioning")}
+            x = {k: _rows(v, sub) for k, v in feats.items()}
+            acts = {k: _rows(roll[k], sub) for k in ("dispatch", "workforce", "positioning")}
             state = tuple(s[:, sub] for s in roll["init_state"])
             with autocast(self.run.device, self.run.amp):
                 out, _ = self.net(x, state, roll["starts"][:-1, sub])
             if scalefree.obs_version(self.model) == 1:
                 acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
             logp, ent, parts = self.agent_log_probs(out, x, acts)
-            old_logp = roll["logp"][:, sub].flatten(0, 1)
-            adv = (roll["adv"][:, sub].flatten(0, 1) - mean) / std
+            old_logp = _rows(roll["logp"], sub)
+            adv = (_rows(roll["adv"], sub) - mean) / std
             ratio = (logp - old_logp).exp()
             pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).sum() / n
             value = self.values(out)
-            old_v, ret = roll["value"][:, sub].flatten(0, 1), roll["ret"][:, sub].flatten(0, 1)
+            old_v, ret = _rows(roll["value"], sub), _rows(roll["ret"], sub)
             v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
             v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).sum() / n
             entropy = ent.sum() / n
