@@ -78,3 +78,34 @@ def test_the_plan_estimates_from_the_stored_cost_and_says_what_it_cannot(tmp_pat
     alone = pieces.plan([tmp_path], ["solver"], [SMALL], [0])
     assert pieces.describe_plan(alone).splitlines()[0] == (
         "to play: 1 pieces, 1 episodes; no stored piece of these policies to estimate their cost from")
+
+
+def _cost_piece(folder, policy, scenario, cpu_s):
+    """A stored piece of two seeds whose episodes each cost ``cpu_s`` CPU seconds."""
+    df = pd.DataFrame({"seed": [0, 1], "cpu_s": [cpu_s, cpu_s]})
+    pieces.store(pieces.piece_path(folder, policy, scenario), df, policy, scenario, [0, 1], 1.0)
+
+
+def test_a_lookahead_without_a_piece_here_is_estimated_from_its_bases_cost_here(tmp_path):
+    suite = get_suite("suite-v1")
+    paper, large, city = (suite.scenario(x) for x in ("paper-64", "large", "city"))
+    # the base costs 2x on large and 40x on city what it costs on paper-64; the rollout has pieces on the first two
+    for sc, cost in ((paper, 1.0), (large, 2.0), (city, 40.0)):
+        _cost_piece(tmp_path, "solver-tuned", sc, cost)
+    _cost_piece(tmp_path, "rollout-solver-tuned", paper, 30.0)
+    _cost_piece(tmp_path, "rollout-solver-tuned", large, 50.0)
+    _cost_piece(tmp_path, "heuristic", paper, 0.5)
+    todo = pieces.plan([tmp_path], ["rollout-solver-tuned", "heuristic"], [city], [0, 1, 2], others=suite.scenarios)
+    by = {m.policy: m for m in todo}
+    # scaled from the scenario where the base's cost is nearest city's (large), not from its own cost elsewhere
+    assert by["rollout-solver-tuned"].cpu_s == pytest.approx(3 * 50.0 * 40.0 / 2.0)
+    assert by["rollout-solver-tuned"].source == ("large-v1", "solver-tuned")
+    # a policy that builds on nothing: its cost elsewhere as it is, and the plan says so
+    assert by["heuristic"].cpu_s == pytest.approx(3 * 0.5) and by["heuristic"].source == ("paper-64-v1", None)
+    text = pieces.describe_plan(todo)
+    assert "rollout-solver-tuned on city-v1: 3 seeds, about 50 min (its cost on large-v1, scaled by " \
+           "solver-tuned's cost there and here)" in text
+    assert "heuristic on city-v1: 3 seeds, about 2 s (its cost on paper-64-v1, not scaled)" in text
+    # without the other scenarios, nothing to estimate from
+    alone = pieces.plan([tmp_path], ["rollout-solver-tuned"], [city], [0])
+    assert alone[0].cpu_s is None and alone[0].source is None

@@ -182,7 +182,7 @@ def frontier(out: Path, runs: int | None = None, execution: Execution = PROCESS,
     names = list(dict.fromkeys(policies or settings.get("policies") or default_policies()))
     folders = [Path(out), *(Path(r) for r in (default_reuse() if reuse is None else reuse))]
     provenance.start()  # the code this run starts with is the code its pieces record
-    todo = pieces.plan(folders, names, chosen, seed_list)
+    todo = pieces.plan(folders, names, chosen, seed_list, others=s.scenarios)
     text = pieces.describe_plan(todo, execution.workers or os.cpu_count() or 1)
     if announce:
         announce(text)

@@ -15,6 +15,7 @@ run", explains the folders.
 from __future__ import annotations
 
 import json
+import math
 import re
 import time
 import warnings
@@ -176,31 +177,88 @@ def obtain(folders: Sequence[Path], out: Path, policy: str, scenario: SuiteScena
 
 @dataclass(frozen=True)
 class Missing:
-    """Seeds of one (policy, scenario) that no stored piece holds, and what they should cost (CPU s, or None)."""
+    """Seeds of one (policy, scenario) that no stored piece holds, and what they should cost (CPU s, or None).
+
+    ``source`` says where an estimate comes from when the policy has no piece of this scenario:
+    ``(scenario, reference)``, its cost on that other scenario scaled by ``reference``'s cost on
+    the two (``reference`` None: not scaled, no piece of a policy it builds on says how).
+    """
 
     policy: str
     scenario: str
     seeds: tuple[int, ...]
     cpu_s: float | None
+    source: tuple[str, str | None] | None = None
 
 
-def _cpu_per_episode(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
-                     others: Sequence[SuiteScenario]) -> float | None:
-    """CPU s per episode of ``policy`` on ``scenario`` from stored pieces: its own, else its mean elsewhere."""
-    for sc in [scenario, *others]:
-        for folder in folders:
-            path = piece_path(folder, policy, sc)
-            if _meta(path, sc) is not None:
-                df = _read(path)
-                if "cpu_s" in df:
-                    return float(df["cpu_s"].mean())
+def _cpu_per_episode(folders: Sequence[Path], policy: str, scenario: SuiteScenario) -> float | None:
+    """CPU s per episode of ``policy`` on ``scenario`` from its first stored piece there, else None."""
+    for folder in folders:
+        path = piece_path(folder, policy, scenario)
+        if _meta(path, scenario) is not None:
+            df = _read(path)
+            if "cpu_s" in df:
+                return float(df["cpu_s"].mean())
     return None
 
 
+def _references(policy: str) -> list[str]:
+    """The policies ``policy`` builds on, nearest first: a lookahead's base, its base's base, ... (else none)."""
+    from wfbench.policies.registry import entry
+
+    chain: list[str] = []
+    name = policy
+    while True:
+        try:
+            base = getattr(entry(name).recipe, "base", None)
+        except ValueError:  # "bound", a training seed (NAME#seedK), or a name the registry does not hold
+            return chain
+        if base is None or base in chain:
+            return chain
+        chain.append(base)
+        name = base
+
+
+def _estimate(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
+              others: Sequence[SuiteScenario]) -> tuple[float | None, tuple[str, str | None] | None]:
+    """CPU s per episode of ``policy`` on ``scenario``, and where it comes from (:class:`Missing`'s ``source``).
+
+    Its own stored cost there; else its cost on another scenario times the ratio of what a policy
+    it builds on (:func:`_references`) costs on the two, taking the other scenario where that
+    reference costs the closest (a lookahead's cost grows with its base's: ``search-*`` on
+    ``city`` costs what the network's ratio of city to ``large`` says, not what it costs on
+    ``large``); else its cost on another scenario as it is.
+    """
+    own = _cpu_per_episode(folders, policy, scenario)
+    if own is not None:
+        return own, None
+    costs = {sc.id: c for sc in others if (c := _cpu_per_episode(folders, policy, sc)) is not None}
+    if not costs:
+        return None, None
+    for ref in _references(policy):
+        there = _cpu_per_episode(folders, ref, scenario)
+        if not there:
+            continue
+        scaled = []
+        for sc in others:
+            if sc.id in costs and (r := _cpu_per_episode(folders, ref, sc)):
+                scaled.append((abs(math.log(r / there)), sc.id, costs[sc.id] * there / r))
+        if scaled:
+            _, sid, est = min(scaled)
+            return est, (sid, ref)
+    sid = next(iter(costs))
+    return costs[sid], (sid, None)
+
+
 def plan(folders: Sequence[Path], policies: Sequence[str], scenarios: Sequence[SuiteScenario],
-         seeds: Sequence[int]) -> list[Missing]:
-    """What :func:`obtain` would play for each (policy, scenario), with its estimated CPU seconds."""
+         seeds: Sequence[int], others: Sequence[SuiteScenario] | None = None) -> list[Missing]:
+    """What :func:`obtain` would play for each (policy, scenario), with its estimated CPU seconds.
+
+    ``others``: the scenarios whose pieces an estimate may come from (default: the chosen ones;
+    the callers pass the whole suite, so a scenario played alone is still estimated).
+    """
     seeds = [int(s) for s in seeds]
+    pool = list(scenarios) + [o for o in (others or []) if o.id not in {sc.id for sc in scenarios}]
     todo = []
     for policy in policies:
         for sc in scenarios:
@@ -209,9 +267,18 @@ def plan(folders: Sequence[Path], policies: Sequence[str], scenarios: Sequence[S
             missing = tuple(s for s in seeds if s not in have)
             if not missing:
                 continue
-            per = _cpu_per_episode(folders, policy, sc, [o for o in scenarios if o is not sc])
-            todo.append(Missing(policy, sc.id, missing, None if per is None else per * len(missing)))
+            per, source = _estimate(folders, policy, sc, [o for o in pool if o.id != sc.id])
+            todo.append(Missing(policy, sc.id, missing, None if per is None else per * len(missing), source))
     return todo
+
+
+def _where(m: Missing) -> str:
+    if m.source is None:
+        return ""
+    other, ref = m.source
+    if ref is None:
+        return f" (its cost on {other}, not scaled)"
+    return f" (its cost on {other}, scaled by {ref}'s cost there and here)"
 
 
 def describe_plan(todo: Sequence[Missing], workers: int = 1) -> str:
@@ -231,7 +298,7 @@ def describe_plan(todo: Sequence[Missing], workers: int = 1) -> str:
     lines = [head]
     for m in sorted(todo, key=lambda m: -(m.cpu_s or 0.0))[:12]:
         lines.append(f"  {m.policy} on {m.scenario}: {len(m.seeds)} seeds, "
-                     + ("cost unknown" if m.cpu_s is None else f"about {_duration(m.cpu_s)}"))
+                     + ("cost unknown" if m.cpu_s is None else f"about {_duration(m.cpu_s)}{_where(m)}"))
     if len(todo) > 12:
         lines.append(f"  ... and {len(todo) - 12} more")
     return "\n".join(lines)

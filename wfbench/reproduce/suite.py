@@ -179,7 +179,7 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
     names, methods = with_members(list(dict.fromkeys(policies)) if policies else default_policies(networks))
     members = {m for ms in methods.values() for m in ms}
     provenance.start()  # the code this run starts with is the code its pieces record
-    todo = pieces.plan([out], [*names, "bound"], chosen, seed_list)
+    todo = pieces.plan([out], [*names, "bound"], chosen, seed_list, others=s.scenarios)
     text = pieces.describe_plan(todo, execution.workers or os.cpu_count() or 1)
     if announce:
         announce(text)
