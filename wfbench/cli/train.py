@@ -16,7 +16,7 @@ from wfbench.train.registry import ALGORITHMS, DEFAULT_ALGORITHM, get_algorithm
 # the flags that set a field of the same name in the algorithm's config (when given)
 TRAIN_FLAGS = ("variant", "scenario", "scenarios", "steps", "model", "num_envs", "num_steps", "epochs", "minibatches",
                "lr", "ent_coef", "seed", "device", "threads", "checkpoint_every", "eval_every", "eval_seeds", "run_dir",
-               "init", "gae_lambda", "gamma", "agents", "address", "teacher")
+               "init", "gae_lambda", "gamma", "agents", "address", "teacher", "procs")
 
 
 def add_parser(sub) -> None:
@@ -53,6 +53,10 @@ def add_parser(sub) -> None:
     tr.add_argument("--compile", action="store_true", help="torch.compile the network (made for CUDA)")
     tr.add_argument("--no-bf16", action="store_true", help="no bf16 autocast on CUDA")
     tr.add_argument("--threads", type=positive, default=None, help="torch CPU threads (default 1)")
+    tr.add_argument("--procs", type=nonneg, default=None,
+                    help="ppo: processes computing the batch's shards, 1 or 2 (the same weights either way); default 0 "
+                         "(auto): 2 on a CPU with 2 cores or more when the batch has 2 shards (64 environments or "
+                         "more, split evenly), else 1; docs/rl.md, Shards and processes")
     tr.add_argument("--checkpoint-every", type=positive, default=None, help="updates between checkpoints (20)")
     tr.add_argument("--eval-every", type=nonneg, default=None,
                     help="updates between scores on the public seeds that pick best.pt (default 20; 0: never)")

@@ -102,17 +102,22 @@ class Collector:
     end together and a new Simulator is made on the next B seeds (with a fresh ``helper``,
     the heuristic parts of PPO's dispatch variant, which keep per-environment memory).
     ``amp``: the autocast dtype of the forward passes (:func:`amp_dtype`; ``"auto"``:
-    from ``cfg.bf16`` and the device).
+    from ``cfg.bf16`` and the device). ``num_envs``: the batch B of this collector (default
+    ``cfg.num_envs``); ``stagger_across``: the ``count`` collectors' batches staggered as one
+    (PPO's shards, :mod:`wfbench.train.shards`: environment b of collector ``index`` is
+    ``index * B + b`` of ``count * B``, per world), not each alone (IMPALA's actors).
     """
 
     def __init__(self, cfg: ActorCriticConfig, scenario: ScenarioConfig, device: torch.device, *,
                  reward: str = "nsw", staggered: bool = True, fresh_batches: bool = False,
                  helper: Callable[[], Any] | None = None, index: int = 0, count: int = 1,
-                 amp: str | torch.dtype | None = "auto"):
+                 amp: str | torch.dtype | None = "auto", num_envs: int | None = None, stagger_across: bool = False):
         self.cfg, self.scenario, self.device, self.reward = cfg, scenario, device, reward
         self.amp = amp_dtype(device, cfg.bf16, amp)
         self.staggered, self.fresh_batches, self.make_helper = staggered, fresh_batches, helper
         self.index, self.count = index, count
+        self.num_envs = cfg.num_envs if num_envs is None else num_envs
+        self.stagger_across = stagger_across
         self.gen = torch.Generator(device=device).manual_seed(cfg.seed + 1_000_003 * index)
         self.ret_std = RunningStd()
         # several worlds (wfbench.train.worlds): a reward normalizer per world, and per world the running
@@ -151,15 +156,17 @@ class Collector:
     def start(self, model) -> None:
         """A fresh Simulator on the next B training seeds, a fresh LSTM state of ``model``."""
         if self.worlds:  # the environments dealt to the worlds, each its share of the batch's seeds
-            seeds = self.take_seeds(self.cfg.num_envs)
-            bounds = np.cumsum(deal(self.cfg.num_envs, len(self.worlds)))[:-1]
+            seeds = self.take_seeds(self.num_envs)
+            bounds = np.cumsum(deal(self.num_envs, len(self.worlds)))[:-1]
             self.sim = Worlds(self.worlds, [list(s) for s in np.split(np.asarray(seeds), bounds)])
             self.horizons = self.sim.horizons
             j, n = self.sim.position()  # staggered within each world
         else:
-            self.sim = Simulator(self.scenario, self.take_seeds(self.cfg.num_envs), keep_series=False, threads=1)
+            self.sim = Simulator(self.scenario, self.take_seeds(self.num_envs), keep_series=False, threads=1)
             self.horizons = np.full(self.sim.B, self.scenario.horizon)
             j, n = np.arange(self.sim.B), self.sim.B
+        if self.stagger_across:  # this collector's environments among the count collectors' together
+            j, n = self.index * n + j, self.count * n
         self.obs = self.sim.reset()
         H, B = self.horizons, self.sim.B
         self.cut = (H * (j + 1)) // n if self.staggered else H.copy()

@@ -6,14 +6,20 @@ whole sequences, the LSTM rerun from each rollout's stored state. ``agents="inde
 one network and critic per decision (:class:`~wfbench.policies.neural.model.AgentSet`);
 ``value_warmup`` fits the value heads alone first. ``best.pt`` is chosen on public seeds. Same
 code on CPU (deterministic given ``seed``) and CUDA (bf16 autocast, ``compile``, minibatches in
-chunks of ``update_envs``, :mod:`wfbench.train.memory`). The loop, the rewards, the checkpoints and
-the settings: ``docs/rl.md``, "The trainer" and "Independent agents".
+chunks of ``update_envs``, :mod:`wfbench.train.memory`). The batch is computed as ``shards``
+fixed parts (a collector each, their gradients summed), by one process or by two (data-parallel,
+``torch.distributed``: :mod:`wfbench.train.shards`), with the same bits. The loop, the rewards,
+the checkpoints and the settings: ``docs/rl.md``, "The trainer", "Independent agents" and
+"Shards and processes".
 """
 
 from __future__ import annotations
 
 import math
+import signal
 import time
+import traceback
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +37,8 @@ from wfbench.train.outputs import RunOutputs
 from wfbench.train.precision import autocast
 from wfbench.train.record import start_run, write_run_config
 from wfbench.train.scoring import deployable, score_public
+from wfbench.train.shards import ShardGroup, Worker, receive, send, usable_cores
+from wfbench.train.worlds import world_set
 
 AGENTS = ("joint", "independent")
 VARIANTS = {
@@ -38,6 +46,9 @@ VARIANTS = {
     "dispatch": ("dispatch",),
 }
 REWARDS = {"joint": "nsw", "dispatch": "nsw-no-cost"}  # the variant's reward (wfbench.core.reward)
+STATS = ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac", "ent_dispatch", "ent_workforce", "ent_positioning")
+HEADS = ("dispatch", "workforce", "positioning")
+AUTO_SHARD_ENVS = 64  # shards = 0 (auto): 2 from this batch on; below, two processes gain nothing (performance.md)
 
 
 @dataclass
@@ -57,6 +68,12 @@ class TrainConfig(ActorCriticConfig):
     # worlds, the batch of the shipped scalefree-general; 32 in all would leave each world 4 environments and cost
     # twice the CPU per env-step (docs/performance.md, "Training across the training split")
     envs_per_world = 16
+    # the batch computed as this many fixed shards, a collector each, their gradients summed (wfbench.train.shards):
+    # 0 (auto) is 2 from AUTO_SHARD_ENVS environments on when they split evenly, else 1; the weights depend on it
+    shards: int = 0
+    # the processes computing the shards: 0 (auto) is one per shard on a CPU with 2 cores or more, else 1; 1 and 2
+    # train the same bits (docs/rl.md, "Shards and processes")
+    procs: int = 0
 
     def check(self) -> None:
         if self.variant not in VARIANTS:
@@ -71,6 +88,45 @@ class TrainConfig(ActorCriticConfig):
         check_numbers(self, ("gae_lambda",), lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
         if self.num_envs % self.minibatches:
             raise ValueError(f"num_envs = {self.num_envs} must be a multiple of minibatches = {self.minibatches}")
+        if type(self.shards) is not int or self.shards not in (0, 1, 2):
+            raise ValueError(f"shards = {self.shards!r} is not allowed; allowed: 0 (auto), 1 or 2")
+        if self.shards == 2 and (self.num_envs % (2 * self.minibatches) or self.num_envs // 2 < self._worlds()):
+            raise ValueError(f"shards = 2 with num_envs = {self.num_envs}: each shard takes half of every minibatch "
+                             f"and of every world's environments; allowed: num_envs a multiple of 2 x minibatches = "
+                             f"{2 * self.minibatches} and at least 2 x worlds = {2 * self._worlds()}, or shards 1")
+        if type(self.procs) is not int or self.procs not in (0, 1, 2):
+            raise ValueError(f"procs = {self.procs!r} is not allowed; allowed: 0 (auto), 1 or 2")
+        if self.procs == 2 and self.shard_count() == 1:
+            raise ValueError(f"procs = 2 with one shard (num_envs = {self.num_envs}, shards = {self.shards}) is not "
+                             f"allowed; allowed: procs 0 (auto) or 1, or shards 2 (num_envs a multiple of "
+                             f"{2 * self.minibatches}, at least {AUTO_SHARD_ENVS} for auto)")
+        if self.procs == 2 and not self._on_cpu():
+            raise ValueError(f"procs = 2 runs on the CPU only (device {self.device!r}); allowed: procs 0 (auto) or "
+                             "1, or device cpu")
+
+    def _worlds(self) -> int:
+        return len(world_set(self.scenarios).worlds) if self.scenarios else 1
+
+    def _on_cpu(self) -> bool:
+        return self.device == "cpu" or (self.device == "auto" and not torch.cuda.is_available())
+
+    def shard_count(self) -> int:
+        """The shards the batch is computed as: ``shards``, or for 0 (auto) 2 when the batch splits evenly, else 1."""
+        if self.shards:
+            return self.shards
+        even = self.num_envs % (2 * self.minibatches) == 0 and self.num_envs // 2 >= self._worlds()
+        return 2 if even and self.num_envs >= AUTO_SHARD_ENVS else 1
+
+    def proc_count(self) -> int:
+        """The processes: ``procs``, or for 0 (auto) one per shard on a CPU run with 2 cores or more, else 1."""
+        if self.procs:
+            return self.procs
+        return self.shard_count() if self._on_cpu() and usable_cores() >= 2 else 1
+
+    @classmethod
+    def from_dict(cls, d: dict):
+        # a run saved before shards existed was computed as one shard: it resumes (and reads) so
+        return super().from_dict({"shards": 1, **d})
 
     def network_config(self):
         """The network's config: one ModelConfig (joint) or one per decision (independent agents)."""
@@ -92,12 +148,26 @@ def _rows(v: torch.Tensor, envs: torch.Tensor) -> torch.Tensor:
 
 
 class Trainer:
-    """A PPO run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint."""
+    """A PPO run: ``Trainer(config).train()``; ``resume=path`` continues a checkpoint.
+
+    The batch is ``config.shard_count()`` shards of environments (``shards``, a
+    :class:`Collector` each); this process computes ``group.local`` of them, all unless the
+    run has two processes (``config.proc_count()``), when a :class:`Worker` computes shard 1
+    (``rank`` 1: a trainer the worker makes; it writes nothing). ``env`` is the first local
+    shard's collector. :meth:`close` (or the end of :meth:`train`'s last update) lets the worker go.
+    """
 
     def __init__(self, config: TrainConfig, resume: str | Path | None = None, progress: bool = True,
-                 log: bool = True, amp: str | torch.dtype | None = "auto", update_envs: int | str | None = "auto"):
+                 log: bool = True, amp: str | torch.dtype | None = "auto", update_envs: int | str | None = "auto",
+                 rank: int = 0):
         self.run = run = start_run(config, progress, log, amp)
         c = config
+        self.group = group = ShardGroup(c.shard_count(), c.proc_count(), rank)
+        self.worker: Worker | None = None
+        if group.procs > 1 and rank == 0:  # the second process starts first: it builds its trainer meanwhile
+            port = group.listen()
+            self.worker = Worker("wfbench.train.ppo:serve_shard", c, resume, amp, update_envs, port)
+            self._close = weakref.finalize(self, _shut, self.worker, group)
         self.decisions = VARIANTS[c.variant]
         independent = c.agents == "independent"
         self.model = build_model(run.network, independent).to(run.device)
@@ -116,21 +186,35 @@ class Trainer:
         # the heuristic parts of the dispatch variant keep per-environment memory: they reset with the batch
         self.staggered = c.stagger and c.variant == "joint"
         helper = (lambda: policies.Composite("none", "threshold", "spatial")) if c.variant == "dispatch" else None
-        self.env = Collector(c, run.scenario, run.device, reward=REWARDS[c.variant], staggered=self.staggered,
-                                     fresh_batches=True, helper=helper, amp=run.amp)
+        # the shards this process computes: shard k is a collector of num_envs / shards environments, its own seeds
+        # (every shards-th of the window), its own sampling generator and reward normalizers; one timing for all
+        self.per_shard = c.num_envs // group.shards
+        self.timing = {"obs_to_tensor": 0.0, "forward": 0.0, "simulator": 0.0, "update": 0.0}
+        self.shards: dict[int, Collector] = {}
+        for k in group.local:
+            col = Collector(c, run.scenario, run.device, reward=REWARDS[c.variant], staggered=self.staggered,
+                            fresh_batches=True, helper=helper, amp=run.amp, index=k, count=group.shards,
+                            num_envs=self.per_shard, stagger_across=True)
+            col.timing = self.timing
+            self.shards[k] = col
+        self.env = self.shards[group.local[0]]
+        self.remote_meta: dict[int, dict] = {}  # the worker's shard: its collector's state after its last rollout
+        self.heads_seen: set[str] = set()  # the heads whose entropy the last update logged
         self.update = 0
-        self.timing = self.env.timing  # simulator, obs_to_tensor, forward (the collector's), update
-        self.timing["update"] = 0.0
         if c.init and resume is None:
             init_weights(self)
         if resume is not None:
             ckpt = load_run(self, resume, "ppo")
             if "value_optimizer" in ckpt:
                 self.vopt.load_state_dict(ckpt["value_optimizer"])
-            self.env.restore(ckpt)
+            if group.shards > 1 and "shards" not in ckpt:
+                raise ValueError(f"checkpoint {str(resume)!r} holds one shard's collector; resume it with shards 1")
+            for k, col in self.shards.items():
+                col.restore(ckpt["shards"][k] if group.shards > 1 else ckpt)
             self.update = ckpt["update"]
         self.net = torch.compile(self.model) if c.compile else self.model
-        self.env.start(self.model)
+        for col in self.shards.values():
+            col.start(self.model)
         # the environments of one forward and backward pass of the update: None, the whole minibatch (on CPU,
         # and wherever it fits); on CUDA a minibatch over half the GPU's memory runs in chunks (wfbench.train.memory)
         if update_envs == "auto":
@@ -141,11 +225,20 @@ class Trainer:
         if update_envs is not None and (type(update_envs) is not int or update_envs < 1):
             raise ValueError(f"update_envs = {update_envs!r} is not allowed; allowed: auto, None or an integer >= 1")
         self.update_envs = update_envs
+        if self.worker is not None:  # the worker's trainer is ready (or failed: its error is raised here)
+            self.remote_meta = {1: self.worker.recv()}
+            group.join()
 
     @property
     def sim(self):
-        """The collector's batched simulator."""
+        """The first local shard's batched simulator."""
         return self.env.sim
+
+    def close(self) -> None:
+        """Let the second process go (nothing to do with one); the trainer cannot collect with it after."""
+        if self.worker is not None:
+            self._close()
+            self.worker = None
 
     # -- agents -------------------------------------------------------------------------------
     def agent_log_probs(self, out: dict, x: dict, acts: dict):
@@ -163,15 +256,30 @@ class Trainer:
 
     # -- rollout ------------------------------------------------------------------------------
     def rollout(self) -> dict:
-        """T steps of the B environments (:meth:`Collector.collect`), then GAE per agent."""
+        """T steps of every local shard (:meth:`Collector.collect`), then GAE per agent, as one batch.
+
+        The local shards' rollouts side by side (environment axis 1, shard order); the
+        worker's shard stays in the worker, its finished episodes join ``episodes``.
+        """
+        if self.worker is not None:
+            self.worker.send(("rollout", None))
+        rolls = [self._shard_rollout(col) for col in self.shards.values()]
+        roll = rolls[0] if len(rolls) == 1 else _side_by_side(rolls)
+        if self.worker is not None:
+            done = self.worker.recv()
+            roll["episodes"] = roll["episodes"] + done["episodes"]  # shard order: this process is shard 0
+            self.remote_meta = {1: done["meta"]}
+        self.run.global_step += self.run.config.num_steps * self.run.config.num_envs
+        return roll
+
+    def _shard_rollout(self, col: Collector) -> dict:
         c, T = self.run.config, self.run.config.num_steps
-        roll = self.env.collect(self.net, T, lambda out, x, acts: self.agent_log_probs(out, x, acts)[0],
-                                self.values, model=self.model, keep_features=True)
-        self.run.global_step += T * self.sim.B
+        roll = col.collect(self.net, T, lambda out, x, acts: self.agent_log_probs(out, x, acts)[0],
+                           self.values, model=self.model, keep_features=True)
         t0 = time.perf_counter()
         with torch.no_grad(), autocast(self.run.device, self.run.amp):
             x = scalefree.features(self.model, {k: v[T] for k, v in roll["raw"].items()})
-            out, _ = self.net(x, self.env.state, roll["starts"][T][None])
+            out, _ = self.net(x, col.state, roll["starts"][T][None])
             next_value = self.values(out)
         self.timing["forward"] += time.perf_counter() - t0
         # GAE per agent (values (T, B, A); the agents share the reward); done[t] ends the episode after
@@ -189,11 +297,20 @@ class Trainer:
 
     # -- update -------------------------------------------------------------------------------
     def learn(self, roll: dict) -> dict:
-        c, B = self.run.config, self.sim.B
+        """The PPO update: ``epochs`` x ``minibatches`` steps, each minibatch a part of every shard's environments.
+
+        Every process draws every shard's permutation (one generator per update), so each
+        knows each minibatch; the advantages are normalized over the whole minibatch (every
+        shard's, gathered); each local shard's gradient of its part of the loss (sums over its
+        rows / the minibatch's rows) is summed over the shards (:meth:`ShardGroup.sum`), then
+        clipped, and every process takes the same step.
+        """
+        if self.worker is not None:
+            self.worker.send(("learn", self.update))
+        c, group, per = self.run.config, self.group, self.per_shard
         t0 = time.perf_counter()
-        stats: dict[str, list] = {k: [] for k in ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac",
-                                                  "ent_dispatch", "ent_workforce", "ent_positioning")}
-        mb = B // c.minibatches
+        stats: dict[str, list] = {k: [] for k in STATS}
+        m = per // c.minibatches  # environments of each shard in a minibatch
         perm_gen = torch.Generator().manual_seed(c.seed * 7919 + self.update)
         # the features of the T steps (not the last observation) as the rollout's forward passes read them,
         # rather than once per minibatch and epoch: featurize is row by row, so a minibatch's rows are the same
@@ -202,114 +319,88 @@ class Trainer:
         if feats is None:
             with torch.no_grad():
                 feats = scalefree.features(self.model, {k: v[:-1] for k, v in roll["raw"].items()})
+        adv_all = torch.cat(group.gather(list(roll["adv"].split(per, 1))), 1)  # every shard's, shard order
+        warm = self.update < c.value_warmup  # the critic alone, unclipped: it starts far from the returns
+        opt = self.vopt if warm else self.opt
+        params = list(self.model.parameters())
         for _ in range(c.epochs):
-            perm = torch.randperm(B, generator=perm_gen).to(self.run.device)
+            perms = [torch.randperm(per, generator=perm_gen).to(self.run.device) for _ in range(group.shards)]
             for i in range(c.minibatches):
-                idx = perm[i * mb:(i + 1) * mb]
-                if self.update_envs is not None and self.update_envs < mb:
-                    self._chunked_step(feats, roll, idx, stats)
-                    continue
-                x = {k: _rows(v, idx) for k, v in feats.items()}
-                acts = {k: _rows(roll[k], idx) for k in ("dispatch", "workforce", "positioning")}
-                state = tuple(s[:, idx] for s in roll["init_state"])
-                with autocast(self.run.device, self.run.amp):
-                    out, _ = self.net(x, state, roll["starts"][:-1, idx])
-                if scalefree.obs_version(self.model) == 1:  # the heads this network has (the dispatch variant: one)
-                    acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
-                # (rows, A): one column per agent, each with its own ratio, advantage and critic; the
-                # losses are summed over the agents (independent networks: independent gradients)
-                logp, ent, parts = self.agent_log_probs(out, x, acts)
-                old_logp = _rows(roll["logp"], idx)
-                adv = _rows(roll["adv"], idx)
-                adv = (adv - adv.mean(0)) / (adv.std(0) + 1e-8)
-                ratio = (logp - old_logp).exp()
-                pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).mean(0).sum()
-                value = self.values(out)
-                old_v, ret = _rows(roll["value"], idx), _rows(roll["ret"], idx)
-                v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
-                v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).mean(0).sum()
-                entropy = ent.mean()
-                if self.update < c.value_warmup:  # the critic alone, unclipped: it starts far from the returns
-                    loss, opt = 0.5 * ((value - ret) ** 2).mean(0).sum(), self.vopt
-                else:
-                    loss, opt = pg + c.vf_coef * v_loss - c.ent_coef * entropy, self.opt
+                parts = [p[i * m:(i + 1) * m] for p in perms]
+                adv = _rows(adv_all, torch.cat([part + k * per for k, part in enumerate(parts)]))
+                norm = (adv.mean(0), adv.std(0) + 1e-8, adv.shape[0])  # over the whole minibatch's rows
                 opt.zero_grad(set_to_none=True)
                 self.opt.zero_grad(set_to_none=True)
-                loss.backward()
-                for group in self.clip_groups:
-                    torch.nn.utils.clip_grad_norm_(group, c.max_grad_norm)
+                # each local shard's gradient (zeros where a parameter has none, and whether it has one) and sums
+                # of its losses: one vector each, summed over the shards
+                total = group.sum([self._shard_grad(feats, roll, parts[k] + j * per, norm, warm, params)
+                                   for j, k in enumerate(group.local)])
+                sums = self._set_grads(total, params)
+                for group_params in self.clip_groups:
+                    torch.nn.utils.clip_grad_norm_(group_params, c.max_grad_norm)
                 opt.step()
-                with torch.no_grad():
-                    log_ratio = logp - old_logp
-                    stats["approx_kl"].append(float(((ratio - 1) - log_ratio).mean()))
-                    stats["clipfrac"].append(float(((ratio - 1).abs() > c.clip).float().mean()))
-                stats["pg_loss"].append(pg.item())
-                stats["v_loss"].append(v_loss.item())
-                stats["entropy"].append(entropy.item())
-                for k, v in parts.items():
-                    stats[f"ent_{k}"].append(v.mean().item())
+                for k, v in zip(STATS, sums.tolist(), strict=True):
+                    if not k.startswith("ent_") or k[4:] in self.heads_seen:
+                        stats[k].append(v)
         self.timing["update"] += time.perf_counter() - t0
         return {k: float(np.mean(v)) for k, v in stats.items() if v}
 
-    def _chunked_step(self, feats: dict, roll: dict, idx: torch.Tensor, stats: dict) -> None:
-        """One minibatch (environments ``idx``) in chunks of ``update_envs`` environments, one optimizer step.
+    def _shard_grad(self, feats: dict, roll: dict, idx: torch.Tensor, norm: tuple, warm: bool,
+                    params: list) -> torch.Tensor:
+        """One shard's part of a minibatch (its environments ``idx`` in ``roll``): its gradient, flags and sums, flat.
 
-        The loss of :meth:`learn` written as sums over the rows divided by the minibatch's
-        rows, so the chunks' gradients add up to the whole minibatch's (up to the order of
-        float sums); the advantages are normalized over the whole minibatch. Only the
-        activations of one chunk are alive at a time (``wfbench.train.memory``).
+        The loss as sums over the shard's rows divided by the minibatch's ``n`` rows (of every
+        shard), so the shards' gradients add up to the minibatch's; run in chunks of
+        ``update_envs`` environments (their gradients accumulate), only one chunk's activations
+        alive at a time (``wfbench.train.memory``).
         """
         c = self.run.config
-        T = roll["starts"].shape[0] - 1
-        n = idx.numel() * T
-        adv_all = _rows(roll["adv"], idx)
-        mean, std = adv_all.mean(0), adv_all.std(0) + 1e-8
-        warm = self.update < c.value_warmup
-        opt = self.vopt if warm else self.opt
-        opt.zero_grad(set_to_none=True)
-        self.opt.zero_grad(set_to_none=True)
-        sums = {k: 0.0 for k in ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac")}
-        parts_sum: dict[str, float] = {}
-        for sub in idx.split(self.update_envs):
+        mean, std, n = norm
+        for p in params:
+            p.grad = None
+        sums = torch.zeros(len(STATS), device=self.run.device)
+        for sub in idx.split(self.update_envs or idx.numel()):
             x = {k: _rows(v, sub) for k, v in feats.items()}
-            acts = {k: _rows(roll[k], sub) for k in ("dispatch", "workforce", "positioning")}
+            acts = {k: _rows(roll[k], sub) for k in HEADS}
             state = tuple(s[:, sub] for s in roll["init_state"])
             with autocast(self.run.device, self.run.amp):
                 out, _ = self.net(x, state, roll["starts"][:-1, sub])
-            if scalefree.obs_version(self.model) == 1:
+            if scalefree.obs_version(self.model) == 1:  # the heads this network has (the dispatch variant: one)
                 acts = {k: v for k, v in acts.items() if k in out or (k == "workforce" and "positioning" in out)}
+            # (rows, A): one column per agent, each with its own ratio, advantage and critic; the losses are
+            # summed over the agents (independent networks: independent gradients)
             logp, ent, parts = self.agent_log_probs(out, x, acts)
             old_logp = _rows(roll["logp"], sub)
             adv = (_rows(roll["adv"], sub) - mean) / std
             ratio = (logp - old_logp).exp()
-            pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).sum() / n
+            pg = torch.max(-adv * ratio, -adv * ratio.clamp(1 - c.clip, 1 + c.clip)).sum(0).div(n).sum()
             value = self.values(out)
             old_v, ret = _rows(roll["value"], sub), _rows(roll["ret"], sub)
             v_clipped = old_v + (value - old_v).clamp(-c.vf_clip, c.vf_clip)
-            v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).sum() / n
-            entropy = ent.sum() / n
+            v_loss = 0.5 * torch.max((value - ret) ** 2, (v_clipped - ret) ** 2).sum(0).div(n).sum()
+            entropy = ent.sum().div(n)
             if warm:
-                loss = 0.5 * ((value - ret) ** 2).sum() / n
+                loss = 0.5 * ((value - ret) ** 2).sum(0).div(n).sum()
             else:
                 loss = pg + c.vf_coef * v_loss - c.ent_coef * entropy
             loss.backward()
             with torch.no_grad():
-                sums["approx_kl"] += float(((ratio - 1) - (logp - old_logp)).sum()) / ratio.numel() * sub.numel()
-                sums["clipfrac"] += float(((ratio - 1).abs() > c.clip).float().sum()) / ratio.numel() * sub.numel()
-            sums["pg_loss"] += pg.item()
-            sums["v_loss"] += v_loss.item()
-            sums["entropy"] += entropy.item()
-            for k, v in parts.items():
-                parts_sum[k] = parts_sum.get(k, 0.0) + float(v.detach().sum()) / n
-        for group in self.clip_groups:
-            torch.nn.utils.clip_grad_norm_(group, c.max_grad_norm)
-        opt.step()
-        sums["approx_kl"] /= idx.numel()
-        sums["clipfrac"] /= idx.numel()
-        for k, v in sums.items():
-            stats[k].append(v)
-        for k, v in parts_sum.items():
-            stats[f"ent_{k}"].append(v)
+                cells = n * ratio.shape[1]
+                sums += torch.stack([pg, v_loss, entropy, ((ratio - 1) - (logp - old_logp)).sum() / cells,
+                                     ((ratio - 1).abs() > c.clip).float().sum() / cells,
+                                     *(parts[h].sum() / n if h in parts else pg.new_zeros(()) for h in HEADS)])
+            self.heads_seen = set(parts)
+        grads = [p.grad.reshape(-1) if p.grad is not None else p.new_zeros(p.numel()) for p in params]
+        has = torch.tensor([p.grad is not None for p in params], dtype=sums.dtype, device=sums.device)
+        return torch.cat([*grads, has, sums])
+
+    def _set_grads(self, total: torch.Tensor, params: list) -> torch.Tensor:
+        """Each parameter's summed gradient (None where no shard had one) from ``total``; returns the loss sums."""
+        sizes = [p.numel() for p in params]
+        *grads, has, sums = total.split([*sizes, len(params), len(STATS)])
+        for p, g, h in zip(params, grads, has.tolist(), strict=True):
+            p.grad = g.view_as(p) if h else None
+        return sums
 
     # -- evaluation and checkpoints -------------------------------------------------------------
     def policy(self, mode: str = "sample"):
@@ -319,12 +410,21 @@ class Trainer:
         """Mean NSW on the public selection seeds, sampled and greedy (the score is the sampled one)."""
         return score_public(self.policy, self.run.scenario, self.run.config.eval_seeds)
 
+    def shard_meta(self) -> list[dict]:
+        """Every shard's collector state (seeds, episodes, normalizers, generator), in shard order."""
+        metas = {**{k: col.meta() for k, col in self.shards.items()}, **self.remote_meta}
+        return [metas[k] for k in range(self.group.shards)]
+
     def checkpoint(self) -> dict:
-        return run_checkpoint(self, "ppo", self.update, episode=self.env.episode,
-                                      seed_cursor=self.env.seed_cursor)
+        metas = self.shard_meta()
+        return run_checkpoint(self, "ppo", self.update, episode=sum(m["episode"] for m in metas),
+                              seed_cursor=sum(m["seed_cursor"] for m in metas))
 
     def save(self, path: Path, full: bool = True) -> Path:
-        return save_run(self, path, full, value_optimizer=self.vopt.state_dict(), **self.env.meta())
+        """A checkpoint (rank 0's); a resume needs each shard's collector: one shard's at the top, else ``shards``."""
+        metas = self.shard_meta()
+        collectors = metas[0] if len(metas) == 1 else {"shards": metas}
+        return save_run(self, path, full, value_optimizer=self.vopt.state_dict(), **collectors)
 
     # -- the loop -----------------------------------------------------------------------------
     def train(self, updates: int | None = None) -> dict:
@@ -348,4 +448,67 @@ class Trainer:
                 out.scalars("charts", {"env_steps_per_s": sps, "reward_std": self.env.ret_std.std})
                 out.after_update(self.update)
                 out.advance(per_update, {"sps": f"{sps:.0f}"})
+        if self.update >= total_updates:  # the run has taken its steps: the second process goes
+            self.close()
         return stats
+
+
+def _side_by_side(rolls: list[dict]) -> dict:
+    """Shards' rollouts as one: every tensor (time first) concatenated on the environment axis, the episodes in turn."""
+    def cat(values):
+        v = values[0]
+        if isinstance(v, dict):
+            return {k: cat([x[k] for x in values]) for k in v}
+        if isinstance(v, tuple):  # the LSTM state: (layers, B, H) each
+            return tuple(cat([x[i] for x in values]) for i in range(len(v)))
+        if isinstance(v, list):
+            return [e for x in values for e in x]
+        return torch.cat(values, 1)
+
+    return cat(rolls)
+
+
+def _shut(worker: Worker, group: ShardGroup) -> None:
+    worker.stop()
+    group.leave()  # a worker still joining fails at once without the store
+    worker.wait()
+
+
+def serve_shard(conn, config: TrainConfig, resume, amp, update_envs, port: int) -> None:
+    """The second process of a two-process run (:class:`wfbench.train.shards.Worker`): shard 1, on command.
+
+    It makes its trainer (``rank`` 1: the same weights, its shard's collector), says it is
+    ready with its collector's state, joins the group and then does what rank 0 says:
+    ``rollout`` (answered with its finished episodes and its collector's state), ``learn``
+    (update number given; the gradients meet in :meth:`ShardGroup.sum`) or ``stop``.
+    Ctrl-C is rank 0's to handle: this process goes when rank 0 stops it or is gone.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        tr = Trainer(config, resume, progress=False, log=False, amp=amp, update_envs=update_envs, rank=1)
+    except BaseException:
+        send(conn, ("error", traceback.format_exc()))
+        return
+    send(conn, ("ready", tr.env.meta()))
+    tr.group.join(port)
+    roll = None
+    try:
+        while True:
+            try:
+                cmd, arg = receive(conn)
+            except EOFError:  # rank 0 is gone
+                return
+            if cmd == "rollout":
+                try:
+                    roll = tr.rollout()
+                except BaseException:
+                    send(conn, ("error", traceback.format_exc()))
+                    return
+                send(conn, ("rolled", {"episodes": roll["episodes"], "meta": tr.env.meta()}))
+            elif cmd == "learn":
+                tr.update = arg
+                tr.learn(roll)
+            else:
+                return
+    finally:
+        tr.group.leave()

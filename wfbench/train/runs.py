@@ -17,7 +17,7 @@ from typing import Any
 from wfbench.train.registry import DEFAULT_ALGORITHM, get_algorithm
 
 # what a resumed run may change of its settings: how long it goes on, and where and on what it runs
-RESUME_MAY_CHANGE = ("steps", "run_dir", "device", "threads", "address")
+RESUME_MAY_CHANGE = ("steps", "run_dir", "device", "threads", "address", "procs")
 
 
 class SettingsError(ValueError):
