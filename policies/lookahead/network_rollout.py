@@ -16,7 +16,14 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET, RolloutBase, candidate_rows, pick_best
+from wfbench.policies.lookahead.rollout import (
+    DECIDE,
+    DEFAULT_BUDGET,
+    RolloutBase,
+    candidate_rows,
+    pick_best,
+    plays_sparse,
+)
 from wfbench.policies.protocol import seeds_array
 
 from wfbench.core.actions import AGENTS
@@ -24,6 +31,11 @@ from wfbench.core.belief import Belief, config_from_observation
 from wfbench.core.config import ScenarioConfig
 
 PURPOSE_NOISE = 0x4E52  # the copy's sampling noise: a purpose of its own beside the belief's keys
+# decide="auto": on a world as large as city the network hires or lets go on nearly every step (58 of the first 60 of
+# public seed 1000), so deliberating wherever it asks costs a decision a step (1.4 CPU s per env-step for the
+# search's 10 ms preset); there it deliberates every R steps only, as the rollouts' sparse presets do
+DECIDE_AUTO = "auto"
+DECIDE_AUTO_DOC = "every R steps only on a world as large as city, where the base hires or lets go elsewhere"
 
 
 class NetworkRollout(RolloutBase):
@@ -38,11 +50,20 @@ class NetworkRollout(RolloutBase):
         scenario: the public config of the world; None: from :meth:`set_world`, else the first observation.
         seed: the policy's own seed, mixed into its belief keys and the copy's noise.
         name: the policy's name.
+        decide: when it deliberates: ``"base"`` where the network hires or lets go and every R
+            steps, ``"period"`` every R steps only, ``"auto"`` (:data:`DECIDE_AUTO`) the period on a
+            world as large as ``city`` (:func:`~wfbench.policies.lookahead.rollout.plays_sparse`),
+            where the network asks on nearly every step, and the base rule on any other.
     """
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  budget: str = DEFAULT_BUDGET, scenario: ScenarioConfig | None = None, seed: int = 0,
-                 name: str | None = None):
+                 name: str | None = None, decide: str = "base"):
+        if decide not in (*DECIDE, DECIDE_AUTO):
+            raise ValueError(f"rollout knob decide = {decide!r} is not allowed; allowed: "
+                             + ", ".join(f"{k} ({v})" for k, v in {**DECIDE, DECIDE_AUTO: DECIDE_AUTO_DOC}.items()))
+        self.decide = decide
+        self.period = decide == "period"  # what this episode plays (decide="auto": set by the world's size)
         if not (hasattr(base, "model") and set(getattr(base, "decisions", ())) == set(AGENTS)):
             raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a network deciding dispatch, "
                              "workforce and positioning; allowed: a NetworkPolicy such as scalefree-general")
@@ -70,6 +91,8 @@ class NetworkRollout(RolloutBase):
         self.player = NetworkPolicy(b.model, mode=b.mode, device=str(b.device), seed=b.seed, name=f"{self.name}/copy",
                                     threads=b.threads)
         self.B = B
+        if self.decide == DECIDE_AUTO:  # the world's size is public: nothing a deployable policy may not read
+            self.period = plays_sparse(obs["facilities"].shape[1], obs["personnel"].shape[1])
         self.timing = {"steps": 0.0, "act_s": 0.0, "decisions": 0.0, "rolls": 0.0}
 
     def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -84,7 +107,7 @@ class NetworkRollout(RolloutBase):
         action = {k: np.array(v, copy=True) for k, v in action.items()}
         t = np.asarray(obs["t"], dtype=np.int64)
         w = action["workforce"]
-        decide = (w != 0) | (t % self.R == 0)
+        decide = (t % self.R == 0) if self.period else (w != 0) | (t % self.R == 0)
         self.last_scores = None
         if decide.any():
             self._decide(obs, np.flatnonzero(decide), action, int(t[0]))

@@ -153,12 +153,15 @@ class NetworkSearch(NetworkRollout):
         scenario, seed, name: as :class:`NetworkRollout`.
         futures: how the network plays the futures, :data:`FUTURES` (``"sample"`` is the
             ablation of the greedy futures).
+        decide: as :class:`NetworkRollout`; ``"auto"`` (the default): on a world as large as
+            ``city`` it deliberates every R steps only (docs/policies.md, "search-scalefree-general"),
+            elsewhere where the network hires or lets go and every R steps.
     """
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  top: int | None = None, z: float | None = None, budget: str = DEFAULT_BUDGET,
                  value: tuple[tuple[int, float], ...] | None = None, scenario: ScenarioConfig | None = None,
-                 seed: int = 0, name: str | None = None, futures: str = "greedy"):
+                 seed: int = 0, name: str | None = None, futures: str = "greedy", decide: str = "auto"):
         if futures not in FUTURES:
             raise ValueError(f"search futures {futures!r} is not allowed; allowed: {', '.join(FUTURES)} (how the "
                              "network plays the sampled worlds)")
@@ -166,7 +169,7 @@ class NetworkSearch(NetworkRollout):
         given = dict(zip(KNOBS, (K, H, R, top, z), strict=True))
         k, h, r, self.top, self.z = (knob(n, preset[i] if v is None else v) for i, (n, v) in enumerate(given.items()))
         super().__init__(base, k, h, r, scenario=scenario, seed=seed,
-                         name=name or f"search-{getattr(base, 'name', 'network')}")
+                         name=name or f"search-{getattr(base, 'name', 'network')}", decide=decide)
         self.futures = futures
         self.value_given = None if value is None else tuple(value)
         self.value = self.value_given

@@ -188,3 +188,39 @@ def test_any_network_the_registry_serves_is_a_base_scored_on_its_steps_without_a
     _, srch, tests = play(pol, SMALL, seeds)
     assert pol.value == () and sum(len(t) for t in tests) >= SMALL.horizon // 10
     assert all(np.array_equal(x["workforce"], y["workforce"]) for x, y in zip(net, srch, strict=True))
+
+
+# -- when it deliberates: on a world as large as city, every R steps only ----------------------------------------------
+def _decision_steps(pol, seeds=(1000,)):
+    steps = []
+    sim = Simulator(SMALL, list(seeds))
+    obs = sim.reset()
+    pol.reset(list(seeds))
+    while not sim.done:
+        before = pol.timing["decisions"] if getattr(pol, "timing", None) else 0.0
+        a = pol.act(obs)
+        if pol.timing["decisions"] > before:
+            steps.append(int(obs["t"][0]))
+        sim.step(a)
+        obs = sim.observe()
+    return steps
+
+
+def test_on_a_world_as_large_as_city_it_deliberates_every_R_steps_only(monkeypatch):
+    from wfbench.policies.lookahead import network_rollout
+
+    asked = _decision_steps(search())  # small: where the network hires or lets go, and every R steps
+    assert set(range(0, 60, 10)) <= set(asked) and len(asked) > 6, asked
+    assert _decision_steps(search(decide="period")) == list(range(0, 60, 10))
+    # the world's size decides "auto" (the default): city's 1,000 x 1,000 slots, here a small world said to be as large
+    monkeypatch.setattr(network_rollout, "plays_sparse", lambda M, N: True)
+    assert _decision_steps(search()) == list(range(0, 60, 10))
+    assert _decision_steps(search(decide="base")) == asked
+    assert network_rollout.NetworkRollout(policies.get("scalefree-general"), K=2, H=8, R=10).decide == "base"
+
+
+def test_a_bad_decide_is_refused_in_one_line():
+    with pytest.raises(ValueError) as info:
+        search(decide="sometimes")
+    msg = str(info.value)
+    assert "\n" not in msg and "decide = 'sometimes'" in msg and "period" in msg and "auto" in msg, msg
