@@ -9,6 +9,8 @@ checkpoint in one process and the other way round): equal again.
 
 from __future__ import annotations
 
+import json
+
 import pytest
 import torch
 
@@ -65,6 +67,7 @@ def test_procs__one_and_two_processes_train_the_same_bits_and_resume_crosswise(t
     one, two = _train(tmp_path / "one", 1), _train(tmp_path / "two", 2)
     assert one.update == two.update == 2 and one.run.global_step == two.run.global_step == 64
     _assert_same(tmp_path / "one" / "latest.pt", tmp_path / "two" / "latest.pt")
+    assert json.loads((tmp_path / "two" / "config.json").read_text())["computed_as"] == {"shards": 2, "procs": 2}
     _assert_same(tmp_path / "one" / "checkpoints" / "update_000001.pt",
                  tmp_path / "two" / "checkpoints" / "update_000001.pt")
     ckpt = torch.load(tmp_path / "two" / "latest.pt", weights_only=False)

@@ -433,7 +433,8 @@ class Trainer:
         per_update = c.num_envs * c.num_steps
         total_updates = math.ceil(c.steps / per_update)
         stop = total_updates if updates is None else min(total_updates, self.update + updates)
-        write_run_config(self.run, self.model)
+        # shards and procs as resolved (0 is auto): the shards fix the bits, the processes the speed
+        write_run_config(self.run, self.model, computed_as={"shards": self.group.shards, "procs": self.group.procs})
         stats: dict = {}
         start, start_step = time.perf_counter(), self.run.global_step
         with RunOutputs(self, "update", f"ppo {c.variant} {self.run.scenario.name}", stop * per_update,
