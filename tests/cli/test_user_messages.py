@@ -85,7 +85,7 @@ def test_missing_extra__other_import_errors_are_not_hidden():
     (["leaderboard", "show", "--track", "papr-64"], "; did you mean 'paper-64'?", "available: paper-64"),
     (["train", "--algo", "ppp"], "did you mean 'ppo'?", "(choose from 'ppo'"),
     (["evalute"], "; did you mean 'evaluate'?", "(choose from 'evaluate'"),
-    (["train", "--set", "total_steps=1", "--scenario", "small"], "value_warmup; did you mean 'steps'",
+    (["train", "--set", "total_steps=1", "--scenario", "small"], "procs; did you mean 'steps'",
      "settings: scenario, "),
 ])
 def test_unknown_name__suggests_the_closest_and_keeps_the_list(argv, suggested, kept, capsys):
