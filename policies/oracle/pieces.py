@@ -131,32 +131,63 @@ def _differs(commit: str, files: tuple[str, ...]) -> str | None:
     return None
 
 
+def _parts(meta: dict) -> list[tuple[set[int] | None, dict]]:
+    """Each part of a piece: the seeds it played (None: every seed) and its provenance.
+
+    A piece extended by the seeds it lacked (``wfbench.reproduce.pieces.obtain``) keeps a
+    ``parts`` list, one per run that played some of its seeds; its top-level provenance is
+    the last run's only, so a seed is judged by the part that played it.
+    """
+    if "parts" in meta:
+        return [({int(x) for x in part.get("seeds", [])}, {"provenance": part.get("provenance")})
+                for part in meta["parts"]]
+    return [(None, meta)]
+
+
+def _seed_list(seeds: set[int]) -> str:
+    s = sorted(seeds)
+    if s == list(range(s[0], s[-1] + 1)):
+        return f"{s[0]}-{s[-1]}" if len(s) > 1 else str(s[0])
+    return ", ".join(map(str, s[:6])) + (", ..." if len(s) > 6 else "")
+
+
 def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
            who: str = "oracle") -> tuple[np.ndarray, dict[int, Path], list[tuple[Path, str]]]:
     """The committed mean NSW of ``seeds`` (NaN where no piece has it), the piece of each row that has one.
 
     And the pieces passed over, with why: those from other code found in the default folders.
+    A piece extended over several runs is judged part by part: each seed by the provenance of
+    the run that played it (:func:`_parts`).
 
     Raises:
         PieceMismatch: a piece holding some of the seeds, in a folder asked for by name, does not
-            match this code (one line, naming it).
+            match this code (one line, naming it, and the seeds when a part of it does not).
     """
     seeds = np.asarray(seeds, dtype=np.int64)
     out = np.full(seeds.size, np.nan)
     where: dict[int, Path] = {}
     skipped: list[tuple[Path, str]] = []
     asked = folders()[1]
+    wanted = set(seeds.tolist())
     for path, meta, rows in find(policy, config, seeds):
-        why = mismatch(meta, files)
-        if why is not None and asked:
-            raise PieceMismatch(f"{who}: the piece {path} of {policy!r} was not made by this code ({why}); "
-                                f"recompute it (wfbench reproduce suite) or leave its folder out of ${ENV}")
-        if why is not None:
-            skipped.append((path, why))
-            continue
         by_seed = dict(zip(rows["seed"].astype(int).tolist(), rows["nsw"].astype(float).tolist(), strict=True))
+        usable: set[int] = set()
+        for part_seeds, part in _parts(meta):
+            covered = set(by_seed) if part_seeds is None else part_seeds & set(by_seed)
+            why = mismatch(part, files)
+            if why is None:
+                usable |= covered
+                continue
+            if not covered & wanted:
+                continue
+            if part_seeds is not None:
+                why = f"{why}, seeds {_seed_list(covered)}"
+            if asked:
+                raise PieceMismatch(f"{who}: the piece {path} of {policy!r} was not made by this code ({why}); "
+                                    f"recompute it (wfbench reproduce suite) or leave its folder out of ${ENV}")
+            skipped.append((path, why))
         for i, s in enumerate(seeds.tolist()):
-            if i not in where and s in by_seed:
+            if i not in where and s in usable:
                 out[i], where[i] = by_seed[s], path
     return out, where, skipped
 

@@ -290,3 +290,28 @@ def test_replay_gives_the_recorded_actions_back():
         d, w, p = replay.actions(sim.t, np.arange(3))
         sim.step({"dispatch": d, "workforce": w, "positioning": p})
     assert sim.episode_means()["nsw"].tolist() == (total / SHORT.horizon).tolist()
+
+
+def test_a_piece_extended_over_runs_is_judged_seed_by_seed_by_the_part_that_played_it(tmp_path, monkeypatch):
+    name = "rollout-solver-tuned-1ms"
+    monkeypatch.setattr(pieces, "_suite_scenarios", lambda text: (("tiny-v1", "h"),))
+    run = tmp_path / "run"
+    monkeypatch.setattr(pieces, "folders", lambda: ([run], False))  # as the checkout's own results: passed over
+    path = _piece(run, name, SEEDS, [0.1, 0.2, 0.3])  # its top-level provenance: this commit, the last run's
+    head = json.loads(path.with_suffix(".json").read_text())["provenance"]
+    meta = json.loads(path.with_suffix(".json").read_text())
+    meta["parts"] = [{"seeds": SEEDS[:1], "provenance": {"commit": None}}, {"seeds": SEEDS[1:], "provenance": head}]
+    path.with_suffix(".json").write_text(json.dumps(meta))
+    files = episodes.decisive_files(policies.get(name))
+    out, where, skipped = pieces.scores(name, SHORT, np.array(SEEDS), files)
+    # the seed the first run played is not taken on the strength of the last run's provenance
+    assert np.isnan(out[0]) and out[1:].tolist() == [0.2, 0.3] and sorted(where) == [1, 2]
+    assert skipped == [(path, f"it records no commit, seeds {SEEDS[0]}")]
+    out, _, skipped = pieces.scores(name, SHORT, np.array(SEEDS[1:]), files)  # the old part is not asked for
+    assert out.tolist() == [0.2, 0.3] and skipped == []
+    monkeypatch.setattr(pieces, "folders", lambda: ([run], True))  # asked for by name: one line, piece and seeds
+    with pytest.raises(pieces.PieceMismatch) as err:
+        pieces.scores(name, SHORT, np.array(SEEDS), files, who="oracle-v2")
+    assert str(err.value) == (f"oracle-v2: the piece {path} of {name!r} was not made by this code (it records no "
+                              f"commit, seeds {SEEDS[0]}); recompute it (wfbench reproduce suite) or leave its folder "
+                              f"out of ${pieces.ENV}")
