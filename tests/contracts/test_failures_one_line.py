@@ -90,6 +90,11 @@ class FailsOnSeedZero:
 
     def act(self, obs):
         if self.fails and int(obs["t"][0]) >= 3:
+            # fail only once another worker is mid-episode: on a loaded machine the second worker can start after
+            # seed 0 has failed, and the test would check nothing (a minute at most, then fail anyway)
+            deadline = time.monotonic() + 60.0
+            while not any(self.pid_dir.iterdir()) and time.monotonic() < deadline:
+                time.sleep(0.02)
             raise RuntimeError("seed 0 fails")
         time.sleep(0.05)  # the other chunks would take minutes: 2,000 steps
         return self.inner.act(obs)
