@@ -29,6 +29,7 @@ import pandas as pd
 
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.jit import ROOT
+from wfbench.core.seeds import describe as describe_seeds
 
 ENV = "WFBENCH_ORACLE_PIECES"  # folders of suite runs (os.pathsep between them), or "off"
 OFF = ("off", "0", "false", "no", "")
@@ -144,13 +145,6 @@ def _parts(meta: dict) -> list[tuple[set[int] | None, dict]]:
     return [(None, meta)]
 
 
-def _seed_list(seeds: set[int]) -> str:
-    s = sorted(seeds)
-    if s == list(range(s[0], s[-1] + 1)):
-        return f"{s[0]}-{s[-1]}" if len(s) > 1 else str(s[0])
-    return ", ".join(map(str, s[:6])) + (", ..." if len(s) > 6 else "")
-
-
 def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
            who: str = "oracle") -> tuple[np.ndarray, dict[int, Path], list[tuple[Path, str]]]:
     """The committed mean NSW of ``seeds`` (NaN where no piece has it), the piece of each row that has one.
@@ -181,7 +175,7 @@ def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[s
             if not covered & wanted:
                 continue
             if part_seeds is not None:
-                why = f"{why}, seeds {_seed_list(covered)}"
+                why = f"{why}, seeds {describe_seeds(sorted(covered))}"
             if asked:
                 raise PieceMismatch(f"{who}: the piece {path} of {policy!r} was not made by this code ({why}); "
                                     f"recompute it (wfbench reproduce suite) or leave its folder out of ${ENV}")

@@ -306,12 +306,12 @@ def test_a_piece_extended_over_runs_is_judged_seed_by_seed_by_the_part_that_play
     out, where, skipped = pieces.scores(name, SHORT, np.array(SEEDS), files)
     # the seed the first run played is not taken on the strength of the last run's provenance
     assert np.isnan(out[0]) and out[1:].tolist() == [0.2, 0.3] and sorted(where) == [1, 2]
-    assert skipped == [(path, f"it records no commit, seeds {SEEDS[0]}")]
+    assert skipped == [(path, f"it records no commit, seeds {SEEDS[0]}..{SEEDS[0]} (1)")]
     out, _, skipped = pieces.scores(name, SHORT, np.array(SEEDS[1:]), files)  # the old part is not asked for
     assert out.tolist() == [0.2, 0.3] and skipped == []
     monkeypatch.setattr(pieces, "folders", lambda: ([run], True))  # asked for by name: one line, piece and seeds
     with pytest.raises(pieces.PieceMismatch) as err:
         pieces.scores(name, SHORT, np.array(SEEDS), files, who="oracle-v2")
     assert str(err.value) == (f"oracle-v2: the piece {path} of {name!r} was not made by this code (it records no "
-                              f"commit, seeds {SEEDS[0]}); recompute it (wfbench reproduce suite) or leave its folder "
-                              f"out of ${pieces.ENV}")
+                              f"commit, seeds {SEEDS[0]}..{SEEDS[0]} (1)); recompute it (wfbench reproduce suite) or "
+                              f"leave its folder out of ${pieces.ENV}")
