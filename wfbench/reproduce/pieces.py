@@ -19,7 +19,7 @@ import math
 import re
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -219,7 +219,7 @@ def _references(policy: str) -> list[str]:
         name = base
 
 
-def _estimate(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
+def _estimate(cost: Callable[[str, SuiteScenario], float | None], policy: str, scenario: SuiteScenario,
               others: Sequence[SuiteScenario]) -> tuple[float | None, tuple[str, str | None] | None]:
     """CPU s per episode of ``policy`` on ``scenario``, and where it comes from (:class:`Missing`'s ``source``).
 
@@ -227,21 +227,22 @@ def _estimate(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
     it builds on (:func:`_references`) costs on the two, taking the other scenario where that
     reference costs the closest (a lookahead's cost grows with its base's: ``search-*`` on
     ``city`` costs what the network's ratio of city to ``large`` says, not what it costs on
-    ``large``); else its cost on another scenario as it is.
+    ``large``); else its cost on another scenario as it is. ``cost``: :func:`_cpu_per_episode`
+    of the plan's folders, memoized (a piece is read once however many estimates use it).
     """
-    own = _cpu_per_episode(folders, policy, scenario)
+    own = cost(policy, scenario)
     if own is not None:
         return own, None
-    costs = {sc.id: c for sc in others if (c := _cpu_per_episode(folders, policy, sc)) is not None}
+    costs = {sc.id: c for sc in others if (c := cost(policy, sc)) is not None}
     if not costs:
         return None, None
     for ref in _references(policy):
-        there = _cpu_per_episode(folders, ref, scenario)
+        there = cost(ref, scenario)
         if not there:
             continue
         scaled = []
         for sc in others:
-            if sc.id in costs and (r := _cpu_per_episode(folders, ref, sc)):
+            if sc.id in costs and (r := cost(ref, sc)):
                 scaled.append((abs(math.log(r / there)), sc.id, costs[sc.id] * there / r))
         if scaled:
             _, sid, est = min(scaled)
@@ -259,6 +260,13 @@ def plan(folders: Sequence[Path], policies: Sequence[str], scenarios: Sequence[S
     """
     seeds = [int(s) for s in seeds]
     pool = list(scenarios) + [o for o in (others or []) if o.id not in {sc.id for sc in scenarios}]
+    memo: dict[tuple[str, str], float | None] = {}
+
+    def cost(policy: str, sc: SuiteScenario) -> float | None:
+        if (policy, sc.id) not in memo:
+            memo[policy, sc.id] = _cpu_per_episode(folders, policy, sc)
+        return memo[policy, sc.id]
+
     todo = []
     for policy in policies:
         for sc in scenarios:
@@ -267,7 +275,7 @@ def plan(folders: Sequence[Path], policies: Sequence[str], scenarios: Sequence[S
             missing = tuple(s for s in seeds if s not in have)
             if not missing:
                 continue
-            per, source = _estimate(folders, policy, sc, [o for o in pool if o.id != sc.id])
+            per, source = _estimate(cost, policy, sc, [o for o in pool if o.id != sc.id])
             todo.append(Missing(policy, sc.id, missing, None if per is None else per * len(missing), source))
     return todo
 
