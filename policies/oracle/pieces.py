@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import subprocess
 from functools import cache
 from pathlib import Path
@@ -30,6 +29,7 @@ import pandas as pd
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.jit import ROOT
 from wfbench.core.seeds import describe as describe_seeds
+from wfbench.scenarios.pieces import parts_of, piece_folder, piece_path, read_meta, read_rows
 
 ENV = "WFBENCH_ORACLE_PIECES"  # folders of suite runs (os.pathsep between them), or "off"
 OFF = ("off", "0", "false", "no", "")
@@ -57,11 +57,6 @@ def folders() -> tuple[list[Path], bool]:
     return (sorted(p for p in results.iterdir() if (p / "cache").is_dir()) if results.is_dir() else []), False
 
 
-def piece_folder(policy: str) -> str:
-    """A policy's folder under ``cache/``: its name made path-safe (as ``wfbench.reproduce.suite`` writes it)."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
-
-
 @cache
 def _suite_scenarios(text: str) -> tuple[tuple[str, str], ...]:
     """(id, hash) of every suite scenario whose config's canonical JSON is ``text``."""
@@ -82,14 +77,11 @@ def find(policy: str, config: ScenarioConfig, seeds: np.ndarray) -> list[tuple[P
     wanted = set(np.asarray(seeds).tolist())
     for folder in folders()[0]:
         for sc_id, sc_hash in scenarios:
-            path = folder / "cache" / piece_folder(policy) / f"{sc_id}.csv"
-            meta_path = path.with_suffix(".json")
-            if not (path.is_file() and meta_path.is_file()):
+            path = piece_path(folder, policy, sc_id)
+            meta = read_meta(path, sc_hash)
+            if meta is None or not wanted & set(meta.get("seeds", [])):
                 continue
-            meta = json.loads(meta_path.read_text())
-            if meta.get("hash") != sc_hash or not wanted & set(meta.get("seeds", [])):
-                continue
-            out.append((path, meta, pd.read_csv(path, float_precision="round_trip")))  # the bits that were written
+            out.append((path, meta, read_rows(path)))
     return out
 
 
@@ -132,17 +124,15 @@ def _differs(commit: str, files: tuple[str, ...]) -> str | None:
     return None
 
 
-def _parts(meta: dict) -> list[tuple[set[int] | None, dict]]:
-    """Each part of a piece: the seeds it played (None: every seed) and its provenance.
+def _parts(meta: dict) -> list[tuple[set[int], dict]]:
+    """Each part of a piece: the seeds it played and its provenance.
 
     A piece extended by the seeds it lacked (``wfbench.reproduce.pieces.obtain``) keeps a
     ``parts`` list, one per run that played some of its seeds; its top-level provenance is
     the last run's only, so a seed is judged by the part that played it.
     """
-    if "parts" in meta:
-        return [({int(x) for x in part.get("seeds", [])}, {"provenance": part.get("provenance")})
-                for part in meta["parts"]]
-    return [(None, meta)]
+    return [({int(x) for x in part.get("seeds", [])}, {"provenance": part.get("provenance")})
+            for part in parts_of(meta)]
 
 
 def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
@@ -167,14 +157,14 @@ def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[s
         by_seed = dict(zip(rows["seed"].astype(int).tolist(), rows["nsw"].astype(float).tolist(), strict=True))
         usable: set[int] = set()
         for part_seeds, part in _parts(meta):
-            covered = set(by_seed) if part_seeds is None else part_seeds & set(by_seed)
+            covered = part_seeds & set(by_seed)
             why = mismatch(part, files)
             if why is None:
                 usable |= covered
                 continue
             if not covered & wanted:
                 continue
-            if part_seeds is not None:
+            if "parts" in meta:
                 why = f"{why}, seeds {describe_seeds(sorted(covered))}"
             if asked:
                 raise PieceMismatch(f"{who}: the piece {path} of {policy!r} was not made by this code ({why}); "

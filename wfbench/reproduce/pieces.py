@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -29,35 +28,17 @@ from wfbench.core.kpis import SCORE
 from wfbench.harness.backends import Execution
 from wfbench.reproduce import provenance
 from wfbench.scenarios import SuiteScenario
-
-
-def piece_folder(policy: str) -> str:
-    """The folder of ``policy``'s pieces under ``cache/``: its name made path-safe (``#`` becomes ``_``)."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", policy)
+from wfbench.scenarios import pieces as stored
+from wfbench.scenarios.pieces import parts_of, piece_folder, read_rows
 
 
 def piece_path(out: Path, policy: str, scenario: SuiteScenario) -> Path:
     """Where ``policy``'s piece of ``scenario`` is stored in the run folder ``out``."""
-    return Path(out) / "cache" / piece_folder(policy) / f"{scenario.id}.csv"
+    return stored.piece_path(out, policy, scenario.id)
 
 
 def _meta(path: Path, scenario: SuiteScenario) -> dict | None:
-    meta = path.with_suffix(".json")
-    if not (path.exists() and meta.exists()):
-        return None
-    m = json.loads(meta.read_text())
-    return m if m.get("hash") == scenario.hash else None
-
-
-def _read(path: Path) -> pd.DataFrame:
-    return pd.read_csv(path, float_precision="round_trip")  # the same bits as the run that wrote it
-
-
-def parts_of(meta: dict) -> list[dict]:
-    """The parts of a piece: each ``{"seeds", "wall_s", "provenance"}`` (one part for a piece played at once)."""
-    if "parts" in meta:
-        return meta["parts"]
-    return [{"seeds": meta.get("seeds", []), "wall_s": meta.get("wall_s"), "provenance": meta.get("provenance")}]
+    return stored.read_meta(path, scenario.hash)
 
 
 def provenance_of(meta: dict, seed: int) -> dict | None:
@@ -88,7 +69,7 @@ def _stored(folders: Sequence[Path], policy: str, scenario: SuiteScenario,
     if best is None:
         return None
     path, m, have = best
-    df = _read(path).set_index("seed").loc[have].reset_index()
+    df = read_rows(path).set_index("seed").loc[have].reset_index()
     taken = set(have)
     parts = []
     for p in parts_of(m):
@@ -196,7 +177,7 @@ def _cpu_per_episode(folders: Sequence[Path], policy: str, scenario: SuiteScenar
     for folder in folders:
         path = piece_path(folder, policy, scenario)
         if _meta(path, scenario) is not None:
-            df = _read(path)
+            df = read_rows(path)
             if "cpu_s" in df:
                 return float(df["cpu_s"].mean())
     return None
