@@ -21,6 +21,7 @@ from wfbench.policies.lookahead.rollout import (
     DEFAULT_BUDGET,
     RolloutBase,
     candidate_rows,
+    check_decide,
     pick_best,
     plays_sparse,
 )
@@ -59,9 +60,7 @@ class NetworkRollout(RolloutBase):
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  budget: str = DEFAULT_BUDGET, scenario: ScenarioConfig | None = None, seed: int = 0,
                  name: str | None = None, decide: str = "base"):
-        if decide not in (*DECIDE, DECIDE_AUTO):
-            raise ValueError(f"rollout knob decide = {decide!r} is not allowed; allowed: "
-                             + ", ".join(f"{k} ({v})" for k, v in {**DECIDE, DECIDE_AUTO: DECIDE_AUTO_DOC}.items()))
+        check_decide(decide, {**DECIDE, DECIDE_AUTO: DECIDE_AUTO_DOC})
         self.decide = decide
         self.period = decide == "period"  # what this episode plays (decide="auto": set by the world's size)
         if not (hasattr(base, "model") and set(getattr(base, "decisions", ())) == set(AGENTS)):

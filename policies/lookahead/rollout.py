@@ -43,6 +43,14 @@ KNOBS = {"K": "sampled futures per candidate", "H": "steps of each roll-forward"
 # candidate graphs"): the same hyper-parameters, the same kernels in the roll-forward (policies/kernels/act.py)
 SPARSE_TWINS: dict[str, str] = {"assignment": "assignment-sparse", "facility-location": "facility-location-sparse"}
 DECIDE = {"base": "where the base hires or lets go, and every R steps", "period": "every R steps only"}
+
+
+def check_decide(decide: str, allowed: dict[str, str] = DECIDE) -> None:
+    """Refuse a ``decide`` knob not in ``allowed`` (value -> what it means) in one line naming them."""
+    if decide not in allowed:
+        raise ValueError(f"rollout knob decide = {decide!r} is not allowed; allowed: "
+                         + ", ".join(f"{k} ({v})" for k, v in allowed.items()))
+
 # a budget "sparse:PRESET": PRESET's knobs with sparse=True, decide="period" and the futures played by the sparse twin's
 # spatial twin, so that a decision's cost on city does not grow with the p-median solves or with how often the base
 # hires (docs/policies.md, "Lookahead policies on city")
@@ -208,9 +216,7 @@ class Rollout(RolloutBase):
         if not getattr(base, "compiled", False):
             raise ValueError(f"rollout base {getattr(base, 'name', base)!r} is not a composite of built-in kernels; "
                              "allowed: a compiled composite (a registry composite or tuned file of one)")
-        if decide not in DECIDE:
-            raise ValueError(f"rollout knob decide = {decide!r} is not allowed; allowed: "
-                             + ", ".join(f"{k} ({v})" for k, v in DECIDE.items()))
+        check_decide(decide)
         if futures is not None and not getattr(futures, "compiled", False):
             raise ValueError(f"rollout futures {getattr(futures, 'name', futures)!r} is not a composite of built-in "
                              "kernels; allowed: None (the base) or a compiled composite")
@@ -330,5 +336,5 @@ def make(base: Any, budget_name: str = DEFAULT_BUDGET, name: str | None = None, 
 
 
 __all__ = ["AUTO_SPARSE_PAIRS", "BUDGETS", "DECIDE", "DEFAULT_BUDGET", "KNOBS", "SPARSE_PRESET", "SPARSE_TWINS",
-           "Rollout", "RolloutBase", "budget", "candidate_rows", "knob", "make", "pick_best", "plays_sparse",
-           "sparse_flag", "sparse_twin", "spatial_twin"]
+           "Rollout", "RolloutBase", "budget", "candidate_rows", "check_decide", "knob", "make", "pick_best",
+           "plays_sparse", "sparse_flag", "sparse_twin", "spatial_twin"]
