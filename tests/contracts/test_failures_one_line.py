@@ -30,7 +30,7 @@ def _wfbench(*args: str) -> subprocess.CompletedProcess:
 def _one_line(run: subprocess.CompletedProcess, says: str) -> str:
     assert run.returncode == 1, run.stderr
     # a cold numba cache (an edited core) adds its one compile notice before the run: that line is not the failure's
-    lines = [line for line in run.stderr.splitlines() if not line.startswith("wfbench: compiling the simulator")]
+    lines = [line for line in run.stderr.splitlines() if not line.startswith("wfbench: compiling ")]
     assert len(lines) == 1, run.stderr  # no "Traceback", no "Exception in thread ExecutorManagerThread"
     assert lines[0].startswith("wfbench: ") and says in lines[0], lines[0]
     return lines[0]

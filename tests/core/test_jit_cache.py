@@ -227,6 +227,21 @@ def test_editing_a_function_inlined_from_another_file_recompiles(tmp_path):
     assert edited.stdout.split()[1] == cold.stdout.split()[1]
 
 
+@pytest.mark.parametrize(("first", "said"), [
+    ("wfbench.core.dynamics.reset_batch", "compiling the simulator core once"),
+    ("wfbench.policies.episode.play_range", "compiling the built-in policies' compiled code"),
+    ("wfbench.policies.lookahead.kernels.Plan.run", "compiling the lookaheads' kernels"),
+    ("wfbench.policies.kernels.forward.roll_forward", "compiling the roll-forward of the lookaheads and the oracle"),
+    ("wfbench.solvers.assignment.auction", "compiling the solvers' compiled kernels once"),
+    ("mypkg.kernel.step", "compiling mypkg.kernel's compiled code once"),
+])
+def test_the_cold_start_line_names_what_it_compiles(first, said):
+    notice = jit._ColdCompileNotice()
+    notice.first = first
+    line = notice.first_line("/cache")
+    assert line.startswith("wfbench: ") and said in line and line.endswith("; cached afterwards (/cache)"), line
+
+
 @pytest.mark.parametrize("value", [0, -1, 1.5, "2"])
 def test_simulator_threads_must_be_a_positive_integer(value):
     from wfbench.core.config import ScenarioConfig

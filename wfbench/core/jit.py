@@ -45,6 +45,17 @@ ESTIMATE_S = {
     "wfbench.policies.episode.play_range": 75,
 }
 DEFAULT_ESTIMATE_S = 60
+# what a process's first compilation builds, by the module of the function numba compiles first (the longest
+# prefix wins; the episode and the lookaheads inline the simulator's step, so they compile it too): the cold-start
+# line names it, so a user who sees the line again for another family learns what is compiled this time
+WHAT = {
+    "wfbench.core": "the simulator core",
+    "wfbench.policies": "the built-in policies' compiled code and the simulator's step it inlines",
+    "wfbench.policies.lookahead": "the lookaheads' kernels (rollouts on sampled futures, the MPC's model)",
+    "wfbench.policies.oracle": "the hindsight oracle's planner and roll-forward",
+    "wfbench.policies.kernels.forward": "the roll-forward of the lookaheads and the oracle",
+    "wfbench.solvers": "the solvers' compiled kernels",
+}
 TIMES_FILE = "wfbench-compile-times.json"
 
 
@@ -298,7 +309,13 @@ class _ColdCompileNotice(event.Listener):
     def first_line(self, path: str | None) -> str:
         """The line printed before the first compilation (``path``: numba's cache folder of it, if any)."""
         where = f" ({path})" if path else ""
-        return f"wfbench: compiling the simulator core once, {self._estimate()}; cached afterwards{where}"
+        return f"wfbench: compiling {self.what()} once, {self._estimate()}; cached afterwards{where}"
+
+    def what(self) -> str:
+        """What the first compilation builds (:data:`WHAT`), else the module of its first function."""
+        module = (self.first or "").rpartition(".")[0]
+        known = [k for k in WHAT if module == k or module.startswith(k + ".")]
+        return WHAT[max(known, key=len)] if known else f"{module or 'wfbench'}'s compiled code"
 
     def _estimate(self) -> str:
         """``~N s (how N was found)``: the idle time here (else on the development VM) times the load factor."""
