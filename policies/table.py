@@ -3,7 +3,9 @@
 An entry holds a policy's name, its family, how it is built (a typed *recipe*: the dataclasses
 below, one per way of building), a one-line summary, how tables name its three decisions,
 whether it reads the future, whether it is listed, the references of the best-in-hindsight
-oracle that play it, and the budget class its cost was measured in. The families register
+oracle that play it; its budget class is read from ``budgets.json`` beside this module (what the
+committed frontier measured, written by ``wfbench reproduce frontier --classes``), data rather
+than code, so that a new measurement edits no source file. The families register
 their own entries, the way Gymnasium's ``register`` fills its registry of ``EnvSpec``:
 the composites in :mod:`wfbench.policies.registry`, the tuned files in
 :mod:`wfbench.policies.tuned`, the networks in :mod:`wfbench.policies.neural`, the
@@ -19,7 +21,10 @@ from __future__ import annotations
 
 import difflib
 import enum
+import json
 from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
 from typing import ClassVar
 
 # the families, in the order ``wfbench policies`` lists them -> what their policies are, in one line
@@ -57,6 +62,15 @@ class Budget(enum.Enum):
 
 
 NOT_MEASURED = "not measured"
+BUDGETS_FILE = Path(__file__).with_name("budgets.json")  # the committed frontier's cost of each policy it measured
+
+
+@cache
+def measured_costs() -> dict[str, float]:
+    """CPU ms per env-step of each policy the committed frontier measured (:data:`BUDGETS_FILE`; empty without one)."""
+    if not BUDGETS_FILE.is_file():
+        return {}
+    return {name: float(ms) for name, ms in json.loads(BUDGETS_FILE.read_text())["cpu_ms_per_step"].items()}
 
 
 # -- recipes: how a policy is built, one dataclass per way ---------------------------------------------------------
@@ -219,8 +233,9 @@ class Entry:
         candidate_of: the references (``v1``, ``v2``) whose best-in-hindsight oracle plays it, as
             :mod:`wfbench.policies.oracle.references` lists them in tie-breaking order; a test
             checks the two agree, so that registering a policy never moves a published number.
-        budget: its measured budget class (CPU ms per env-step in
-            ``docs/results/frontier-v1/frontier.csv``), None when not measured.
+
+    Its budget class (:attr:`budget`) is not a field: it is measured, and read from
+    :data:`BUDGETS_FILE`.
     """
 
     name: str
@@ -231,7 +246,6 @@ class Entry:
     reads_future: bool = False
     listed: bool = True
     candidate_of: tuple[str, ...] = ()
-    budget: Budget | None = None
 
     def __post_init__(self) -> None:
         if self.family not in FAMILIES:
@@ -253,6 +267,12 @@ class Entry:
     def oracle_candidate(self) -> bool:
         """Whether a best-in-hindsight oracle plays it."""
         return bool(self.candidate_of)
+
+    @property
+    def budget(self) -> Budget | None:
+        """Its measured budget class (:func:`measured_costs`), None when the committed frontier did not measure it."""
+        ms = measured_costs().get(self.name)
+        return None if ms is None else Budget.of(ms)
 
     @property
     def budget_class(self) -> str:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from wfbench.policies.table import Budget, Entry, MPCPreset, RolloutPreset, SearchPreset, TunedLookahead, register
+from wfbench.policies.table import Entry, MPCPreset, RolloutPreset, SearchPreset, TunedLookahead, register
 
 # name -> the module that defines it: imported when the name is first read
 _LAZY = {"MPC": "mpc", "NetworkRollout": "network_rollout", "BUDGETS": "rollout", "DEFAULT_BUDGET": "rollout",
@@ -63,10 +63,10 @@ def make(base: Any, budget_name: str | None = None, name: str | None = None, **k
 ROLLOUTS = (
     Entry("rollout-solver-tuned", "rollout", RolloutPreset("solver-tuned", "10ms", sparse="auto"),
           "rollout of solver-tuned on sampled futures (K=4, H=80, R=20); on city, its sparse preset",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_100),
+          listed=False, candidate_of=("v2",)),
     Entry("rollout-solver-tuned-1ms", "rollout", RolloutPreset("solver-tuned", "1ms", sparse="auto"),
           "rollout of solver-tuned, the 1 ms budget (K=2, H=80, R=80); on city, its sparse preset",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_10),
+          listed=False, candidate_of=("v2",)),
     Entry("rollout-solver-tuned-100ms", "rollout", RolloutPreset("solver-tuned", "100ms", sparse="auto"),
           "rollout of solver-tuned, the 100 ms budget (K=16, H=120, R=10); on city, its sparse "
           "preset",
@@ -94,19 +94,19 @@ MPCS = (
     Entry("mpc-rates", "mpc", MPCPreset("solver-tuned-train", "rates"),
           "rolling-horizon staffing MILP (HiGHS) on the public rates and schedules, H=100, re-solved every R=20 "
           "steps; assignment dispatch",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_10),
+          listed=False, candidate_of=("v2",)),
     Entry("mpc-ma", "mpc", MPCPreset("solver-tuned-train", "ma"),
           "rolling-horizon staffing MILP (HiGHS) on a 100-step moving average of observed requests (no demand "
           "model), H=100, R=20; assignment dispatch",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_10),
+          listed=False, candidate_of=("v2",)),
     Entry("mpc-rates-calibrated", "mpc", MPCPreset("solver-tuned-train", "rates", "calibrated"),
           "mpc-rates with the capacity per person measured from observed repairs and the working share averaged "
           "over the window",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_10),
+          listed=False, candidate_of=("v2",)),
     Entry("mpc-ma-calibrated", "mpc", MPCPreset("solver-tuned-train", "ma", "calibrated"),
           "mpc-ma with the capacity per person measured from observed repairs; the base staffs until a window of "
           "requests is seen",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_10),
+          listed=False, candidate_of=("v2",)),
     Entry("mpc-rates-backlog", "mpc", MPCPreset("solver-tuned-train", "rates", "backlog"),
           "mpc-rates-calibrated whose MILP carries the repair backlog (a fluid queue seeded from the waiting "
           "requests, priced as downtime)",
@@ -117,10 +117,10 @@ MPCS = (
           listed=False),
     Entry("mpc-rates-tuned-train", "mpc", TunedLookahead("mpc-rates", "mpc-rates-suite-v1-train.json"),
           "mpc-rates with its knobs, prices and capacity scale tuned on suite-v1's training split (wfbench tune)",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_10),
+          listed=False, candidate_of=("v2",)),
     Entry("mpc-ma-tuned-train", "mpc", TunedLookahead("mpc-ma", "mpc-ma-suite-v1-train.json"),
           "mpc-ma with its knobs, prices and capacity scale tuned on suite-v1's training split (wfbench tune)",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_1),
+          listed=False, candidate_of=("v2",)),
 )
 
 # search with the network (issue #52; docs/policies.md, "search-scalefree-general"): a budget preset of
@@ -132,7 +132,7 @@ SEARCHES = (
     Entry("search-scalefree-general", "search", SearchPreset("scalefree-general", "10ms"),
           "search with the scale-free network: greedy futures ended at its value, a noise test (K=8, H=20, R=20, "
           "top=3, z=1)",
-          listed=False, candidate_of=("v2",), budget=Budget.MS_100),
+          listed=False, candidate_of=("v2",)),
     Entry("search-scalefree-general-100ms", "search", SearchPreset("scalefree-general", "100ms"),
           "search with the scale-free network, the 100 ms budget (K=32, H=20, R=10, top=4, z=1)",
           listed=False, candidate_of=("v2",)),

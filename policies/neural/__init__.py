@@ -7,7 +7,7 @@ algorithm), and the shipped checkpoints (``policies/neural/checkpoints/``), regi
 (:mod:`wfbench.policies.table`).
 """
 
-from wfbench.policies.table import Budget, Checkpoint, Entry, register
+from wfbench.policies.table import Checkpoint, Entry, register
 
 # the algorithms a checkpoint can name in its ``algo`` key, each its prefix ``ALGO:PATH``
 # (wfbench.train.registry.ALGORITHMS; tests/train/test_train_registry.py checks the two agree)
@@ -44,7 +44,7 @@ register(
           Checkpoint("ppo-general.pt", seeds=tuple(f"ppo-general-seed{i}.pt" for i in range(5))),
           "the joint PPO network trained across suite-v1's eight training scenarios (from ppo-joint's weights); the "
           "median of 5 training seeds (ppo-general#seedK)",
-          decisions=("PPO (generalist)",) * 3, candidate_of=("v1", "v2"), budget=Budget.MS_1),
+          decisions=("PPO (generalist)",) * 3, candidate_of=("v1", "v2")),
     Entry("hindsight-general", "learned",
           Checkpoint("hindsight-general.pt", seeds=tuple(f"hindsight-general-seed{i}.pt" for i in range(5))),
           "ppo-general with its workforce head improved by hindsight learning on its own action values across the "
@@ -55,5 +55,5 @@ register(
           Checkpoint("scalefree-general.pt", seeds=tuple(f"scalefree-general-seed{i}.pt" for i in range(5))),
           "the scale-free network (observation version 2: lengths in travel time, the world's parameters as context) "
           "trained by PPO from scratch across suite-v1's eight training scenarios; the median of 5 training seeds",
-          decisions=("PPO (scale-free)",) * 3, candidate_of=("v2",), budget=Budget.MS_1),
+          decisions=("PPO (scale-free)",) * 3, candidate_of=("v2",)),
 )

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from typing import Any
 
 from wfbench.policies.oracle.best import BestInHindsight
-from wfbench.policies.table import BestOf, Budget, Entry, HindsightRolloutOf, register
+from wfbench.policies.table import BestOf, Entry, HindsightRolloutOf, register
 
 # the oracle of every table published up to issue #53: the compiled built-ins, the planner, the shipped networks
 V1: tuple[str, ...] = (
@@ -93,7 +93,7 @@ register(
     Entry("oracle", "oracle", BestOf("v1"),
           "per seed, the best in hindsight of oracle-planner and every deployable built-in (the composites, the tuned "
           "files and the shipped networks): reads the trace, not deployable (docs/hindsight.md)",
-          decisions=HINDSIGHT, reads_future=True, budget=Budget.MS_10),
+          decisions=HINDSIGHT, reads_future=True),
     Entry("oracle-v2", "oracle", BestOf("v2"),
           "reference v2: per seed, the best in hindsight of every deployable family, the lookaheads included, and "
           "oracle-rollout; replays recorded episodes and committed pieces (docs/hindsight.md)",

@@ -51,6 +51,29 @@ def test_frontier__reads_stored_pieces_cut_to_the_seeds_and_plays_the_missing(ru
     assert all(p.stat().st_size > 0 for p in result.files)
 
 
+def test_frontier__classes_writes_the_measured_costs_the_policy_table_reads(tmp_path, run, monkeypatch):
+    from wfbench.policies import table
+
+    suite_out, out, _, _ = run
+    path = tmp_path / "budgets.json"
+    result = target.frontier(out, seeds=[1, 2], policies=["heuristic", "random", "solver"], scenarios=["small"],
+                             split="train", reuse=[suite_out], execution=Execution(), classes=path, **FAST)
+    assert path in result.files
+    data = json.loads(path.read_text())
+    measured = pd.read_csv(out / "frontier-train.csv", float_precision="round_trip").set_index("policy")
+    assert data["cpu_ms_per_step"] == measured["cpu_ms_per_step"].to_dict()  # the frontier's own bits
+    assert data["measured_on"] == {"suite": "suite-v1", "split": "train", "scenarios": ["small-v1"],
+                                   "seeds": "1..2 (2)"}
+    monkeypatch.setattr(table, "BUDGETS_FILE", path)
+    table.measured_costs.cache_clear()
+    try:
+        assert table.TABLE["solver"].budget == table.Budget.of(measured.loc["solver", "cpu_ms_per_step"])
+        assert table.TABLE["solver-tuned"].budget is None  # not drawn: not measured
+        assert table.TABLE["solver-tuned"].budget_class == "not measured"
+    finally:
+        table.measured_costs.cache_clear()
+
+
 def test_frontier__a_piece_of_other_seeds_or_another_hash_is_not_taken(tmp_path, run):
     suite_out = run[0]
     sc = get_suite("suite-v1").scenario("small")
@@ -152,6 +175,9 @@ def test_frontier_cli__plan_prints_the_plan_and_writes_nothing(tmp_path, capsys,
     (["gap", "--plan"], "--plan applies to suite and frontier only, not to gap"),
     (["suite", "--split", "train"], "--split applies to frontier only, not to suite"),
     (["suite", "--reuse", "x"], "--reuse applies to frontier only, not to suite"),
+    (["suite", "--classes", "x.json"], "--classes applies to frontier only, not to suite"),
+    (["frontier", "--split", "train", "--classes", "x.json"],
+     "--classes applies to the held-out split only (the verdict's), not to train"),
     (["frontier", "--scenarios", "small"], "--scenarios: scenario small-v1 is in the train split, not heldout"),
     (["frontier", "--no-networks"], "--no-networks applies to suite only, not to frontier"),
 ])

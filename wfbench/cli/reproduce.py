@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from wfbench.cli.common import (
     UsageError,
@@ -47,6 +48,9 @@ def add_parser(sub) -> None:
     rp.add_argument("--reuse", default=None, help="frontier only: comma-separated suite run folders whose cached "
                     "pieces are read before anything is played (default: the checkout's docs/results/frontier-v1 "
                     "and docs/results/suite-v1-50, the committed runs, wherever the command runs from)")
+    rp.add_argument("--classes", default=None, metavar="FILE", help="frontier only: also write each policy's CPU ms "
+                    "per env-step to FILE, the budget classes wfbench policies prints (the committed frontier's: "
+                    "policies/budgets.json, held-out split only)")
     rp.add_argument("--plan", action="store_true", help="suite and frontier only: print what would be played "
                     "(the pieces no stored run holds) and its estimated CPU time, and play nothing")
     rp.add_argument("--no-networks", action="store_true", help="suite only: leave the shipped networks out")
@@ -112,7 +116,8 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
     """The suite target's options, checked now (an unknown policy or scenario fails before anything runs)."""
     given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios),
                             ("--no-networks", args.no_networks or None)) if v is not None]
-    own = [o for o, v in (("--split", args.split), ("--reuse", args.reuse)) if v is not None]
+    own = [o for o, v in (("--split", args.split), ("--reuse", args.reuse), ("--classes", args.classes))
+           if v is not None]
     if args.plan and args.target not in ("suite", "frontier"):
         raise UsageError(f"--plan applies to suite and frontier only, not to {args.target}")
     if own and args.target != "frontier":
@@ -136,6 +141,10 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
         kwargs["split"] = args.split
     if args.reuse is not None:
         kwargs["reuse"] = _names(args.reuse, "--reuse")
+    if args.classes is not None:
+        if (args.split or "heldout") != "heldout":
+            raise UsageError(f"--classes applies to the held-out split only (the verdict's), not to {args.split}")
+        kwargs["classes"] = Path(args.classes)
     if args.seeds is not None:
         kwargs["seeds"] = args.seeds
     if args.policies is not None:

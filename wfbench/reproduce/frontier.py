@@ -147,7 +147,7 @@ def frontier(out: Path, runs: int | None = None, execution: Execution = PROCESS,
              scenarios: Sequence[str] | None = None, split: str = "heldout",
              reuse: Sequence[str | Path] | None = None, suite_name: str = "suite-v1", reps: int = 5000,
              poi_reps: int = 1000, announce: Callable[[str], None] | None = None, plan_only: bool = False,
-             **_: object) -> Output:
+             classes: Path | None = None, **_: object) -> Output:
     """Held-out IQM against decision cost per policy, the figure, and the verdict at each budget (module docstring).
 
     Args:
@@ -169,6 +169,8 @@ def frontier(out: Path, runs: int | None = None, execution: Execution = PROCESS,
         announce: called once with what will be played and its estimated CPU time
             (:func:`wfbench.reproduce.pieces.describe_plan`) before anything is played.
         plan_only: stop after announcing the plan (``files`` empty; the text is the plan).
+        classes: also write each policy's CPU ms per env-step there (:func:`write_classes`; the
+            committed frontier's is ``policies/budgets.json``, what ``wfbench policies`` reads).
     """
     s = get_suite(suite_name)
     settings = committed_settings(split) or {}
@@ -256,7 +258,26 @@ def frontier(out: Path, runs: int | None = None, execution: Execution = PROCESS,
     (out / f"{name}-run.json").write_text(json.dumps(run, indent=1) + "\n")
     files += [out / f"{name}-verdict.csv", out / f"{name}-run.json"]
     files += _figure(result, split, len(chosen), seeds_text, out / name)
+    if classes is not None:
+        files.append(write_classes(result, Path(classes), run))
     return Output(md, files)
+
+
+def write_classes(result: pd.DataFrame, path: Path, run: dict) -> Path:
+    """Write each policy's measured CPU ms per env-step (``result``'s) and what it was measured on to ``path``.
+
+    This is the data :attr:`wfbench.policies.table.Entry.budget` reads: a measurement is data,
+    so that drawing the frontier again edits no source file (whose bytes decide what the
+    replaying oracle may reuse, ``wfbench.policies.oracle.pieces``).
+    """
+    data = {"about": "CPU ms per env-step of each policy as wfbench reproduce frontier measured it; wfbench "
+                     "policies prints its budget class from here (docs/policies.md, \"Listing policies\")",
+            "measured_on": {"suite": run["suite"], "split": run["split"], "scenarios": run["scenarios"],
+                            "seeds": describe(run["seeds"])},
+            "cpu_ms_per_step": {r["policy"]: float(r["cpu_ms_per_step"]) for _, r in result.iterrows()}}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=1) + "\n")
+    return path
 
 
 def _oracle_line(frames: dict[str, pd.DataFrame]) -> str:
