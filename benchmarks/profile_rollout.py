@@ -1,6 +1,7 @@
 """Where a PPO update's time goes, by operator: ``torch.profiler`` over one rollout and one update.
 
-    python benchmarks/profile_rollout.py [--scenario paper-64] [--model scalefree] [--num-envs 4096]
+    python benchmarks/profile_rollout.py [--scenario paper-64 | --scenarios suite-v1:train] [--shards 1]
+                                         [--model scalefree] [--num-envs 4096]
                                          [--num-steps 32] [--device cpu|cuda] [--bf16] [--compile]
                                          [--rows 25] [--out table.txt]
 
@@ -27,6 +28,10 @@ from wfbench.train.ppo import TrainConfig, Trainer
 def main(argv: list[str] | None = None) -> str:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="paper-64")
+    ap.add_argument("--scenarios", default="", help="several worlds, as wfbench train --scenarios "
+                    "(e.g. suite-v1:train)")
+    ap.add_argument("--shards", type=int, default=1, help="the batch as this many shards, in this one process "
+                    "(default 1: the profile of one process's whole batch)")
     ap.add_argument("--model", default="scalefree")
     ap.add_argument("--num-envs", type=int, default=4096)
     ap.add_argument("--num-steps", type=int, default=32)
@@ -38,7 +43,8 @@ def main(argv: list[str] | None = None) -> str:
     a = ap.parse_args(argv)
     cuda = a.device == "cuda"
     with tempfile.TemporaryDirectory() as tmp:
-        cfg = TrainConfig(scenario=a.scenario, model=a.model, num_envs=a.num_envs, num_steps=a.num_steps,
+        cfg = TrainConfig(scenario=a.scenario, scenarios=a.scenarios, shards=a.shards, procs=1, model=a.model,
+                          num_envs=a.num_envs, num_steps=a.num_steps,
                           steps=a.num_envs * a.num_steps * 3, eval_every=0, checkpoint_every=10**9, run_dir=tmp,
                           device=a.device, bf16=a.bf16, compile=a.compile)
         tr = Trainer(cfg, progress=False, log=False, amp=torch.bfloat16 if a.bf16 else None)
@@ -60,7 +66,8 @@ def main(argv: list[str] | None = None) -> str:
     table = events.table(sort_by=key, row_limit=a.rows)
     launches = sum(e.count for e in events if e.key in ("cudaLaunchKernel", "cuLaunchKernel", "cudaLaunchKernelExC"))
     split = "  ".join(f"{k} {v / wall:.0%}" for k, v in tr.timing.items())
-    head = (f"{a.scenario} {a.model} B={a.num_envs} T={a.num_steps} {a.device}{' bf16' if a.bf16 else ''}"
+    head = (f"{a.scenarios or a.scenario} {a.model} B={a.num_envs} T={a.num_steps} {a.device}"
+            f"{' bf16' if a.bf16 else ''}"
             f"{' compiled' if a.compile else ''}: {steps / wall:,.0f} env-steps/s under the profiler; "
             f"{split}; kernel launches {launches} ({launches / a.num_steps:.0f} per rollout step incl. update)")
     text = head + "\n" + table
