@@ -34,7 +34,7 @@ def test_the_sample_covers_every_scenario_but_city_and_every_policy():
     suite = get_suite("suite-v1")
     assert {sc for _, sc, _ in CI_SAMPLE} == {s.id for s in suite.scenarios} - {"city-v1"}
     families = {family(p) for p, _, _ in CI_SAMPLE if p != "bound"}
-    assert families >= {"random", "heuristic", "solver", "network", "oracle"}
+    assert families >= {"random", "heuristic", "solver", "network", "lookahead", "oracle"}
     assert any(p == "bound" for p, _, _ in CI_SAMPLE)
     seeds = [s for _, _, s in CI_SAMPLE]
     assert min(seeds) < 25 <= max(seeds) and all(0 <= s < 50 for s in seeds)  # both chunks of a 2-worker run

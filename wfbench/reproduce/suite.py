@@ -44,11 +44,20 @@ BUDGET = ("decision_ms_p50", "decision_ms_p99", "cpu_s")  # the evaluator's cost
 BOUND_SLACK = 1e-9  # a policy's NSW may exceed the bound by floating-point rounding only
 
 
-def default_policies(networks: bool = True) -> list[str]:
-    """The built-in policies, the shipped networks (zero-shot) unless ``networks`` is false, and the oracle."""
-    from wfbench.policies.registry import learned_names
+# the lookaheads every suite run plays (issue #53, item 4): both presets of the tuned solver's rollout, the MPC the
+# frontier carries and the learned side's search; the other presets are the frontier's, or asked for by name
+LOOKAHEADS = ("rollout-solver-tuned-1ms", "rollout-solver-tuned", "mpc-ma-calibrated", "search-scalefree-general")
 
-    return [*BUILTIN, *(learned_names() if networks else []), ORACLE]
+
+def default_policies(networks: bool = True) -> list[str]:
+    """The built-ins, the shipped networks (zero-shot), the lookaheads (:data:`LOOKAHEADS`) and the oracle.
+
+    Without ``networks`` the shipped networks and the lookaheads that search with one are left out.
+    """
+    from wfbench.policies.registry import entry, learned_names
+
+    lookaheads = [n for n in LOOKAHEADS if networks or entry(n).family != "search"]
+    return [*BUILTIN, *(learned_names() if networks else []), *lookaheads, ORACLE]
 
 
 def with_members(names: Sequence[str]) -> tuple[list[str], dict[str, list[str]]]:
@@ -64,11 +73,17 @@ def with_members(names: Sequence[str]) -> tuple[list[str], dict[str, list[str]]]
 
 
 def family(policy: str) -> str:
-    """The family a policy is drawn with in the scaling figure: random, heuristic, solver, network or oracle."""
+    """A policy's family in the scaling figure: random, heuristic, solver, network, lookahead or oracle.
+
+    The scaling figure draws one line a family, the median of its policies' costs.
+    """
     from wfbench.policies.registry import parse_spec
 
-    if parse_spec(policy).kind in ("learned", "member", "checkpoint"):
+    kind = parse_spec(policy).kind
+    if kind in ("learned", "member", "checkpoint"):
         return "network"
+    if kind == "lookahead":
+        return "lookahead"
     for name in ("oracle", "solver", "heuristic", "random"):
         if policy.startswith(name):
             return name
