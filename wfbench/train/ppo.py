@@ -329,8 +329,7 @@ class Trainer:
                 parts = [p[i * m:(i + 1) * m] for p in perms]
                 adv = _rows(adv_all, torch.cat([part + k * per for k, part in enumerate(parts)]))
                 norm = (adv.mean(0), adv.std(0) + 1e-8, adv.shape[0])  # over the whole minibatch's rows
-                opt.zero_grad(set_to_none=True)
-                self.opt.zero_grad(set_to_none=True)
+                # (no zero_grad: each shard's pass sets every gradient to None first, _set_grads writes them all)
                 # each local shard's gradient (zeros where a parameter has none, and whether it has one) and sums
                 # of its losses: one vector each, summed over the shards
                 total = group.sum([self._shard_grad(feats, roll, parts[k] + j * per, norm, warm, params)
