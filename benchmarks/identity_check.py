@@ -46,7 +46,7 @@ SLOW = {"oracle-planner", "oracle-dispatch", "oracle"}  # fewer seeds: they look
 SLOW_SEEDS = 4
 # the references that play the lookaheads (reference v2's best in hindsight, the hindsight rollout): on the lookaheads'
 # scenarios only, at SLOW_SEEDS; on paper-64 a seed of oracle-v2 plays every rollout, MPC and search preset, and a
-# capture that gave it 10 seeds of every scenario did not end in two hours
+# capture that gave it 10 seeds of every scenario was still on paper-64 after some 70 minutes (a loaded VM)
 WITH_LOOKAHEADS = {"oracle-v2", "oracle-rollout"}
 ONE_SEED = {"city-v1"}  # 1,000 facilities and people: a seed of a network is minutes here
 # the lookaheads' scenarios: on these one seed of all eight takes about 4 minutes (the 100 ms preset on paper-64
