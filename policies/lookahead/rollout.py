@@ -43,14 +43,6 @@ KNOBS = {"K": "sampled futures per candidate", "H": "steps of each roll-forward"
 # candidate graphs"): the same hyper-parameters, the same kernels in the roll-forward (policies/kernels/act.py)
 SPARSE_TWINS: dict[str, str] = {"assignment": "assignment-sparse", "facility-location": "facility-location-sparse"}
 DECIDE = {"base": "where the base hires or lets go, and every R steps", "period": "every R steps only"}
-
-
-def check_decide(decide: str, allowed: dict[str, str] = DECIDE) -> None:
-    """Refuse a ``decide`` knob not in ``allowed`` (value -> what it means) in one line naming them."""
-    if decide not in allowed:
-        raise ValueError(f"rollout knob decide = {decide!r} is not allowed; allowed: "
-                         + ", ".join(f"{k} ({v})" for k, v in allowed.items()))
-
 # a budget "sparse:PRESET": PRESET's knobs with sparse=True, decide="period" and the futures played by the sparse twin's
 # spatial twin, so that a decision's cost on city does not grow with the p-median solves or with how often the base
 # hires (docs/policies.md, "Lookahead policies on city")
@@ -71,6 +63,13 @@ def knob(name: str, value: Any) -> int:
         raise ValueError(f"rollout knob {name} = {value!r} is not allowed; allowed: an integer >= 1 "
                          f"({KNOBS[name]})")
     return int(value)
+
+
+def check_decide(decide: str, allowed: dict[str, str] = DECIDE) -> None:
+    """Refuse a ``decide`` knob not in ``allowed`` (value -> what it means) in one line naming them."""
+    if decide not in allowed:
+        raise ValueError(f"rollout knob decide = {decide!r} is not allowed; allowed: "
+                         + ", ".join(f"{k} ({v})" for k, v in allowed.items()))
 
 
 def sparse_twin(base: Any) -> Composite:
