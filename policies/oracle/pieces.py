@@ -29,7 +29,7 @@ import pandas as pd
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.jit import ROOT
 from wfbench.core.seeds import describe as describe_seeds
-from wfbench.scenarios.pieces import parts_of, piece_folder, piece_path, read_meta, read_rows
+from wfbench.scenarios.pieces import parts_of, piece_path, read_meta, read_rows
 
 ENV = "WFBENCH_ORACLE_PIECES"  # folders of suite runs (os.pathsep between them), or "off"
 OFF = ("off", "0", "false", "no", "")
@@ -125,14 +125,13 @@ def _differs(commit: str, files: tuple[str, ...]) -> str | None:
 
 
 def _parts(meta: dict) -> list[tuple[set[int], dict]]:
-    """Each part of a piece: the seeds it played and its provenance.
+    """Each part of a piece: the seeds it played and the part itself, whose ``provenance`` :func:`mismatch` judges.
 
     A piece extended by the seeds it lacked (``wfbench.reproduce.pieces.obtain``) keeps a
     ``parts`` list, one per run that played some of its seeds; its top-level provenance is
     the last run's only, so a seed is judged by the part that played it.
     """
-    return [({int(x) for x in part.get("seeds", [])}, {"provenance": part.get("provenance")})
-            for part in parts_of(meta)]
+    return [({int(x) for x in part.get("seeds", [])}, part) for part in parts_of(meta)]
 
 
 def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
@@ -176,4 +175,4 @@ def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[s
     return out, where, skipped
 
 
-__all__ = ["ENV", "PieceMismatch", "find", "folders", "mismatch", "piece_folder", "scores"]
+__all__ = ["ENV", "PieceMismatch", "find", "folders", "mismatch", "scores"]
