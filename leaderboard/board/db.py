@@ -273,13 +273,15 @@ def _sqlite(path: Path) -> Engine:
     if path.is_dir():
         raise BoardError(f"database {str(path)!r} is a folder; allowed: {URL_FORMS}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    engine = sa.create_engine(f"sqlite:///{path}", connect_args={"timeout": 30.0})
+    engine = sa.create_engine(f"sqlite:///{path}", connect_args={"timeout": BUSY_S})
 
     @sa.event.listens_for(engine, "connect")
     def _on_connect(dbapi_connection: Any, record: Any) -> None:
         dbapi_connection.isolation_level = None  # SQLAlchemy emits BEGIN itself (below), not the sqlite3 module
         cur = dbapi_connection.cursor()
-        for pragma in ("journal_mode=WAL", "busy_timeout=30000", "foreign_keys=ON", "synchronous=FULL"):
+        cur.execute(f"PRAGMA busy_timeout={int(BUSY_S * 1000)}")
+        _to_wal(cur)
+        for pragma in ("foreign_keys=ON", "synchronous=FULL"):
             cur.execute(f"PRAGMA {pragma}")
         cur.close()
 
@@ -288,6 +290,30 @@ def _sqlite(path: Path) -> Engine:
         conn.exec_driver_sql("BEGIN IMMEDIATE")  # the write lock from the start: one writer, no upgrade deadlock
 
     return engine
+
+
+BUSY_S = 30.0  # SQLite: how long a connection waits for another's lock
+
+
+def _to_wal(cur: Any) -> None:
+    """``PRAGMA journal_mode=WAL``, waiting out another connection's lock as every other statement does.
+
+    Switching a new database to WAL takes an exclusive lock, and SQLite answers "database is
+    locked" at once, without its busy handler, while another connection holds one: several
+    servers and workers opening an empty board together failed so under load. Once the file
+    is in WAL mode (it stays so) the pragma is a no-op.
+    """
+    import sqlite3
+
+    deadline = time.monotonic() + BUSY_S
+    while True:
+        try:
+            cur.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
 
 
 def is_sqlite(engine: Engine) -> bool:

@@ -72,6 +72,30 @@ def test_connect__sqlite_is_wal_with_foreign_keys_and_every_transaction_takes_th
     engine.dispose()
 
 
+class _Cursor:
+    """A cursor whose first ``locked`` executes fail as SQLite's WAL switch does while another connection opens."""
+
+    def __init__(self, locked: int, message: str = "database is locked"):
+        self.locked, self.message, self.calls = locked, message, 0
+
+    def execute(self, sql):
+        self.calls += 1
+        if self.calls <= self.locked:
+            raise sqlite3.OperationalError(self.message)
+
+
+def test_connect__the_switch_to_wal_waits_out_another_connections_lock_and_nothing_else():
+    from wfbench.leaderboard.board.db import _to_wal
+
+    cur = _Cursor(locked=3)
+    _to_wal(cur)  # a start beside three others: it waits, as every statement waits on a lock
+    assert cur.calls == 4
+    other = _Cursor(locked=1, message="disk I/O error")
+    with pytest.raises(sqlite3.OperationalError, match="disk I/O"):
+        _to_wal(other)  # any other failure is the caller's at once
+    assert other.calls == 1
+
+
 # -- accounts and packages ----------------------------------------------------------------------------------
 
 
