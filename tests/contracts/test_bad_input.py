@@ -152,6 +152,7 @@ def test_cli_bad_number_and_missing_output_folder(capsys, tmp_path):
     assert "does not exist" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_error_has_no_traceback_as_a_process():
     out = subprocess.run([sys.executable, "-m", "wfbench.cli", "evaluate", "--policy", "nope"],
                          capture_output=True, text=True)

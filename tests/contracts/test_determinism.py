@@ -98,6 +98,7 @@ def test_backends_agree():
     assert results_only(serial).equals(results_only(process))  # the budget columns are measurements
 
 
+@pytest.mark.slow
 def test_same_bits_in_another_process():
     here = digest(run_batch("heuristic", PAPER, [11], keep_series=True).series)
     code = ("import hashlib, numpy as np; from wfbench import ScenarioConfig; from wfbench.harness.runner import "

@@ -51,6 +51,7 @@ def test_page_examples_run(page, tmp_path):
     run_blocks(python_blocks((ROOT / page).read_text()), page, tmp_path)
 
 
+@pytest.mark.slow
 def test_readme_in_python_example_runs(tmp_path):
     run_blocks(python_blocks(readme_python_section()), "README.md (In Python)", tmp_path)
 

@@ -74,12 +74,14 @@ def test_site_builds_strict_with_every_page(site):
     assert (site / "search" / "search_index.json").is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", sorted(KEY_NAMES))
 def test_api_page_has_key_names(site, page):
     missing = [name for name in KEY_NAMES[page] if name not in anchors(site, page)]
     assert not missing, f"docs/api/{page}.md renders no entry for {missing}; add a `::: name` directive"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("package", ["wfbench", "wfbench.envs", "wfbench.policies", "wfbench.solvers",
                                      "wfbench.testing", "wfbench.scenarios"])
 def test_api_reference_covers_all(site, package):

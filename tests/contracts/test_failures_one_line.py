@@ -67,6 +67,7 @@ def test_ray_failure_is_one_line():
     _one_line(run, KINDS["Raises"])  # Ray's own start-up notices included: none may reach stderr
 
 
+@pytest.mark.slow
 def test_serial_failure_is_one_line():
     run = _wfbench("evaluate", "--policy", "tests.lb_policies:Raises", "--scenario", "small", "--seeds", "4",
                    "--backend", "serial", "--no-progress")
@@ -121,6 +122,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
+@pytest.mark.slow
 def test_closed_stdout_is_quiet():
     for args in (["policies"], ["scenarios"], ["leaderboard", "tracks"]):
         read, write = os.pipe()

@@ -70,6 +70,7 @@ def _inner_session(tmp_path, env_extra):
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_browser__a_session_without_a_browser_reports_skips_with_the_reason(tmp_path):
     out = _inner_session(tmp_path, {})
     assert out.returncode == 0, out.stdout + out.stderr
@@ -77,6 +78,7 @@ def test_browser__a_session_without_a_browser_reports_skips_with_the_reason(tmp_
     assert out.stdout.count("no headless browser on the PATH") == 2, out.stdout  # -rs shows each reason
 
 
+@pytest.mark.slow
 def test_browser__a_session_that_requires_a_browser_fails_in_one_line(tmp_path):
     out = _inner_session(tmp_path, {REQUIRE_BROWSER: "1"})
     assert out.returncode == 1, out.stdout + out.stderr

@@ -33,6 +33,7 @@ def _run(args, cwd, timeout=300):
     return subprocess.run(args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_import_wfbench_from_a_folder_with_its_own_policies_solvers_and_leaderboard(project):
     code = ("import sys, wfbench, wfbench.policies, wfbench.solvers, wfbench.leaderboard.store; "
             "import wfbench.harness.evaluation, wfbench.envs; "

@@ -68,6 +68,7 @@ def test_kpis__the_detectors_find_a_planted_copy():
     assert sorted(reward_formulas(planted)) == [1, 1, 2]
 
 
+@pytest.mark.slow
 def test_kpis__no_module_writes_the_kpi_list_again():
     found = []
     for path in _our_modules():

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -94,6 +96,7 @@ def test_layers__importing_the_core_pulls_nothing_above_it():
     assert run.returncode == 0, f"importing the simulator core imported layers above it: {run.stdout}{run.stderr}"
 
 
+@pytest.mark.slow
 def test_layers__evaluate_stays_the_function_after_its_module_is_imported():
     code = ("import wfbench.harness.compare, wfbench.harness.evaluation, wfbench; "
             "assert callable(wfbench.evaluate) and wfbench.evaluate.__module__ == 'wfbench.harness.evaluation'")

@@ -79,6 +79,7 @@ def wheel(tmp_path_factory):
     return whl, run.stdout + run.stderr
 
 
+@pytest.mark.slow
 def test_wheel__builds_without_a_setuptools_warning(wheel):
     _, log = wheel
     # setuptools' warnings are classes (SetuptoolsDeprecationWarning:, _Warning:); pip's own say "WARNING:"
@@ -86,6 +87,7 @@ def test_wheel__builds_without_a_setuptools_warning(wheel):
     assert found == [], "\n".join(found)
 
 
+@pytest.mark.slow
 def test_wheel__holds_the_data_packages_and_the_license(wheel):
     whl, _ = wheel
     with zipfile.ZipFile(whl) as z:

@@ -339,6 +339,7 @@ def _network_search():
     return NetworkSearch(policies.get("scalefree-general"), K=2, H=8, R=10, top=3, z=1.0, scenario=SMALL)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("make", [_compiled_rollout, _network_rollout, _network_search],
                          ids=["solver-tuned", "scalefree-general", "search-scalefree-general"])
 def test_a_rollout_acts_the_same_up_to_T_in_two_episodes_that_differ_after_T(make):

@@ -94,6 +94,7 @@ def test_the_import_scan_finds_what_ast_finds_in_every_module():
         assert scanned == ast_dependencies(path) - {path}, path
 
 
+@pytest.mark.slow
 def test_the_digest_covers_every_numba_module_and_what_it_imports():
     numba_modules = [p for p in sources() if uses_numba(p)]
     names = {module_name(p) for p in numba_modules}

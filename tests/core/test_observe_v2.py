@@ -357,6 +357,7 @@ def test_version_2_space_of_every_preset_is_finite_and_holds_its_first_steps(sce
         obs = sim.step_observe(pol.act(obs))[1]
 
 
+@pytest.mark.slow
 def test_sb3_policy_of_a_version_2_model_reads_version_2():
     pytest.importorskip("torch")
     from stable_baselines3 import PPO

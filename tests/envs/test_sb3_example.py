@@ -4,9 +4,12 @@ import importlib.util
 import math
 from pathlib import Path
 
+import pytest
+
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "sb3_maskable_ppo.py"
 
 
+@pytest.mark.slow
 def test_the_maskable_ppo_example_trains_and_is_scored(capsys):
     spec = importlib.util.spec_from_file_location("sb3_maskable_ppo", EXAMPLE)
     module = importlib.util.module_from_spec(spec)

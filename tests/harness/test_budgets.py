@@ -128,6 +128,7 @@ def _entry(store, name, rows, budget=None):
     store.set_status(sub.id, "done")
 
 
+@pytest.mark.slow
 def test_ranking_within_a_budget_leaves_out_what_exceeds_it_and_says_why(tmp_path):
     store = Store(tmp_path / "lb.sqlite")
     _entry(store, "fast", _rows(0.6, p99=0.5, cpu=0.01))

@@ -38,6 +38,7 @@ def test_bootstrap_intervals():
         paired_difference([1.0, 2.0], [1.0])
 
 
+@pytest.mark.slow
 def test_compare_command_and_its_errors(capsys):
     assert main(["compare", "--policies", "solver", "--scenario", "small", "--seeds", "3", "--no-progress"]) == 0
     captured = capsys.readouterr()

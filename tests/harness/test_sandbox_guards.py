@@ -38,6 +38,7 @@ time.sleep(8)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("frame", [PAUSE, PAUSE[:3]], ids=["pause-frame", "half-a-frame"])
 def test_a_frame_of_the_policy_does_not_stop_the_act_clock(bwrap, tmp_path, frame):
     limits = Limits(act_timeout_s=2, warmup_s=2, memory_mb=1024, wall_time_s=60, start_timeout_s=30)

@@ -147,6 +147,7 @@ def _write_package(root: Path, name: str, source: str) -> Path:
     return dest
 
 
+@pytest.mark.slow
 def test_a_sandbox_runs_with_python_the_venv_and_the_checkout_under_tmp(bwrap, layout):
     package = _write_package(layout["root"], "rule", RULE)
     out = _run(layout, f'''
@@ -274,6 +275,7 @@ def _spy_report(layout, as_user: int | None, source: str = SPY, prefix: str = "S
     return json.loads(spy_line[len(prefix):]), out.stdout + out.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("as_user", [USER, None], ids=["non-root", "root"])
 def test_no_secret_and_no_stray_descriptor_reaches_the_sandbox(bwrap, layout, as_user):
     report, everything = _spy_report(layout, as_user)
@@ -349,6 +351,7 @@ class Policy:
 '''
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("as_user", [USER, None], ids=["non-root", "root"])
 def test_a_policy_writes_only_its_tmp_and_stops_at_its_cap(bwrap, layout, as_user):
     from wfbench.harness.isolation.sandbox import Limits

@@ -181,6 +181,7 @@ def test_reproduce_suite_checks_every_member_against_the_bound(members, tmp_path
 
 # the suite board
 
+@pytest.mark.slow
 def test_the_board_ranks_a_method_over_its_seeds_and_shows_each_seed(members, tmp_path):
     from wfbench.leaderboard import report
     from wfbench.leaderboard.store import Store

@@ -203,6 +203,7 @@ sys.exit(run_worker(sys.argv[1], worker_id="doomed", lease_s=30, once=True, poll
 """
 
 
+@pytest.mark.slow
 def test_a_worker_removes_the_unpack_folders_a_killed_worker_left(board, tmp_path):
     work = tmp_path / "work"
     work.mkdir()

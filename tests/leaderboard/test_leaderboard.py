@@ -66,6 +66,7 @@ def test_tracks_are_defined_and_hashed():
         get_track("nope")
 
 
+@pytest.mark.slow
 def test_submit_stores_a_row_per_seed_with_provenance(db):
     out = submit(TINY, "heuristic", "h", submitter="tester", db=db, **_fast())
     assert out.status == "complete" and out.stored_rows == 4 and out.new_rows == 4
@@ -92,6 +93,7 @@ def _job(db, name):
     return tuple(job), tuple(state)
 
 
+@pytest.mark.slow
 def test_a_local_submission_is_a_job_of_the_board_s_queue_run_by_its_worker(db, capsys):
     out = submit(TINY, "heuristic", "h", db=db, **_fast())
     assert out.status == "complete" and out.new_rows == 4
@@ -135,6 +137,7 @@ def test_a_misbehaving_policy_fails_alone(db, name, reason):
     assert integrity(db) == "ok"
 
 
+@pytest.mark.slow
 def test_unloadable_policy_is_a_user_error_and_stores_nothing(db):
     with pytest.raises(SubmitError, match=r"policy 'tests.lb_policies:import_fails' could not be loaded: "
                                           r"ImportError: this entry point cannot be loaded at .*lb_policies.py:\d+$"):
@@ -146,6 +149,7 @@ def test_unloadable_policy_is_a_user_error_and_stores_nothing(db):
     assert Store(db).submissions() == []
 
 
+@pytest.mark.slow
 def test_name_taken_by_another_policy(db):
     submit(TINY, "heuristic", "mine", db=db, **_fast())
     with pytest.raises(SubmitError, match=r"the name 'mine' on track tiny-test is taken by a different policy "
@@ -195,6 +199,7 @@ def test_kill_minus_9_loses_no_finished_seed_and_resume_completes(db, tmp_path):
     assert out.status == "complete" and out.stored_rows == 4 and out.new_rows == 4 - kept
 
 
+@pytest.mark.slow
 def test_rows_that_do_not_match_the_track_are_refused(db):
     submit(TINY, "heuristic", "h", db=db, **_fast())
     with sqlite3.connect(db) as c:
@@ -236,6 +241,7 @@ def test_store_refuses_foreign_and_newer_files(tmp_path):
         Store(newer_store)
 
 
+@pytest.mark.slow
 def test_full_disk_while_writing_loses_nothing(db):
     submit(TINY, "heuristic", "h", db=db, **_fast())
     store = Store(db)
@@ -252,6 +258,7 @@ def test_full_disk_while_writing_loses_nothing(db):
     assert len(rows_after) == 4 and refused == []
 
 
+@pytest.mark.slow
 def test_cli_errors_are_one_line_and_exit_2(tmp_path, capsys, monkeypatch):
     bad = tmp_path / "x.sqlite"
     bad.write_bytes(b"garbage" * 10)

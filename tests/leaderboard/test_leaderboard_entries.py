@@ -236,6 +236,7 @@ def test_a_store_before_schema_4_is_refused_with_one_line_and_left_as_it_was(db)
     assert db.read_bytes() == before
 
 
+@pytest.mark.slow
 def test_an_imported_legacy_entry_is_re_evaluated_on_resubmission(db):
     write_schema4(db)  # its entry 'old' was stored without a fingerprint (random, nsw 0.3 + 0.01 x seed)
     store = Store(db)
@@ -291,6 +292,7 @@ def test_the_iqm_chart_sets_oracles_apart(db):
     assert [t.get_text() for t in ax.get_legend().get_texts()][0] == "all scenarios"
 
 
+@pytest.mark.slow
 def test_the_board_shows_no_absolute_path(db, monkeypatch):
     monkeypatch.chdir(ROOT)  # the submission's working folder: stored paths are relative to it
     submit(TINY, "tests.lb_policies:Raises", "broken", db=db, **_fast())

@@ -51,6 +51,7 @@ def _show(db: Path, fmt: str, capsys) -> dict[str, str]:
     return {"stdout": out.out, "stderr": out.err}
 
 
+@pytest.mark.slow
 def test_a_board_of_revision_0002_migrates_with_every_value_and_shows_the_same(tmp_path, tiny_on_cli, capsys):
     db = tmp_path / "lb.sqlite"
     shutil.copyfile(DATA / "pre_0003.sqlite", db)
@@ -76,6 +77,7 @@ def test_a_board_of_revision_0002_migrates_with_every_value_and_shows_the_same(t
         assert store.audit().to_csv(index=False) == EXPECTED["audit"]
 
 
+@pytest.mark.slow
 def test_a_schema4_store_imports_to_the_board_that_wfbench_showed(tmp_path, tiny_on_cli, capsys):
     """The committed schema-4 file, imported today and with the same entry withdrawn, shows what the old board did."""
     db = tmp_path / "lb.sqlite"

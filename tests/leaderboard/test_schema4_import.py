@@ -111,6 +111,7 @@ def tiny_on_cli(monkeypatch):
     monkeypatch.setitem(TRACKS, TINY.name, TINY)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["table", "csv"])
 def test_a_schema4_store_is_imported_once_and_shows_the_same_board(tmp_path, capsys, tiny_on_cli, fmt):
     from wfbench.leaderboard.schema4 import Schema4Store

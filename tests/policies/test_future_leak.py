@@ -181,6 +181,7 @@ def test_the_leaky_rollout_fails_the_check(monkeypatch):
         "catch a leak; lengthen STEPS or change SEED/OTHER")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", deployable_lookaheads())
 def test_every_deployable_lookahead_acts_the_same_when_the_trace_points_elsewhere(name, monkeypatch):
     found = differences(name, monkeypatch)

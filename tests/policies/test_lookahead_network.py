@@ -73,6 +73,7 @@ def test_the_network_s_own_action_wins_ties():
     assert a["workforce"][0] == (own[0] if s[own[0]] == top else int(np.nanargmax(s)))
 
 
+@pytest.mark.slow
 def test_the_evaluator_hands_it_the_world_and_scores_it():
     df = wfbench.evaluate("rollout-scalefree-general", SMALL, [1003])
     assert df["episode_length"].iloc[0] == SMALL.horizon and 0 < df["nsw"].iloc[0] <= 1

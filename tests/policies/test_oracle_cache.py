@@ -154,6 +154,7 @@ def recorded(monkeypatch):
     return names
 
 
+@pytest.mark.slow
 def test_a_network_the_runner_played_on_the_same_batch_is_played_again_only_to_be_replayed(store, recorded):
     seeds = [0, 1, 2]
     wfbench.evaluate("ppo-joint", SHORT, seeds=seeds)
@@ -179,6 +180,7 @@ def test_a_network_is_keyed_by_its_checkpoint_mode_and_parts(store):
     assert cache.played_key(SHORT, policies.get("heuristic")) is None  # compiled: keyed by policy_key instead
 
 
+@pytest.mark.slow
 def test_the_oracles_rows_are_bit_identical_with_a_networks_totals_from_the_runner(store, monkeypatch, recorded):
     seeds = [0, 1, 2]
     candidates = ["heuristic", "solver", "ppo-joint", "hindsight-joint"]

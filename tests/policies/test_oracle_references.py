@@ -134,6 +134,7 @@ def test_oracle_rollout__refuses_a_base_it_cannot_compile_in_one_line():
         HindsightRollout(policies.get("solver-tuned"), H=0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms", "mpc-rates", "oracle-rollout"])
 def test_a_lookahead_plays_a_seed_the_same_alone_and_in_any_batch(name):
     # the replaying oracle keys these episodes by the seed alone, and takes their totals from pieces played in other

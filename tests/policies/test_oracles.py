@@ -154,6 +154,7 @@ def test_hire_at_the_known_demand_and_let_go_the_cheapest_loss():
     assert out[1] in (0, 1)  # never the one serving the busy cell
 
 
+@pytest.mark.slow
 def test_evaluate_hands_the_scenario_to_an_oracle_and_matches_the_local_loop_on_every_backend():
     import wfbench
 

@@ -158,6 +158,7 @@ def test_shipped_networks_of_before_read_version_1():
     assert from_checkpoint(wfbench.policies.registry.CHECKPOINT_DIR / "ppo-joint-paper-64.pt").observation_version == 1
 
 
+@pytest.mark.slow
 def test_what_cannot_train_it_says_so_in_one_line(tmp_path):
     # every trainer trains it (issue #44); one network per decision cannot be it
     r = subprocess.run([sys.executable, "-m", "wfbench.cli", "train", "--algo", "ppo", "--agents", "independent",

@@ -135,6 +135,7 @@ def test_with_z_huge_it_acts_exactly_as_its_network():
             assert np.array_equal(x[k], y[k]), (t, k)
 
 
+@pytest.mark.slow
 def test_the_futures_are_played_greedily_unless_the_ablation_samples_them():
     seeds = [1000]
     runs = {}
@@ -206,6 +207,7 @@ def _decision_steps(pol, seeds=(1000,)):
     return steps
 
 
+@pytest.mark.slow
 def test_on_a_world_as_large_as_city_it_deliberates_every_R_steps_only(monkeypatch):
     from wfbench.policies.lookahead import network_rollout
 

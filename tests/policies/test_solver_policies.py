@@ -83,6 +83,7 @@ def test_assignment_with_more_requests_than_people():
     assert _act("assignment", "dispatch", obs).tolist() == [1, 0, 1]
 
 
+@pytest.mark.slow
 def test_dispatch_methods_agree_on_a_real_episode():
     """On every step of a heuristic run, each assignment method picks a dispatch of the same cost."""
     sim = Simulator(wfbench.scenario("paper-64"), [2, 3])

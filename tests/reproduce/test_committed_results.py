@@ -99,6 +99,7 @@ def test_code_hash_of_a_checkout_equals_the_hash_from_git(tmp_path):
         assert provenance.code_sha256() != at_head
 
 
+@pytest.mark.slow
 def test_verify_command_names_a_differing_piece(tmp_path):
     src = RUN / "cache" / "random" / "small-v1"
     dst = tmp_path / "cache" / "random"

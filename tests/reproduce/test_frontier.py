@@ -31,6 +31,7 @@ def run(tmp_path_factory):
     return suite_out, out, result, steps
 
 
+@pytest.mark.slow
 def test_frontier__reads_stored_pieces_cut_to_the_seeds_and_plays_the_missing(run):
     suite_out, out, result, steps = run
     assert steps == ["small-v1: heuristic", "small-v1: random", "small-v1: solver"]
@@ -51,6 +52,7 @@ def test_frontier__reads_stored_pieces_cut_to_the_seeds_and_plays_the_missing(ru
     assert all(p.stat().st_size > 0 for p in result.files)
 
 
+@pytest.mark.slow
 def test_frontier__classes_writes_the_measured_costs_the_policy_table_reads(tmp_path, run, monkeypatch):
     from wfbench.policies import table
 
@@ -74,6 +76,7 @@ def test_frontier__classes_writes_the_measured_costs_the_policy_table_reads(tmp_
         table.measured_costs.cache_clear()
 
 
+@pytest.mark.slow
 def test_frontier__a_piece_of_other_seeds_or_another_hash_is_not_taken(tmp_path, run):
     suite_out = run[0]
     sc = get_suite("suite-v1").scenario("small")
@@ -121,6 +124,7 @@ def test_family__joins_each_kind_on_its_line():
     assert target.SIDES["search"] == target.SIDES["network"] == "learned"
 
 
+@pytest.mark.slow
 def test_frontier__without_options_it_draws_what_the_committed_frontier_was_drawn_from(tmp_path, run, monkeypatch):
     suite_out, out, _, _ = run
     settings = json.loads((out / "frontier-train-run.json").read_text())
@@ -140,6 +144,7 @@ def test_frontier__without_options_it_draws_what_the_committed_frontier_was_draw
     assert said == ["every piece is stored: nothing to play"]  # seeds 0 and 3 are in the suite run's pieces
 
 
+@pytest.mark.slow
 def test_frontier__plan_only_says_what_it_would_play_and_plays_nothing(tmp_path, run, monkeypatch):
     suite_out = run[0]
     monkeypatch.setattr(pieces, "play", lambda *a: pytest.fail("the plan played a piece"))
@@ -160,6 +165,7 @@ def test_pareto__each_point_on_the_front_beats_every_cheaper_one():
     assert target.pareto([1.0], [0.1]) == [0]
 
 
+@pytest.mark.slow
 def test_frontier_cli__plan_prints_the_plan_and_writes_nothing(tmp_path, capsys, run):
     suite_out = run[0]
     status = main(["reproduce", "frontier", "--plan", "--split", "train", "--scenarios", "small", "--seeds", "0-5",

@@ -46,6 +46,7 @@ def test_a_chunk_size_moves_no_number():
     assert results_only(by_seed).equals(results_only(at_once))
 
 
+@pytest.mark.slow
 def test_the_suite_and_comparison_functions_hand_one_execution_to_every_evaluation():
     from wfbench.harness.compare import compare, compare_suite
     from wfbench.harness.suite import evaluate_suite

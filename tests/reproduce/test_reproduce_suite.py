@@ -38,6 +38,7 @@ def test_suite__writes_scores_aggregate_profiles_scaling_and_checks(first):
     assert all(p.exists() and p.stat().st_size > 0 for p in result.files)
 
 
+@pytest.mark.slow
 def test_suite__scores_are_the_evaluator_s_normalized(first):
     out, _, _ = first
     scores = pd.read_csv(out / "suite-scores.csv").set_index("policy")
@@ -56,6 +57,7 @@ def test_suite__scores_are_the_evaluator_s_normalized(first):
     assert set(scaling["family"]) == {"random", "heuristic", "oracle"} and (scaling["env_steps_per_s"] > 0).all()
 
 
+@pytest.mark.slow
 def test_suite__checks_that_the_bound_holds_and_the_oracle_leads(first):
     out, result, _ = first
     checks = pd.read_csv(out / "suite-checks.csv").iloc[0]
@@ -65,6 +67,7 @@ def test_suite__checks_that_the_bound_holds_and_the_oracle_leads(first):
     assert "The oracle is at least every deployable policy on 1 of 1 scenarios" in result.text
 
 
+@pytest.mark.slow
 def test_suite__a_rerun_reads_the_cache_and_writes_the_same_files(first, monkeypatch):
     out, result, _ = first
     before = {p.name: p.read_bytes() for p in result.files if p.suffix in (".csv", ".md", ".svg")}
@@ -81,6 +84,7 @@ def test_suite__a_rerun_reads_the_cache_and_writes_the_same_files(first, monkeyp
             assert after[name] == before[name], name
 
 
+@pytest.mark.slow
 def test_suite__a_stored_piece_is_cut_to_fewer_seeds_and_extended_by_only_the_missing_ones(first, monkeypatch):
     out, _, _ = first
     ran = []
@@ -93,6 +97,7 @@ def test_suite__a_stored_piece_is_cut_to_fewer_seeds_and_extended_by_only_the_mi
     assert ran == [("random", [2]), ("bound", [2])]
 
 
+@pytest.mark.slow
 def test_suite__plan_only_says_what_is_missing_and_plays_nothing(first, monkeypatch):
     out, _, _ = first
     monkeypatch.setattr(target, "_run", lambda *a: pytest.fail("the plan played a piece"))

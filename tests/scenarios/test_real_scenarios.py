@@ -94,6 +94,7 @@ def test_real_scenarios__projection_fits_the_grid_with_its_margin():
     assert project_latlon([40.0], [-74.0], 64, 64) == (np.array([31.5]), np.array([31.5]))
 
 
+@pytest.mark.slow
 def test_real_scenarios__the_script_regenerates_the_committed_files(tmp_path):
     result = subprocess.run([sys.executable, str(ROOT / "tools" / "make_real_scenarios.py"), "--out",
                              str(tmp_path)], capture_output=True, text=True, timeout=120)

@@ -41,6 +41,7 @@ def float32_stats(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["scalefree", "paper"])
 @pytest.mark.parametrize("dtype", [torch.bfloat16, torch.float16])
 def test_amp__one_ppo_update_under_cpu_autocast_has_finite_losses_near_float32(tmp_path, model, dtype,

@@ -55,6 +55,7 @@ def test_bad_settings_get_one_line(settings, expected, tmp_path):
     assert "\n" not in str(info.value) and expected in str(info.value), str(info.value)
 
 
+@pytest.mark.slow
 def test_a_tiny_run_raises_its_agreement_with_the_teacher(tmp_path):
     cfg = DistillConfig(**{**TINY, "num_envs": 4, "num_steps": 16, "iter_steps": 256, "steps": 256 * 6,
                            "grad_steps": 30, "batch_seqs": 8, "dataset_steps": 4096},
@@ -74,6 +75,7 @@ def _first_labels(trainer: Trainer) -> list[dict[str, np.ndarray]]:
     return [step["label"] for step in res["trail"]]
 
 
+@pytest.mark.slow
 def test_the_teachers_own_play_is_labelled_once_and_replayed_the_same(tmp_path):
     cache = tmp_path / "labels"
     runs = {}
@@ -107,6 +109,7 @@ def test_a_changed_world_is_a_new_cache_file(tmp_path):
     assert cache.path("heuristic", small, [1, 2]) != cache.path("solver", small, [1, 2])
 
 
+@pytest.mark.slow
 def test_checkpoints_record_distill_load_as_a_policy_and_resume(tmp_path):
     run = tmp_path / "run"
     settings = {**TINY, "steps": 64, "checkpoint_every": 1, "run_dir": str(run), "label_cache": "off",

@@ -62,6 +62,7 @@ def test_fit_writes_best_pt_when_no_evaluation_ran(tmp_path):
     assert all(torch.equal(v, trainer.model.state_dict()[k]) for k, v in best["model"].items())
 
 
+@pytest.mark.slow
 def test_fit_resumes_and_refuses_what_wfbench_train_refuses(tmp_path):
     run = tmp_path / "r"
     fit("ppo", progress=False, log=False, **SETTINGS, run_dir=str(run))

@@ -79,6 +79,7 @@ def test_labels_are_the_oracles_action_in_the_learners_state(tmp_path):
     assert learner_steps_off_label >= 3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("teacher", ["oracle", "nearest+oracle+oracle"])
 def test_pure_teacher_collection_scores_what_the_teacher_scores(tmp_path, teacher):
     tr = Trainer(_cfg(tmp_path, num_envs=2, num_steps=50, teacher=teacher), progress=False, log=False)
@@ -105,6 +106,7 @@ def test_supervised_loss_falls(tmp_path):
     assert after["loss"] < 0.8 * before["loss"], (before, after)
 
 
+@pytest.mark.slow
 def test_same_seed_same_weights_on_cpu(tmp_path):
     def weights(seed, name):
         tr = Trainer(_cfg(tmp_path, seed=seed, run_dir=str(tmp_path / name)), progress=False, log=False)

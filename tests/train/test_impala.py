@@ -90,6 +90,7 @@ def _cfg(tmp_path, **kw):
     return ImpalaConfig(**{**base, **kw})
 
 
+@pytest.mark.slow
 def test_impala__actor_parameters_lag_the_learner(tmp_path):
     tr = Trainer(_cfg(tmp_path, sync_every=3, steps=10**6, lr=3e-3), progress=False, log=False)
     stats, versions = [], []

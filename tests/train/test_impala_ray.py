@@ -174,6 +174,7 @@ def _cfg(tmp_path, **kw):
     return ImpalaConfig(**{**base, **kw})
 
 
+@pytest.mark.slow
 def test_impala_ray__trainer_resume_and_ctrl_c_with_a_stand_in_for_ray(tmp_path, monkeypatch):
     # the whole Ray path in this process: the real RemoteActors, Ray's calls made at once by _FakeRay
     fake = _FakeRay(initialized=False)

@@ -175,6 +175,7 @@ def _cfg(tmp_path, **kw):
     return TrainConfig(**{**base, **kw})
 
 
+@pytest.mark.slow
 def test_rl__training_is_deterministic_on_cpu(tmp_path):
     weights = []
     for i in range(2):
@@ -226,6 +227,7 @@ def test_rl__train_resume_evaluate_end_to_end(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_rl__a_run_without_evaluation_writes_its_last_weights_as_best_pt(tmp_path, capsys):
     """``--eval-every 0``: best.pt exists (the README evaluates it), holds the last weights, says it was not chosen."""
     run = tmp_path / "run"
@@ -264,6 +266,7 @@ def test_rl__a_network_on_another_scenario_is_named_once_with_both_scenarios():
         assert not warn_if_trained_elsewhere(policies.get("heuristic"), "small")  # not trained: no scenario
 
 
+@pytest.mark.slow
 def test_rl__independent_agents_train_as_one_network_per_decision(tmp_path, capsys):
     from wfbench.policies.neural.model import AgentSet
 
@@ -294,6 +297,7 @@ def test_rl__independent_agents_train_as_one_network_per_decision(tmp_path, caps
     assert "--agents does not apply to --algo impala" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_rl__dispatch_variant_deploys_with_the_heuristics(tmp_path):
     tr = Trainer(_cfg(tmp_path, variant="dispatch", steps=32), progress=False, log=False)
     tr.train()
@@ -311,6 +315,7 @@ def test_rl__importing_wfbench_and_policies_does_not_import_torch():
     assert run.returncode == 0, run.stderr
 
 
+@pytest.mark.slow
 def test_rl__episodes_are_staggered_by_partial_reset(tmp_path):
     tr = Trainer(_cfg(tmp_path, num_steps=20), progress=False, log=False)  # small: horizon 200, B = 4
     assert list(tr.env.cut) == [50, 100, 150, 200]
@@ -329,6 +334,7 @@ def test_rl__episodes_are_staggered_by_partial_reset(tmp_path):
     assert list(sync.env.cut) == [200] * 4
 
 
+@pytest.mark.slow
 def test_rl__init_starts_from_a_checkpoints_weights(tmp_path):
     first = Trainer(_cfg(tmp_path / "a", steps=32), progress=False, log=False)
     first.train()
@@ -350,6 +356,7 @@ def test_rl__init_starts_from_a_checkpoints_weights(tmp_path):
                if not k.startswith("value_head."))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["impala", "hindsight"])
 def test_rl__train_command_runs_every_algorithm(tmp_path, capsys, algo):
     """`wfbench train --algo X`: the flags that apply, --set for the rest, --resume knows the run's algorithm."""

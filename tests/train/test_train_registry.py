@@ -25,6 +25,7 @@ def test_registry__names_configs_and_trainers_agree_with_the_checkpoint_prefixes
         get_algorithm("sac")
 
 
+@pytest.mark.slow
 def test_registry__a_checkpoint_records_its_algorithm_and_loads_by_its_prefix(tmp_path):
     run = tmp_path / "impala"
     tr = ImpalaTrainer(ImpalaConfig(scenario="small", model="tiny", num_envs=2, num_steps=8, steps=16, mode="sync",

@@ -119,6 +119,7 @@ def test_worlds__ppo_across_worlds_normalizes_per_world_reproduces_and_knows_its
         assert warn_if_trained_elsewhere(policy, "large")
 
 
+@pytest.mark.slow
 def test_worlds__hindsight_learning_takes_the_worlds_in_turn(tmp_path):
     from wfbench.train.hindsight import HindsightConfig, Trainer
 

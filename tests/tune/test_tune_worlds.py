@@ -91,6 +91,7 @@ def test_cli_tune_worlds__other_mistakes_are_one_line(tmp_path, monkeypatch, cap
     assert message in err and len(err.strip().splitlines()) == 1 and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_tune_worlds__a_study_refuses_other_worlds_or_one_scenario_under_its_name(tmp_path):
     _run(tmp_path, trials=1, study_name="s")
     with pytest.raises(ValueError, match=r"was made with another scenario, worlds .*--study-name"):
@@ -116,6 +117,7 @@ def test_tune_worlds__scenario_or_scenarios_not_both_nor_neither(tmp_path, capsy
     assert not (tmp_path / "s.db").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, base", [("heuristic-tuned-train", "heuristic"), ("solver-tuned-train", "solver")])
 def test_the_shipped_train_tuned_policies_score_what_their_file_claims(name, base):
     assert registry.entry(name).kind == "tuned" and name in policies.names() and name in registry.deployable_names()
