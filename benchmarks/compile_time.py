@@ -31,8 +31,15 @@ import tempfile
 import time
 
 CHILD = r"""
-import json, sys, time
+import json, os, sys, time
 t_start = time.perf_counter()
+if os.environ.get("COMPILE_TIME_SRC"):  # wfbench and the folders it maps, all from that checkout
+    sys.path.insert(0, os.environ["COMPILE_TIME_BENCHMARKS"])
+    from identity_check import use_checkout
+    from pathlib import Path
+    use_checkout(Path(os.environ["COMPILE_TIME_SRC"]))
+    import wfbench.policies
+    assert Path(wfbench.policies.__file__).resolve().is_relative_to(Path(os.environ["COMPILE_TIME_SRC"]).resolve())
 from numba.core import event
 
 stack, times = [], {}
@@ -79,8 +86,9 @@ print("RESULT " + json.dumps({"wall_s": wall, "cpu_s": time.process_time(), "fun
 def measure(src: str | None, target: str) -> dict:
     with tempfile.TemporaryDirectory(prefix="wfbench-cold-") as cache:
         env = dict(os.environ, WFBENCH_CACHE_DIR=cache, NUMBA_CACHE_DIR=cache)
-        if src:
-            env["PYTHONPATH"] = os.path.abspath(src)
+        if src:  # a PYTHONPATH alone would import policies/ from the editable install's checkout
+            env["COMPILE_TIME_SRC"] = os.path.abspath(src)
+            env["COMPILE_TIME_BENCHMARKS"] = os.path.dirname(os.path.abspath(__file__))
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", CHILD, target], env=env, capture_output=True, text=True,
                              cwd=tempfile.gettempdir())
