@@ -11,10 +11,19 @@ tuned-policy files (``wfbench tune``). ``docs/design.md`` draws the layers;
 ``docs/policies.md`` is the protocol for your own policy.
 """
 
-from wfbench.policies.builtin import BuiltinDecision
-from wfbench.policies.composite import Composite
-from wfbench.policies.decisions import DECISIONS
-from wfbench.policies.protocol import Policy
-from wfbench.policies.registry import get, names
+import importlib
+
+_LAZY = {"BuiltinDecision": "builtin", "Composite": "composite", "DECISIONS": "decisions", "Policy": "protocol",
+         "get": "registry", "names": "registry"}
+
+
+def __getattr__(name):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = ["BuiltinDecision", "Composite", "DECISIONS", "Policy", "get", "names"]

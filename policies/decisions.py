@@ -14,11 +14,26 @@ from functools import partial
 from typing import Any, NamedTuple
 
 from wfbench.policies.builtin import BuiltinDecision
-from wfbench.policies.oracle import OracleDispatch, OraclePositioning, OracleWorkforce
 from wfbench.policies.rules import RULES
 from wfbench.policies.solver import AssignmentDispatch
 
 from wfbench.core.actions import AGENTS
+
+
+def _oracle(cls: str) -> Callable[[], Any]:
+    """The maker of the hindsight oracle ``cls`` of :mod:`wfbench.policies.oracle`, imported when one is made.
+
+    Imported late so that a composite's import closure, which decides its episodes
+    (:func:`wfbench.policies.oracle.episodes.decisive_files`), holds no oracle module.
+    """
+
+    def make() -> Any:
+        from wfbench.policies import oracle
+
+        return getattr(oracle, cls)()
+
+    make.__qualname__ = cls
+    return make
 
 
 class Other(NamedTuple):
@@ -37,9 +52,9 @@ OTHERS: tuple[Other, ...] = (
     Other("dispatch", "assignment-lp-osqp", "Assignment",
           lambda: AssignmentDispatch("lp", "OSQP", name="assignment-lp-osqp")),
     # the oracles read the trace: not deployable (docs/hindsight.md)
-    Other("dispatch", "oracle", "Hindsight oracle", OracleDispatch),
-    Other("workforce", "oracle", "Hindsight oracle", OracleWorkforce),
-    Other("positioning", "oracle", "Hindsight oracle", OraclePositioning),
+    Other("dispatch", "oracle", "Hindsight oracle", _oracle("OracleDispatch")),
+    Other("workforce", "oracle", "Hindsight oracle", _oracle("OracleWorkforce")),
+    Other("positioning", "oracle", "Hindsight oracle", _oracle("OraclePositioning")),
 )
 """The solver-backed dispatch policies (:mod:`wfbench.policies.solver`) and the hindsight oracles."""
 

@@ -268,6 +268,17 @@ def test_provenance_matches_when_every_decisive_file_is_the_commits():
         f"its commit {'0' * 12} is not in this repository"
 
 
+@pytest.mark.parametrize("name", ["solver-tuned", "rollout-solver-tuned-1ms", "mpc-ma-calibrated",
+                                  "search-scalefree-general"])
+def test_a_deployable_policys_decisive_files_hold_no_table_registry_or_oracle(name):
+    """Listing a policy, registering a family or editing an oracle leaves every other piece's provenance whole."""
+    files = set(episodes.decisive_files(policies.get(name)))
+    assert {"policies/kernels/act.py", "policies/episode.py", "wfbench/core/dynamics.py"} <= files
+    assert not files & {"policies/table.py", "policies/registry.py", "policies/tuned/__init__.py",
+                        "policies/lookahead/__init__.py", "policies/neural/__init__.py"}
+    assert not [f for f in files if f.startswith("policies/oracle/")]
+
+
 def test_episode_keys_change_with_what_decides_the_policy():
     a = episodes.candidate_key(SHORT, "r", policies.get("rollout-solver-tuned"))
     assert a == episodes.candidate_key(SHORT, "r", policies.get("rollout-solver-tuned"))
