@@ -30,7 +30,9 @@ alone does not: an editable install maps those three to its own checkout, so a
 change under ``policies/`` was compared with itself), and the capture fails if they do
 not come from there. ``--scenarios`` narrows a capture while working; the check a
 commit quotes covers them all (about an hour on the 2-core VM). ``compare`` prints every
-difference and exits 1 if there is one.
+difference and exits 1 if there is one; a training history or a run's settings that record
+more in the second capture, every value of the first equal, are listed apart and are not
+differences.
 """
 
 from __future__ import annotations
@@ -188,11 +190,34 @@ def _same(a, b) -> bool:
     return a == b
 
 
+_MISSING = object()
+
+
+def _common(x, y) -> tuple[bool, list[str]]:
+    """Whether a training history ``y`` holds every entry of ``x`` with the same values, and the keys only ``y`` has.
+
+    A newer trainer may record more per evaluation (e.g. the selection mode); that moves no
+    number of before, so it is reported apart from a difference.
+    """
+    if not (isinstance(x, list) and isinstance(y, list) and len(x) == len(y)):
+        return _same(x, y), []
+    new: set[str] = set()
+    for ex, ey in zip(x, y, strict=True):
+        if not (isinstance(ex, dict) and isinstance(ey, dict)):
+            if not _same(ex, ey):
+                return False, []
+            continue
+        if not ex.keys() <= ey.keys() or not all(_same(ex[k], ey[k]) for k in ex):
+            return False, []
+        new |= ey.keys() - ex.keys()
+    return True, sorted(new)
+
+
 def compare(a: Path, b: Path) -> int:
     import pandas as pd
     import torch
 
-    diffs, checked = [], 0
+    diffs, added, checked = [], [], 0
     for fa in sorted(a.rglob("*")):
         if not fa.is_file() or fa.name == "meta.json":
             continue
@@ -211,18 +236,28 @@ def compare(a: Path, b: Path) -> int:
             except AssertionError as exc:
                 diffs.append(f"{rel}: {str(exc).splitlines()[0]}")
         elif fa.suffix == ".model":
-            if not _same(torch.load(fa, weights_only=False), torch.load(fb, weights_only=False)):
-                diffs.append(f"{rel}: weights or history differ")
+            x, y = torch.load(fa, weights_only=False), torch.load(fb, weights_only=False)
+            if not _same(x["model"], y["model"]):
+                diffs.append(f"{rel}: weights differ")
+            history, new = _common(x.get("history"), y.get("history"))
+            if not history:
+                diffs.append(f"{rel}: history differs")
+            elif new:
+                added.append(f"{rel}: history records {new} too")
         elif fa.name == "config.clean.json":
             x, y = json.loads(fa.read_text()), json.loads(fb.read_text())
-            if x != y:
-                keys = sorted(k for k in x.keys() | y.keys() if x.get(k) != y.get(k))
-                diffs.append(f"{rel}: keys differ: {keys}")
+            changed = sorted(k for k in x.keys() if x[k] != y.get(k, _MISSING))
+            if changed:
+                diffs.append(f"{rel}: keys differ: {changed}")
+            if y.keys() - x.keys():
+                added.append(f"{rel}: settings {sorted(y.keys() - x.keys())} too")
         elif fa.read_bytes() != fb.read_bytes():
             diffs.append(f"{rel}: bytes differ")
     for d in diffs:
         print(d)
-    print(f"{checked} files compared, {len(diffs)} differences")
+    for n in added:
+        print(f"added (every value of before equal): {n}")
+    print(f"{checked} files compared, {len(diffs)} differences, {len(added)} with fields only the second records")
     return 1 if diffs else 0
 
 
