@@ -92,6 +92,7 @@ def test_fingerprint_separates_what_numba_types_apart():
     assert len({_fingerprint(x) for x in values}) == len({numba.typeof(x) for x in values})
 
 
+@pytest.mark.slow
 def test_backends_agree():
     serial = evaluate("heuristic-stochastic", "small", 6)
     process = evaluate("heuristic-stochastic", "small", 6, execution=Execution(backend="process", workers=2))

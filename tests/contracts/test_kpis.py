@@ -80,6 +80,7 @@ def test_kpis__no_module_writes_the_kpi_list_again():
                        f"wfbench.core.kpis instead: {found}")
 
 
+@pytest.mark.slow
 def test_kpis__no_module_computes_a_reward_from_the_utilities_again():
     found = []
     for path in _our_modules():

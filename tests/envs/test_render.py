@@ -95,6 +95,7 @@ def test_render__render_rgb_redraws_the_changing_state(running):
     np.testing.assert_array_equal(later[top:, x0:], first[top:, x0:])
 
 
+@pytest.mark.slow
 def test_save_gif__keeps_every_frame_and_its_colours(running, tmp_path):
     r = Renderer(running.config)
     sim = Simulator(resolve_scenario("small"), [6])

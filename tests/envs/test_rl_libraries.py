@@ -279,6 +279,7 @@ def test_skrl_ippo_and_mappo_train_on_the_parallel_env(algorithm, positioning, t
         assert all(torch.isfinite(p).all() for p in after)
 
 
+@pytest.mark.slow
 def test_cleanrl_style_example_trains_from_the_env_id():
     """examples/cleanrl_ppo.py, from the env id: one PPO iteration over one 200-step episode, its return recorded."""
     import importlib.util

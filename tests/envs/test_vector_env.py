@@ -162,6 +162,7 @@ def test_sb3_vec_env_replays_dummy_vec_env_and_serves_masks():
         ours.env_method("render")
 
 
+@pytest.mark.slow
 def test_maskable_ppo_learns_through_the_adapter_with_the_entity_extractor():
     from sb3_contrib import MaskablePPO
     from wfbench.policies import Composite

@@ -3,10 +3,12 @@
 import json
 
 import numba
+import pytest
 
 from wfbench.harness.bench import run
 
 
+@pytest.mark.slow
 def test_rounds_are_interleaved_and_summarized(tmp_path, capsys):
     out = tmp_path / "bench.json"
     rows = run("small", quick=True, json_path=str(out), rounds=2)

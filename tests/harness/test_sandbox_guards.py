@@ -70,6 +70,7 @@ COMPILING = HOSTILE.format(body="        total(np.arange(100.0) if self.calls ==
         ''')
 
 
+@pytest.mark.slow
 def test_compiling_is_allowed_in_the_first_act_only(bwrap, tmp_path):
     limits = Limits(act_timeout_s=0.05, warmup_s=60, memory_mb=2048, start_timeout_s=60)
     with SandboxPolicy(_package(tmp_path, COMPILING), "pol:Policy", limits, SECRET, CONTEXT) as sp:

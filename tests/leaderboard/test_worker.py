@@ -265,6 +265,7 @@ IDLE = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_the_worker_runs_a_package_in_the_real_sandbox(board, bwrap, tmp_path, monkeypatch):
     from wfbench.harness.isolation.package import pack
 

@@ -137,6 +137,7 @@ def _train(tmp_path, name, seed=0):
     return tr
 
 
+@pytest.mark.slow
 def test_ppo_trains_it_deterministically_and_the_checkpoint_says_its_observation(tmp_path):
     a, b = _train(tmp_path, "a"), _train(tmp_path, "b")
     for (n, p), q in zip(a.model.state_dict().items(), b.model.state_dict().values(), strict=True):

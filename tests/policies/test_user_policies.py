@@ -95,6 +95,7 @@ def test_time_under_the_numba_compiler_lock_does_not_count():
         evaluate(f"{SPEC}:SleepsOnce", "small", [0], act_timeout_s=0.5)
 
 
+@pytest.mark.slow
 def test_a_policy_defined_in_a_script_fails_in_a_worker_with_its_own_line():
     with pytest.raises(PolicyError) as err:
         evaluate(f"{SPEC}:Raises", "small", 4, execution=Execution(backend="process", workers=2))

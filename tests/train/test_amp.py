@@ -67,6 +67,7 @@ def test_amp__one_ppo_update_under_cpu_autocast_has_finite_losses_near_float32(t
     assert out["workforce"].dtype == torch.float32
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["scalefree", "paper"])
 def test_amp__the_lstm_runs_in_float32_outside_autocast(tmp_path, model):
     """cuDNN's autocast would run the LSTM in float16 whatever the autocast dtype (the reported crash's Half).

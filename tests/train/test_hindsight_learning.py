@@ -38,6 +38,7 @@ def _cfg(tmp_path, **kw):
     return HindsightConfig(**{**TINY, "run_dir": str(tmp_path / "run"), **kw})
 
 
+@pytest.mark.slow
 def test_labels_are_the_oracles_action_in_the_learners_state(tmp_path):
     tr = Trainer(_cfg(tmp_path, num_steps=40, teacher="oracle"), progress=False, log=False)
     res = tr.collect(beta=0.5, record_actions=True)

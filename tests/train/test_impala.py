@@ -117,6 +117,7 @@ def test_impala__actor_parameters_lag_the_learner(tmp_path):
     assert not tr.__dict__.get("_thread"), "the actor thread was not stopped"
 
 
+@pytest.mark.slow
 def test_impala__sync_training_is_deterministic_on_cpu(tmp_path):
     weights = []
     for i in range(2):

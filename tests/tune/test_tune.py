@@ -78,6 +78,7 @@ def test_an_interrupted_study_resumes_where_it_stopped(tmp_path, monkeypatch):
     assert _run(tmp_path, 5).new_trials == 1  # a larger total extends it
 
 
+@pytest.mark.slow
 def test_the_same_call_on_a_fresh_study_gives_the_same_file(tmp_path):
     a = _run(tmp_path, 4, db="a.db", out=tmp_path / "a.json")
     b = _run(tmp_path, 4, db="b.db", out=tmp_path / "b.toml")  # TOML by the suffix
