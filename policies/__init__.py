@@ -11,19 +11,12 @@ tuned-policy files (``wfbench tune``). ``docs/design.md`` draws the layers;
 ``docs/policies.md`` is the protocol for your own policy.
 """
 
-import importlib
+from wfbench.core.lazy import names as _names
 
-_LAZY = {"BuiltinDecision": "builtin", "Composite": "composite", "DECISIONS": "decisions", "Policy": "protocol",
-         "get": "registry", "names": "registry"}
-
-
-def __getattr__(name):
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
+# name -> the module that defines it, imported when the name is first read (PEP 562): importing a kernel imports this
+# package, and the registry behind ``get`` imports every family, which would then be in every kernel's closure
+_LAZY = {"BuiltinDecision": ".builtin", "Composite": ".composite", "DECISIONS": ".decisions", "Policy": ".protocol",
+         "get": ".registry", "names": ".registry"}
+__getattr__, __dir__ = _names(__name__, _LAZY)
 
 __all__ = ["BuiltinDecision", "Composite", "DECISIONS", "Policy", "get", "names"]

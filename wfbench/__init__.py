@@ -10,11 +10,11 @@ the layers above the core (``scenario``, the one resolver of scenario names;
 
 __version__ = "0.1.0"
 
-import importlib
 import warnings as _warnings
 
 import gymnasium as _gymnasium
 
+from wfbench.core import lazy as _lazy
 from wfbench.core.actions import ActionError
 from wfbench.core.config import ScenarioConfig
 from wfbench.core.schedule import RateSchedule
@@ -52,19 +52,7 @@ _LAZY = {"scenario": "wfbench.scenarios.resolve:resolve_scenario", "Execution": 
          "parallel_env": "wfbench.envs"}
 
 
-def __getattr__(name: str):
-    """The application-layer names, imported on first use (PEP 562)."""
-    where = _LAZY.get(name)
-    if where is None:
-        raise AttributeError(f"module 'wfbench' has no attribute {name!r}")
-    module, _, attr = where.partition(":")  # "module" or "module:attribute" when the names differ
-    value = getattr(importlib.import_module(module), attr or name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_LAZY])
+__getattr__, __dir__ = _lazy.names(__name__, _LAZY)  # the application-layer names, imported on first use
 
 
 __all__ = [

@@ -18,20 +18,16 @@ imports it, stays cheap to import.
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 from wfbench.policies.table import Entry, MPCPreset, RolloutPreset, SearchPreset, TunedLookahead, register
 
+from wfbench.core import lazy
+
 # name -> the module that defines it: imported when the name is first read
-_LAZY = {"MPC": "mpc", "NetworkRollout": "network_rollout", "BUDGETS": "rollout", "DEFAULT_BUDGET": "rollout",
-         "Rollout": "rollout", "budget": "rollout", "knob": "rollout", "NetworkSearch": "search"}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+_LAZY = {"MPC": ".mpc", "NetworkRollout": ".network_rollout", "BUDGETS": ".rollout", "DEFAULT_BUDGET": ".rollout",
+         "Rollout": ".rollout", "budget": ".rollout", "knob": ".rollout", "NetworkSearch": ".search"}
+__getattr__, __dir__ = lazy.names(__name__, _LAZY)
 
 
 def make(base: Any, budget_name: str | None = None, name: str | None = None, **knobs: Any) -> Any:
