@@ -35,11 +35,10 @@ import json, os, sys, time
 t_start = time.perf_counter()
 if os.environ.get("COMPILE_TIME_SRC"):  # wfbench and the folders it maps, all from that checkout
     sys.path.insert(0, os.environ["COMPILE_TIME_BENCHMARKS"])
-    from identity_check import use_checkout
-    from pathlib import Path
-    use_checkout(Path(os.environ["COMPILE_TIME_SRC"]))
-    import wfbench.policies
-    assert Path(wfbench.policies.__file__).resolve().is_relative_to(Path(os.environ["COMPILE_TIME_SRC"]).resolve())
+    from identity_check import from_checkout
+    wrong = from_checkout(os.environ["COMPILE_TIME_SRC"])
+    if wrong:
+        sys.exit(f"compile_time: {wrong}")
 from numba.core import event
 
 stack, times = [], {}

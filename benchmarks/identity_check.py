@@ -78,6 +78,16 @@ def use_checkout(root: Path) -> None:
     os.environ["PYTHONPATH"] = os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)
 
 
+def from_checkout(root: Path) -> str | None:
+    """:func:`use_checkout` of ``root``, then import ``wfbench.policies``: None, or why it did not come from there."""
+    root = Path(root).resolve()
+    use_checkout(root)
+    import wfbench.policies
+
+    where = Path(wfbench.policies.__file__).resolve()
+    return None if where.is_relative_to(root) else f"wfbench.policies imports from {where}, not from {root}"
+
+
 def policies() -> list[str]:
     """Every registered policy of the code being captured (its registry's names)."""
     from wfbench.policies.registry import names
@@ -277,12 +287,9 @@ def main() -> int:
     args = p.parse_args()
     if args.cmd == "capture":
         if args.checkout is not None:
-            use_checkout(args.checkout.resolve())
-            import wfbench.policies
-
-            if not Path(wfbench.policies.__file__).resolve().is_relative_to(args.checkout.resolve()):
-                print(f"identity_check: wfbench.policies imports from {wfbench.policies.__file__}, not from "
-                      f"{args.checkout}", file=sys.stderr)
+            wrong = from_checkout(args.checkout)
+            if wrong:
+                print(f"identity_check: {wrong}", file=sys.stderr)
                 return 2
         chosen = [x.strip() for x in args.scenarios.split(",")] if args.scenarios else None
         capture(args.out, args.seeds, set(args.only.split(",")) if args.only else None, chosen)
