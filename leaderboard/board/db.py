@@ -16,6 +16,7 @@ import hashlib
 import json
 import math
 import secrets as _secrets
+import sqlite3
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -266,6 +267,7 @@ def connect(url: str | Path) -> Engine:
     raise BoardError(f"database {shown!r} is not allowed; allowed: {URL_FORMS}")
 
 
+BUSY_S = 30.0  # SQLite: how long a connection waits for another's lock
 IDLE_IN_TRANSACTION_MS = 10_000  # PostgreSQL: a board transaction is a few statements; 10 s idle is a stalled client
 
 
@@ -292,9 +294,6 @@ def _sqlite(path: Path) -> Engine:
     return engine
 
 
-BUSY_S = 30.0  # SQLite: how long a connection waits for another's lock
-
-
 def _to_wal(cur: Any) -> None:
     """``PRAGMA journal_mode=WAL``, waiting out another connection's lock as every other statement does.
 
@@ -303,8 +302,6 @@ def _to_wal(cur: Any) -> None:
     servers and workers opening an empty board together failed so under load. Once the file
     is in WAL mode (it stays so) the pragma is a no-op.
     """
-    import sqlite3
-
     deadline = time.monotonic() + BUSY_S
     while True:
         try:
