@@ -32,7 +32,6 @@ def _oracle(cls: str) -> Callable[[], Any]:
 
         return getattr(oracle, cls)()
 
-    make.__qualname__ = cls
     return make
 
 
