@@ -10,7 +10,9 @@ env-steps: observing, simulating and the policy). The paired difference to the b
 
 ``--knobs K:H:R:top:z`` adds a :class:`NetworkSearch` of the base with those knobs; flags after
 them ablate one ingredient each: ``:novalue`` (the H steps alone, the critic left out),
-``:sample`` (the network samples the futures instead of playing them greedily). The noise
+``:sample`` (the network samples the futures instead of playing them greedily); ``:propose=NAME``
+adds a second proposer (``NetworkSearch(propose=get(NAME))``: its workforce action joins the
+candidates), ``:asks`` with it deliberates where the proposer hires or lets go too. The noise
 test's ablation is a tiny z (``z=1e-9``: any positive mean wins).
 """
 
@@ -40,12 +42,17 @@ def entry(spec: str, base: str) -> tuple[str, object]:
     parts = spec.split(":")
     K, H, R, top = (int(x) for x in parts[:4])
     flags = set(parts[5:])
-    if flags - {"novalue", "sample"}:
-        raise SystemExit(f"--knobs {spec}: unknown flags {sorted(flags - {'novalue', 'sample'})}; "
-                         "allowed: novalue, sample")
+    proposers = {f for f in flags if f.startswith("propose=")}
+    known = {"novalue", "sample", "asks"} | proposers
+    if flags - known or len(proposers) > 1 or ("asks" in flags and not proposers):
+        raise SystemExit(f"--knobs {spec}: unknown flags {sorted(flags - known)}; allowed: novalue, sample, "
+                         "one propose=POLICY, and asks with it")
     kw = {"value": ()} if "novalue" in flags else {}
     if "sample" in flags:
         kw["futures"] = "sample"
+    if proposers:
+        kw["propose"] = get(proposers.pop().split("=", 1)[1])
+        kw["propose_asks"] = "asks" in flags
     label = "".join(f" {f}" for f in sorted(flags))
     return f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}", NetworkSearch(
         get(base), K=K, H=H, R=R, top=top, z=float(parts[4]), **kw)
@@ -75,6 +82,9 @@ def main() -> None:
         d = df["nsw"].to_numpy() - base_nsw
         ms = 1e3 * df["cpu_s"].sum() / df["episode_length"].sum()
         dev = getattr(policy, "timing", {}).get("deviations", float("nan")) / len(s)
+        took = getattr(policy, "timing", {}).get("proposed", 0.0) / len(s)
+        if getattr(policy, "propose", None) is not None:
+            name = f"{name} (the proposer's taken {took:.1f} an episode)"
         print(f"| {name} | {df['nsw'].mean():.4f} | {d.mean():+.4f} ± {d.std(ddof=1) / np.sqrt(len(d)):.4f} | "
               f"{ms:.2f} | {df['hires'].mean():.1f} | {df['releases'].mean():.1f} | {dev:.1f} | {wall:.0f} |",
               flush=True)

@@ -105,14 +105,17 @@ class NetworkRollout(RolloutBase):
         action = self.base.act(obs)
         action = {k: np.array(v, copy=True) for k, v in action.items()}
         t = np.asarray(obs["t"], dtype=np.int64)
-        w = action["workforce"]
-        decide = (t % self.R == 0) if self.period else (w != 0) | (t % self.R == 0)
+        decide = (t % self.R == 0) if self.period else self._asks(obs, action) | (t % self.R == 0)
         self.last_scores = None
         if decide.any():
             self._decide(obs, np.flatnonzero(decide), action, int(t[0]))
         self.timing["steps"] += 1
         self.timing["act_s"] += time.perf_counter() - start
         return action
+
+    def _asks(self, obs: dict[str, np.ndarray], action: dict[str, np.ndarray]) -> np.ndarray:
+        """(B,) where this step asks for a deliberation besides every R steps: where the network hires or lets go."""
+        return action["workforce"] != 0
 
     def _fork(self, rows: int):
         if rows not in self.forks:

@@ -156,12 +156,19 @@ class NetworkSearch(NetworkRollout):
         decide: as :class:`NetworkRollout`; ``"auto"`` (the default): on a world as large as
             ``city`` it deliberates every R steps only (docs/policies.md, "search-scalefree-general"),
             elsewhere where the network hires or lets go and every R steps.
+        propose: a second proposer, a deployable policy deciding workforce and positioning
+            (``policies.get("solver-tuned")``): it acts on every observation beside the network,
+            and at each deliberation its workforce action (with its positioning) joins the
+            candidates where it is not among them. None (the default): the network's only.
+        propose_asks: with ``propose``, also deliberate where the proposer hires or lets go
+            (else only where the network asks and every R steps).
     """
 
     def __init__(self, base: Any, K: int | None = None, H: int | None = None, R: int | None = None,
                  top: int | None = None, z: float | None = None, budget: str = DEFAULT_BUDGET,
                  value: tuple[tuple[int, float], ...] | None = None, scenario: ScenarioConfig | None = None,
-                 seed: int = 0, name: str | None = None, futures: str = "greedy", decide: str = "auto"):
+                 seed: int = 0, name: str | None = None, futures: str = "greedy", decide: str = "auto",
+                 propose: Any | None = None, propose_asks: bool = False):
         if futures not in FUTURES:
             raise ValueError(f"search futures {futures!r} is not allowed; allowed: {', '.join(FUTURES)} (how the "
                              "network plays the sampled worlds)")
@@ -174,9 +181,36 @@ class NetworkSearch(NetworkRollout):
         self.value_given = None if value is None else tuple(value)
         self.value = self.value_given
         self.last_test: dict[int, tuple[list[int], np.ndarray, np.ndarray]] = {}
+        if propose is not None and not {"workforce", "positioning"} <= set(getattr(propose, "decisions", ())):
+            raise ValueError(f"search proposer {getattr(propose, 'name', propose)!r} does not decide workforce and "
+                             "positioning; allowed: a deployable policy deciding both, such as solver-tuned")
+        self.propose = propose
+        self.propose_asks = bool(propose_asks)
+        self.proposed: dict[str, np.ndarray] | None = None
+        self.last_theirs: dict[int, int] = {}  # at the last deliberation: environment -> the proposer's candidate
 
     def settings(self) -> dict[str, Any]:
-        return {**super().settings(), "top": self.top, "z": self.z, "futures": self.futures}
+        out = {**super().settings(), "top": self.top, "z": self.z, "futures": self.futures}
+        if self.propose is not None:
+            out["propose"] = getattr(self.propose, "name", type(self.propose).__name__)
+            out["propose_asks"] = self.propose_asks
+        return out
+
+    def reset(self, seeds) -> None:
+        super().reset(seeds)
+        if self.propose is not None:
+            self.propose.reset(self._seeds)
+
+    def act(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        if self.propose is not None:  # every step, so that its own state follows the episode
+            self.proposed = {k: np.asarray(v) for k, v in self.propose.act(obs).items()}
+        return super().act(obs)
+
+    def _asks(self, obs: dict[str, np.ndarray], action: dict[str, np.ndarray]) -> np.ndarray:
+        asks = super()._asks(obs, action)
+        if self.proposed is None or not self.propose_asks:
+            return asks
+        return asks | (self.proposed["workforce"] != 0)
 
     def _start(self, obs: dict[str, np.ndarray]) -> None:
         from wfbench.policies.neural.policy import NetworkPolicy
@@ -237,11 +271,20 @@ class NetworkSearch(NetworkRollout):
         cands = candidates(w[envs], logits[envs], np.asarray(obs["workforce_mask"])[envs], self.top)
         pos = self._positions(out, x, envs)
         M = action["positioning"].shape[-1]
+        theirs = {}  # environment -> the proposer's candidate index (its action is last), where it adds one
+        if self.proposed is not None:
+            for b, cs in zip(envs, cands, strict=True):
+                a = int(self.proposed["workforce"][b])
+                if a not in cs and obs["workforce_mask"][b, a]:
+                    cs.append(a)
+                    theirs[int(b)] = len(cs) - 1
         rows_env, rows_a, rows_k, first_p = [], [], [], []
         for i, (b, cs) in enumerate(zip(envs, cands, strict=True)):
             for j, a in enumerate(cs):
                 if j == 0:  # the network's own action keeps its own positioning (sampled in its mode)
                     p_row = action["positioning"][b]
+                elif theirs.get(int(b)) == j:  # the proposer's action keeps its positioning
+                    p_row = np.asarray(self.proposed["positioning"][b], dtype=action["positioning"].dtype)
                 else:
                     p_row = np.zeros((2, M))
                     p_row[int(a >= 4), pos[i, int(a >= 4)]] = 1.0
@@ -268,6 +311,7 @@ class NetworkSearch(NetworkRollout):
         self.timing["rolls"] += n
         self.last_scores = np.full((self.B, 7), np.nan)
         self.last_test = {}
+        self.last_theirs = theirs
         at = 0
         for i, (b, cs) in enumerate(zip(envs, cands, strict=True)):
             score = np.asarray(total[at: at + len(cs) * self.K], dtype=np.float64).reshape(len(cs), self.K)
@@ -278,8 +322,12 @@ class NetworkSearch(NetworkRollout):
             if best:
                 a = cs[best]
                 w[b] = a
-                action["positioning"][b] = 0.0
-                action["positioning"][b, int(a >= 4), pos[i, int(a >= 4)]] = 1.0
+                if theirs.get(int(b)) == best:
+                    action["positioning"][b] = self.proposed["positioning"][b]
+                    self.timing["proposed"] = self.timing.get("proposed", 0.0) + 1
+                else:
+                    action["positioning"][b] = 0.0
+                    action["positioning"][b, int(a >= 4), pos[i, int(a >= 4)]] = 1.0
                 self.timing["deviations"] += 1
 
 

@@ -7,6 +7,7 @@ Public seeds only (1000-1049): nothing is selected on the test seeds.
 """
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -226,3 +227,68 @@ def test_a_bad_decide_is_refused_in_one_line():
         search(decide="sometimes")
     msg = str(info.value)
     assert "\n" not in msg and "decide = 'sometimes'" in msg and "period" in msg and "auto" in msg, msg
+
+
+# -- a second proposer -------------------------------------------------------------------------------------------------
+def _with_proposer(pol, seeds):
+    """Per step: the actions, the search's tests and the proposer's action it saw."""
+    sim = Simulator(SMALL, seeds)
+    obs = sim.reset()
+    pol.reset(seeds)
+    steps = []
+    while not sim.done:
+        a = pol.act(obs)
+        tests = dict(pol.last_test) if pol.last_scores is not None else {}
+        steps.append(({k: v.copy() for k, v in a.items()}, tests, {k: v.copy() for k, v in pol.proposed.items()}))
+        sim.step(a)
+        obs = sim.observe()
+    return steps
+
+
+def test_a_second_proposer_s_action_joins_the_candidates_where_it_is_not_among_them():
+    seeds = [1000, 1001]
+    _, net, plain = play(search(z=1e12, top=2), SMALL, seeds)
+    steps = _with_proposer(search(z=1e12, top=2, propose=policies.get("solver-tuned")), seeds)
+    joined = 0
+    for (a, tests, theirs), x, before in zip(steps, net, plain, strict=True):
+        assert all(np.array_equal(a[k], x[k]) for k in a), "z huge: the network's own actions, the proposer's never"
+        assert tests.keys() == before.keys(), "without propose_asks it deliberates where it did before"
+        for b, (cs, _, _) in tests.items():
+            assert cs[:len(before[b][0])] == before[b][0], "the network's candidates first, unchanged"
+            extra = cs[len(before[b][0]):]
+            mine = int(theirs["workforce"][b])
+            assert extra == ([] if mine in before[b][0] else [mine])
+            joined += len(extra)
+    assert joined >= 1, "the proposer added a candidate somewhere: both branches were checked"
+
+
+def test_a_proposer_that_asks_adds_deliberations_and_a_taken_proposal_keeps_its_positioning():
+    pol = search(z=1e-9, top=1, propose=policies.get("solver-tuned"), propose_asks=True)
+    sim = Simulator(SMALL, [1000, 1001])
+    obs = sim.reset()
+    pol.reset([1000, 1001])
+    asked = taken = 0
+    while not sim.done:
+        a = pol.act(obs)
+        theirs = pol.proposed
+        tests = pol.last_test if pol.last_scores is not None else {}
+        for b in np.flatnonzero(theirs["workforce"] != 0):
+            assert int(b) in tests, "it deliberates where the proposer hires or lets go"
+            asked += 1
+        for b, j in (pol.last_theirs if tests else {}).items():
+            cs = tests[b][0]
+            assert cs[j] == theirs["workforce"][b] and theirs["workforce"][b] not in cs[:j]
+            if a["workforce"][b] == cs[j]:
+                assert np.array_equal(a["positioning"][b], theirs["positioning"][b]), "its own positioning"
+                taken += 1
+        sim.step(a)
+        obs = sim.observe()
+    assert asked >= 1 and taken >= 1 and taken == pol.timing["proposed"]
+    assert pol.settings()["propose"] == "solver-tuned" and pol.settings()["propose_asks"] is True
+
+
+def test_a_proposer_that_does_not_decide_workforce_and_positioning_is_refused_in_one_line():
+    with pytest.raises(ValueError, match=r"search proposer 'solver-dispatch' does not decide workforce and "
+                                         r"positioning; allowed: .*solver-tuned") as err:
+        search(propose=SimpleNamespace(name="solver-dispatch", decisions=("dispatch",)))
+    assert "\n" not in str(err.value)
