@@ -34,8 +34,12 @@ def search(**knobs) -> NetworkSearch:
     return NetworkSearch(policies.get("scalefree-general"), **kw)
 
 
-def play(pol, config, seeds):
-    """Every step's actions and, at each decision, the search's test per deciding environment."""
+def play(pol, config, seeds, seen: list | None = None):
+    """Every step's actions and, at each decision, the search's test per deciding environment.
+
+    ``seen``, when given, gets each step's proposer action and the proposer's candidate per
+    deciding environment (a search with ``propose``).
+    """
     sim = Simulator(config, seeds)
     obs = sim.reset()
     pol.reset(seeds)
@@ -43,8 +47,10 @@ def play(pol, config, seeds):
     while not sim.done:
         a = pol.act(obs)
         actions.append({k: v.copy() for k, v in a.items()})
-        tests.append(dict(getattr(pol, "last_test", {}) or {}) if getattr(pol, "last_scores", None) is not None
-                     else {})
+        decided = getattr(pol, "last_scores", None) is not None
+        tests.append(dict(getattr(pol, "last_test", {}) or {}) if decided else {})
+        if seen is not None:
+            seen.append(({k: v.copy() for k, v in pol.proposed.items()}, dict(pol.last_theirs) if decided else {}))
         sim.step(a)
         obs = sim.observe()
     return sim.episode_means()["nsw"], actions, tests
@@ -230,27 +236,13 @@ def test_a_bad_decide_is_refused_in_one_line():
 
 
 # -- a second proposer -------------------------------------------------------------------------------------------------
-def _with_proposer(pol, seeds):
-    """Per step: the actions, the search's tests and the proposer's action it saw."""
-    sim = Simulator(SMALL, seeds)
-    obs = sim.reset()
-    pol.reset(seeds)
-    steps = []
-    while not sim.done:
-        a = pol.act(obs)
-        tests = dict(pol.last_test) if pol.last_scores is not None else {}
-        steps.append(({k: v.copy() for k, v in a.items()}, tests, {k: v.copy() for k, v in pol.proposed.items()}))
-        sim.step(a)
-        obs = sim.observe()
-    return steps
-
-
 def test_a_second_proposer_s_action_joins_the_candidates_where_it_is_not_among_them():
     seeds = [1000, 1001]
     _, net, plain = play(search(z=1e12, top=2), SMALL, seeds)
-    steps = _with_proposer(search(z=1e12, top=2, propose=policies.get("solver-tuned")), seeds)
+    seen = []
+    _, actions, tests_ = play(search(z=1e12, top=2, propose=policies.get("solver-tuned")), SMALL, seeds, seen)
     joined = 0
-    for (a, tests, theirs), x, before in zip(steps, net, plain, strict=True):
+    for a, tests, (theirs, _), x, before in zip(actions, tests_, seen, net, plain, strict=True):
         assert all(np.array_equal(a[k], x[k]) for k in a), "z huge: the network's own actions, the proposer's never"
         assert tests.keys() == before.keys(), "without propose_asks it deliberates where it did before"
         for b, (cs, _, _) in tests.items():
@@ -264,25 +256,19 @@ def test_a_second_proposer_s_action_joins_the_candidates_where_it_is_not_among_t
 
 def test_a_proposer_that_asks_adds_deliberations_and_a_taken_proposal_keeps_its_positioning():
     pol = search(z=1e-9, top=1, propose=policies.get("solver-tuned"), propose_asks=True)
-    sim = Simulator(SMALL, [1000, 1001])
-    obs = sim.reset()
-    pol.reset([1000, 1001])
+    seen = []
+    _, actions, tests_ = play(pol, SMALL, [1000, 1001], seen)
     asked = taken = 0
-    while not sim.done:
-        a = pol.act(obs)
-        theirs = pol.proposed
-        tests = pol.last_test if pol.last_scores is not None else {}
+    for a, tests, (theirs, added) in zip(actions, tests_, seen, strict=True):
         for b in np.flatnonzero(theirs["workforce"] != 0):
             assert int(b) in tests, "it deliberates where the proposer hires or lets go"
             asked += 1
-        for b, j in (pol.last_theirs if tests else {}).items():
+        for b, j in added.items():
             cs = tests[b][0]
             assert cs[j] == theirs["workforce"][b] and theirs["workforce"][b] not in cs[:j]
             if a["workforce"][b] == cs[j]:
                 assert np.array_equal(a["positioning"][b], theirs["positioning"][b]), "its own positioning"
                 taken += 1
-        sim.step(a)
-        obs = sim.observe()
     assert asked >= 1 and taken >= 1 and taken == pol.timing["proposed"]
     assert pol.settings()["propose"] == "solver-tuned" and pol.settings()["propose_asks"] is True
 
