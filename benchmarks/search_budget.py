@@ -10,7 +10,8 @@ env-steps: observing, simulating and the policy). The paired difference to the b
 
 ``--knobs K:H:R:top:z`` adds a :class:`NetworkSearch` of the base with those knobs; flags after
 them ablate one ingredient each: ``:novalue`` (the H steps alone, the critic left out),
-``:sample`` (the network samples the futures instead of playing them greedily); ``:propose=NAME``
+``:sample`` (the network samples the futures instead of playing them greedily), ``:period``
+(it deliberates every R steps only, not also where the network hires or lets go); ``:propose=NAME``
 adds a second proposer (``NetworkSearch(propose=get(NAME))``: its workforce action joins the
 candidates), ``:asks`` with it deliberates where the proposer hires or lets go too. The noise
 test's ablation is a tiny z (``z=1e-9``: any positive mean wins).
@@ -43,11 +44,13 @@ def entry(spec: str, base: str) -> tuple[str, object]:
     K, H, R, top = (int(x) for x in parts[:4])
     flags = set(parts[5:])
     proposers = {f for f in flags if f.startswith("propose=")}
-    known = {"novalue", "sample", "asks"} | proposers
+    known = {"novalue", "sample", "period", "asks"} | proposers
     if flags - known or len(proposers) > 1 or ("asks" in flags and not proposers):
-        raise SystemExit(f"--knobs {spec}: unknown flags {sorted(flags - known)}; allowed: novalue, sample, "
+        raise SystemExit(f"--knobs {spec}: unknown flags {sorted(flags - known)}; allowed: novalue, sample, period, "
                          "one propose=POLICY, and asks with it")
     kw = {"value": ()} if "novalue" in flags else {}
+    if "period" in flags:
+        kw["decide"] = "period"
     if "sample" in flags:
         kw["futures"] = "sample"
     if proposers:

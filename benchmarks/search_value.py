@@ -92,6 +92,21 @@ def knots_of(sums: list[dict]) -> tuple[tuple[int, float], ...]:
     return tuple(out)
 
 
+def unseen_rows(policy: str, world: str, seed_list: list[int], others: tuple) -> str:
+    """Two table rows: the 10 ms search on ``world`` with its own value map, and with ``others`` (fitted without it)."""
+    from wfbench.policies.lookahead.search import NetworkSearch
+
+    base = wfbench.evaluate(policy, world, seed_list)["nsw"].to_numpy()
+    rows = []
+    for label, value in (("its own", None), ("the others' pooled", others)):
+        pol = NetworkSearch(get(policy), budget="10ms", value=value)
+        nsw = wfbench.evaluate(pol, world, seed_list, act_timeout_s=None)["nsw"].to_numpy()
+        d = nsw - base
+        rows.append(f"| {world} | {label} | {nsw.mean():.4f} | {d.mean():+.4f} ± {d.std(ddof=1) / np.sqrt(d.size):.4f} "
+                    f"| {pol.timing['deviations'] / len(seed_list):.1f} |")
+    return "\n".join(rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--policy", default="scalefree-general")
@@ -99,6 +114,10 @@ def main() -> None:
     ap.add_argument("--fit", default="1000000-1000049", help="training seeds the slope is fitted on")
     ap.add_argument("--held", default="1000-1049", help="public seeds the error is measured on")
     ap.add_argument("--worlds", nargs="*", default=[], help="also fit a map per world and pooled over them")
+    ap.add_argument("--leave-one-out", action="store_true",
+                    help="with --worlds: each world's own slopes against the pooled slopes of the others")
+    ap.add_argument("--search", default="", help="with --leave-one-out: public seeds a-b on which the 10 ms "
+                    "search plays each world with its own map and with the others' pooled one")
     a = ap.parse_args()
     torch.set_num_threads(1)
     print(f"machine: {platform.node()} {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}; "
@@ -138,6 +157,20 @@ def main() -> None:
         print(f"{world}: {knots_of(sums[-1:])}", flush=True)
     if sums:
         print(f"pooled over {', '.join(a.worlds)}: {knots_of(sums)}")
+    if a.leave_one_out and len(sums) > 1:  # what the pooled map is for a world it was not fitted on
+        print("| world | its own slope / the pooled slope of the others, per band of steps left |")
+        print("|---|---|")
+        for i, world in enumerate(a.worlds):
+            own, others = knots_of(sums[i:i + 1]), knots_of(sums[:i] + sums[i + 1:])
+            ratios = ", ".join(f"{k}: {b / o:.2f}" for (k, b), (_, o) in zip(own, others, strict=False))
+            print(f"| {world} | {ratios} |")
+        if a.search:  # and what it costs a search there: its own map against the others' pooled one
+            print(f"the 10 ms search on public seeds {a.search}, paired by seed against {a.policy}:")
+            print("| world | value map | NSW mean | paired difference (± s.e.) | deviations an episode |")
+            print("|---|---|---|---|---|")
+            for i, world in enumerate(a.worlds):
+                others = knots_of(sums[:i] + sums[i + 1:])
+                print(unseen_rows(a.policy, world, seeds(a.search), others), flush=True)
     print(f"CPU {time.process_time() - t0:.1f} s")
 
 
