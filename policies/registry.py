@@ -316,6 +316,32 @@ def _available(name: str) -> bool:
     return e is None or e.kind != "learned" or name in learned_names()
 
 
+def input_files(policy: str) -> list[Path]:
+    """The files besides code whose bytes decide ``policy``'s episodes: none for a composite of built-ins.
+
+    Its checkpoint or tuned file; a lookahead's base's too (a tuned MPC: its own and its base's
+    base's); a best-in-hindsight oracle's candidates'. What a suite piece records as its
+    ``inputs`` (``wfbench.reproduce.provenance``) and what the replaying oracle checks a piece
+    against (:mod:`wfbench.policies.oracle.pieces`).
+    """
+    from wfbench.policies.oracle import references
+
+    specs = oracle_candidates(policy) if policy in references.ORACLES else [policy]
+    files: list[Path] = []
+    seen: set[str] = set()
+    while specs:
+        spec = specs.pop(0)
+        if spec in seen:
+            continue
+        seen.add(spec)
+        parsed = parse_spec(spec)
+        if parsed.file is not None and parsed.file.is_file() and parsed.file not in files:
+            files.append(parsed.file)
+        if parsed.kind == "lookahead":
+            specs.append(lookahead_base(spec))
+    return files
+
+
 def best_in_hindsight(name: str = "oracle") -> Any:
     """The ``oracle``: per seed, the best of :func:`oracle_candidates` (:mod:`wfbench.policies.oracle.best`).
 
@@ -337,7 +363,7 @@ def best_in_hindsight(name: str = "oracle") -> Any:
     if nets and importlib.util.find_spec("torch") is None:
         raise ValueError(f"policy {name!r} plays the shipped networks ({', '.join(nets)}) as candidates and needs "
                          "torch; install the rl extra: pip install 'wfbench[rl]' (oracle-planner needs no torch)")
-    return references.make(name, get, _available)
+    return references.make(name, get, _available, input_files)
 
 
 def load_learned(path: Any, mode: str = "sample", name: str | None = None, algo: str | None = None) -> Any:

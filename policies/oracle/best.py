@@ -78,19 +78,25 @@ class BestInHindsight(Attached):
         resolve: makes a fresh policy from a name (``wfbench.policies.registry.get``); a module-level
             function, so the oracle pickles for the process backend.
         name: its name in tables.
+        replay: take totals from recorded episodes and committed pieces (a replaying reference).
+        inputs: with ``replay``, the files besides code a candidate reads, by name
+            (``wfbench.policies.registry.input_files``, a module-level function); a piece must
+            have recorded reading them, byte for byte. None: none (a piece of a candidate that
+            reads a checkpoint or tuned file is then never taken).
     """
 
     reads_trace = True
     decisions = AGENTS
 
     def __init__(self, candidates: Sequence[str], resolve: Callable[[str], Any], name: str = "oracle",
-                 replay: bool = False):
+                 replay: bool = False, inputs: Callable[[str], list] | None = None):
         if not candidates:
             raise ValueError("a best-in-hindsight oracle needs at least one candidate")
         self.candidates = tuple(candidates)
         self.resolve = resolve
         self.name = name
         self.replay = bool(replay)  # totals from pieces and recorded episodes (wfbench.policies.oracle.replay)
+        self.inputs = inputs
         self.sources: dict[str, dict[str, int]] = {}  # with replay: candidate -> where its seeds' totals came from
         self.skipped: list[tuple[str, str, str]] = []  # with replay: (candidate, piece, why) passed over
         self.config: ScenarioConfig | None = None

@@ -8,7 +8,9 @@ tree was ``dirty``). The replaying oracle reads the pieces of its candidates wit
 code** when the piece names a commit, was not made from a dirty tree, and every file that
 decides the candidate's episodes (:func:`wfbench.policies.oracle.episodes.decisive_files`: the
 import closure of its objects' modules and of the simulator) has at that commit the bytes it
-has here, as git stores them (blob ids). A piece that covers some asked seeds and does not
+has here, as git stores them (blob ids), and the files besides code it reads (a checkpoint, a
+tuned file: :func:`wfbench.policies.registry.input_files`) are those the piece recorded, with
+the same sha256. A piece that covers some asked seeds and does not
 match is passed over in the checkout's own ``docs/results`` (the oracle plays those seeds);
 in a folder named by ``$WFBENCH_ORACLE_PIECES`` it raises :class:`PieceMismatch`, one line
 naming the piece. Either way the oracle never mixes codes.
@@ -17,9 +19,11 @@ naming the piece. Either way the oracle never mixes codes.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import subprocess
+from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
 
@@ -97,8 +101,13 @@ def _repository() -> bool:
         return False
 
 
-def mismatch(meta: dict, files: list[str]) -> str | None:
-    """Why a piece's provenance does not match this code (``files``: the repository paths that decide it), or None."""
+def mismatch(meta: dict, files: list[str], inputs: Sequence[Path] | None = None) -> str | None:
+    """Why a piece's provenance does not match this code, or None.
+
+    ``files``: the repository paths of the code that decides it; ``inputs``, when given: the
+    other files it reads now (:func:`wfbench.policies.registry.input_files`: a checkpoint, a
+    tuned file), which the piece's recorded ``inputs`` must name, each with the sha256 it has now.
+    """
     prov = meta.get("provenance") or {}
     commit = prov.get("commit")
     if not commit:
@@ -107,7 +116,28 @@ def mismatch(meta: dict, files: list[str]) -> str | None:
         return f"it was made from a dirty tree at {commit[:12]}"
     if not _repository():
         return "this code is not a git checkout, so its files cannot be compared with the commit"
-    return _differs(commit, tuple(files))
+    return _differs(commit, tuple(files)) or (None if inputs is None else _inputs_differ(prov, inputs))
+
+
+def _inputs_differ(prov: dict, inputs: Sequence[Path]) -> str | None:
+    """Why the files a piece recorded reading (``inputs``: path -> sha256) are not those read now, or None."""
+    recorded = {(ROOT / name).resolve(): sha for name, sha in (prov.get("inputs") or {}).items()}
+    for path in inputs:
+        name = os.path.relpath(path.resolve(), ROOT.resolve()).replace(os.sep, "/")
+        if path.resolve() not in recorded:
+            return f"it does not record reading {name}"
+        stat = path.stat()
+        if _sha256(path.resolve(), stat.st_mtime_ns, stat.st_size) != recorded[path.resolve()]:
+            return f"{name} differs from the one it was made with"
+    if extra := sorted(set(recorded) - {p.resolve() for p in inputs}):
+        return f"it was made reading {os.path.relpath(extra[0], ROOT.resolve())}, which this policy does not read"
+    return None
+
+
+@cache
+def _sha256(path: Path, mtime_ns: int, size: int) -> str:
+    """A file's sha256, read once per version of it (its modification time and size key the cache)."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 @cache
@@ -135,12 +165,14 @@ def _parts(meta: dict) -> list[tuple[set[int], dict]]:
 
 
 def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
-           who: str = "oracle") -> tuple[np.ndarray, dict[int, Path], list[tuple[Path, str]]]:
+           who: str = "oracle", inputs: Sequence[Path] | None = None,
+           ) -> tuple[np.ndarray, dict[int, Path], list[tuple[Path, str]]]:
     """The committed mean NSW of ``seeds`` (NaN where no piece has it), the piece of each row that has one.
 
     And the pieces passed over, with why: those from other code found in the default folders.
     A piece extended over several runs is judged part by part: each seed by the provenance of
-    the run that played it (:func:`_parts`).
+    the run that played it (:func:`_parts`). ``inputs``: the files besides code the policy
+    reads now, which a piece must have recorded with the same bytes (:func:`mismatch`).
 
     Raises:
         PieceMismatch: a piece holding some of the seeds, in a folder asked for by name, does not
@@ -157,7 +189,7 @@ def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[s
         usable: set[int] = set()
         for part_seeds, part in _parts(meta):
             covered = part_seeds & set(by_seed)
-            why = mismatch(part, files)
+            why = mismatch(part, files, inputs)
             if why is None:
                 usable |= covered
                 continue

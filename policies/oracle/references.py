@@ -81,10 +81,15 @@ def outside(policy: str, name: str = "oracle") -> bool:
     return policy not in REFERENCES[reference(name)]
 
 
-def make(name: str, resolve: Callable[[str], Any], available: Callable[[str], bool] | None = None) -> BestInHindsight:
-    """The best-in-hindsight oracle ``name`` (:data:`ORACLES`) over its reference's available candidates."""
+def make(name: str, resolve: Callable[[str], Any], available: Callable[[str], bool] | None = None,
+         inputs: Callable[[str], list] | None = None) -> BestInHindsight:
+    """The best-in-hindsight oracle ``name`` (:data:`ORACLES`) over its reference's available candidates.
+
+    ``inputs``: the files besides code a candidate reads (``wfbench.policies.registry.input_files``),
+    which a replaying reference checks the committed pieces against.
+    """
     ref = reference(name)
-    return BestInHindsight(candidates(ref, available), resolve, name=name, replay=ref in REPLAYING)
+    return BestInHindsight(candidates(ref, available), resolve, name=name, replay=ref in REPLAYING, inputs=inputs)
 
 
 # the oracles that are not composites, by name (docs/hindsight.md, "The oracle"): each reads the trace

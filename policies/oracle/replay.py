@@ -126,7 +126,8 @@ def reset_replaying(oracle: Any, seeds: np.ndarray) -> None:
                 score[row] = ep.total / T
             if per_seed:  # committed pieces: a seed's total does not depend on its batch
                 committed, where, skipped = pieces.scores(name, c, seeds, episodes.decisive_files(policy),
-                                                          who=oracle.name)
+                                                          who=oracle.name,
+                                                          inputs=oracle.inputs(name) if oracle.inputs else [])
                 oracle.skipped += [(name, str(path), why) for path, why in skipped]
                 for row, path in where.items():
                     if row in cand.episodes and committed[row] != score[row]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import subprocess
 
@@ -153,7 +154,7 @@ CANDIDATES = ("heuristic", "solver-tuned", "rollout-solver-tuned-1ms", "oracle-r
 
 
 def _oracle(candidates=CANDIDATES) -> BestInHindsight:
-    return BestInHindsight(candidates, policies.get, name="oracle-test", replay=True)
+    return BestInHindsight(candidates, policies.get, name="oracle-test", replay=True, inputs=registry.input_files)
 
 
 def test_replaying_oracle__scores_the_best_candidate_per_seed_then_replays_without_playing(store, monkeypatch):
@@ -181,13 +182,17 @@ def test_replaying_oracle__scores_the_best_candidate_per_seed_then_replays_witho
     assert again.sources["oracle-rollout"] == {"episodes": 3, "pieces": 0, "cache": 0, "played": 0}
 
 
-def _piece(folder, name, seeds, nsw, commit="HEAD", dirty=False):
+def _piece(folder, name, seeds, nsw, commit="HEAD", dirty=False, inputs=None):
+    """A piece as the suite writes it: its provenance names the commit and the files the policy reads (``inputs``)."""
+    from wfbench.reproduce import provenance
+
     path = folder / "cache" / name / "tiny-v1.csv"
     path.parent.mkdir(parents=True, exist_ok=True)
     pd.DataFrame({"seed": seeds, "nsw": nsw}).to_csv(path, index=False)
     if commit == "HEAD":
         commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
-    meta = {"hash": "h", "seeds": list(seeds), "provenance": {"commit": commit, "dirty": dirty}}
+    inputs = provenance.policy_inputs(name) if inputs is None else inputs
+    meta = {"hash": "h", "seeds": list(seeds), "provenance": {"commit": commit, "dirty": dirty, "inputs": inputs}}
     path.with_suffix(".json").write_text(json.dumps(meta))
     return path
 
@@ -205,7 +210,8 @@ def test_replaying_oracle__takes_totals_from_matching_pieces_and_plays_only_the_
     name = "rollout-solver-tuned-1ms"
     truth = _nsw(name)
     _piece(tiny_suite, name, SEEDS, truth)
-    monkeypatch.setattr(pieces, "mismatch", lambda meta, files: None)  # as if made at a commit with these files
+    # as if made at a commit with these files
+    monkeypatch.setattr(pieces, "mismatch", lambda meta, files, inputs=None: None)
     oracle = _oracle(("heuristic", name))
     oracle.attach(SHORT)
     oracle.reset(SEEDS)
@@ -218,7 +224,7 @@ def test_replaying_oracle__a_piece_that_disagrees_with_the_code_fails_in_one_lin
                                                                                           monkeypatch):
     name = "rollout-solver-tuned-1ms"
     path = _piece(tiny_suite, name, SEEDS, _nsw(name) + 0.5)  # a seed it wins says what no play gives
-    monkeypatch.setattr(pieces, "mismatch", lambda meta, files: None)
+    monkeypatch.setattr(pieces, "mismatch", lambda meta, files, inputs=None: None)
     with pytest.raises(pieces.PieceMismatch) as err:
         _episode(_oracle(("heuristic", name)))
     text = str(err.value)
@@ -327,3 +333,43 @@ def test_a_piece_extended_over_runs_is_judged_seed_by_seed_by_the_part_that_play
     assert str(err.value) == (f"oracle-v2: the piece {path} of {name!r} was not made by this code (it records no "
                               f"commit, seeds {SEEDS[0]}..{SEEDS[0]} (1)); recompute it (wfbench reproduce suite) or "
                               f"leave its folder out of ${pieces.ENV}")
+
+
+def test_provenance_matches_only_with_the_files_the_policy_reads_now_at_the_bytes_it_read(tmp_path, monkeypatch):
+    """A checkpoint or tuned file is not code: the piece's recorded inputs must be those read now, byte for byte."""
+    tuned = tmp_path / "solver-x.json"
+    tuned.write_text('{"a": 1}')
+    sha = hashlib.sha256(tuned.read_bytes()).hexdigest()
+    monkeypatch.setattr(pieces, "ROOT", tmp_path)  # the recorded paths are repository paths
+    ok = {"inputs": {"solver-x.json": sha}}
+    assert pieces._inputs_differ(ok, [tuned]) is None
+    assert pieces._inputs_differ({"inputs": {"solver-x.json": "0" * 64}}, [tuned]) == \
+        "solver-x.json differs from the one it was made with"
+    assert pieces._inputs_differ({"inputs": {}}, [tuned]) == "it does not record reading solver-x.json"
+    assert pieces._inputs_differ({}, []) is None  # a composite of built-ins reads nothing
+    extra = {"inputs": {"solver-x.json": sha, "net.pt": "1" * 64}}
+    assert pieces._inputs_differ(extra, [tuned]) == "it was made reading net.pt, which this policy does not read"
+    tuned.write_text('{"a": 22}')  # the file edited since: its new bytes are read, not a stale hash
+    assert pieces._inputs_differ(ok, [tuned]) == "solver-x.json differs from the one it was made with"
+
+
+def test_a_policy_s_input_files_are_what_its_pieces_record_reading():
+    from wfbench.reproduce import provenance
+
+    for name in ("mpc-ma-tuned-train", "rollout-solver-tuned", "search-scalefree-general", "heuristic"):
+        now = provenance.policy_inputs(name)
+        assert {p.relative_to(pieces.ROOT).as_posix() for p in registry.input_files(name)} == set(now)
+    assert len(registry.input_files("mpc-ma-tuned-train")) == 2  # its own tuned file and its base's
+    assert registry.input_files("heuristic") == []
+
+
+def test_replaying_oracle__a_piece_made_with_another_tuned_file_fails_in_one_line_naming_it(tiny_suite):
+    name = "rollout-solver-tuned-1ms"
+    (tuned,) = registry.input_files(name)
+    rel = tuned.relative_to(pieces.ROOT).as_posix()
+    path = _piece(tiny_suite, name, SEEDS, np.zeros(3), inputs={rel: "0" * 64})
+    with pytest.raises(pieces.PieceMismatch) as err:
+        _episode(_oracle(("heuristic", name)))
+    assert str(err.value) == (f"oracle-test: the piece {path} of {name!r} was not made by this code ({rel} differs "
+                              f"from the one it was made with); recompute it (wfbench reproduce suite) or leave its "
+                              f"folder out of ${pieces.ENV}")

@@ -115,7 +115,8 @@ def test_verify_command_names_a_differing_piece(tmp_path):
     assert "1 differ from the committed results" in r.stdout
 
 
-REFERENCE = ROOT / "docs" / "results" / "reference-v2"  # oracle-v2's candidates, played at one commit (docs/hindsight.md)
+# oracle-v2's candidates, played at one commit (docs/hindsight.md)
+REFERENCE = ROOT / "docs" / "results" / "reference-v2"
 
 
 def test_the_reference_pieces_are_the_suite_s_own_played_again_at_one_clean_commit():

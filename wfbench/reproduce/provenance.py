@@ -117,31 +117,14 @@ def _repo_name(path: Path) -> str:
 def policy_inputs(policy: str) -> dict[str, str]:
     """The sha256 of each file whose bytes decide ``policy`` (its checkpoint or tuned file), by repository path.
 
-    The hindsight oracle reads its candidates' files: they are listed too. A composite of
-    built-ins reads none.
+    :func:`wfbench.policies.registry.input_files`: a lookahead's base's file too, and a
+    best-in-hindsight oracle's candidates'. A composite of built-ins reads none.
     """
     from wfbench.policies import registry
-    from wfbench.policies.oracle import references
 
     if policy == "bound":
         return {}
-    specs = [policy]
-    if policy in references.ORACLES:  # a best-in-hindsight oracle reads its reference's candidates' files
-        specs = registry.oracle_candidates(policy)
-    files: dict[str, str] = {}
-    seen: set[str] = set()
-    while specs:  # a lookahead reads its base's file too (a tuned MPC: its own, and its base's base's)
-        spec = specs.pop(0)
-        if spec in seen:
-            continue
-        seen.add(spec)
-        parsed = registry.parse_spec(spec)
-        f = parsed.file
-        if f is not None and f.is_file():
-            files[_repo_name(f)] = file_sha256(f)
-        if parsed.kind == "lookahead":
-            specs.append(registry.lookahead_base(spec))
-    return dict(sorted(files.items()))
+    return dict(sorted((_repo_name(f), file_sha256(f)) for f in registry.input_files(policy)))
 
 
 def start() -> None:
