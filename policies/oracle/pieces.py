@@ -165,7 +165,7 @@ def _parts(meta: dict) -> list[tuple[set[int], dict]]:
 
 
 def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[str],
-           who: str = "oracle", inputs: Sequence[Path] | None = None,
+           who: str = "oracle", inputs: Sequence[Path] | None = None, batch: bool = False,
            ) -> tuple[np.ndarray, dict[int, Path], list[tuple[Path, str]]]:
     """The committed mean NSW of ``seeds`` (NaN where no piece has it), the piece of each row that has one.
 
@@ -173,6 +173,8 @@ def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[s
     A piece extended over several runs is judged part by part: each seed by the provenance of
     the run that played it (:func:`_parts`). ``inputs``: the files besides code the policy
     reads now, which a piece must have recorded with the same bytes (:func:`mismatch`).
+    ``batch``: the policy's totals depend on its batch (a network), so only a part that
+    recorded playing ``seeds``, in this order, as one of its ``batches`` is read.
 
     Raises:
         PieceMismatch: a piece holding some of the seeds, in a folder asked for by name, does not
@@ -188,6 +190,8 @@ def scores(policy: str, config: ScenarioConfig, seeds: np.ndarray, files: list[s
         by_seed = dict(zip(rows["seed"].astype(int).tolist(), rows["nsw"].astype(float).tolist(), strict=True))
         usable: set[int] = set()
         for part_seeds, part in _parts(meta):
+            if batch and seeds.tolist() not in (part.get("batches") or []):
+                continue  # another batch: a network's totals there may differ in the last bit
             covered = part_seeds & set(by_seed)
             why = mismatch(part, files, inputs)
             if why is None:

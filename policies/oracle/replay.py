@@ -5,10 +5,11 @@
 
 - compiled: as the first reference (the totals cache, else played compiled; replayed live);
 - any other: each seed's total from its recorded episode (:mod:`wfbench.policies.oracle.episodes`),
-  else (no network) from a committed suite piece made by this code
-  (:mod:`wfbench.policies.oracle.pieces`), else (a network) from the totals cache; the seeds
-  still without one are played, recorded and stored (a candidate without a network only on
-  those seeds, one with a network on the whole batch, which keys it).
+  else from a committed suite piece made by this code (:mod:`wfbench.policies.oracle.pieces`;
+  a network's only where the piece played this very batch, since its totals depend on it),
+  else (a network) from the totals cache; the seeds still without one are played, recorded
+  and stored (a candidate without a network only on those seeds, one with a network on the
+  whole batch, which keys it).
 
 Then, per seed, the best score (mean NSW, the first candidate on a tie). A winner whose seed has
 no recorded episode is played on the seeds it wins, its episode stored, and its total must
@@ -124,19 +125,20 @@ def reset_replaying(oracle: Any, seeds: np.ndarray) -> None:
             score = np.full(B, np.nan)
             for row, ep in cand.episodes.items():
                 score[row] = ep.total / T
-            if per_seed:  # committed pieces: a seed's total does not depend on its batch
-                committed, where, skipped = pieces.scores(name, c, seeds, episodes.decisive_files(policy),
-                                                          who=oracle.name,
-                                                          inputs=oracle.inputs(name) if oracle.inputs else [])
-                oracle.skipped += [(name, str(path), why) for path, why in skipped]
-                for row, path in where.items():
-                    if row in cand.episodes and committed[row] != score[row]:
-                        raise pieces.PieceMismatch(
-                            f"{oracle.name}: the piece {path} of {name!r} says seed {int(seeds[row])} scores "
-                            f"{committed[row]!r}, its recorded episode {score[row]!r}: recompute the piece")
-                    if row not in cand.episodes:
-                        score[row], cand.piece[row] = committed[row], path
-            elif (played := totals_cache.played_key(c, policy)) is not None:
+            # committed pieces: any, where a seed's total does not depend on its batch; else (a network) only a
+            # piece that played this very batch
+            committed, where, skipped = pieces.scores(name, c, seeds, episodes.decisive_files(policy),
+                                                      who=oracle.name, batch=not per_seed,
+                                                      inputs=oracle.inputs(name) if oracle.inputs else [])
+            oracle.skipped += [(name, str(path), why) for path, why in skipped]
+            for row, path in where.items():
+                if row in cand.episodes and committed[row] != score[row]:
+                    raise pieces.PieceMismatch(
+                        f"{oracle.name}: the piece {path} of {name!r} says seed {int(seeds[row])} scores "
+                        f"{committed[row]!r}, its recorded episode {score[row]!r}: recompute the piece")
+                if row not in cand.episodes:
+                    score[row], cand.piece[row] = committed[row], path
+            if not per_seed and (played := totals_cache.played_key(c, policy)) is not None:
                 total, hit = totals_cache.lookup(played, seeds, totals_cache.batch_keys(seeds))
                 for row in np.flatnonzero(hit & np.isnan(score)):
                     score[row] = total[row] / T

@@ -182,7 +182,7 @@ def test_replaying_oracle__scores_the_best_candidate_per_seed_then_replays_witho
     assert again.sources["oracle-rollout"] == {"episodes": 3, "pieces": 0, "cache": 0, "played": 0}
 
 
-def _piece(folder, name, seeds, nsw, commit="HEAD", dirty=False, inputs=None):
+def _piece(folder, name, seeds, nsw, commit="HEAD", dirty=False, inputs=None, batches=None):
     """A piece as the suite writes it: its provenance names the commit and the files the policy reads (``inputs``)."""
     from wfbench.reproduce import provenance
 
@@ -193,6 +193,8 @@ def _piece(folder, name, seeds, nsw, commit="HEAD", dirty=False, inputs=None):
         commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
     inputs = provenance.policy_inputs(name) if inputs is None else inputs
     meta = {"hash": "h", "seeds": list(seeds), "provenance": {"commit": commit, "dirty": dirty, "inputs": inputs}}
+    if batches is not None:
+        meta["batches"] = batches
     path.with_suffix(".json").write_text(json.dumps(meta))
     return path
 
@@ -373,3 +375,35 @@ def test_replaying_oracle__a_piece_made_with_another_tuned_file_fails_in_one_lin
     assert str(err.value) == (f"oracle-test: the piece {path} of {name!r} was not made by this code ({rel} differs "
                               f"from the one it was made with); recompute it (wfbench reproduce suite) or leave its "
                               f"folder out of ${pieces.ENV}")
+
+
+def test_replaying_oracle__reads_a_network_s_piece_only_where_it_played_this_very_batch(tiny_suite):
+    """A network's totals can change in the last bit with its batch: another batch's piece is not taken."""
+    name = "ppo-joint"
+    low = np.zeros(3)  # below the heuristic on every seed: taken as totals, never chosen (nothing to replay)
+    _piece(tiny_suite, name, SEEDS, low, batches=[SEEDS])
+    oracle = _oracle(("heuristic", name))
+    assert _episode(oracle).tolist() == _nsw("heuristic").tolist()
+    assert oracle.sources[name] == {"episodes": 0, "pieces": 3, "cache": 0, "played": 0}
+    for i, other in enumerate(([SEEDS[::-1]], [SEEDS[:2], SEEDS[2:]], None)):  # another order, batches, none
+        _piece(tiny_suite, name, SEEDS, low, batches=other)
+        episodes.clear_memory()
+        oracle = _oracle(("heuristic", name))
+        _episode(oracle)
+        # played the first time (and its episodes recorded), read from those episodes after: never from the piece
+        assert oracle.sources[name] == {"episodes": 3 * (i > 0), "pieces": 0, "cache": 0, "played": 3 * (i == 0)}
+
+
+def test_a_suite_piece_records_the_batches_it_was_played_in(tmp_path):
+    from wfbench.harness.backends import Execution
+    from wfbench.reproduce import pieces as suite_pieces
+    from wfbench.scenarios import get_suite
+
+    sc = next(s for s in get_suite("suite-v1").scenarios if s.id == "small-v1")
+    run = Execution(backend="serial", chunk_size=2)
+    df = suite_pieces.obtain([tmp_path], tmp_path, "heuristic", sc, [4, 2, 7], run)
+    meta = json.loads(suite_pieces.piece_path(tmp_path, "heuristic", sc).with_suffix(".json").read_text())
+    assert meta["batches"] == [[4, 2], [7]] and df["seed"].tolist() == [4, 2, 7]
+    suite_pieces.obtain([tmp_path], tmp_path, "heuristic", sc, [4, 2, 7, 9], run)  # extended: a part per run
+    meta = json.loads(suite_pieces.piece_path(tmp_path, "heuristic", sc).with_suffix(".json").read_text())
+    assert [p.get("batches") for p in meta["parts"]] == [[[4, 2], [7]], [[9]]]

@@ -95,7 +95,8 @@ def evaluate(policy: Any, scenario: str | ScenarioConfig, seeds: int | str | Ite
     rank = np.argsort(df["seed"].map(order).to_numpy(), kind="stable")
     df = df.iloc[rank].reset_index(drop=True)
     df.attrs.update(scenario=config.name, policy=loaded.name,
-                    budget=budget_record(results, loaded, policy, run))
+                    budget=budget_record(results, loaded, policy, run),
+                    batches=[[int(s) for s in r.seeds] for r in results])  # a network's totals depend on its batch
     if return_series:
         series = np.concatenate([r.series for r in results if r.series is not None], axis=0)
         return df, series[rank]

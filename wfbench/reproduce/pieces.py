@@ -100,13 +100,21 @@ def find(folders: Sequence[Path], policy: str, scenario: SuiteScenario, seeds: S
 
 
 def store(path: Path, df: pd.DataFrame, policy: str, scenario: SuiteScenario, seeds: Sequence[int],
-          wall_s: float, earlier: Sequence[dict] = ()) -> None:
-    """Write a piece and its ``.json``; ``earlier`` are the parts (seeds, provenance) its older rows came from."""
+          wall_s: float, earlier: Sequence[dict] = (), batches: Sequence[Sequence[int]] | None = None) -> None:
+    """Write a piece and its ``.json``; ``earlier`` are the parts (seeds, provenance) its older rows came from.
+
+    ``batches``: the batches the new seeds were played in, each in its order (a network's
+    totals depend on its batch, so the replaying oracle reads them only in the same one).
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     df.to_csv(path, index=False)
     now = {"seeds": [int(s) for s in seeds], "wall_s": wall_s, "provenance": provenance.current(policy)}
+    if batches is not None:
+        now["batches"] = [[int(s) for s in b] for b in batches]
     meta = {"hash": scenario.hash, "seeds": [int(s) for s in df["seed"]],
             "wall_s": wall_s + sum(p.get("wall_s") or 0.0 for p in earlier), "provenance": now["provenance"]}
+    if "batches" in now:
+        meta["batches"] = now["batches"]
     if earlier:
         meta["parts"] = [*earlier, now]
     path.with_suffix(".json").write_text(json.dumps(meta))
@@ -150,7 +158,8 @@ def obtain(folders: Sequence[Path], out: Path, policy: str, scenario: SuiteScena
     else:
         merged = pd.concat([part[0], new], ignore_index=True).sort_values("seed", kind="stable").reset_index(drop=True)
         earlier = part[1]["parts"]
-    store(piece_path(out, policy, scenario), merged, policy, scenario, missing, wall_s, earlier)
+    store(piece_path(out, policy, scenario), merged, policy, scenario, missing, wall_s, earlier,
+          new.attrs.get("batches"))
     merged = merged.set_index("seed").loc[seeds].reset_index()
     merged.attrs["wall_s"] = wall_s + sum(p.get("wall_s") or 0.0 for p in earlier)
     return merged

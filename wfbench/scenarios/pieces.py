@@ -43,10 +43,16 @@ def read_rows(path: Path) -> pd.DataFrame:
 
 
 def parts_of(meta: dict) -> list[dict]:
-    """The parts of a piece: each ``{"seeds", "wall_s", "provenance"}`` (one part for a piece played at once)."""
+    """The parts of a piece: each ``{"seeds", "wall_s", "provenance"}`` and, where recorded, ``"batches"``.
+
+    One part for a piece played at once.
+    """
     if "parts" in meta:
         return meta["parts"]
-    return [{"seeds": meta.get("seeds", []), "wall_s": meta.get("wall_s"), "provenance": meta.get("provenance")}]
+    part = {"seeds": meta.get("seeds", []), "wall_s": meta.get("wall_s"), "provenance": meta.get("provenance")}
+    if "batches" in meta:
+        part["batches"] = meta["batches"]
+    return [part]
 
 
 __all__ = ["parts_of", "piece_folder", "piece_path", "read_meta", "read_rows"]
