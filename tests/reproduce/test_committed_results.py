@@ -119,22 +119,20 @@ def test_verify_command_names_a_differing_piece(tmp_path):
 REFERENCE = ROOT / "docs" / "results" / "reference-v2"
 
 
-def test_the_reference_pieces_are_the_suite_s_own_played_again_at_one_clean_commit():
+def test_the_reference_pieces_are_the_suite_s_own_played_again_at_clean_commits():
     found = sorted((REFERENCE / "cache").glob("*/*.csv"))
     assert found, "docs/results/reference-v2 holds the candidates' pieces"
-    commits, compared = set(), 0
+    compared = 0
     for csv in found:
         parts = json.loads(csv.with_suffix(".json").read_text()).get("parts") or [
             json.loads(csv.with_suffix(".json").read_text())]
         for part in parts:
             prov = part["provenance"]
-            assert prov["commit"] and prov["dirty"] is False, csv
-            commits.add(prov["commit"])
+            assert prov["commit"] and prov["dirty"] is False and "inputs" in prov, csv
         suite_piece = RUN / "cache" / csv.parent.name / csv.name
         if suite_piece.exists():  # the same episodes: every result column, every bit
             now = pd.read_csv(csv, float_precision="round_trip")
             then = pd.read_csv(suite_piece, float_precision="round_trip")
             assert differences(then, now) == [] and len(now) == len(then), csv
             compared += 1
-    assert len(commits) == 1, f"the reference's candidates are played at one commit, found {sorted(commits)}"
     assert compared >= 1
