@@ -49,6 +49,20 @@ def test_a_piece_with_fewer_seeds_is_extended_by_only_the_missing_ones(tmp_path,
     assert calls == []  # a subset of a stored piece is cut from it, not played
 
 
+def test_a_run_of_other_seeds_extends_the_piece_and_loses_none_it_held(tmp_path, monkeypatch):
+    """``--seeds 0-9`` then ``--seeds 10-19``: a piece of both, a part per run, each run's batch recorded."""
+    calls = _played(monkeypatch)
+    pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [0, 1], Execution())
+    later = pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [3, 2], Execution())
+    assert calls == [("heuristic", [0, 1]), ("heuristic", [3, 2])] and later["seed"].tolist() == [3, 2]
+    path = pieces.piece_path(tmp_path, "heuristic", SMALL)
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert pd.read_csv(path)["seed"].tolist() == [0, 1, 2, 3] and meta["seeds"] == [0, 1, 2, 3]
+    assert [(p["seeds"], p["batches"]) for p in meta["parts"]] == [([0, 1], [[0, 1]]), ([3, 2], [[3, 2]])]
+    whole = pieces.obtain([tmp_path / "fresh"], tmp_path / "fresh", "heuristic", SMALL, [0, 1, 2, 3], Execution())
+    pd.testing.assert_frame_equal(_results(pd.read_csv(path)), _results(whole))
+
+
 def test_a_piece_of_another_scenario_hash_is_played_again(tmp_path, monkeypatch):
     calls = _played(monkeypatch)
     pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [0], Execution())

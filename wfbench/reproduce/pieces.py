@@ -143,7 +143,9 @@ def obtain(folders: Sequence[Path], out: Path, policy: str, scenario: SuiteScena
     """The piece of (policy, scenario) over ``seeds``: found, or its missing seeds played and merged into ``out``.
 
     ``folders`` are searched in order (``out`` first, as a rule). What is played is written to
-    ``out``'s cache with the earlier rows it extends, so the next run finds all of it.
+    ``out``'s cache with the earlier rows it extends, so the next run finds all of it; the rows
+    ``out``'s piece held of other seeds stay in it (``--seeds 10-19`` after ``--seeds 0-9``
+    leaves a piece of 0-19, with a part per run).
     ``play_fn`` replaces :func:`play` (the suite passes its own, which tests replace).
     """
     seeds = [int(s) for s in seeds]
@@ -153,13 +155,18 @@ def obtain(folders: Sequence[Path], out: Path, policy: str, scenario: SuiteScena
         return _with_wall(*part)
     missing = [s for s in seeds if s not in set(have)]
     new, wall_s = (play_fn or play)(policy, scenario, missing, execution)
-    if part is None:
-        merged, earlier = new, []
-    else:
-        merged = pd.concat([part[0], new], ignore_index=True).sort_values("seed", kind="stable").reset_index(drop=True)
+    frames, earlier = [new], []
+    if part is not None:
+        frames.append(part[0])
         earlier = part[1]["parts"]
-    store(piece_path(out, policy, scenario), merged, policy, scenario, missing, wall_s, earlier,
-          new.attrs.get("batches"))
+    target = piece_path(out, policy, scenario)
+    held = (_meta(target, scenario) or {}).get("seeds", [])
+    if others := [s for s in held if s not in set(seeds)]:  # out's piece keeps the seeds it held beyond those asked
+        rows, meta = _stored([out], policy, scenario, others)
+        frames.append(rows)
+        earlier = [*meta["parts"], *earlier]
+    merged = pd.concat(frames, ignore_index=True).sort_values("seed", kind="stable").reset_index(drop=True)
+    store(target, merged, policy, scenario, missing, wall_s, earlier, new.attrs.get("batches"))
     merged = merged.set_index("seed").loc[seeds].reset_index()
     merged.attrs["wall_s"] = wall_s + sum(p.get("wall_s") or 0.0 for p in earlier)
     return merged
