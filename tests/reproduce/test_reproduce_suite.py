@@ -119,3 +119,15 @@ def test_cli_reproduce_suite__bad_options_in_one_line(capsys, tmp_path, argv, me
     status = main([*argv, "--out", str(tmp_path)])
     out, err = capsys.readouterr()
     assert status == 2 and err.count("\n") == 1 and message in err and "Traceback" not in err, err
+
+
+@pytest.mark.slow
+def test_suite__says_when_the_oracle_ran_with_no_deployable_beside_it(first, tmp_path):
+    import shutil
+
+    out, _, _ = first
+    shutil.copytree(out / "cache", tmp_path / "cache")  # the oracle's piece is read, nothing played
+    result = target.suite(tmp_path, seeds=[0, 1], policies=("oracle",), scenarios=["small"], execution=Execution(),
+                          **FAST)
+    assert "The oracle ran with no deployable candidate of it beside: nothing to compare." in result.text
+    assert "The oracle was not run." not in result.text

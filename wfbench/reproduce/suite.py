@@ -310,10 +310,13 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
     checks, check_rows = _checks(chosen, runs_by, bound)
     holds = all(c["bound_holds"] for c in checks)
     oracle_ok = [c["oracle_at_least_deployable"] for c in checks if c["oracle_at_least_deployable"] is not None]
+    oracle_ran = any(c["oracle_nsw"] is not None for c in checks)
     summary = (f"The bound holds: {'yes' if holds else 'NO'} (no policy above it on any seed"
                f"{'' if holds else ': see the rows marked NO'}). "
-               + (f"The oracle is at least every deployable policy on {sum(oracle_ok)} of {len(oracle_ok)} scenarios."
-                  if oracle_ok else "The oracle was not run."))
+               + (f"The {checks[0]['oracle']} is at least every deployable policy on {sum(oracle_ok)} of "
+                  f"{len(oracle_ok)} scenarios." if oracle_ok else
+                  f"The {checks[0]['oracle']} ran with no deployable candidate of it beside: nothing to compare."
+                  if oracle_ran else "The oracle was not run."))
     checks_md = "\n".join([summary, "", markdown_table(["Scenario", "Seeds above the bound (policy: count)",
                                                         "Oracle mean NSW", "Best deployable (mean NSW)",
                                                         "Oracle >= every deployable"], check_rows)])
