@@ -55,6 +55,8 @@ def test_a_run_of_other_seeds_extends_the_piece_and_loses_none_it_held(tmp_path,
     pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [0, 1], Execution())
     later = pieces.obtain([tmp_path], tmp_path, "heuristic", SMALL, [3, 2], Execution())
     assert calls == [("heuristic", [0, 1]), ("heuristic", [3, 2])] and later["seed"].tolist() == [3, 2]
+    played = json.loads(pieces.piece_path(tmp_path, "heuristic", SMALL).with_suffix(".json").read_text())
+    assert later.attrs["wall_s"] == played["parts"][-1]["wall_s"]  # the wall of the seeds asked, not the piece's
     path = pieces.piece_path(tmp_path, "heuristic", SMALL)
     meta = json.loads(path.with_suffix(".json").read_text())
     assert pd.read_csv(path)["seed"].tolist() == [0, 1, 2, 3] and meta["seeds"] == [0, 1, 2, 3]

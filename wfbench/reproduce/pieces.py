@@ -155,20 +155,21 @@ def obtain(folders: Sequence[Path], out: Path, policy: str, scenario: SuiteScena
         return _with_wall(*part)
     missing = [s for s in seeds if s not in set(have)]
     new, wall_s = (play_fn or play)(policy, scenario, missing, execution)
-    frames, earlier = [new], []
+    frames, asked = [new], []  # asked: the parts of the stored rows among ``seeds``
     if part is not None:
         frames.append(part[0])
-        earlier = part[1]["parts"]
+        asked = part[1]["parts"]
     target = piece_path(out, policy, scenario)
     held = (_meta(target, scenario) or {}).get("seeds", [])
-    if others := [s for s in held if s not in set(seeds)]:  # out's piece keeps the seeds it held beyond those asked
+    kept = []  # out's piece keeps the seeds it held beyond those asked
+    if others := [s for s in held if s not in set(seeds)]:
         rows, meta = _stored([out], policy, scenario, others)
         frames.append(rows)
-        earlier = [*meta["parts"], *earlier]
+        kept = meta["parts"]
     merged = pd.concat(frames, ignore_index=True).sort_values("seed", kind="stable").reset_index(drop=True)
-    store(target, merged, policy, scenario, missing, wall_s, earlier, new.attrs.get("batches"))
+    store(target, merged, policy, scenario, missing, wall_s, [*kept, *asked], new.attrs.get("batches"))
     merged = merged.set_index("seed").loc[seeds].reset_index()
-    merged.attrs["wall_s"] = wall_s + sum(p.get("wall_s") or 0.0 for p in earlier)
+    merged.attrs["wall_s"] = wall_s + sum(p.get("wall_s") or 0.0 for p in asked)  # the seeds asked only
     return merged
 
 
