@@ -109,9 +109,28 @@ def test_suite__plan_only_says_what_is_missing_and_plays_nothing(first, monkeypa
     assert "heuristic on small-v1: 1 seeds" in result.text and "bound on small-v1: 1 seeds" in result.text
 
 
+def test_suite__without_members_plays_a_methods_shipped_pick_only(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(target, "_run", lambda *a: pytest.fail("the plan played a piece"))
+    kw = {"seeds": [0], "policies": ("ppo-general",), "scenarios": ["small"], "execution": Execution(),
+          "plan_only": True, **FAST}
+    every = target.suite(tmp_path, **kw).text
+    picks = target.suite(tmp_path, members=False, **kw).text
+    assert "ppo-general#seed0 on small-v1" in every and "ppo-general on small-v1" in every
+    assert "#seed" not in picks and "ppo-general on small-v1: 1 seeds" in picks
+    assert picks.startswith("to play: 2 pieces")  # the pick and the bound
+    assert target.size(policies=("ppo-general",), scenarios=["small"], members=False) == 2
+    assert target.size(policies=("ppo-general",), scenarios=["small"]) > 2
+    assert main(["reproduce", "suite", "--plan", "--no-members", "--no-progress", "--seeds", "0-0", "--policies",
+                 "ppo-general", "--scenarios", "small", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("to play: 2 pieces") and "#seed" not in out
+
+
 @pytest.mark.parametrize(("argv", "message"), [
     (["reproduce", "gap", "--policies", "random"], "--policies applies to suite, verify and frontier only, not to gap"),
     (["reproduce", "verify", "--no-networks"], "--no-networks applies to suite only, not to verify (give --policies)"),
+    (["reproduce", "frontier", "--no-members"], "--no-members applies to suite only, not to frontier (give --"),
+    (["reproduce", "table3", "--no-members"], "--no-members applies to suite only, not to table3"),
     (["reproduce", "suite", "--scenarios", "nope"], "--scenarios: unknown scenario 'nope' in suite-v1; allowed: "),
     (["reproduce", "suite", "--policies", "no-such-policy"], "no-such-policy"),
 ])

@@ -54,6 +54,8 @@ def add_parser(sub) -> None:
     rp.add_argument("--plan", action="store_true", help="suite and frontier only: print what would be played "
                     "(the pieces no stored run holds) and its estimated CPU time, and play nothing")
     rp.add_argument("--no-networks", action="store_true", help="suite only: leave the shipped networks out")
+    rp.add_argument("--no-members", action="store_true", help="suite only: play a learned method's shipped pick "
+                    "only, not its training seeds (#seedK; the suite's per-seed table is then left out)")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_backend_args(rp)
 
@@ -114,10 +116,14 @@ def _names(text: str, option: str) -> tuple[str, ...]:
 
 def _suite_kwargs(args: argparse.Namespace) -> dict:
     """The suite target's options, checked now (an unknown policy or scenario fails before anything runs)."""
-    given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios),
-                            ("--no-networks", args.no_networks or None)) if v is not None]
+    given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios))
+             if v is not None]
     own = [o for o, v in (("--split", args.split), ("--reuse", args.reuse), ("--classes", args.classes))
            if v is not None]
+    for option, on in (("--no-networks", args.no_networks), ("--no-members", args.no_members)):
+        if on and args.target != "suite":
+            hint = " (give --policies)" if args.target in ("frontier", "verify") else ""
+            raise UsageError(f"{option} applies to suite only, not to {args.target}{hint}")
     if args.plan and args.target not in ("suite", "frontier"):
         raise UsageError(f"--plan applies to suite and frontier only, not to {args.target}")
     if own and args.target != "frontier":
@@ -126,13 +132,10 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
         if given:
             raise UsageError(f"{given[0]} applies to suite, verify and frontier only, not to {args.target}")
         return {}
-    if args.target == "frontier" and args.no_networks:
-        raise UsageError("--no-networks applies to suite only, not to frontier (give --policies)")
-    if args.target == "verify" and args.no_networks:
-        raise UsageError("--no-networks applies to suite only, not to verify (give --policies)")
     from wfbench.scenarios import get_suite
 
-    kwargs: dict = {"networks": not args.no_networks} if args.target == "suite" else {}
+    kwargs: dict = {"networks": not args.no_networks, "members": not args.no_members} \
+        if args.target == "suite" else {}
     if args.target in ("suite", "frontier"):
         kwargs["plan_only"] = args.plan  # the plan is the output; otherwise it is said first, on stderr
         if not args.plan:

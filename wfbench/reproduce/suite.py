@@ -60,11 +60,14 @@ def default_policies(networks: bool = True) -> list[str]:
     return [*BUILTIN, *(learned_names() if networks else []), *lookaheads, ORACLE]
 
 
-def with_members(names: Sequence[str]) -> tuple[list[str], dict[str, list[str]]]:
-    """``names`` with each learned method's training seeds (present ones) after it, and method -> its members."""
+def with_members(names: Sequence[str], members: bool = True) -> tuple[list[str], dict[str, list[str]]]:
+    """``names`` with each learned method's training seeds (present ones) after it, and method -> its members.
+
+    Without ``members`` the names are kept as given and no method has members (only the shipped picks play).
+    """
     from wfbench.policies.registry import seed_members
 
-    methods = {n: seed_members(n) for n in names}
+    methods = {n: seed_members(n) if members else [] for n in names}
     methods = {n: m for n, m in methods.items() if m}
     out = []
     for n in names:
@@ -95,9 +98,9 @@ def _chosen(suite: Suite, scenarios: Sequence[str] | None) -> list[SuiteScenario
 
 
 def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None = None, networks: bool = True,
-         suite_name: str = "suite-v1", **_: object) -> int:
+         suite_name: str = "suite-v1", members: bool = True, **_: object) -> int:
     """The evaluations :func:`suite` runs (for a progress bar): each policy, training seed and bound per scenario."""
-    n_policies = len(with_members(list(policies) if policies else default_policies(networks))[0])
+    n_policies = len(with_members(list(policies) if policies else default_policies(networks), members)[0])
     return (n_policies + 1) * len(_chosen(get_suite(suite_name), scenarios))
 
 
@@ -162,9 +165,9 @@ def _figure_scaling(scaling: pd.DataFrame, path_stem: Path) -> list[Path]:
 
 def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: Progress = None,
           seeds: str | Sequence[int] | None = None, policies: Sequence[str] | None = None,
-          scenarios: Sequence[str] | None = None, networks: bool = True, suite_name: str = "suite-v1",
-          reps: int = 5000, poi_reps: int = 1000, announce: Callable[[str], None] | None = None,
-          plan_only: bool = False) -> Output:
+          scenarios: Sequence[str] | None = None, networks: bool = True, members: bool = True,
+          suite_name: str = "suite-v1", reps: int = 5000, poi_reps: int = 1000,
+          announce: Callable[[str], None] | None = None, plan_only: bool = False) -> Output:
     """Every policy on every scenario of the suite, normalized and aggregated, with the bound and oracle checks.
 
     Args:
@@ -178,6 +181,8 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
             the training seeds of a learned method (:func:`wfbench.policies.registry.seed_members`).
         scenarios: a subset of the suite's ids or presets (default all).
         networks: include the shipped networks in the default policies.
+        members: also play each learned method's training seeds (without it, only the shipped picks: a
+            reference's candidates are the picks, and on ``city-v1`` the five seeds of a network cost hours).
         suite_name: the suite.
         reps: bootstrap replications of the aggregate's intervals.
         poi_reps: bootstrap replications of the probability of improvement's interval.
@@ -191,7 +196,7 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
     s = get_suite(suite_name)
     chosen = _chosen(s, scenarios)
     seed_list = resolve_seeds(seeds) if seeds is not None else list(range(runs))
-    names, methods = with_members(list(dict.fromkeys(policies)) if policies else default_policies(networks))
+    names, methods = with_members(list(dict.fromkeys(policies)) if policies else default_policies(networks), members)
     members = {m for ms in methods.values() for m in ms}
     provenance.start()  # the code this run starts with is the code its pieces record
     todo = pieces.plan([out], [*names, "bound"], chosen, seed_list, others=s.scenarios)
