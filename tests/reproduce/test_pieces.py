@@ -125,3 +125,26 @@ def test_a_lookahead_without_a_piece_here_is_estimated_from_its_bases_cost_here(
     # without the other scenarios, nothing to estimate from
     alone = pieces.plan([tmp_path], ["rollout-solver-tuned"], [city], [0])
     assert alone[0].cpu_s is None and alone[0].source is None
+
+
+def test_a_preset_is_estimated_from_its_siblings_cost_before_its_bases(tmp_path):
+    suite = get_suite("suite-v1")
+    paper, city = suite.scenario("paper-64"), suite.scenario("city")
+    # on city the dense base costs 1,000x (the rollouts play its sparse twin there), its 10 ms sibling 10x
+    _cost_piece(tmp_path, "solver-tuned", paper, 1.0)
+    _cost_piece(tmp_path, "solver-tuned", city, 1000.0)
+    _cost_piece(tmp_path, "rollout-solver-tuned", paper, 3.0)
+    _cost_piece(tmp_path, "rollout-solver-tuned", city, 30.0)
+    _cost_piece(tmp_path, "rollout-solver-tuned-100ms", paper, 20.0)
+    todo = pieces.plan([tmp_path], ["rollout-solver-tuned-100ms"], [city], [0], others=suite.scenarios)
+    assert todo[0].cpu_s == pytest.approx(20.0 * 10.0) and todo[0].source == ("paper-64-v1", "rollout-solver-tuned")
+
+
+def test_a_plan_reads_costs_from_other_runs_and_reuses_none_of_them(tmp_path):
+    suite = get_suite("suite-v1")
+    paper = suite.scenario("paper-64")
+    committed, out = tmp_path / "committed", tmp_path / "out"
+    _cost_piece(committed, "heuristic", paper, 4.0)
+    todo = pieces.plan([out], ["heuristic"], [paper], [0, 1], others=suite.scenarios, costs=[committed])
+    assert [(m.policy, m.seeds, m.cpu_s) for m in todo] == [("heuristic", (0, 1), pytest.approx(8.0))]
+    assert pieces.plan([out], ["heuristic"], [paper], [0, 1], others=suite.scenarios)[0].cpu_s is None

@@ -28,6 +28,14 @@ class Output:
     files: list[Path]
 
 
+def checkout_root() -> Path | None:
+    """The folder holding the committed results (``docs/results``): the checkout wfbench runs from, or None."""
+    from wfbench.core.paths import package_dir
+
+    root = package_dir("wfbench").parent
+    return root if (root / "docs" / "results").is_dir() else None
+
+
 def write(out: Path, stem: str, md: str, df: pd.DataFrame) -> list[Path]:
     """Write ``stem.md`` (the markdown) and ``stem.csv`` (the frame) into ``out``; return their paths."""
     out.mkdir(parents=True, exist_ok=True)

@@ -28,7 +28,7 @@ from wfbench.core.kpis import SCORE
 from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.harness.backends import Execution
 from wfbench.reproduce import pieces, provenance
-from wfbench.reproduce.common import PROCESS, Output, Progress, write
+from wfbench.reproduce.common import PROCESS, Output, Progress, checkout_root, write
 from wfbench.reproduce.suite import family as suite_family
 from wfbench.scenarios import SuiteScenario, get_suite, normalize
 
@@ -43,14 +43,6 @@ DEFAULT_REUSE = (COMMITTED, "docs/results/suite-v1-50")  # the committed runs, r
 def stem(split: str) -> str:
     """The name a frontier's files start with: ``frontier`` for the held-out split (the verdict), else split's."""
     return "frontier" if split == "heldout" else f"frontier-{split}"
-
-
-def checkout_root() -> Path | None:
-    """The folder holding the committed results (``docs/results``): the checkout wfbench runs from, or None."""
-    from wfbench.core.paths import package_dir
-
-    root = package_dir("wfbench").parent
-    return root if (root / "docs" / "results").is_dir() else None
 
 
 def default_reuse() -> tuple[Path, ...]:

@@ -201,10 +201,24 @@ def _cpu_per_episode(folders: Sequence[Path], policy: str, scenario: SuiteScenar
 
 
 def _references(policy: str) -> list[str]:
-    """The policies ``policy`` builds on, nearest first: a lookahead's base, its base's base, ... (else none)."""
+    """The policies whose cost scales like ``policy``'s, nearest first (else none).
+
+    A lookahead's siblings (the other presets of its kind on the same base: on ``city`` the
+    10 ms rollout plays the sparse preset its 100 ms sibling plays, where the dense base would
+    say hundreds of hours), then its base, its base's base, ...
+    """
     from wfbench.policies.registry import entry
+    from wfbench.policies.table import TABLE
 
     chain: list[str] = []
+    try:
+        recipe = entry(policy).recipe
+    except ValueError:  # "bound", a training seed (NAME#seedK), or a name the registry does not hold
+        return chain
+    base = getattr(recipe, "base", None)
+    if base is not None:
+        chain += [n for n, e in TABLE.items()
+                  if n != policy and type(e.recipe) is type(recipe) and getattr(e.recipe, "base", None) == base]
     name = policy
     while True:
         try:
@@ -250,19 +264,23 @@ def _estimate(cost: Callable[[str, SuiteScenario], float | None], policy: str, s
 
 
 def plan(folders: Sequence[Path], policies: Sequence[str], scenarios: Sequence[SuiteScenario],
-         seeds: Sequence[int], others: Sequence[SuiteScenario] | None = None) -> list[Missing]:
+         seeds: Sequence[int], others: Sequence[SuiteScenario] | None = None,
+         costs: Sequence[Path] = ()) -> list[Missing]:
     """What :func:`obtain` would play for each (policy, scenario), with its estimated CPU seconds.
 
     ``others``: the scenarios whose pieces an estimate may come from (default: the chosen ones;
     the callers pass the whole suite, so a scenario played alone is still estimated).
+    ``costs``: more runs whose pieces an estimate may read, after ``folders`` (a suite's
+    ``--out`` holds nothing yet; the committed runs know what a policy costs), never reused.
     """
     seeds = [int(s) for s in seeds]
     pool = list(scenarios) + [o for o in (others or []) if o.id not in {sc.id for sc in scenarios}]
     memo: dict[tuple[str, str], float | None] = {}
+    readable = [*folders, *(c for c in costs if c not in folders)]
 
     def cost(policy: str, sc: SuiteScenario) -> float | None:
         if (policy, sc.id) not in memo:
-            memo[policy, sc.id] = _cpu_per_episode(folders, policy, sc)
+            memo[policy, sc.id] = _cpu_per_episode(readable, policy, sc)
         return memo[policy, sc.id]
 
     todo = []

@@ -34,7 +34,7 @@ from wfbench.core.seeds import describe, resolve_seeds
 from wfbench.harness.backends import Execution
 from wfbench.policies.registry import LINEUPS
 from wfbench.reproduce import pieces, provenance
-from wfbench.reproduce.common import PROCESS, Output, Progress, write
+from wfbench.reproduce.common import PROCESS, Output, Progress, checkout_root, write
 from wfbench.scenarios import Suite, SuiteScenario, get_suite, normalize
 
 BUILTIN = LINEUPS["suite"]  # the built-ins every suite run plays (the registry's lineups say why these)
@@ -102,6 +102,16 @@ def size(policies: Sequence[str] | None = None, scenarios: Sequence[str] | None 
     """The evaluations :func:`suite` runs (for a progress bar): each policy, training seed and bound per scenario."""
     n_policies = len(with_members(list(policies) if policies else default_policies(networks), members)[0])
     return (n_policies + 1) * len(_chosen(get_suite(suite_name), scenarios))
+
+
+def committed_runs() -> tuple[Path, ...]:
+    """The checkout's committed suite runs (``docs/results/*`` with a ``cache/``); none in an installed copy.
+
+    Where a plan's estimates read what a policy costs: their pieces are read for costs only, never reused.
+    """
+    root = checkout_root()
+    results = None if root is None else root / "docs" / "results"
+    return () if results is None else tuple(sorted(p for p in results.iterdir() if (p / "cache").is_dir()))
 
 
 def _cache_path(out: Path, policy: str, scenario: SuiteScenario) -> Path:
@@ -199,7 +209,7 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
     names, methods = with_members(list(dict.fromkeys(policies)) if policies else default_policies(networks), members)
     members = {m for ms in methods.values() for m in ms}
     provenance.start()  # the code this run starts with is the code its pieces record
-    todo = pieces.plan([out], [*names, "bound"], chosen, seed_list, others=s.scenarios)
+    todo = pieces.plan([out], [*names, "bound"], chosen, seed_list, others=s.scenarios, costs=committed_runs())
     text = pieces.describe_plan(todo, execution.workers or os.cpu_count() or 1)
     if announce:
         announce(text)
