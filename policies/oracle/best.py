@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from wfbench.policies.kernels.forward import roll_forward
 from wfbench.policies.oracle import cache as totals_cache
+from wfbench.policies.oracle.episodes import Recording
 from wfbench.policies.protocol import Attached, seeds_array
 
 from wfbench.core.actions import AGENTS, validate_actions
@@ -29,45 +30,6 @@ from wfbench.core.state import METRICS
 K_NSW = METRICS.index("nsw")
 # prune a candidate only when it is below the best total by more than float rounding could explain
 PRUNE_MARGIN = 1e-9
-
-
-class _Recording:
-    """The actions of one candidate's episode over a batch, stored sparsely (see the module docstring)."""
-
-    def __init__(self, B: int, M: int, N: int, horizon: int):
-        self.B, self.M, self.N = B, M, N
-        self.workforce = np.zeros((horizon, B), dtype=np.int8)
-        self._dispatch: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
-        self._positioning: dict[tuple[int, int], np.ndarray] = {}
-
-    def add(self, t: int, d: np.ndarray, w: np.ndarray, p: np.ndarray) -> None:
-        b, f = np.nonzero(d != self.N)
-        if b.size:
-            self._dispatch.append((t, b.astype(np.int32), f.astype(np.int32), d[b, f].astype(np.int32)))
-        self.workforce[t] = w
-        for i in np.flatnonzero(w):
-            self._positioning[t, int(i)] = p[i, 0 if w[i] <= 3 else 1].copy()
-
-    def finish(self) -> None:
-        """Index the dispatches by step (called once the episode is over)."""
-        self.dispatch = {t: (b, f, v) for t, b, f, v in self._dispatch}
-        del self._dispatch
-
-    def actions(self, t: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The recorded actions of step ``t`` for the batch rows ``rows`` (in that order)."""
-        n = rows.size
-        d = np.full((n, self.M), self.N, dtype=np.int64)
-        w = self.workforce[t, rows].astype(np.int64)
-        p = np.zeros((n, 2, self.M), dtype=np.float64)
-        if t in self.dispatch:
-            b, f, v = self.dispatch[t]
-            where = np.full(self.B, -1, dtype=np.int64)
-            where[rows] = np.arange(n)
-            keep = where[b] >= 0
-            d[where[b[keep]], f[keep]] = v[keep]
-        for i in np.flatnonzero(w):
-            p[i, 0 if w[i] <= 3 else 1] = self._positioning[t, int(rows[i])]
-        return d, w, p
 
 
 class BestInHindsight(Attached):
@@ -125,7 +87,7 @@ class BestInHindsight(Attached):
         self.scores = np.full((B, len(self.candidates)), np.nan)
         best_total = np.full(B, -np.inf)
         best = np.full(B, -1, dtype=np.int64)
-        kept: dict[int, tuple[str, Any]] = {}  # candidate -> ("live" or "pending", policy) or ("recorded", _Recording)
+        kept: dict[int, tuple[str, Any]] = {}  # candidate -> ("live" or "pending", policy) or ("recorded", Recording)
         batch = totals_cache.batch_keys(seeds)  # a network's totals are keyed by the whole batch (cache.played_key)
         self.timing, self.cached = {}, {}
         for k, name in enumerate(self.candidates):
@@ -194,7 +156,7 @@ class BestInHindsight(Attached):
         return total, int(found.sum())
 
     def _play_recorded(self, policy: Any, seeds: np.ndarray, best_total: np.ndarray,
-                       world: bool = False) -> tuple[np.ndarray, _Recording]:
+                       world: bool = False) -> tuple[np.ndarray, Recording]:
         """Episode totals of NSW of any policy played through ``act`` (NaN when stopped early), and its actions.
 
         With ``world``, a deployable policy with ``set_world`` is handed the public config first,
@@ -210,7 +172,7 @@ class BestInHindsight(Attached):
         elif world and hasattr(policy, "set_world"):
             policy.set_world(ScenarioConfig.from_dict(c.to_dict()))
         policy.reset(sim.seeds)
-        rec = _Recording(sim.B, sim.M, sim.N, T)
+        rec = Recording(sim.B, sim.M, sim.N, T)
         while not sim.done:
             t = sim.t
             d, w, p = validate_actions(policy.act(obs), sim.B, sim.M, sim.N)

@@ -49,6 +49,45 @@ class Episode:
     pos: np.ndarray  # (m, M) float64 the positioning row the simulator reads on that step
 
 
+class Recording:
+    """The actions of one candidate's episode over a batch, stored sparsely (see the module docstring)."""
+
+    def __init__(self, B: int, M: int, N: int, horizon: int):
+        self.B, self.M, self.N = B, M, N
+        self.workforce = np.zeros((horizon, B), dtype=np.int8)
+        self._dispatch: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._positioning: dict[tuple[int, int], np.ndarray] = {}
+
+    def add(self, t: int, d: np.ndarray, w: np.ndarray, p: np.ndarray) -> None:
+        b, f = np.nonzero(d != self.N)
+        if b.size:
+            self._dispatch.append((t, b.astype(np.int32), f.astype(np.int32), d[b, f].astype(np.int32)))
+        self.workforce[t] = w
+        for i in np.flatnonzero(w):
+            self._positioning[t, int(i)] = p[i, 0 if w[i] <= 3 else 1].copy()
+
+    def finish(self) -> None:
+        """Index the dispatches by step (called once the episode is over)."""
+        self.dispatch = {t: (b, f, v) for t, b, f, v in self._dispatch}
+        del self._dispatch
+
+    def actions(self, t: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The recorded actions of step ``t`` for the batch rows ``rows`` (in that order)."""
+        n = rows.size
+        d = np.full((n, self.M), self.N, dtype=np.int64)
+        w = self.workforce[t, rows].astype(np.int64)
+        p = np.zeros((n, 2, self.M), dtype=np.float64)
+        if t in self.dispatch:
+            b, f, v = self.dispatch[t]
+            where = np.full(self.B, -1, dtype=np.int64)
+            where[rows] = np.arange(n)
+            keep = where[b] >= 0
+            d[where[b[keep]], f[keep]] = v[keep]
+        for i in np.flatnonzero(w):
+            p[i, 0 if w[i] <= 3 else 1] = self._positioning[t, int(rows[i])]
+        return d, w, p
+
+
 def _module_file(obj: Any) -> str | None:
     module = sys.modules.get(type(obj).__module__)
     path = getattr(module, "__file__", None)
@@ -196,5 +235,5 @@ def clear_memory() -> None:
     _MEMORY.clear()
 
 
-__all__ = ["Episode", "PREFIX", "candidate_key", "clear_memory", "decisive_files", "entry_keys", "identity", "lookup",
-           "store"]
+__all__ = ["Episode", "PREFIX", "Recording", "candidate_key", "clear_memory", "decisive_files", "entry_keys",
+           "identity", "lookup", "store"]

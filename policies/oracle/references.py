@@ -81,6 +81,11 @@ def outside(policy: str, name: str = "oracle") -> bool:
     return policy not in REFERENCES[reference(name)]
 
 
+def replayed() -> frozenset[str]:
+    """The candidates of every replaying reference: the names whose episodes the runner records as it plays them."""
+    return frozenset(n for ref in REPLAYING for n in REFERENCES[ref])
+
+
 def make(name: str, resolve: Callable[[str], Any], available: Callable[[str], bool] | None = None,
          inputs: Callable[[str], list] | None = None) -> BestInHindsight:
     """The best-in-hindsight oracle ``name`` (:data:`ORACLES`) over its reference's available candidates.
@@ -109,4 +114,5 @@ register(
           decisions=HINDSIGHT, reads_future=True, candidate_of=("v2",)),
 )
 
-__all__ = ["HINDSIGHT", "ORACLES", "REFERENCES", "REPLAYING", "V1", "V2", "candidates", "make", "outside", "reference"]
+__all__ = ["HINDSIGHT", "ORACLES", "REFERENCES", "REPLAYING", "V1", "V2", "candidates", "make", "outside", "reference",
+           "replayed"]

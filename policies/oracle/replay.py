@@ -31,7 +31,7 @@ from wfbench.policies.oracle.episodes import Episode
 
 
 class Replay:
-    """Per batch row, a recorded :class:`Episode` to replay; ``actions`` as :class:`best._Recording`'s."""
+    """Per batch row, a recorded :class:`Episode` to replay; ``actions`` as :class:`episodes.Recording`'s."""
 
     def __init__(self, M: int, N: int, chosen: dict[int, Episode]):
         self.M, self.N = M, N
@@ -62,7 +62,7 @@ class Replay:
 
 
 def episode_of(rec: Any, row: int, total: float) -> Episode:
-    """Row ``row`` of a finished :class:`best._Recording` as an :class:`Episode`."""
+    """Row ``row`` of a finished :class:`episodes.Recording` as an :class:`Episode`."""
     ts, fs, vs = [], [], []
     for t in sorted(rec.dispatch):
         b, f, v = rec.dispatch[t]
@@ -74,6 +74,43 @@ def episode_of(rec: Any, row: int, total: float) -> Episode:
     pos = np.array([rec._positioning[t, row] for t in pos_t], dtype=np.float64).reshape(len(pos_t), rec.M)
     return Episode(float(total), rec.workforce[:, row].copy(), np.array(ts, dtype=np.int32),
                    np.array(fs, dtype=np.int32), np.array(vs, dtype=np.int32), np.array(pos_t, dtype=np.int32), pos)
+
+
+class Recorder:
+    """A registry candidate's episodes recorded as the evaluation runner plays them, then stored (issue #53).
+
+    The suite plays each candidate of a replaying reference once for its piece; recorded there,
+    under the key the oracle looks them up by (:func:`episodes.candidate_key` of a fresh copy,
+    the entries per seed or, with a network, per seed and batch), the oracle neither plays nor
+    replays them again on this machine's store.
+
+    Args:
+        config: the scenario the batch plays.
+        name: the candidate's registry name.
+        fresh: a fresh copy of the policy (``wfbench.policies.get(name)``), as the oracle resolves
+            it: the key reads its settings, which a played copy has added to.
+        seeds: the batch, in its order.
+        M, N: the world's facility and personnel slots.
+    """
+
+    def __init__(self, config: Any, name: str, fresh: Any, seeds: Any, M: int, N: int):
+        self.key, per_seed = episodes.candidate_key(config, name, fresh)
+        self.seeds = np.asarray(seeds, dtype=np.int64)
+        self.entry = episodes.entry_keys(self.seeds, per_seed)
+        self.B, self.M, self.N = self.seeds.size, M, N
+        self.rec = episodes.Recording(self.B, M, N, config.horizon)
+
+    def add(self, t: int, action: dict) -> None:
+        """Record step ``t``'s actions (as the simulator will read them)."""
+        from wfbench.core.actions import validate_actions
+
+        self.rec.add(t, *validate_actions(action, self.B, self.M, self.N))
+
+    def store(self, totals: np.ndarray) -> None:
+        """Store each seed's finished episode with its NSW total (``sim.state.totals``' NSW column)."""
+        self.rec.finish()
+        for i, s in enumerate(self.seeds.tolist()):
+            episodes.store(self.key, s, self.entry[i], episode_of(self.rec, i, float(totals[i])))
 
 
 class _Candidate:
@@ -188,4 +225,4 @@ def reset_replaying(oracle: Any, seeds: np.ndarray) -> None:
                                                   {r: obj.episodes[r] for r in rows.tolist()}), rows))
 
 
-__all__ = ["Replay", "episode_of", "reset_replaying"]
+__all__ = ["Recorder", "Replay", "episode_of", "reset_replaying"]

@@ -36,9 +36,24 @@ def store(tmp_path, monkeypatch):
     episodes.clear_memory()
 
 
-def _nsw(name: str, seeds=SEEDS) -> np.ndarray:
-    """The evaluator's mean NSW per seed of a registry name on ``SHORT``."""
-    return evaluate(name, SHORT, seeds)["nsw"].to_numpy()
+def _recorded() -> set:
+    root = cache.directory()
+    return set() if root is None else set(root.glob(f"{episodes.PREFIX}*/*.npz"))
+
+
+def _nsw(name: str, seeds=SEEDS, record: bool = False) -> np.ndarray:
+    """The evaluator's mean NSW per seed of a registry name on ``SHORT``.
+
+    The runner records the episodes of a replaying reference's candidate; without ``record`` they are forgotten, so
+    that an oracle played next takes its totals where the test puts them.
+    """
+    before = _recorded()
+    out = evaluate(name, SHORT, seeds)["nsw"].to_numpy()
+    if not record:
+        for path in _recorded() - before:
+            path.unlink()
+        episodes.clear_memory()
+    return out
 
 
 def _episode(policy, seeds=SEEDS) -> np.ndarray:
@@ -180,6 +195,29 @@ def test_replaying_oracle__scores_the_best_candidate_per_seed_then_replays_witho
     assert _episode(again).tolist() == rows.tolist()
     assert not set(played) & set(finished)
     assert again.sources["oracle-rollout"] == {"episodes": 3, "pieces": 0, "cache": 0, "played": 0}
+
+
+@pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms", "scalefree-general"])
+def test_replaying_oracle__reads_the_episodes_the_runner_recorded_and_plays_none_again(store, monkeypatch, name):
+    # the suite plays each candidate once for its piece: recorded there, the oracle neither plays nor replays it
+    truth = _nsw(name, record=True)
+    assert len(list(store.glob("episode-*/*.npz"))) == len(SEEDS)
+    played = []
+    real = BestInHindsight._play_recorded
+    monkeypatch.setattr(BestInHindsight, "_play_recorded",
+                        lambda self, policy, *a, **k: (played.append(policy.name), real(self, policy, *a, **k))[1])
+    cache.clear_memory()  # a network's totals would come from the totals cache: the episodes alone must do
+    episodes.clear_memory()
+    oracle = _oracle(("heuristic", name))
+    assert _episode(oracle).tolist() == np.maximum(_nsw("heuristic"), truth).tolist()
+    assert name in oracle.choice and played == []
+    assert oracle.sources[name] == {"episodes": 3, "pieces": 0, "cache": 0, "played": 0}
+
+
+def test_the_runner_records_no_episode_of_a_policy_no_replaying_reference_reads(store):
+    assert "mpc-rates-backlog" not in references.replayed() and "oracle-rollout" in references.replayed()
+    _nsw("mpc-rates-backlog", record=True)
+    assert not list(store.glob("episode-*"))
 
 
 def _piece(folder, name, seeds, nsw, commit="HEAD", dirty=False, inputs=None, batches=None):

@@ -6,7 +6,8 @@ through a batched ``reset`` / ``act`` / ``step`` loop (a user's
 through its :class:`~wfbench.harness.guard.Guard`). A policy with ``reads_trace = True`` gets
 ``attach(config)`` before ``reset``; one with ``set_world`` gets :func:`public_world` (the laws of
 the world, no seed or trace). A compiled run of a registry name leaves its NSW totals in the
-oracle's totals cache. A batch also measures its cost (:mod:`wfbench.harness.budget`).
+oracle's totals cache, and one of any other candidate of a replaying reference its episodes
+(:class:`~wfbench.policies.oracle.replay.Recorder`). A batch also measures its cost (:mod:`wfbench.harness.budget`).
 :func:`results_frame` makes one row per seed. ``docs/hindsight.md``; ``docs/policies.md``, "The
 world's public parameters: set_world".
 """
@@ -143,10 +144,16 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
                     policy.attach(sim.config)
                 elif hasattr(policy, "set_world"):  # a deployable policy that asks for the public parameters
                     policy.set_world(public_world(sim.config))
+                record = _recorder(loaded.name, sim, seeds)
                 policy.reset(sim.seeds)
                 while not sim.done:
-                    sim.step(timed(policy.act, obs))
+                    action = timed(policy.act, obs)
+                    if record is not None:
+                        record.add(sim.t, action)
+                    sim.step(action)
                     obs = sim.observe()
+                if record is not None:
+                    record.store(sim.state.totals[:, K_NSW].astype(np.float64))
             else:
                 if getattr(policy, "reads_trace", False):  # declared: the leaderboard keeps it off deployable tracks
                     guard.call("attach", policy.attach, sim.config)
@@ -170,6 +177,21 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
         series=sim.state.series.copy() if keep_series else None, decision_ms=decision_ms, cpu_s=cpu_s,
         timing=timing, machine=machine(),
     )
+
+
+def _recorder(name: str, sim: Simulator, seeds: Sequence[int]) -> Any:
+    """A recorder of ``name``'s episodes where a replaying reference reads them (and the store is on), else None.
+
+    :class:`~wfbench.policies.oracle.replay.Recorder`: what is played here is not played there again.
+    """
+    from wfbench.policies.oracle.references import replayed
+
+    if name not in replayed() or not totals_cache.enabled():
+        return None
+    from wfbench.policies import get
+    from wfbench.policies.oracle.replay import Recorder
+
+    return Recorder(sim.config, name, get(name), seeds, sim.M, sim.N)
 
 
 def prime(loaded: LoadedPolicy, config: ScenarioConfig) -> None:
