@@ -353,9 +353,12 @@ def best_in_hindsight(name: str = "oracle") -> Any:
 
     recipe = entry(name).recipe
     if isinstance(recipe, HindsightRolloutOf):  # issue #53: not a best of candidates, the rollout on the true future
+        from wfbench.policies.lookahead.rollout import AUTO_SPARSE_PAIRS, sparse_twin, spatial_twin
         from wfbench.policies.oracle.hindsight import HindsightRollout
 
-        return HindsightRollout(get(recipe.base), name=name)
+        base = get(recipe.base)  # on city: the rollout's city preset (issue #53: else hours a seed)
+        twin = sparse_twin(base)
+        return HindsightRollout(base, name=name, large=(AUTO_SPARSE_PAIRS, twin, spatial_twin(twin)))
     if not isinstance(recipe, BestOf):
         raise ValueError(f"policy {name!r} is not a best-in-hindsight oracle; allowed: "
                          f"{', '.join(n for n, e in TABLE.items() if isinstance(e.recipe, BestOf))}")

@@ -9,6 +9,13 @@ forward by :func:`wfbench.policies.kernels.forward.roll_forward`. With ``H`` to 
 episode a score is the exact rest of the episode, so the policy is one step of exact policy
 improvement over its base, and scores at least the base on every seed. It reads the trace: not
 deployable (``docs/hindsight.md``, "The hindsight rollout").
+
+On a world as large as ``city`` (``large``, which the registry's ``oracle-rollout`` sets to what
+the deployable rollout's city preset plays: more facility-person pairs than
+:data:`~wfbench.policies.lookahead.rollout.AUTO_SPARSE_PAIRS`, the base's sparse twin deciding
+every ``R`` steps only, its futures played by the twin's spatial twin): there the dense base
+costs 0.6-1 s a step, and 7 futures of the rest of the episode at every hire would cost hours a
+seed. Its scores are then those of the cheaper futures, so the improvement is not exact there.
 """
 
 from __future__ import annotations
@@ -47,15 +54,22 @@ class HindsightRollout(Attached):
         H: steps of each roll-forward; None (the default) rolls to the end of the episode.
         R: steps between two decisions the base did not ask for (the 10 ms rollout's 20).
         name: its name in tables.
+        large: (pairs, base, futures): on a world of more than ``pairs`` facility-person slot pairs,
+            that compiled base decides every R steps only and those compiled futures play the
+            roll-forwards (module docstring); None (the default): ``base`` on every world.
     """
 
     reads_trace = True
     decisions = AGENTS
 
-    def __init__(self, base: Any, H: int | None = None, R: int = 20, name: str = "oracle-rollout"):
-        if not getattr(base, "compiled", False):
-            raise ValueError(f"oracle-rollout base {getattr(base, 'name', base)!r} is not a composite of built-in "
-                             "kernels; allowed: a compiled composite (a registry composite or tuned file of one)")
+    def __init__(self, base: Any, H: int | None = None, R: int = 20, name: str = "oracle-rollout",
+                 large: tuple[int, Any, Any] | None = None):
+        for b in (base, *(large[1:] if large is not None else ())):
+            if not getattr(b, "compiled", False):
+                raise ValueError(f"oracle-rollout base {getattr(b, 'name', b)!r} is not a composite of built-in "
+                                 "kernels; allowed: a compiled composite (a registry composite or tuned file of one)")
+        self.large = large
+        self._dense = base
         self.base = base
         self.H = None if H is None else _knob("H", H)
         self.R = _knob("R", R)
@@ -68,8 +82,11 @@ class HindsightRollout(Attached):
     def __repr__(self) -> str:
         return f"HindsightRollout({getattr(self.base, 'name', self.base)!r}, H={self.H}, R={self.R})"
 
-    def settings(self) -> dict[str, int | None]:
-        return {"H": self.H, "R": self.R}
+    def settings(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"H": self.H, "R": self.R}
+        if self.large is not None:
+            out["large"] = f"> {self.large[0]:,} pairs: {self.large[1].name}, futures {self.large[2].name}"
+        return out
 
     def reset(self, seeds: int | Sequence[int]) -> None:
         """Start the shadow of the coming batch (``attach`` first)."""
@@ -79,7 +96,13 @@ class HindsightRollout(Attached):
         self.shadow.reset()
         B, M, N = self.shadow.B, self.shadow.M, self.shadow.N
         self.B, self.M, self.N = B, M, N
+        large = self.large is not None and M * N > self.large[0]
+        self.base = self.large[1] if large else self._dense
         self.codes, self.hp, self.pstate = self.base.compiled_plan(self._seeds, M, N)
+        # the futures' kernels: the base's, or on a large world those of its futures (the state is the base's)
+        self.f_codes, self.f_hp = (self.large[2].compiled_plan(self._seeds, M, N)[:2] if large
+                                   else (self.codes, self.hp))
+        self.period = large  # decide every R steps only
         self.fork = fork(self.shadow, copies=N_WORKFORCE, keep_series=False, threads=1)
         self.fork_pstate = K.allocate_state(self.fork.B, M, N)
         self.buffers = RollBuffers(self.fork.B, M, N, onset_capacity=1)
@@ -99,7 +122,7 @@ class HindsightRollout(Attached):
         w = np.zeros(B, dtype=np.int64)
         p = np.zeros((B, 2, M), dtype=np.float64)
         K.act_batch(as_obs(obs), self.pstate, self.codes, self.hp, d, w, p, t)
-        decide = np.flatnonzero((w != 0) | (t % self.R == 0))
+        decide = np.flatnonzero((t % self.R == 0) if self.period else (w != 0) | (t % self.R == 0))
         self.last_scores = None
         if decide.size:
             self._decide(decide, np.asarray(obs["workforce_mask"]), d, w, p)
@@ -116,7 +139,7 @@ class HindsightRollout(Attached):
         rows_a = np.array([a for b in cands for a in cands[b]], dtype=np.int64)
         n = rows_env.size
         copy_state(self.fork, self.shadow, rows_env)
-        score = roll_candidates(self.fork, self.steps, self.codes, self.hp, self.pstate, self.fork_pstate,
+        score = roll_candidates(self.fork, self.steps, self.f_codes, self.f_hp, self.pstate, self.fork_pstate,
                                 self.buffers, rows_env, rows_a, d, p)
         scores = np.full((self.B, N_WORKFORCE), np.nan)
         i = 0

@@ -150,6 +150,29 @@ def test_oracle_rollout__refuses_a_base_it_cannot_compile_in_one_line():
         HindsightRollout(policies.get("solver-tuned"), H=0)
 
 
+def test_oracle_rollout__on_a_world_as_large_as_city_plays_the_rollouts_city_preset():
+    from wfbench.policies.lookahead.rollout import AUTO_SPARSE_PAIRS, sparse_twin, spatial_twin
+
+    registered = policies.get("oracle-rollout")
+    pairs, twin, futures = registered.large
+    assert pairs == AUTO_SPARSE_PAIRS and twin.name == "solver-tuned-sparse" and futures.name == \
+        "solver-tuned-sparse-spatial"
+    base = policies.get("solver-tuned")
+    twin = sparse_twin(base)
+    size = SHORT.max_facilities * SHORT.max_personnel
+    plain, at_limit, above = (HindsightRollout(base, large=large) for large in
+                              (None, (size, twin, spatial_twin(twin)), (size - 1, twin, spatial_twin(twin))))
+    dense = _episode(plain)
+    assert _episode(at_limit).tolist() == dense.tolist() and at_limit.base is base  # not more pairs: the base
+    sparse = _episode(above)
+    assert above.base is twin and above.period  # more: the twin, deciding every R steps only
+    assert above.timing["decisions"] == len(SEEDS) * len(range(0, SHORT.horizon, above.R))
+    assert plain.timing["decisions"] > above.timing["decisions"]
+    assert sparse.tolist() != dense.tolist()
+    with pytest.raises(ValueError, match=r"^oracle-rollout base 'x' is not a composite of built-in kernels"):
+        HindsightRollout(base, large=(1, twin, type("X", (), {"name": "x"})()))
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms", "mpc-rates", "oracle-rollout"])
 def test_a_lookahead_plays_a_seed_the_same_alone_and_in_any_batch(name):
