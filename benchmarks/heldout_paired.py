@@ -8,6 +8,12 @@ env-step the frontier uses. Reported numbers only: nothing here is tuned or sele
 
     NUMBA_NUM_THREADS=1 python benchmarks/heldout_paired.py distill:docs/results/distill-general/seed0/best.pt \\
         --against scalefree-general --seeds 0-19
+
+With ``--committed`` the policy's own committed pieces are read instead (nothing is played), and
+``--kpis`` adds each KPI's mean for both, to see where a difference comes from:
+
+    python benchmarks/heldout_paired.py search-scalefree-general --committed --seeds 0-49 \\
+        --kpis hires,releases,headcount,workforce_cost,utilization,downtime
 """
 
 from __future__ import annotations
@@ -42,20 +48,30 @@ def main() -> None:
     ap.add_argument("policy", help="a policy spec (registry name, ALGO:PATH, ...)")
     ap.add_argument("--against", default="scalefree-general", help="the committed policy to pair with")
     ap.add_argument("--seeds", default="0-19", help="test seeds (default 0-19)")
-    ap.add_argument("--scenarios", default=",".join(HELDOUT), help="held-out scenario ids (default: all but city)")
+    ap.add_argument("--scenarios", default=",".join(HELDOUT), help="scenario ids (default: the held-out ones but "
+                    "city; a training world's numbers are reported the same way)")
+    ap.add_argument("--committed", action="store_true", help="read the policy's committed pieces, play nothing")
+    ap.add_argument("--kpis", default="", help="comma-separated result columns whose means to add, policy / against "
+                    "(e.g. hires,releases,headcount,workforce_cost,utilization,downtime)")
     args = ap.parse_args()
     seeds = resolve_seeds(args.seeds)
-    print("| scenario | NSW, policy | NSW, " + args.against + " | paired difference (± s.e.) | CPU ms / env-step |")
-    print("|---|---|---|---|---|")
+    kpis = [k for k in args.kpis.split(",") if k]
+    print("| scenario | NSW, policy | NSW, " + args.against + " | paired difference (± s.e.) | CPU ms / env-step |"
+          + "".join(f" {k} |" for k in kpis))
+    print("|---|---|---|---|---|" + "---|" * len(kpis))
     for sc in args.scenarios.split(","):
-        with warnings.catch_warnings():  # zero-shot on a held-out world is the point
-            warnings.simplefilter("ignore")
-            df = wfbench.evaluate(args.policy, sc, seeds=seeds, execution=wfbench.Execution(threads=1))
+        if args.committed:
+            df = committed(args.policy, sc).loc[seeds].reset_index()
+        else:
+            with warnings.catch_warnings():  # zero-shot on a held-out world is the point
+                warnings.simplefilter("ignore")
+                df = wfbench.evaluate(args.policy, sc, seeds=seeds, execution=wfbench.Execution(threads=1))
         ref = committed(args.against, sc).loc[seeds]
         d = df["nsw"].to_numpy() - ref["nsw"].to_numpy()
         ms = 1e3 * df["cpu_s"].sum() / df["episode_length"].sum()
+        extra = "".join(f" {df[k].mean():.3g} / {ref[k].mean():.3g} |" for k in kpis)
         print(f"| {sc} | {df['nsw'].mean():.4f} | {ref['nsw'].mean():.4f} | {d.mean():+.4f} ± "
-              f"{d.std(ddof=1) / np.sqrt(len(d)):.4f} | {ms:.2f} |", flush=True)
+              f"{d.std(ddof=1) / np.sqrt(len(d)):.4f} | {ms:.2f} |{extra}", flush=True)
 
 
 if __name__ == "__main__":
