@@ -133,10 +133,12 @@ def test_the_reference_pieces_are_the_suite_s_own_played_again_at_clean_commits(
             assert all(part.get("batches") for part in parts), csv
             continue
         suite_piece = RUN / "cache" / csv.parent.name / csv.name
-        if suite_piece.exists():  # the same episodes: every result column, every bit
+        if suite_piece.exists():  # the same episodes: every result column, every bit, on every seed the piece holds
             now = pd.read_csv(csv, float_precision="round_trip")
             then = pd.read_csv(suite_piece, float_precision="round_trip")
-            assert differences(then, now) == [] and len(now) == len(then), csv
+            then = then[then["seed"].isin(now["seed"])].reset_index(drop=True)
+            assert len(now) == len(then), csv  # a campaign's piece may hold fewer seeds (its chunks so far), not others
+            assert differences(then, now.sort_values("seed").reset_index(drop=True)) == [], csv
             compared += 1
     assert compared >= 1
 
