@@ -180,7 +180,7 @@ def test_frontier_cli__plan_prints_the_plan_and_writes_nothing(tmp_path, capsys,
 @pytest.mark.parametrize(("argv", "message"), [
     (["gap", "--plan"], "--plan applies to suite and frontier only, not to gap"),
     (["suite", "--split", "train"], "--split applies to frontier only, not to suite"),
-    (["suite", "--reuse", "x"], "--reuse applies to frontier only, not to suite"),
+    (["gap", "--reuse", "x"], "--reuse applies to suite and frontier only, not to gap"),
     (["suite", "--classes", "x.json"], "--classes applies to frontier only, not to suite"),
     (["frontier", "--split", "train", "--classes", "x.json"],
      "--classes applies to the held-out split only (the verdict's), not to train"),

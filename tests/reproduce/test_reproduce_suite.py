@@ -109,6 +109,23 @@ def test_suite__plan_only_says_what_is_missing_and_plays_nothing(first, monkeypa
     assert "heuristic on small-v1: 1 seeds" in result.text and "bound on small-v1: 1 seeds" in result.text
 
 
+@pytest.mark.slow
+def test_suite__reads_the_reused_runs_pieces_and_writes_only_to_its_own(first, tmp_path, monkeypatch):
+    committed, _, _ = first
+    before = sorted(p.name for p in (committed / "cache").rglob("*"))
+    ran = []
+    real = target._run
+    monkeypatch.setattr(target, "_run", lambda policy, sc, seeds, *a: (ran.append((policy, list(seeds))),
+                                                                       real(policy, sc, seeds, *a))[1])
+    held = pd.read_csv(committed / "cache" / "heuristic" / "small-v1.csv")["seed"].tolist()  # 0, 1 and maybe more
+    result = target.suite(tmp_path, seeds=[0, 1, 7], policies=("heuristic",), scenarios=["small"],
+                          execution=Execution(), reuse=[committed], **FAST)
+    assert 7 not in held and ran == [("heuristic", [7]), ("bound", [7])]  # the others came from the reused run
+    assert sorted(p.name for p in (committed / "cache").rglob("*")) == before
+    mine = pd.read_csv(tmp_path / "cache" / "heuristic" / "small-v1.csv")
+    assert mine["seed"].tolist() == [0, 1, 7] and "heuristic" in result.text
+
+
 def test_suite__without_members_plays_a_methods_shipped_pick_only(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(target, "_run", lambda *a: pytest.fail("the plan played a piece"))
     kw = {"seeds": [0], "policies": ("ppo-general",), "scenarios": ["small"], "execution": Execution(),

@@ -45,9 +45,10 @@ def add_parser(sub) -> None:
                     "split's)")
     rp.add_argument("--split", default=None, choices=["train", "heldout"], help="frontier only: the split "
                     "(default heldout)")
-    rp.add_argument("--reuse", default=None, help="frontier only: comma-separated suite run folders whose cached "
-                    "pieces are read before anything is played (default: the checkout's docs/results/frontier-v1 "
-                    "and docs/results/suite-v1-50, the committed runs, wherever the command runs from)")
+    rp.add_argument("--reuse", default=None, help="suite and frontier only: comma-separated suite run folders "
+                    "whose cached pieces are read, in order, after --out's and before anything is played (suite "
+                    "default: none; frontier default: the checkout's docs/results/frontier-v1 and "
+                    "docs/results/suite-v1-50, the committed runs, wherever the command runs from)")
     rp.add_argument("--classes", default=None, metavar="FILE", help="frontier only: also write each policy's CPU ms "
                     "per env-step to FILE, the budget classes wfbench policies prints (the committed frontier's: "
                     "policies/budgets.json, held-out split only)")
@@ -118,14 +119,15 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
     """The suite target's options, checked now (an unknown policy or scenario fails before anything runs)."""
     given = [o for o, v in (("--seeds", args.seeds), ("--policies", args.policies), ("--scenarios", args.scenarios))
              if v is not None]
-    own = [o for o, v in (("--split", args.split), ("--reuse", args.reuse), ("--classes", args.classes))
-           if v is not None]
+    own = [o for o, v in (("--split", args.split), ("--classes", args.classes)) if v is not None]
     for option, on in (("--no-networks", args.no_networks), ("--no-members", args.no_members)):
         if on and args.target != "suite":
             hint = " (give --policies)" if args.target in ("frontier", "verify") else ""
             raise UsageError(f"{option} applies to suite only, not to {args.target}{hint}")
     if args.plan and args.target not in ("suite", "frontier"):
         raise UsageError(f"--plan applies to suite and frontier only, not to {args.target}")
+    if args.reuse is not None and args.target not in ("suite", "frontier"):
+        raise UsageError(f"--reuse applies to suite and frontier only, not to {args.target}")
     if own and args.target != "frontier":
         raise UsageError(f"{own[0]} applies to frontier only, not to {args.target}")
     if args.target not in ("suite", "verify", "frontier"):

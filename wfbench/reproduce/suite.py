@@ -177,7 +177,8 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
           seeds: str | Sequence[int] | None = None, policies: Sequence[str] | None = None,
           scenarios: Sequence[str] | None = None, networks: bool = True, members: bool = True,
           suite_name: str = "suite-v1", reps: int = 5000, poi_reps: int = 1000,
-          announce: Callable[[str], None] | None = None, plan_only: bool = False) -> Output:
+          announce: Callable[[str], None] | None = None, plan_only: bool = False,
+          reuse: Sequence[str | Path] = ()) -> Output:
     """Every policy on every scenario of the suite, normalized and aggregated, with the bound and oracle checks.
 
     Args:
@@ -199,6 +200,9 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
         announce: called once with what will be played and its estimated CPU time
             (:func:`wfbench.reproduce.pieces.describe_plan`) before anything is played.
         plan_only: stop after announcing the plan (``files`` empty; the text is the plan).
+        reuse: more suite run folders whose ``cache/`` pieces are read, in order, after ``out``'s;
+            what is played is written to ``out`` only (e.g. the committed runs, to check a new
+            reference against every piece they hold).
 
     Returns:
         The text (scores, aggregate, checks) and the files written.
@@ -209,7 +213,8 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
     names, methods = with_members(list(dict.fromkeys(policies)) if policies else default_policies(networks), members)
     members = {m for ms in methods.values() for m in ms}
     provenance.start()  # the code this run starts with is the code its pieces record
-    todo = pieces.plan([out], [*names, "bound"], chosen, seed_list, others=s.scenarios, costs=committed_runs())
+    folders = [out, *(Path(r) for r in reuse)]
+    todo = pieces.plan(folders, [*names, "bound"], chosen, seed_list, others=s.scenarios, costs=committed_runs())
     text = pieces.describe_plan(todo, execution.workers or os.cpu_count() or 1)
     if announce:
         announce(text)
@@ -224,7 +229,7 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
             if progress:
                 progress(f"{sc.id}: {name}")
             try:  # a stored piece, cut to the seeds, or only its missing seeds played (wfbench.reproduce.pieces)
-                df = pieces.obtain([out], out, name, sc, seed_list, execution, play_fn=_run)
+                df = pieces.obtain(folders, out, name, sc, seed_list, execution, play_fn=_run)
             except Exception as exc:  # noqa: BLE001 - a long run reports a failing pair and goes on
                 failures.append((sc.id, name, f"{type(exc).__name__}: {exc}".splitlines()[0]))
                 continue
