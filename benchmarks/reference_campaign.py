@@ -1,0 +1,203 @@
+"""The held-out reference's campaign: every candidate of ``oracle-v2`` on the held-out worlds, then ``oracle-v2``.
+
+``oracle-v2`` (docs/hindsight.md, "Versioned references") reads its candidates' totals from
+suite pieces made by clean commits and replays the episodes the runner recorded. On the
+eight held-out worlds at 50 test seeds its candidates cost tens of CPU hours on the 2-core
+VM, more than one session, so this script plays them as a queue of small jobs that any
+session resumes: per world and chunk of ten seeds, each candidate
+(``wfbench reproduce suite --seeds A-B --no-members --policies P --scenarios S``), then
+``oracle-v2`` on that chunk (``$WFBENCH_ORACLE_PIECES`` naming the run, so a piece from
+other code fails in one line). A network's total depends on its batch, so the candidates
+and the oracle play the same chunks; and the oracle, played on the machine that just played
+the chunk's candidates, finds their recorded episodes instead of playing its winners again.
+
+Each worker claims the next job whose inputs are done (a lock file per job under
+``--state``), runs it niced from ``--checkout`` (a clean worktree with its own virtual
+environment: a piece records its commit, and one made from a dirty tree is not read), and
+marks it done. Stopped at any point, a job's piece keeps what earlier chunks made
+(``reproduce suite`` extends pieces by the seeds they lack); started again, the queue goes
+on where it stopped. ``collect`` copies the finished pieces into the committed run.
+
+    git worktree add /tmp/clean HEAD && python -m venv /tmp/clean/.venv && ...   # a clean checkout
+    python benchmarks/reference_campaign.py plan --out runs/reference-v2
+    python benchmarks/reference_campaign.py run --out runs/reference-v2 --checkout /tmp/clean --workers 2
+    python benchmarks/reference_campaign.py collect --out runs/reference-v2 --into docs/results/reference-v2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+WORLDS = ("novice-64-v1", "churn-64-v1", "slow-64-v1", "real-nyc-v1", "table2-g128-f50-s25-v1",
+          "table2-g32-f100-s25-v1", "large-v1", "city-v1")  # the held-out split, cheapest first
+CHUNK = 10
+
+
+def candidates() -> list[str]:
+    """``oracle-v2``'s candidates that are not compiled (the oracle plays those itself in seconds)."""
+    import warnings
+
+    from wfbench.policies.oracle.references import V2
+
+    from wfbench import policies
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return [n for n in V2 if not getattr(policies.get(n), "compiled", False)]
+
+
+def jobs(worlds: list[str], cands: list[str], seeds: int) -> list[tuple[tuple[str, str, int, int], list]]:
+    """(world, policy, first seed, last seed) in order, each with the jobs it waits for (the oracle's chunk)."""
+    out = []
+    for w in worlds:
+        for a in range(0, seeds, CHUNK):
+            chunk = [(w, p, a, min(a + CHUNK, seeds) - 1) for p in cands]
+            out += [(j, []) for j in chunk]
+            out.append(((w, "oracle-v2", a, min(a + CHUNK, seeds) - 1), chunk))
+    return out
+
+
+def name(job: tuple[str, str, int, int]) -> str:
+    return f"{job[0]}__{job[1]}__{job[2]}-{job[3]}"
+
+
+def covered(out: Path, job: tuple[str, str, int, int]) -> bool:
+    """Whether the run's piece of the job's policy and world holds its seeds."""
+    meta = out / "cache" / job[1] / f"{job[0]}.json"
+    return meta.exists() and set(range(job[2], job[3] + 1)) <= set(json.loads(meta.read_text())["seeds"])
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+        return True
+    except (ProcessLookupError, PermissionError):
+        return False
+
+
+def _state(state: Path, out: Path, job: tuple[str, str, int, int]) -> str:
+    """done, running, failed or todo; a claim whose process is gone is judged by the piece."""
+    base = state / name(job)
+    if base.with_suffix(".done").exists() or covered(out, job) and not base.with_suffix(".running").exists():
+        return "done"
+    if base.with_suffix(".failed").exists():
+        return "failed"
+    run = base.with_suffix(".running")
+    if run.exists():
+        words = run.read_text().split()
+        if len(words) < 2 or _alive(int(words[1])):
+            return "running"
+        run.rename(base.with_suffix(".done" if covered(out, job) else ".failed"))
+        return _state(state, out, job)
+    return "todo"
+
+
+def work(args: argparse.Namespace) -> None:
+    """One worker: claim the next job whose inputs are done, play it, mark it; until none is left or STOP exists."""
+    out, state, checkout = Path(args.out).resolve(), Path(args.state).resolve(), Path(args.checkout).resolve()
+    state.mkdir(parents=True, exist_ok=True)
+    queue = jobs(args.worlds, candidates(), args.seeds)
+    log = state / f"worker-{args.worker}.log"
+    while not (state / "STOP").exists():
+        states = {name(j): _state(state, out, j) for j, _ in queue}
+        ready = [j for j, needs in queue if states[name(j)] == "todo" and all(states[name(n)] == "done" for n in needs)]
+        if not ready:
+            if all(s in ("done", "failed") for s in states.values()):
+                return
+            time.sleep(30)
+            continue
+        job = ready[0]
+        try:
+            fd = os.open(state / f"{name(job)}.running", os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            continue
+        os.write(fd, args.worker.encode())
+        os.close(fd)
+        env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+        if job[1] == "oracle-v2":
+            env["WFBENCH_ORACLE_PIECES"] = str(out)
+        cmd = ["nice", "-n", "5", str(checkout / ".venv" / "bin" / "wfbench"), "reproduce", "suite", "--out",
+               str(out), "--seeds", f"{job[2]}-{job[3]}", "--backend", "serial", "--no-members", "--no-progress",
+               "--policies", job[1], "--scenarios", job[0]]
+        start = time.time()
+        with open(log, "a") as f:
+            f.write(f"\n### {time.strftime('%H:%M:%S')} {' '.join(cmd)}\n")
+            f.flush()
+            child = subprocess.Popen(cmd, cwd=checkout, env=env, stdout=f, stderr=subprocess.STDOUT)
+            (state / f"{name(job)}.running").write_text(f"{args.worker} {child.pid}")
+            rc = child.wait()
+            f.write(f"### rc={rc} {time.time() - start:.0f} s\n")
+        (state / f"{name(job)}.running").rename(state / f"{name(job)}.{'done' if rc == 0 else 'failed'}")
+
+
+def run(args: argparse.Namespace) -> None:
+    """Start ``--workers`` workers (one a core) and wait for them."""
+    procs = [subprocess.Popen([sys.executable, __file__, "work", "--worker", f"w{i}", *sys.argv[2:]])
+             for i in range(args.workers)]
+    for p in procs:
+        p.wait()
+
+
+def plan(args: argparse.Namespace) -> None:
+    """What is left, per world: jobs, and the estimate of wfbench's plan for the candidates' missing pieces."""
+    out, state = Path(args.out).resolve(), Path(args.state).resolve()
+    queue = jobs(args.worlds, candidates(), args.seeds)
+    for w in args.worlds:
+        mine = [j for j, _ in queue if j[0] == w]
+        left = [j for j in mine if _state(state, out, j) != "done"] if state.exists() else mine
+        print(f"{w}: {len(mine) - len(left)} of {len(mine)} jobs done")
+    cmd = [str(Path(sys.executable).parent / "wfbench"), "reproduce", "suite", "--plan", "--no-members",
+           "--no-progress", "--out", str(out), "--seeds", f"0-{args.seeds - 1}", "--policies", ",".join(candidates()),
+           "--scenarios", ",".join(args.worlds)]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    print(done.stdout or done.stderr)
+
+
+def collect(args: argparse.Namespace) -> None:
+    """Copy the run's pieces of the candidates and of oracle-v2 that no job is playing into ``--into``."""
+    out, state, into = Path(args.out).resolve(), Path(args.state).resolve(), Path(args.into)
+    keep = {*candidates(), "oracle-v2"}
+    busy = {tuple(f.name.split("__")[:2]) for f in state.glob("*.running")} if state.exists() else set()
+    copied = []
+    for meta in sorted((out / "cache").glob("*/*.json")):
+        policy, world = meta.parent.name, meta.stem
+        if policy not in keep or (world, policy) in busy:
+            continue
+        dest = into / "cache" / policy
+        same = all((dest / f.name).exists() and (dest / f.name).read_bytes() == f.read_bytes()
+                   for f in (meta, meta.with_suffix(".csv")))
+        if not same:
+            dest.mkdir(parents=True, exist_ok=True)
+            for f in (meta, meta.with_suffix(".csv")):
+                shutil.copy2(f, dest / f.name)
+            copied.append(f"{policy}/{world}")
+    print(f"{len(copied)} pieces copied into {into}: {' '.join(copied)}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("action", choices=["plan", "run", "work", "collect"])
+    ap.add_argument("--out", required=True, help="the campaign's suite run folder (its cache/ holds the pieces)")
+    ap.add_argument("--state", default=None, help="the queue's lock files and logs (default: OUT/queue)")
+    ap.add_argument("--checkout", default=str(ROOT), help="a clean checkout with its .venv to play from "
+                    "(default: this one; pieces from a dirty tree are not read by oracle-v2)")
+    ap.add_argument("--workers", type=int, default=2, help="run: workers, one a core (default 2)")
+    ap.add_argument("--worker", default="w0", help=argparse.SUPPRESS)
+    ap.add_argument("--worlds", nargs="+", default=list(WORLDS), help="held-out worlds, in order (default: all)")
+    ap.add_argument("--seeds", type=int, default=50, help="test seeds 0..N-1 (default 50)")
+    ap.add_argument("--into", default=str(ROOT / "docs/results/reference-v2"), help="collect: the committed run")
+    args = ap.parse_args()
+    args.state = args.state or str(Path(args.out) / "queue")
+    {"plan": plan, "run": run, "work": work, "collect": collect}[args.action](args)
+
+
+if __name__ == "__main__":
+    main()
