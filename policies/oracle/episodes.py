@@ -5,7 +5,8 @@ A lookahead episode costs seconds to minutes of CPU; the replaying references
 :class:`Episode` holds what :class:`wfbench.policies.oracle.best.BestInHindsight` replays: the
 dispatches that send somebody, each step's workforce code and the positioning row the
 simulator reads. The store sits beside the totals cache (:func:`wfbench.policies.oracle.cache.directory`,
-one ``episode-KEY`` folder per key, one ``.npz`` per entry, written atomically) and is keyed
+one ``episode-KEY`` folder per key, one compressed ``.npz`` per entry, written atomically: a
+``city`` episode's positioning rows are a thousand wide and nearly all zero) and is keyed
 like it (:func:`candidate_key`): the code, the scenario, and what decides the policy's actions
 (each object's class and every plain setting, a kernel's code and parameters, a network's
 checkpoint). A candidate without a network plays a seed the same in any batch (tested), so its
@@ -221,9 +222,9 @@ def store(key: str, seed: int, keys: np.ndarray, episode: Episode) -> None:
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=folder, suffix=".tmp", delete=False) as f:
             tmp = f.name
-            np.savez(f, seed=np.int64(seed), keys=keys, total=np.float64(episode.total), workforce=episode.workforce,
-                     disp_t=episode.disp_t, disp_f=episode.disp_f, disp_v=episode.disp_v, pos_t=episode.pos_t,
-                     pos=episode.pos)
+            np.savez_compressed(f, seed=np.int64(seed), keys=keys, total=np.float64(episode.total),
+                                workforce=episode.workforce, disp_t=episode.disp_t, disp_f=episode.disp_f,
+                                disp_v=episode.disp_v, pos_t=episode.pos_t, pos=episode.pos)
         os.replace(tmp, folder / _file_name(int(seed), keys))
     except OSError:  # a read-only or full disk: the memory still holds it
         if tmp is not None and os.path.exists(tmp):
