@@ -90,7 +90,8 @@ class Recorder:
         fresh: a fresh copy of the policy (``wfbench.policies.get(name)``), as the oracle resolves
             it: the key reads its settings, which a played copy has added to.
         seeds: the batch, in its order.
-        M, N: the world's facility and personnel slots.
+        M: the world's facility slots.
+        N: the world's personnel slots.
     """
 
     def __init__(self, config: Any, name: str, fresh: Any, seeds: Any, M: int, N: int):
