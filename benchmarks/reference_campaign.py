@@ -16,7 +16,9 @@ Each worker claims the next job whose inputs are done (a lock file per job under
 environment: a piece records its commit, and one made from a dirty tree is not read), and
 marks it done. Stopped at any point, a job's piece keeps what earlier chunks made
 (``reproduce suite`` extends pieces by the seeds they lack); started again, the queue goes
-on where it stopped. ``collect`` copies the finished pieces into the committed run.
+on where it stopped; on a fresh machine ``run`` first copies the committed run's pieces (and the
+suite's bound) into ``--out``, so only what no commit holds is played. ``collect`` copies the
+finished pieces into the committed run.
 
     git worktree add /tmp/clean HEAD && python -m venv /tmp/clean/.venv && ...   # a clean checkout
     python benchmarks/reference_campaign.py plan --out runs/reference-v2
@@ -138,8 +140,25 @@ def work(args: argparse.Namespace) -> None:
         (state / f"{name(job)}.running").rename(state / f"{name(job)}.{'done' if rc == 0 else 'failed'}")
 
 
+def start_from(out: Path, committed: Path, worlds: list[str]) -> int:
+    """Copy into ``out`` the committed run's pieces it lacks, and the suite's bound of each world (a fresh machine)."""
+    copied = 0
+    sources = [*sorted((committed / "cache").glob("*/*.json")),
+               *(ROOT / "docs/results/suite-v1-50/cache/bound" / f"{w}.json" for w in worlds)]
+    for meta in sources:
+        dest = out / "cache" / meta.parent.name
+        if meta.exists() and not (dest / meta.name).exists():
+            dest.mkdir(parents=True, exist_ok=True)
+            for f in (meta, meta.with_suffix(".csv")):
+                shutil.copy2(f, dest / f.name)
+            copied += 1
+    return copied
+
+
 def run(args: argparse.Namespace) -> None:
-    """Start ``--workers`` workers (one a core) and wait for them."""
+    """Start ``--workers`` workers (one a core) and wait for them, after copying what a fresh ``--out`` lacks."""
+    copied = start_from(Path(args.out), Path(args.into), args.worlds)
+    print(f"{copied} committed pieces copied into {args.out}", flush=True)
     procs = [subprocess.Popen([sys.executable, __file__, "work", "--worker", f"w{i}", *sys.argv[2:]])
              for i in range(args.workers)]
     for p in procs:
@@ -193,7 +212,8 @@ def main() -> None:
     ap.add_argument("--worker", default="w0", help=argparse.SUPPRESS)
     ap.add_argument("--worlds", nargs="+", default=list(WORLDS), help="held-out worlds, in order (default: all)")
     ap.add_argument("--seeds", type=int, default=50, help="test seeds 0..N-1 (default 50)")
-    ap.add_argument("--into", default=str(ROOT / "docs/results/reference-v2"), help="collect: the committed run")
+    ap.add_argument("--into", default=str(ROOT / "docs/results/reference-v2"), help="the committed run: run starts "
+                    "from its pieces, collect copies into it (default: docs/results/reference-v2)")
     args = ap.parse_args()
     args.state = args.state or str(Path(args.out) / "queue")
     {"plan": plan, "run": run, "work": work, "collect": collect}[args.action](args)
