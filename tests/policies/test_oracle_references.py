@@ -220,7 +220,8 @@ def test_replaying_oracle__scores_the_best_candidate_per_seed_then_replays_witho
     assert again.sources["oracle-rollout"] == {"episodes": 3, "pieces": 0, "cache": 0, "played": 0}
 
 
-@pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms", "scalefree-general"])
+@pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms",
+                                  pytest.param("scalefree-general", marks=pytest.mark.slow)])
 def test_replaying_oracle__reads_the_episodes_the_runner_recorded_and_plays_none_again(store, monkeypatch, name):
     # the suite plays each candidate once for its piece: recorded there, the oracle neither plays nor replays it
     truth = _nsw(name, record=True)
