@@ -109,8 +109,9 @@ register(
           "oracle-rollout; replays recorded episodes and committed pieces (docs/hindsight.md)",
           decisions=HINDSIGHT, reads_future=True),
     Entry("oracle-rollout", "oracle", HindsightRolloutOf("solver-tuned"),
-          "the rollout of solver-tuned on the true future, rolled to the end of the episode: reads the trace, not "
-          "deployable (docs/hindsight.md, \"The hindsight rollout\")",
+          "the rollout of solver-tuned on the true future, rolled to the end of the episode (on city, the rollout's "
+          "city preset: the sparse twin every 20 steps, spatial futures): reads the trace, not deployable "
+          "(docs/hindsight.md, \"The hindsight rollout\")",
           decisions=HINDSIGHT, reads_future=True, candidate_of=("v2",)),
 )
 
