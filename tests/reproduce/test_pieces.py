@@ -136,8 +136,12 @@ def test_a_preset_is_estimated_from_its_siblings_cost_before_its_bases(tmp_path)
     _cost_piece(tmp_path, "rollout-solver-tuned", paper, 3.0)
     _cost_piece(tmp_path, "rollout-solver-tuned", city, 30.0)
     _cost_piece(tmp_path, "rollout-solver-tuned-100ms", paper, 20.0)
-    todo = pieces.plan([tmp_path], ["rollout-solver-tuned-100ms"], [city], [0], others=suite.scenarios)
+    _cost_piece(tmp_path, "oracle-rollout", paper, 6.0)
+    todo = pieces.plan([tmp_path], ["rollout-solver-tuned-100ms", "oracle-rollout"], [city], [0],
+                       others=suite.scenarios)
     assert todo[0].cpu_s == pytest.approx(20.0 * 10.0) and todo[0].source == ("paper-64-v1", "rollout-solver-tuned")
+    # the hindsight rollout is no rollout preset, but it builds on the same base: scaled by the rollout too
+    assert todo[1].cpu_s == pytest.approx(6.0 * 10.0) and todo[1].source == ("paper-64-v1", "rollout-solver-tuned")
 
 
 def test_a_plan_reads_costs_from_other_runs_and_reuses_none_of_them(tmp_path):

@@ -203,9 +203,10 @@ def _cpu_per_episode(folders: Sequence[Path], policy: str, scenario: SuiteScenar
 def _references(policy: str) -> list[str]:
     """The policies whose cost scales like ``policy``'s, nearest first (else none).
 
-    A lookahead's siblings (the other presets of its kind on the same base: on ``city`` the
-    10 ms rollout plays the sparse preset its 100 ms sibling plays, where the dense base would
-    say hundreds of hours), then its base, its base's base, ...
+    A lookahead's siblings (the other presets of its kind on the same base, then any other
+    policy on that base: on ``city`` the 10 ms rollout plays the sparse preset its 100 ms
+    sibling and ``oracle-rollout`` play, where the dense base would say hundreds of hours),
+    then its base, its base's base, ...
     """
     from wfbench.policies.registry import entry
     from wfbench.policies.table import TABLE
@@ -216,9 +217,9 @@ def _references(policy: str) -> list[str]:
     except ValueError:  # "bound", a training seed (NAME#seedK), or a name the registry does not hold
         return chain
     base = getattr(recipe, "base", None)
-    if base is not None:
-        chain += [n for n, e in TABLE.items()
-                  if n != policy and type(e.recipe) is type(recipe) and getattr(e.recipe, "base", None) == base]
+    if base is not None:  # the same kind first (the other presets), then any other policy on the same base
+        same = [n for n, e in TABLE.items() if n != policy and getattr(e.recipe, "base", None) == base]
+        chain += sorted(same, key=lambda n: type(TABLE[n].recipe) is not type(recipe))
     name = policy
     while True:
         try:
