@@ -148,6 +148,7 @@ def test_suite__without_members_plays_a_methods_shipped_pick_only(tmp_path, monk
     (["reproduce", "verify", "--no-networks"], "--no-networks applies to suite only, not to verify (give --policies)"),
     (["reproduce", "frontier", "--no-members"], "--no-members applies to suite only, not to frontier (give --"),
     (["reproduce", "table3", "--no-members"], "--no-members applies to suite only, not to table3"),
+    (["reproduce", "suite", "--reuse", "/no/such/run"], "--reuse: /no/such/run holds no cache/ folder; allowed: "),
     (["reproduce", "suite", "--scenarios", "nope"], "--scenarios: unknown scenario 'nope' in suite-v1; allowed: "),
     (["reproduce", "suite", "--policies", "no-such-policy"], "no-such-policy"),
 ])

@@ -146,6 +146,10 @@ def _suite_kwargs(args: argparse.Namespace) -> dict:
         kwargs["split"] = args.split
     if args.reuse is not None:
         kwargs["reuse"] = _names(args.reuse, "--reuse")
+        for folder in kwargs["reuse"]:
+            if not (Path(folder) / "cache").is_dir():
+                raise UsageError(f"--reuse: {folder} holds no cache/ folder; allowed: the --out folders of "
+                                 "wfbench reproduce suite or frontier runs (e.g. docs/results/suite-v1-50)")
     if args.classes is not None:
         if (args.split or "heldout") != "heldout":
             raise UsageError(f"--classes applies to the held-out split only (the verdict's), not to {args.split}")
