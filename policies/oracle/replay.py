@@ -29,6 +29,8 @@ from wfbench.policies.oracle import cache as totals_cache
 from wfbench.policies.oracle import episodes, pieces
 from wfbench.policies.oracle.episodes import Episode
 
+from wfbench.core.actions import validate_actions
+
 
 class Replay:
     """Per batch row, a recorded :class:`Episode` to replay; ``actions`` as :class:`episodes.Recording`'s."""
@@ -103,8 +105,6 @@ class Recorder:
 
     def add(self, t: int, action: dict) -> None:
         """Record step ``t``'s actions (as the simulator will read them)."""
-        from wfbench.core.actions import validate_actions
-
         self.rec.add(t, *validate_actions(action, self.B, self.M, self.N))
 
     def store(self, totals: np.ndarray) -> None:
