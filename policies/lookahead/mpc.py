@@ -308,7 +308,13 @@ class MPC:
         T = world[W["service_time"]] + 2.0 * self.travel_mean[b]
         cap = self.capacity_scale * (world[W["target_utilization"]] * fix / max(T, 1e-9))
         if self.calibrate:  # the model's rate per busy person-step measured: about 1.35 times too low on paper-64
-            expected = float(self.busy_steps[b] @ (fix / max(T, 1e-9)))
+            # summed in order, not by a BLAS dot: OpenBLAS picks its kernel by the CPU, and its AVX-512 ddot rounds the
+            # last bit of a 3-term sum otherwise than the in-order sum about one time in four; a 1-ulp capacity flips
+            # a tie between two plans of equal cost (docs/hindsight.md, "One piece of the suite ...")
+            rate = fix / max(T, 1e-9)
+            expected = 0.0
+            for lv in range(rate.shape[0]):
+                expected += float(self.busy_steps[b, lv]) * float(rate[lv])
             cap = cap * (self.seen_repairs[b] + PRIOR_REPAIRS) / (expected + PRIOR_REPAIRS)
         queue = {}
         if self.backlog:  # the requests waiting now (open, nobody assigned), priced at the score's exchange rate
