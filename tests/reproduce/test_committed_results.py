@@ -85,6 +85,19 @@ def test_a_lookahead_records_its_base_s_file_and_a_tuned_one_its_own_too():
     assert provenance.policy_inputs("heuristic") == {}
 
 
+def test_a_piece_records_the_machine_it_was_made_on(monkeypatch):
+    from importlib.metadata import version
+
+    provenance.machine.cache_clear()
+    monkeypatch.setenv("OPENBLAS_CORETYPE", "Haswell")
+    got = provenance.current("heuristic")["machine"]
+    provenance.machine.cache_clear()
+    assert got["packages"]["numpy"] == version("numpy") and got["packages"]["scipy"] == version("scipy")
+    assert set(got["packages"]) == set(provenance.MACHINE_PACKAGES)
+    assert got["openblas_coretype"] == "Haswell" and set(got["cpu_flags"]) <= set(provenance.CPU_FLAGS)
+    assert json.loads(json.dumps(got)) == got, "it is written into the piece's json"
+
+
 def test_code_hash_of_a_checkout_equals_the_hash_from_git(tmp_path):
     repo = provenance.repository()
     if repo is None:

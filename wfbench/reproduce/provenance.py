@@ -4,7 +4,9 @@ Each suite piece's ``.json`` (beside ``cache/POLICY/SCENARIO.csv``) has a ``hash
 that decide reuse, and a ``provenance``: ``commit`` and ``dirty``; ``code_sha256``
 (:func:`code_sha256`, every file under ``wfbench/``, ``policies/`` and ``solvers/`` but the
 checkpoints, the same from git's objects of a commit, :func:`code_sha256_at`); and ``inputs``,
-the sha256 of each checkpoint or tuned file the policy reads. It does not decide reuse (a new
+the sha256 of each checkpoint or tuned file the policy reads; and ``machine`` (:func:`machine`:
+the versions of the packages that compute, and the CPU's vector extensions, which pick the
+BLAS kernel). It does not decide reuse (a new
 commit would discard every piece): :mod:`wfbench.reproduce.verify` catches a changed behaviour
 by recomputing pieces (``docs/suite.md``, "What moved in issue #42").
 """
@@ -12,6 +14,8 @@ by recomputing pieces (``docs/suite.md``, "What moved in issue #42").
 from __future__ import annotations
 
 import hashlib
+import os
+import platform
 import subprocess
 from collections.abc import Iterable
 from functools import cache
@@ -133,7 +137,41 @@ def start() -> None:
     code_sha256()
 
 
+# the packages whose versions can move a result's bits: the simulator's compiler, the arrays and their BLAS, the
+# MILP (SciPy's HiGHS, and highspy's), the networks
+MACHINE_PACKAGES = ("numpy", "numba", "scipy", "highspy", "torch")
+# the CPU's vector extensions: OpenBLAS picks its kernels by them (its AVX-512 dot rounds a 3-term sum otherwise)
+CPU_FLAGS = ("avx2", "avx512f")
+
+
+@cache
+def machine() -> dict[str, Any]:
+    """What the code ran on: Python's and :data:`MACHINE_PACKAGES`' versions, :data:`CPU_FLAGS`, ``OPENBLAS_CORETYPE``.
+
+    Recorded beside the commit so that a piece whose numbers another machine does not give back
+    says where it was made (docs/hindsight.md: a calibrated MPC's plan moved with the BLAS kernel).
+    """
+    from importlib.metadata import PackageNotFoundError, version
+
+    def installed(name: str) -> str | None:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return None
+
+    flags: set[str] = set()
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((set(line.split(":", 1)[1].split()) for line in f if line.startswith("flags")), set())
+    except OSError:
+        pass
+    return {"python": platform.python_version(), "packages": {p: installed(p) for p in MACHINE_PACKAGES},
+            "arch": platform.machine(), "cpu_flags": [f for f in CPU_FLAGS if f in flags],
+            "openblas_coretype": os.environ.get("OPENBLAS_CORETYPE")}
+
+
 def current(policy: str) -> dict[str, Any]:
     """The provenance of a piece of ``policy`` computed now, by this code."""
     head, dirty = commit()
-    return {"commit": head, "dirty": dirty, "code_sha256": code_sha256(), "inputs": policy_inputs(policy)}
+    return {"commit": head, "dirty": dirty, "code_sha256": code_sha256(), "inputs": policy_inputs(policy),
+            "machine": machine()}
