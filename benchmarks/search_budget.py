@@ -13,7 +13,9 @@ them ablate one ingredient each: ``:novalue`` (the H steps alone, the critic lef
 ``:sample`` (the network samples the futures instead of playing them greedily), ``:period``
 (it deliberates every R steps only, not also where the network hires or lets go); ``:propose=NAME``
 adds a second proposer (``NetworkSearch(propose=get(NAME))``: its workforce action joins the
-candidates), ``:asks`` with it deliberates where the proposer hires or lets go too. The noise
+candidates), ``:asks`` with it deliberates where the proposer hires or lets go too;
+``:critic=PATH`` ends the futures at a futures critic instead of PPO's (``CriticSearch``,
+``benchmarks/futures_critic.py``). The noise
 test's ablation is a tiny z (``z=1e-9``: any positive mean wins).
 """
 
@@ -27,6 +29,7 @@ import time
 import numpy as np
 import torch
 from wfbench.policies import get
+from wfbench.policies.lookahead.critic import CriticSearch
 from wfbench.policies.lookahead.search import NetworkSearch
 
 import wfbench
@@ -44,10 +47,12 @@ def entry(spec: str, base: str) -> tuple[str, object]:
     K, H, R, top = (int(x) for x in parts[:4])
     flags = set(parts[5:])
     proposers = {f for f in flags if f.startswith("propose=")}
-    known = {"novalue", "sample", "period", "asks"} | proposers
-    if flags - known or len(proposers) > 1 or ("asks" in flags and not proposers):
+    critics = {f for f in flags if f.startswith("critic=")}
+    known = {"novalue", "sample", "period", "asks"} | proposers | critics
+    if flags - known or len(proposers) > 1 or ("asks" in flags and not proposers) or len(critics) > 1 or (
+            critics and "novalue" in flags):
         raise SystemExit(f"--knobs {spec}: unknown flags {sorted(flags - known)}; allowed: novalue, sample, period, "
-                         "one propose=POLICY, and asks with it")
+                         "one propose=POLICY, and asks with it, one critic=PATH (not with novalue)")
     kw = {"value": ()} if "novalue" in flags else {}
     if "period" in flags:
         kw["decide"] = "period"
@@ -57,8 +62,11 @@ def entry(spec: str, base: str) -> tuple[str, object]:
         kw["propose"] = get(proposers.pop().split("=", 1)[1])
         kw["propose_asks"] = "asks" in flags
     label = "".join(f" {f}" for f in sorted(flags))
-    return f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}", NetworkSearch(
-        get(base), K=K, H=H, R=R, top=top, z=float(parts[4]), **kw)
+    knobs = {"K": K, "H": H, "R": R, "top": top, "z": float(parts[4])}
+    if critics:
+        return f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}", CriticSearch(
+            get(base), critics.pop().split("=", 1)[1], **knobs, **kw)
+    return f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}", NetworkSearch(get(base), **knobs, **kw)
 
 
 def main() -> None:
