@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from wfbench.policies import get
-from wfbench.policies.lookahead.critic import FuturesCritic, Summary
+from wfbench.policies.lookahead.critic import FuturesCritic, Summary, left_features
 from wfbench.policies.lookahead.network_rollout import PURPOSE_NOISE
 from wfbench.policies.lookahead.search import NetworkSearch, candidates, value_map, value_slope
 from wfbench.policies.neural.policy import NetworkPolicy
@@ -253,7 +253,7 @@ def fit(a: argparse.Namespace) -> None:
     opt = torch.optim.Adam(critic.net.parameters(), lr=a.lr)
     n = len(y)
     start = time.process_time()
-    x_left = torch.cat([left[:, None] / horizon_t[:, None], torch.log1p(left)[:, None] / 7.0], -1)
+    x_left = left_features(left, horizon_t)
     for epoch in range(a.epochs):
         perm = torch.randperm(n)
         total = 0.0
@@ -308,8 +308,7 @@ def fit_pairs(a: argparse.Namespace) -> None:
     rows_fit, rows_held = ~held[d["group"]], held[d["group"]]
     g = _within(d["G"], d["group"], groups)
     first = _within(d["first"], d["group"], groups)
-    x_left = torch.cat([d["left"][:, None] / d["horizon"][:, None], torch.log1p(d["left"])[:, None] / 7.0], -1)
-    x = torch.cat([d["top"], x_left], -1)
+    x = torch.cat([d["top"], left_features(d["left"], d["horizon"])], -1)
 
     def residual():
         pred = d["left"] * (critic.net(x).squeeze(-1) + critic.mean)

@@ -62,11 +62,11 @@ def entry(spec: str, base: str) -> tuple[str, object]:
         kw["propose"] = get(proposers.pop().split("=", 1)[1])
         kw["propose_asks"] = "asks" in flags
     label = "".join(f" {f}" for f in sorted(flags))
+    name = f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}"
     knobs = {"K": K, "H": H, "R": R, "top": top, "z": float(parts[4])}
     if critics:
-        return f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}", CriticSearch(
-            get(base), critics.pop().split("=", 1)[1], **knobs, **kw)
-    return f"search K={K} H={H} R={R} top={top} z={parts[4]}{label}", NetworkSearch(get(base), **knobs, **kw)
+        return name, CriticSearch(get(base), critics.pop().split("=", 1)[1], **knobs, **kw)
+    return name, NetworkSearch(get(base), **knobs, **kw)
 
 
 def main() -> None:

@@ -37,10 +37,14 @@ def _torch():
 
 
 def left_features(left, horizon):
-    """(rows, 2) the steps-left inputs: the share of the episode left and log(1 + L) / 7."""
+    """(rows, 2) the steps-left inputs: the share of the episode left and log(1 + L) / 7.
+
+    ``horizon``: the episode's length, one for every row or one per row.
+    """
     torch = _torch()
     left = torch.as_tensor(left, dtype=torch.float32).reshape(-1, 1)
-    return torch.cat([left / float(horizon), torch.log1p(left) / 7.0], -1)
+    return torch.cat([left / torch.as_tensor(horizon, dtype=torch.float32).reshape(-1, 1), torch.log1p(left) / 7.0],
+                     -1)
 
 
 class FuturesCritic:

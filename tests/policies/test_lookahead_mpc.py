@@ -251,14 +251,6 @@ def test_the_queue_is_seeded_from_the_requests_waiting_and_priced_at_the_exchang
     assert plain._instance(0, 25, obs).backlog0 is None, "without the knob, the MILP has no queue"
 
 
-def _cpu_flags() -> set[str]:
-    try:
-        with open("/proc/cpuinfo") as f:
-            return next((set(line.split(":", 1)[1].split()) for line in f if line.startswith("flags")), set())
-    except OSError:
-        return set()
-
-
 @pytest.mark.slow  # two processes, one large-v1 episode each: about 30 s
 def test_the_calibrated_plan_does_not_depend_on_the_cpu_s_blas_kernel():
     # large-v1 test seed 1: under OpenBLAS's AVX-512 dot the calibration's capacity moved one ulp and the MILP took
@@ -269,7 +261,9 @@ def test_the_calibrated_plan_does_not_depend_on_the_cpu_s_blas_kernel():
     import sys
     from pathlib import Path
 
-    kernels = ["Haswell", "SkylakeX" if "avx512f" in _cpu_flags() else "Nehalem"]
+    from wfbench.reproduce.provenance import machine
+
+    kernels = ["Haswell", "SkylakeX" if "avx512f" in machine()["cpu_flags"] else "Nehalem"]
     code = ("import wfbench; df = wfbench.evaluate('mpc-ma-calibrated', 'large', seeds=[1]); "
             "print(repr(float(df['nsw'].iloc[0])))")
     got = {}
