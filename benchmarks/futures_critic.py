@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from wfbench.policies import get
-from wfbench.policies.lookahead.critic import FuturesCritic, Summary, left_features
+from wfbench.policies.lookahead.critic import FuturesCritic, Summary, left_features, tap_values
 from wfbench.policies.lookahead.network_rollout import PURPOSE_NOISE
 from wfbench.policies.lookahead.search import NetworkSearch, candidates, value_map, value_slope
 from wfbench.policies.neural.policy import NetworkPolicy
@@ -68,15 +68,8 @@ def play(policy: str, world: str, seed_list: list[int], t0: int, stride: int) ->
     p = NetworkPolicy(base.model, mode="sample" if t0 > 0 else "greedy", device="cpu", seed=base.seed,
                       name="collect", threads=1)
     summary = Summary(base.model)
-    values = []
-    heads = p.heads
-
-    def recording(obs):
-        out, x, c = heads(obs)
-        values.append(out["value"].float().numpy().copy())
-        return out, x, c
-
-    p.heads = recording
+    values: list[np.ndarray] = []
+    tap_values(p, values.append)
     try:
         sim = Simulator(wfbench.scenario(world), seed_list, keep_series=False)
         obs = sim.reset()
@@ -140,14 +133,8 @@ class PairCollector(NetworkSearch):
     def _start(self, obs):
         super()._start(obs)
         self.summary = Summary(self.base.model)
-        heads = self.player.heads
-
-        def recording(o):  # PPO's critic at the cut, for its map's paired error beside the fitted critic's
-            out, x, c = heads(o)
-            self.last_value = out["value"].float().numpy().copy()
-            return out, x, c
-
-        self.player.heads = recording
+        # PPO's critic at the cut, for its map's paired error beside the fitted critic's
+        tap_values(self.player, lambda v: setattr(self, "last_value", v))
 
     def _search(self, obs, envs, action, t):
         left = self.horizon - t - self.H  # steps left at the cut

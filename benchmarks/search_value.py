@@ -25,6 +25,7 @@ import time
 import numpy as np
 import torch
 from wfbench.policies import get
+from wfbench.policies.lookahead.critic import tap_values
 from wfbench.policies.neural.policy import NetworkPolicy
 
 import wfbench
@@ -43,14 +44,7 @@ def play(policy: str, scenario: str, seed_list: list[int]) -> tuple[np.ndarray, 
     base = get(policy)
     p = NetworkPolicy(base.model, mode="greedy", device="cpu", seed=base.seed, name="greedy", threads=1)
     values: list[np.ndarray] = []
-    heads = p.heads
-
-    def recording(obs):
-        out, x, c = heads(obs)
-        values.append(out["value"].float().numpy().copy())
-        return out, x, c
-
-    p.heads = recording
+    tap_values(p, values.append)
     sim = Simulator(wfbench.scenario(scenario), seed_list, keep_series=False)
     obs = sim.reset()
     p.reset(seed_list)

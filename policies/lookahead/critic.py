@@ -114,6 +114,18 @@ class Summary:
         self._handle.remove()
 
 
+def tap_values(policy: Any, keep: Any) -> None:
+    """Wrap a network policy's ``heads``: ``keep`` gets PPO's critic value, (rows,) numpy, of every step it reads."""
+    heads = policy.heads
+
+    def tapped(obs):
+        out, x, c = heads(obs)
+        keep(out["value"].float().numpy().copy())
+        return out, x, c
+
+    policy.heads = tapped
+
+
 class CriticSearch(NetworkSearch):
     """:class:`NetworkSearch` whose futures end at a :class:`FuturesCritic` (module docstring).
 
@@ -152,4 +164,4 @@ class CriticSearch(NetworkSearch):
         p.heads = scored
 
 
-__all__ = ["CriticSearch", "FuturesCritic", "IDENTITY_MAP", "Summary", "left_features"]
+__all__ = ["CriticSearch", "FuturesCritic", "IDENTITY_MAP", "Summary", "left_features", "tap_values"]
