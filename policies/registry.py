@@ -163,6 +163,10 @@ def _lookahead(name: str) -> Any:
         from wfbench.policies.lookahead import mpc
 
         return mpc.make(get(recipe.base), recipe.forecast, name=name, **mpc.PRESET_OPTIONS[recipe.option])
+    if isinstance(recipe, SearchPreset) and recipe.playout:
+        from wfbench.policies.lookahead import playout
+
+        return playout.make(get(recipe.base), recipe.budget, name=name)
     if isinstance(recipe, SearchPreset):
         return lookahead.make(get(recipe.base), f"search:{recipe.budget}", name=name)
     from wfbench.policies.lookahead.rollout import SPARSE_PRESET

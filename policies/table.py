@@ -201,14 +201,20 @@ class TunedLookahead:
 
 @dataclass(frozen=True)
 class SearchPreset:
-    """The network ``base``'s search (greedy futures ended at its value, a noise test) at a budget preset."""
+    """The network ``base``'s search (greedy futures ended at its value, a noise test) at a budget preset.
+
+    ``playout``: the futures are played to the episode's end instead (no value), ``budget`` a
+    preset of :data:`wfbench.policies.lookahead.playout.BUDGETS`; else of
+    :data:`wfbench.policies.lookahead.search.BUDGETS`.
+    """
 
     kind: ClassVar[str] = "lookahead"
     base: str
     budget: str
+    playout: bool = False
 
     def describe(self) -> str:
-        return f"a lookahead on {self.base}, the search's {self.budget} preset"
+        return f"a lookahead on {self.base}, the {'played-out ' if self.playout else ''}search's {self.budget} preset"
 
 
 Recipe = CompositeOf | TunedFile | Checkpoint | BestOf | HindsightRolloutOf | RolloutPreset | MPCPreset | \

@@ -4,7 +4,8 @@
 futures (:class:`Rollout`, :data:`BUDGETS`); :mod:`~wfbench.policies.lookahead.network_rollout`
 does it with a trained network as the base (:class:`NetworkRollout`);
 :mod:`~wfbench.policies.lookahead.search` searches with the network, greedy futures ended at its
-value and a noise test (:class:`NetworkSearch`);
+value and a noise test (:class:`NetworkSearch`), and
+:mod:`~wfbench.policies.lookahead.playout` with its futures played to the end (:class:`PlayoutSearch`);
 :mod:`~wfbench.policies.lookahead.mpc` solves a rolling-horizon staffing MILP on a forecast
 (:class:`MPC`). The worlds come from :class:`wfbench.core.belief.Belief`: they agree with every
 observation and draw the unobserved from the public model under the policy's own keys. The
@@ -26,7 +27,8 @@ from wfbench.core import lazy
 
 # name -> the module that defines it: imported when the name is first read
 _LAZY = {"MPC": ".mpc", "NetworkRollout": ".network_rollout", "BUDGETS": ".rollout", "DEFAULT_BUDGET": ".rollout",
-         "Rollout": ".rollout", "budget": ".rollout", "knob": ".rollout", "NetworkSearch": ".search"}
+         "Rollout": ".rollout", "budget": ".rollout", "knob": ".rollout", "NetworkSearch": ".search",
+         "PlayoutSearch": ".playout"}
 __getattr__, __dir__ = lazy.names(__name__, _LAZY)
 
 
@@ -132,6 +134,11 @@ SEARCHES = (
     Entry("search-scalefree-general-100ms", "search", SearchPreset("scalefree-general", "100ms"),
           "search with the scale-free network, the 100 ms budget (K=32, H=20, R=10, top=4, z=1)",
           listed=False, candidate_of=("v2",)),
+    # registered after oracle-v2's candidates were fixed: a candidate of the next reference
+    Entry("search-scalefree-general-playout", "search", SearchPreset("scalefree-general", "100ms", playout=True),
+          "search with the scale-free network, its greedy futures played to the episode's end, no critic (K=4, "
+          "R=20, top=3, z=1); on city, the 10 ms search",
+          listed=False),
 )
 
 # in the order lookahead_names() has always given (the rollouts of issue #43, the city presets, the MPCs, the search)
@@ -139,4 +146,4 @@ PRESETS = (*ROLLOUTS, *MPCS, *SEARCHES)
 register(*PRESETS)
 
 __all__ = ["BUDGETS", "DEFAULT_BUDGET", "MPC", "MPCS", "PRESETS", "ROLLOUTS", "SEARCHES", "NetworkRollout",
-           "NetworkSearch", "Rollout", "budget", "knob", "make"]
+           "NetworkSearch", "PlayoutSearch", "Rollout", "budget", "knob", "make"]

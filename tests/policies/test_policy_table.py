@@ -48,7 +48,8 @@ LOOKAHEADS = ["rollout-solver-tuned", "rollout-solver-tuned-1ms", "rollout-solve
               "rollout-scalefree-general", "rollout-solver-sparse-tuned", "rollout-solver-sparse-tuned-1ms",
               "rollout-solver-sparse-tuned-100ms", "mpc-rates", "mpc-ma", "mpc-rates-calibrated", "mpc-ma-calibrated",
               "mpc-rates-backlog", "mpc-ma-backlog", "mpc-rates-tuned-train", "mpc-ma-tuned-train",
-              "search-scalefree-general-1ms", "search-scalefree-general", "search-scalefree-general-100ms"]
+              "search-scalefree-general-1ms", "search-scalefree-general", "search-scalefree-general-100ms",
+              "search-scalefree-general-playout"]
 
 
 def test_the_lists_are_as_they_were_in_their_order():
@@ -79,7 +80,7 @@ def test_lookahead_presets_are_typed_fields_not_string_prefixes():
     assert TABLE["mpc-ma-calibrated"].recipe == MPCPreset("solver-tuned-train", "ma", "calibrated")
     assert TABLE["mpc-rates-tuned-train"].recipe == TunedLookahead("mpc-rates", "mpc-rates-suite-v1-train.json")
     assert TABLE["search-scalefree-general"].recipe == SearchPreset("scalefree-general", "10ms")
-    from wfbench.policies.lookahead import BUDGETS, mpc, search
+    from wfbench.policies.lookahead import BUDGETS, mpc, playout, search
 
     for e in registry.entries():
         texts = [v for v in dataclasses.asdict(e.recipe).values() if isinstance(v, str)]
@@ -87,7 +88,8 @@ def test_lookahead_presets_are_typed_fields_not_string_prefixes():
         if isinstance(e.recipe, RolloutPreset):
             assert e.recipe.budget in BUDGETS and e.recipe.base in TABLE, e
         if isinstance(e.recipe, SearchPreset):
-            assert e.recipe.budget in search.BUDGETS and e.recipe.base in TABLE, e
+            presets = playout.BUDGETS if e.recipe.playout else search.BUDGETS
+            assert e.recipe.budget in presets and e.recipe.base in TABLE, e
         if isinstance(e.recipe, MPCPreset):
             assert e.recipe.forecast in mpc.FORECASTS and set(MPCPreset.OPTIONS) == set(mpc.PRESET_OPTIONS), e
         if isinstance(e.recipe, TunedLookahead | TunedFile):
