@@ -24,6 +24,10 @@ finished pieces into the committed run.
     python benchmarks/reference_campaign.py plan --out runs/reference-v2
     python benchmarks/reference_campaign.py run --out runs/reference-v2 --checkout /tmp/clean --workers 2
     python benchmarks/reference_campaign.py collect --out runs/reference-v2 --into docs/results/reference-v2
+
+``--policies A,B`` plays those policies' pieces instead, in the same chunks and with no oracle
+(a lookahead registered after ``oracle-v2``'s candidates were fixed, for the frontier), e.g.
+``run --out runs/playout --policies search-scalefree-general-playout --into docs/results/suite-v1-50``.
 """
 
 from __future__ import annotations
@@ -56,15 +60,31 @@ def candidates() -> list[str]:
         return [n for n in V2 if not getattr(policies.get(n), "compiled", False)]
 
 
-def jobs(worlds: list[str], cands: list[str], seeds: int) -> list[tuple[tuple[str, str, int, int], list]]:
+def played(args: argparse.Namespace) -> list[str]:
+    """The policies the queue plays: ``--policies``, else :func:`candidates`."""
+    return args.policies.split(",") if args.policies else candidates()
+
+
+def jobs(worlds: list[str], cands: list[str], seeds: int,
+         oracle: bool = True) -> list[tuple[tuple[str, str, int, int], list]]:
     """(world, policy, first seed, last seed) in order, each with the jobs it waits for (the oracle's chunk)."""
     out = []
     for w in worlds:
         for a in range(0, seeds, CHUNK):
             chunk = [(w, p, a, min(a + CHUNK, seeds) - 1) for p in cands]
             out += [(j, []) for j in chunk]
-            out.append(((w, "oracle-v2", a, min(a + CHUNK, seeds) - 1), chunk))
+            if oracle:
+                out.append(((w, "oracle-v2", a, min(a + CHUNK, seeds) - 1), chunk))
     return out
+
+
+def queue_of(args: argparse.Namespace) -> list[tuple[tuple[str, str, int, int], list]]:
+    return jobs(args.worlds, played(args), args.seeds, oracle=not args.policies)
+
+
+def kept(args: argparse.Namespace) -> set[str]:
+    """The policies whose pieces the campaign copies in and out."""
+    return set(played(args)) if args.policies else {*candidates(), "oracle-v2"}
 
 
 def name(job: tuple[str, str, int, int]) -> str:
@@ -106,7 +126,7 @@ def work(args: argparse.Namespace) -> None:
     """One worker: claim the next job whose inputs are done, play it, mark it; until none is left or STOP exists."""
     out, state, checkout = Path(args.out).resolve(), Path(args.state).resolve(), Path(args.checkout).resolve()
     state.mkdir(parents=True, exist_ok=True)
-    queue = jobs(args.worlds, candidates(), args.seeds)
+    queue = queue_of(args)
     log = state / f"worker-{args.worker}.log"
     while not (state / "STOP").exists():
         states = {name(j): _state(state, out, j) for j, _ in queue}
@@ -140,10 +160,10 @@ def work(args: argparse.Namespace) -> None:
         (state / f"{name(job)}.running").rename(state / f"{name(job)}.{'done' if rc == 0 else 'failed'}")
 
 
-def start_from(out: Path, committed: Path, worlds: list[str]) -> int:
-    """Copy into ``out`` the committed run's pieces it lacks, and the suite's bound of each world (a fresh machine)."""
+def start_from(out: Path, committed: Path, worlds: list[str], policies: set[str]) -> int:
+    """Copy into ``out`` the committed pieces of ``policies`` it lacks, and each world's bound (a fresh machine)."""
     copied = 0
-    sources = [*sorted((committed / "cache").glob("*/*.json")),
+    sources = [*sorted(m for m in (committed / "cache").glob("*/*.json") if m.parent.name in policies),
                *(ROOT / "docs/results/suite-v1-50/cache/bound" / f"{w}.json" for w in worlds)]
     for meta in sources:
         dest = out / "cache" / meta.parent.name
@@ -157,7 +177,7 @@ def start_from(out: Path, committed: Path, worlds: list[str]) -> int:
 
 def run(args: argparse.Namespace) -> None:
     """Start ``--workers`` workers (one a core) and wait for them, after copying what a fresh ``--out`` lacks."""
-    copied = start_from(Path(args.out), Path(args.into), args.worlds)
+    copied = start_from(Path(args.out), Path(args.into), args.worlds, kept(args))
     print(f"{copied} committed pieces copied into {args.out}", flush=True)
     procs = [subprocess.Popen([sys.executable, __file__, "work", "--worker", f"w{i}", *sys.argv[2:]])
              for i in range(args.workers)]
@@ -168,22 +188,22 @@ def run(args: argparse.Namespace) -> None:
 def plan(args: argparse.Namespace) -> None:
     """What is left, per world: jobs, and the estimate of wfbench's plan for the candidates' missing pieces."""
     out, state = Path(args.out).resolve(), Path(args.state).resolve()
-    queue = jobs(args.worlds, candidates(), args.seeds)
+    queue = queue_of(args)
     for w in args.worlds:
         mine = [j for j, _ in queue if j[0] == w]
         left = [j for j in mine if _state(state, out, j) != "done"] if state.exists() else mine
         print(f"{w}: {len(mine) - len(left)} of {len(mine)} jobs done")
     cmd = [str(Path(sys.executable).parent / "wfbench"), "reproduce", "suite", "--plan", "--no-members",
-           "--no-progress", "--out", str(out), "--seeds", f"0-{args.seeds - 1}", "--policies", ",".join(candidates()),
+           "--no-progress", "--out", str(out), "--seeds", f"0-{args.seeds - 1}", "--policies", ",".join(played(args)),
            "--scenarios", ",".join(args.worlds)]
     done = subprocess.run(cmd, capture_output=True, text=True)
     print(done.stdout or done.stderr)
 
 
 def collect(args: argparse.Namespace) -> None:
-    """Copy the run's pieces of the candidates and of oracle-v2 that no job is playing into ``--into``."""
+    """Copy the run's pieces of the candidates and oracle-v2 (or ``--policies``') no job plays into ``--into``."""
     out, state, into = Path(args.out).resolve(), Path(args.state).resolve(), Path(args.into)
-    keep = {*candidates(), "oracle-v2"}
+    keep = kept(args)
     busy = {tuple(f.name.split("__")[:2]) for f in state.glob("*.running")} if state.exists() else set()
     copied = []
     for meta in sorted((out / "cache").glob("*/*.json")):
@@ -211,6 +231,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2, help="run: workers, one a core (default 2)")
     ap.add_argument("--worker", default="w0", help=argparse.SUPPRESS)
     ap.add_argument("--worlds", nargs="+", default=list(WORLDS), help="held-out worlds, in order (default: all)")
+    ap.add_argument("--policies", default=None, help="comma-separated registered policies to play instead of "
+                    "oracle-v2's candidates, with no oracle (e.g. a lookahead for the frontier)")
     ap.add_argument("--seeds", type=int, default=50, help="test seeds 0..N-1 (default 50)")
     ap.add_argument("--into", default=str(ROOT / "docs/results/reference-v2"), help="the committed run: run starts "
                     "from its pieces, collect copies into it (default: docs/results/reference-v2)")
