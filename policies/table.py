@@ -34,7 +34,7 @@ FAMILIES: dict[str, str] = {
     "learned": "trained networks (policies/neural/checkpoints/; loading them needs torch)",
     "rollout": "lookahead: a base rolled out on futures sampled from what it observed",
     "mpc": "lookahead: a rolling-horizon staffing MILP on a forecast, the base dispatching",
-    "search": "lookahead: the network's search, greedy futures ended at its value",
+    "search": "lookahead: the network's search on greedy futures, ended at its value or played out",
     "oracle": "hindsight: reads the episode's trace, not deployable (docs/hindsight.md)",
 }
 KINDS: tuple[str, ...] = ("composite", "oracle", "tuned", "learned", "lookahead")  # a recipe's kind (parse_spec's)
