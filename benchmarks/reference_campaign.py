@@ -25,6 +25,12 @@ finished pieces into the committed run.
     python benchmarks/reference_campaign.py run --out runs/reference-v2 --checkout /tmp/clean --workers 2
     python benchmarks/reference_campaign.py collect --out runs/reference-v2 --into docs/results/reference-v2
 
+Run this file from the checkout whose committed run is current (main), ``--checkout`` naming the
+clean worktree that plays: ``--into`` defaults to this file's own checkout, and a worktree of an
+older commit may still hold pieces a later commit dropped (on 2026-11-30 an older worktree's
+script copied 30 MPC pieces made before the MPC's fix, and an ``oracle-v2`` piece that read
+them, back into a run; they were found by their provenance and played again).
+
 ``--policies A,B`` plays those policies' pieces instead, in the same chunks and with no oracle
 (a lookahead registered after ``oracle-v2``'s candidates were fixed, for the frontier), e.g.
 ``run --out runs/playout --policies search-scalefree-general-playout --into docs/results/suite-v1-50``.
@@ -160,13 +166,57 @@ def work(args: argparse.Namespace) -> None:
         (state / f"{name(job)}.running").rename(state / f"{name(job)}.{'done' if rc == 0 else 'failed'}")
 
 
-def start_from(out: Path, committed: Path, worlds: list[str], policies: set[str]) -> int:
-    """Copy into ``out`` the committed pieces of ``policies`` it lacks, and each world's bound (a fresh machine)."""
+def decided_by(policy: str) -> list[str]:
+    """The repository files that decide ``policy``'s episodes (``oracle-v2``: its candidates' and its own)."""
+    import warnings
+
+    from wfbench.policies.oracle.episodes import decisive_files
+    from wfbench.policies.oracle.references import V2
+
+    from wfbench import policies
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        names = [*V2, policy] if policy == "oracle-v2" else [policy]
+        return sorted({f for n in names for f in decisive_files(policies.get(n))})
+
+
+def stale(meta: Path, checkout: Path, files: list[str]) -> str | None:
+    """Why a piece was made by other code than ``checkout``'s in ``files`` (a part's commit differs there), or None."""
+    d = json.loads(meta.read_text())
+    for part in d.get("parts") or [d]:
+        commit = (part.get("provenance") or {}).get("commit")
+        if not commit:
+            return "a part records no commit"
+        diff = subprocess.run(["git", "diff", "--name-only", commit, "HEAD", "--", *files], cwd=checkout,
+                              capture_output=True, text=True)
+        if diff.returncode or diff.stdout.strip():
+            return f"{(diff.stdout.split() or ['its commit'])[0]} differs between {commit[:7]} and the checkout"
+    return None
+
+
+def start_from(out: Path, committed: Path, worlds: list[str], policies: set[str], checkout: Path) -> int:
+    """Copy into ``out`` the committed pieces of ``policies`` it lacks, and each world's bound (a fresh machine).
+
+    A piece whose deciding files differ between the commit of one of its parts and
+    ``checkout``'s HEAD is not copied (its seeds are played again), and said so.
+    """
     copied = 0
-    sources = [*sorted(m for m in (committed / "cache").glob("*/*.json") if m.parent.name in policies),
-               *(ROOT / "docs/results/suite-v1-50/cache/bound" / f"{w}.json" for w in worlds)]
-    for meta in sources:
+    files: dict[str, list[str]] = {}
+    for meta in sorted(m for m in (committed / "cache").glob("*/*.json") if m.parent.name in policies):
         dest = out / "cache" / meta.parent.name
+        if (dest / meta.name).exists():
+            continue
+        why = stale(meta, checkout, files.setdefault(meta.parent.name, decided_by(meta.parent.name)))
+        if why:
+            print(f"not copied: {meta.parent.name}/{meta.name}: {why}", flush=True)
+            continue
+        dest.mkdir(parents=True, exist_ok=True)
+        for f in (meta, meta.with_suffix(".csv")):
+            shutil.copy2(f, dest / f.name)
+        copied += 1
+    for meta in (ROOT / "docs/results/suite-v1-50/cache/bound" / f"{w}.json" for w in worlds):
+        dest = out / "cache" / "bound"
         if meta.exists() and not (dest / meta.name).exists():
             dest.mkdir(parents=True, exist_ok=True)
             for f in (meta, meta.with_suffix(".csv")):
@@ -177,7 +227,7 @@ def start_from(out: Path, committed: Path, worlds: list[str], policies: set[str]
 
 def run(args: argparse.Namespace) -> None:
     """Start ``--workers`` workers (one a core) and wait for them, after copying what a fresh ``--out`` lacks."""
-    copied = start_from(Path(args.out), Path(args.into), args.worlds, kept(args))
+    copied = start_from(Path(args.out), Path(args.into), args.worlds, kept(args), Path(args.checkout).resolve())
     print(f"{copied} committed pieces copied into {args.out}", flush=True)
     procs = [subprocess.Popen([sys.executable, __file__, "work", "--worker", f"w{i}", *sys.argv[2:]])
              for i in range(args.workers)]
