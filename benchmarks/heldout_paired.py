@@ -31,13 +31,17 @@ HELDOUT = ("large-v1", "table2-g128-f50-s25-v1", "table2-g32-f100-s25-v1", "slow
            "novice-64-v1", "real-nyc-v1")
 
 
-def committed(policy: str, scenario: str) -> pd.DataFrame:
-    for folder in FOLDERS:
+def committed(policy: str, scenario: str, seeds=None, folders=FOLDERS) -> pd.DataFrame:
+    """The first piece of ``policy`` on ``scenario`` in ``folders`` that holds every one of ``seeds``."""
+    for folder in folders:
         path = folder / policy / f"{scenario}.csv"
         if path.exists():
-            return pd.read_csv(path).set_index("seed")
-    raise SystemExit(f"heldout_paired: no committed piece of {policy!r} on {scenario} in "
-                     + ", ".join(str(f.relative_to(ROOT)) for f in FOLDERS))
+            df = pd.read_csv(path).set_index("seed")
+            if seeds is None or set(seeds) <= set(df.index):
+                return df
+    raise SystemExit(f"heldout_paired: no committed piece of {policy!r} on {scenario} with seeds "
+                     f"{min(seeds) if seeds else ''}-{max(seeds) if seeds else ''} in "
+                     + ", ".join(str(f.relative_to(ROOT)) for f in folders))
 
 
 def main() -> None:
@@ -51,22 +55,26 @@ def main() -> None:
     ap.add_argument("--scenarios", default=",".join(HELDOUT), help="scenario ids (default: the held-out ones but "
                     "city; a training world's numbers are reported the same way)")
     ap.add_argument("--committed", action="store_true", help="read the policy's committed pieces, play nothing")
+    ap.add_argument("--folders", default=None, help="comma-separated suite runs whose cache/ to read, in order "
+                    "(default: docs/results/suite-v1-50, docs/results/frontier-v1); docs/results/reference-v2 first "
+                    "pairs a network with its play in the same ten-seed batches as the campaign's pieces")
     ap.add_argument("--kpis", default="", help="comma-separated result columns whose means to add, policy / against "
                     "(e.g. hires,releases,headcount,workforce_cost,utilization,downtime)")
     args = ap.parse_args()
     seeds = resolve_seeds(args.seeds)
+    folders = FOLDERS if args.folders is None else tuple((ROOT / f / "cache") for f in args.folders.split(","))
     kpis = [k for k in args.kpis.split(",") if k]
     print("| scenario | NSW, policy | NSW, " + args.against + " | paired difference (± s.e.) | CPU ms / env-step |"
           + "".join(f" {k} |" for k in kpis))
     print("|---|---|---|---|---|" + "---|" * len(kpis))
     for sc in args.scenarios.split(","):
         if args.committed:
-            df = committed(args.policy, sc).loc[seeds].reset_index()
+            df = committed(args.policy, sc, seeds, folders).loc[seeds].reset_index()
         else:
             with warnings.catch_warnings():  # zero-shot on a held-out world is the point
                 warnings.simplefilter("ignore")
                 df = wfbench.evaluate(args.policy, sc, seeds=seeds, execution=wfbench.Execution(threads=1))
-        ref = committed(args.against, sc).loc[seeds]
+        ref = committed(args.against, sc, seeds, folders).loc[seeds]
         d = df["nsw"].to_numpy() - ref["nsw"].to_numpy()
         ms = 1e3 * df["cpu_s"].sum() / df["episode_length"].sum()
         extra = "".join(f" {df[k].mean():.3g} / {ref[k].mean():.3g} |" for k in kpis)
