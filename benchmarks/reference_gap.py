@@ -1,0 +1,70 @@
+"""How far ``oracle-v2`` is from the bound and above its candidates, per held-out world, from committed pieces.
+
+Reads ``docs/results/reference-v2`` (the campaign's pieces) and then ``docs/results/suite-v1-50``
+(the suite's, the bound's and the compiled candidates'); plays nothing. Per world: the mean NSW
+of the bound, of ``oracle`` (v1) and of ``oracle-v2`` on the seeds ``oracle-v2``'s piece holds,
+the gap (the bound's mean minus v2's), the best deployable candidate's mean, ``oracle-rollout``'s,
+and the seed-by-seed checks: candidate seeds above v2, v2's seeds above the bound, and the seeds
+where v2 is above v1 with the candidate that gave them. docs/hindsight.md, "How far the
+references are from the bound".
+
+    python benchmarks/reference_gap.py novice-64-v1 churn-64-v1
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pandas as pd
+from wfbench.policies.oracle.references import V2
+from wfbench.policies.registry import entry
+
+ROOT = Path(__file__).resolve().parents[1]
+RUNS = ("reference-v2", "suite-v1-50")
+
+
+def piece(policy: str, world: str) -> pd.DataFrame | None:
+    """The first committed piece of ``policy`` on ``world`` in :data:`RUNS`, by seed; None where none is."""
+    for run in RUNS:
+        path = ROOT / "docs/results" / run / "cache" / policy / f"{world}.csv"
+        if path.exists():
+            return pd.read_csv(path, float_precision="round_trip").set_index("seed")
+    return None
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("worlds", nargs="+", help="held-out scenario ids with an oracle-v2 piece")
+    args = ap.parse_args()
+    print("| scenario | seeds | bound | `oracle` (v1) | `oracle-v2` | gap of v2 | best deployable candidate | "
+          "`oracle-rollout` |")
+    print("|---|---:|---:|---:|---:|---:|---|---:|")
+    notes = []
+    for w in args.worlds:
+        v2 = piece("oracle-v2", w)
+        if v2 is None:
+            raise SystemExit(f"reference_gap: no oracle-v2 piece of {w}; allowed: a world the campaign finished")
+        seeds = v2.index
+        o, v1, bound = v2["nsw"], piece("oracle", w)["nsw"].reindex(seeds), piece("bound", w)["nsw"].reindex(seeds)
+        cands = {c: p["nsw"].reindex(seeds) for c in V2 if (p := piece(c, w)) is not None}
+        missing = [c for c in V2 if c not in cands]
+        deployable = {c: s.mean() for c, s in cands.items() if not entry(c).reads_future}
+        best = max(deployable, key=deployable.get)
+        rollout = cands.get("oracle-rollout")
+        print(f"| `{w}` | {len(seeds)} | {bound.mean():.4f} | {v1.mean():.4f} | {o.mean():.4f} | "
+              f"{bound.mean() - o.mean():.4f} | `{best}` ({deployable[best]:.4f}) | "
+              f"{'-' if rollout is None else f'{rollout.mean():.4f}'} |")
+        above = sum(int((s > o + 1e-12).sum()) for s in cands.values())
+        over = int((o > bound + 1e-9).sum())
+        gains = [f"seed {s}: {', '.join(c for c, x in cands.items() if abs(x[s] - o[s]) < 1e-12)}"
+                 for s in seeds[o > v1 + 1e-12]]
+        notes.append(f"{w}: candidate seeds above oracle-v2: {above}; oracle-v2 seeds above the bound: {over}; "
+                     f"v2 above v1 on {len(gains)} ({'; '.join(gains) or 'none'}); candidates without a piece "
+                     f"(compiled, played by the oracle itself): {', '.join(missing) or 'none'}")
+    print()
+    print("\n".join(notes))
+
+
+if __name__ == "__main__":
+    main()
