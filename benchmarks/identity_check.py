@@ -132,7 +132,8 @@ def save_rows(df, path: Path) -> None:
     df.to_pickle(path)
 
 
-def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | None = None) -> None:
+def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | None = None,
+            names: list[str] | None = None) -> None:
     import pandas as pd
     import wfbench.policies
     import wfbench.solvers
@@ -145,7 +146,7 @@ def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | No
         print(f"{mod.__name__} from {Path(mod.__file__).parent}", flush=True)
     if only is None or "evaluate" in only:
         for scenario in chosen or scenarios():
-            for name in policies():
+            for name in names or policies():
                 if name in WITH_LOOKAHEADS and scenario not in LOOKAHEAD_SCENARIOS:
                     continue
                 t0 = time.perf_counter()
@@ -155,7 +156,7 @@ def capture(out: Path, seeds: int, only: set[str] | None, chosen: list[str] | No
                 print(f"evaluate {name:22s} {scenario:14s} {n} seeds {time.perf_counter() - t0:6.1f} s", flush=True)
     if only is None or "lookahead" in only:
         for scenario in [x for x in LOOKAHEAD_SCENARIOS if chosen is None or x in chosen]:
-            for name in lookaheads():
+            for name in [x for x in lookaheads() if names is None or x in names]:
                 t0 = time.perf_counter()
                 save_rows(wfbench.evaluate(name, scenario, [0]),
                           out / f"eval__{scenario}__{name}.pkl")
@@ -279,6 +280,9 @@ def main() -> int:
     c.add_argument("--seeds", type=int, default=10, help="test seeds 0..N-1 per policy and scenario (default 10)")
     c.add_argument("--only", default=None, help="comma-separated parts: evaluate, lookahead, reproduce, train")
     c.add_argument("--scenarios", default=None, help="comma-separated suite-v1 ids (default: every scenario)")
+    c.add_argument("--policies", default=None, help="comma-separated registered names for the evaluate and lookahead "
+                   "parts (default: every one); a change that decides only some policies' episodes is checked on "
+                   "those, over every scenario")
     c.add_argument("--checkout", type=Path, default=None, help="capture the code of this checkout (a git worktree "
                    "of the commit before), not the installed one")
     d = sub.add_parser("compare")
@@ -292,7 +296,8 @@ def main() -> int:
                 print(f"identity_check: {wrong}", file=sys.stderr)
                 return 2
         chosen = [x.strip() for x in args.scenarios.split(",")] if args.scenarios else None
-        capture(args.out, args.seeds, set(args.only.split(",")) if args.only else None, chosen)
+        names = [x.strip() for x in args.policies.split(",")] if args.policies else None
+        capture(args.out, args.seeds, set(args.only.split(",")) if args.only else None, chosen, names)
         return 0
     return compare(args.a, args.b)
 
