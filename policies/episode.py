@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 from numba import njit
-from wfbench.policies.kernels import act_env
+from wfbench.policies.kernels.act import act_codes
 
 from wfbench.core.dynamics import reset_env, step_env
 from wfbench.core.entrypoints import bind, run_split
@@ -22,20 +22,28 @@ from wfbench.core.observe import observe_env
 
 
 @njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the episode loop (dynamics.step_env)
-def play_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning):
-    """Whole episodes of environments lo..hi-1: reset, then observe, act and step to the horizon."""
+def play_range(lo, hi, dc, wc, pc, S, Tr, P, O, PS, hp, dispatch, workforce, positioning):
+    """Whole episodes of environments lo..hi-1: reset, then observe, act and step to the horizon.
+
+    ``dc``, ``wc``, ``pc``: the plan's three rule codes, compiled as integer literals
+    (``bind(..., literal=CODES)``): one compiled episode per code triple, holding only those
+    rules' kernels (:func:`wfbench.policies.kernels.act.act_codes`).
+    """
     for b in range(lo, hi):
         reset_env(b, S, Tr, P)
         while S.t[b] < P.horizon:
             observe_env(b, S, P, O, False, False)  # only what the kernels read
-            act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b], True)
+            act_codes(dc, wc, pc, b, O, PS, hp, dispatch, workforce, positioning, S.t[b], True)
             step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
+
+
+CODES = (2, 3, 4)  # the positions of dc, wc, pc among play_range's arguments: compiled as literals (bind)
 
 
 def play_parallel(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning) -> None:
     """Every episode of the batch on ``numba.get_num_threads()`` threads (the former ``prange`` kernel's call)."""
-    args = (S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning)
-    run_split(bind(play_range, 0, 0, *args), S.t.shape[0], numba.get_num_threads(), *args)
+    args = (*(int(c) for c in codes), S, Tr, P, O, PS, hp, dispatch, workforce, positioning)
+    run_split(bind(play_range, 0, 0, *args, literal=CODES), S.t.shape[0], numba.get_num_threads(), *args)
 
 
 def play_episodes(sim, codes: np.ndarray, hp: np.ndarray, pstate, threads: int | None = None) -> None:
@@ -50,5 +58,7 @@ def play_episodes(sim, codes: np.ndarray, hp: np.ndarray, pstate, threads: int |
     workforce = np.zeros(B, dtype=np.int64)
     positioning = np.zeros((B, 2, sim.M), dtype=np.float64)
     cap = numba.config.NUMBA_NUM_THREADS
-    args = (sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, codes, hp, dispatch, workforce, positioning)
-    run_split(bind(play_range, 0, 0, *args), B, max(1, min(cap if threads is None else threads, B, cap)), *args)
+    args = (*(int(c) for c in codes), sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, hp, dispatch,
+            workforce, positioning)
+    run_split(bind(play_range, 0, 0, *args, literal=CODES), B, max(1, min(cap if threads is None else threads, B, cap)),
+              *args)

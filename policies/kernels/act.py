@@ -1,12 +1,15 @@
 """All three decisions of one environment by their rule codes: what ``Policy.act`` and the rollouts call.
 
-Part of :mod:`wfbench.policies.kernels`; the branch of :func:`act_env` for a rule is
-where a new rule's code meets its kernel (``docs/design.md``, "Adding things").
+Part of :mod:`wfbench.policies.kernels`; the branch of :func:`act_rules` for a rule is
+where a new rule's code meets its kernel (``docs/design.md``, "Adding things"). :func:`act_env`
+reads the codes at run time (every rule compiled); :func:`act_codes` takes them as constants
+of its compilation (only their rules compiled: the compiled episode, one per code triple).
 """
 
 from __future__ import annotations
 
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 from wfbench.policies.kernels.common import (
     D_ASSIGN,
     D_ASSIGN_SPARSE,
@@ -55,7 +58,16 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
     heuristic and random kernels work in the scratch arrays of the policy state, and the
     solver kernels, which allocate, are compiled with ``_nrt=True`` set explicitly.
     """
-    dc = codes[0]
+    act_rules(codes[0], codes[1], codes[2], b, O, S, hp, dispatch, workforce, positioning, t, lazy)
+
+
+@njit(cache=True, inline="always")
+def act_rules(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
+    """:func:`act_env` of the dispatch, workforce and positioning rule codes ``dc``, ``wc``, ``pc``.
+
+    Inlined into its caller: where the codes are constants there (:func:`act_codes`), numba
+    prunes the other rules' branches before typing them, so their kernels are not compiled.
+    """
     if dc == D_NEAREST:
         dispatch_nearest(b, O, dispatch[b], S.req_buf[b], S.per_buf[b])
     elif dc == D_INVERSE:
@@ -68,7 +80,6 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
         dispatch_assignment_sparse(b, O, dispatch[b], hp[0])
     else:
         dispatch[b, :] = O.personnel.shape[1]
-    wc = codes[1]
     hw = hp[1]
     if wc == W_THRESHOLD:
         workforce[b] = workforce_threshold(b, O, S, hw, S.keys[b, 1], t, 0.0)
@@ -80,7 +91,6 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
         workforce[b] = workforce_staffing(b, O, S, hw, S.keys[b, 1], t)
     else:
         workforce[b] = 0
-    pc = codes[2]
     hpp = hp[2]
     if pc == P_SPATIAL or pc == P_GAUSSIAN:
         if lazy and workforce[b] == 0:
@@ -102,3 +112,27 @@ def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
 def act_batch(O, S, codes, hp, dispatch, workforce, positioning, t):
     for b in range(O.facilities.shape[0]):
         act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t[b], False)
+
+
+def act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
+    """:func:`act_env` for codes known when it is compiled: only the three rules' kernels are compiled.
+
+    Called from compiled code with ``dc``, ``wc`` and ``pc`` typed as integer literals (the
+    compiled episode, :func:`wfbench.policies.episode.play_range`, is compiled per code
+    triple). It is :func:`act_rules` with the codes as constants, so numba prunes every other
+    rule before typing it: an episode of the heuristic does not compile the assignment, the
+    p-median or the LAP (docs/performance.md, "Cold compile").
+    """
+    raise NotImplementedError("act_codes is called from compiled code only")
+
+
+@overload(act_codes, jit_options={"_nrt": False})
+def _act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
+    if not all(isinstance(c, types.IntegerLiteral) for c in (dc, wc, pc)):
+        return None
+    d, w, p = dc.literal_value, wc.literal_value, pc.literal_value
+
+    def impl(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
+        act_rules(d, w, p, b, O, S, hp, dispatch, workforce, positioning, t, lazy)
+
+    return impl

@@ -14,6 +14,7 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from numba.core import types
 
 
 def _fingerprint(x):
@@ -36,8 +37,11 @@ def _fingerprint(x):
 _ENTRY_POINTS: dict = {}  # (dispatcher, fingerprint of the arguments) -> entry point
 
 
-def bind(dispatcher, *args):
+def bind(dispatcher, *args, literal: tuple[int, ...] = ()):
     """The compiled entry point of a numba ``dispatcher`` for the types of ``args``.
+
+    ``literal``: the positions of integer arguments compiled as literals, their values part of
+    the signature (one compiled entry point per value: the compiled episode per rule codes).
 
     Calling a dispatcher resolves the numba type of every argument first; for the state,
     trace, parameter and observation tuples (about 80 arrays and scalars) that costs
@@ -46,11 +50,12 @@ def bind(dispatcher, *args):
     simulator's own steps) bind it to the simulator's own tuples and passes actions that :func:`validate_actions` made
     plain (C-contiguous, aligned, writeable int64 and float64 arrays).
     """
-    key = (dispatcher, _fingerprint(args))
+    key = (dispatcher, _fingerprint(args), tuple(int(args[i]) for i in literal))
     entry = _ENTRY_POINTS.get(key)
     if entry is None:
         # numba's typeof of the namedtuples takes ~1 ms; the fingerprint ~0.05 ms
-        entry = _ENTRY_POINTS[key] = dispatcher.compile(tuple(dispatcher.typeof_pyval(a) for a in args))
+        entry = _ENTRY_POINTS[key] = dispatcher.compile(tuple(
+            types.literal(int(a)) if i in literal else dispatcher.typeof_pyval(a) for i, a in enumerate(args)))
     return entry
 
 

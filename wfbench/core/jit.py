@@ -39,10 +39,11 @@ ENV_CACHE_DIR = "WFBENCH_CACHE_DIR"
 # Cold compile time (wall, seconds) after the first entry point a process compiles,
 # measured on the development VM (docs/performance.md, "Cold start"); used until this
 # machine has recorded its own. reset_batch: a Simulator (reset, step, observe);
-# play_range: the compiled episode runner that ``wfbench evaluate`` runs.
+# play_range: the compiled episode runner that ``wfbench evaluate`` runs, one per combination of rule codes
+# (``policies/episode.py``; docs/performance.md, "Cold compile").
 ESTIMATE_S = {
     "wfbench.core.dynamics.reset_batch": 45,
-    "wfbench.policies.episode.play_range": 75,
+    "wfbench.policies.episode.play_range": 35,
 }
 DEFAULT_ESTIMATE_S = 60
 # what a process's first compilation builds, by the module of the function numba compiles first (the longest
@@ -51,6 +52,8 @@ DEFAULT_ESTIMATE_S = 60
 WHAT = {
     "wfbench.core": "the simulator core",
     "wfbench.policies": "the built-in policies' compiled code and the simulator's step it inlines",
+    "wfbench.policies.episode": "the compiled episode of these built-in rules (each combination of rules once) and "
+                                "the simulator's step it inlines",
     "wfbench.policies.lookahead": "the lookaheads' kernels (rollouts on sampled futures, the MPC's model)",
     "wfbench.policies.oracle": "the hindsight oracle's planner and roll-forward",
     "wfbench.policies.kernels.forward": "the roll-forward of the lookaheads and the oracle",
