@@ -211,18 +211,21 @@ def start_from(out: Path, committed: Path, worlds: list[str], policies: set[str]
         if why:
             print(f"not copied: {meta.parent.name}/{meta.name}: {why}", flush=True)
             continue
-        dest.mkdir(parents=True, exist_ok=True)
-        for f in (meta, meta.with_suffix(".csv")):
-            shutil.copy2(f, dest / f.name)
+        copy_piece(meta, dest)
         copied += 1
     for meta in (ROOT / "docs/results/suite-v1-50/cache/bound" / f"{w}.json" for w in worlds):
         dest = out / "cache" / "bound"
         if meta.exists() and not (dest / meta.name).exists():
-            dest.mkdir(parents=True, exist_ok=True)
-            for f in (meta, meta.with_suffix(".csv")):
-                shutil.copy2(f, dest / f.name)
+            copy_piece(meta, dest)
             copied += 1
     return copied
+
+
+def copy_piece(meta: Path, dest: Path) -> None:
+    """Copy a piece (its ``.json`` and ``.csv``) into the folder ``dest``."""
+    dest.mkdir(parents=True, exist_ok=True)
+    for f in (meta, meta.with_suffix(".csv")):
+        shutil.copy2(f, dest / f.name)
 
 
 def run(args: argparse.Namespace) -> None:
@@ -264,9 +267,7 @@ def collect(args: argparse.Namespace) -> None:
         same = all((dest / f.name).exists() and (dest / f.name).read_bytes() == f.read_bytes()
                    for f in (meta, meta.with_suffix(".csv")))
         if not same:
-            dest.mkdir(parents=True, exist_ok=True)
-            for f in (meta, meta.with_suffix(".csv")):
-                shutil.copy2(f, dest / f.name)
+            copy_piece(meta, dest)
             copied.append(f"{policy}/{world}")
     print(f"{len(copied)} pieces copied into {into}: {' '.join(copied)}")
 

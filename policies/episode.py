@@ -42,8 +42,13 @@ CODES = (2, 3, 4)  # the positions of dc, wc, pc among play_range's arguments: c
 
 def play_parallel(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning) -> None:
     """Every episode of the batch on ``numba.get_num_threads()`` threads (the former ``prange`` kernel's call)."""
-    args = (*(int(c) for c in codes), S, Tr, P, O, PS, hp, dispatch, workforce, positioning)
-    run_split(bind(play_range, 0, 0, *args, literal=CODES), S.t.shape[0], numba.get_num_threads(), *args)
+    _play(codes, numba.get_num_threads(), S, Tr, P, O, PS, hp, dispatch, workforce, positioning)
+
+
+def _play(codes, threads: int, S, *rest) -> None:
+    """:func:`play_range` over the whole batch of ``S`` on ``threads`` ranges, compiled for the rule ``codes``."""
+    args = (*(int(c) for c in codes), S, *rest)
+    run_split(bind(play_range, 0, 0, *args, literal=CODES), S.t.shape[0], threads, *args)
 
 
 def play_episodes(sim, codes: np.ndarray, hp: np.ndarray, pstate, threads: int | None = None) -> None:
@@ -58,7 +63,5 @@ def play_episodes(sim, codes: np.ndarray, hp: np.ndarray, pstate, threads: int |
     workforce = np.zeros(B, dtype=np.int64)
     positioning = np.zeros((B, 2, sim.M), dtype=np.float64)
     cap = numba.config.NUMBA_NUM_THREADS
-    args = (*(int(c) for c in codes), sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, hp, dispatch,
-            workforce, positioning)
-    run_split(bind(play_range, 0, 0, *args, literal=CODES), B, max(1, min(cap if threads is None else threads, B, cap)),
-              *args)
+    _play(codes, max(1, min(cap if threads is None else threads, B, cap)), sim.state, sim.trace, sim.params,
+          sim.obs_buffers, pstate, hp, dispatch, workforce, positioning)
