@@ -26,22 +26,21 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = (ROOT / "docs/results/suite-v1-50/cache", ROOT / "docs/results/frontier-v1/cache")
+FOLDERS = (ROOT / "docs/results/suite-v1-50", ROOT / "docs/results/frontier-v1")  # suite runs: their cache/ is read
 HELDOUT = ("large-v1", "table2-g128-f50-s25-v1", "table2-g32-f100-s25-v1", "slow-64-v1", "churn-64-v1",
            "novice-64-v1", "real-nyc-v1")
 
 
 def committed(policy: str, scenario: str, seeds=None, folders=FOLDERS) -> pd.DataFrame:
     """The first piece of ``policy`` on ``scenario`` in ``folders`` that holds every one of ``seeds``."""
-    for folder in folders:
-        path = folder / policy / f"{scenario}.csv"
-        if path.exists():
-            df = pd.read_csv(path).set_index("seed")
-            if seeds is None or set(seeds) <= set(df.index):
-                return df
+    from wfbench.scenarios.pieces import first_piece
+
+    df = first_piece(folders, policy, scenario, seeds)
+    if df is not None:
+        return df
     raise SystemExit(f"heldout_paired: no committed piece of {policy!r} on {scenario} with seeds "
                      f"{min(seeds) if seeds else ''}-{max(seeds) if seeds else ''} in "
-                     + ", ".join(str(f.relative_to(ROOT)) for f in folders))
+                     + ", ".join(str((f / "cache").relative_to(ROOT)) for f in folders))
 
 
 def main() -> None:
@@ -62,7 +61,7 @@ def main() -> None:
                     "(e.g. hires,releases,headcount,workforce_cost,utilization,downtime)")
     args = ap.parse_args()
     seeds = resolve_seeds(args.seeds)
-    folders = FOLDERS if args.folders is None else tuple((ROOT / f / "cache") for f in args.folders.split(","))
+    folders = FOLDERS if args.folders is None else tuple(ROOT / f for f in args.folders.split(","))
     kpis = [k for k in args.kpis.split(",") if k]
     print("| scenario | NSW, policy | NSW, " + args.against + " | paired difference (± s.e.) | CPU ms / env-step |"
           + "".join(f" {k} |" for k in kpis))

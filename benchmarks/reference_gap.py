@@ -20,17 +20,15 @@ import pandas as pd
 from wfbench.policies.oracle.references import V2
 from wfbench.policies.registry import entry
 
+from wfbench.scenarios.pieces import first_piece
+
 ROOT = Path(__file__).resolve().parents[1]
-RUNS = ("reference-v2", "suite-v1-50")
+RUNS = tuple(ROOT / "docs/results" / run for run in ("reference-v2", "suite-v1-50"))
 
 
 def piece(policy: str, world: str) -> pd.DataFrame | None:
     """The first committed piece of ``policy`` on ``world`` in :data:`RUNS`, by seed; None where none is."""
-    for run in RUNS:
-        path = ROOT / "docs/results" / run / "cache" / policy / f"{world}.csv"
-        if path.exists():
-            return pd.read_csv(path, float_precision="round_trip").set_index("seed")
-    return None
+    return first_piece(RUNS, policy, world)
 
 
 def main() -> None:

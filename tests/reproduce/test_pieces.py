@@ -10,6 +10,7 @@ import pytest
 from wfbench.harness.backends import Execution
 from wfbench.reproduce import pieces
 from wfbench.scenarios import get_suite
+from wfbench.scenarios import pieces as stored
 
 SMALL = get_suite("suite-v1").scenario("small")
 TIMING = ("cpu_s", "wall_s", "decision_ms_p50", "decision_ms_p99", "decision_ms_max")  # measured, not computed
@@ -152,3 +153,17 @@ def test_a_plan_reads_costs_from_other_runs_and_reuses_none_of_them(tmp_path):
     todo = pieces.plan([out], ["heuristic"], [paper], [0, 1], others=suite.scenarios, costs=[committed])
     assert [(m.policy, m.seeds, m.cpu_s) for m in todo] == [("heuristic", (0, 1), pytest.approx(8.0))]
     assert pieces.plan([out], ["heuristic"], [paper], [0, 1], others=suite.scenarios)[0].cpu_s is None
+
+
+def test_first_piece_is_the_first_folders_that_holds_every_seed_asked_with_its_bits(tmp_path):
+    few, all_, empty = tmp_path / "few", tmp_path / "all", tmp_path / "empty"
+    odd = 0.1 + 0.2  # a float the default CSV parser may not read back bit for bit
+    for folder, seeds in ((few, [0]), (all_, [0, 1])):
+        path = stored.piece_path(folder, "heuristic#seed0", "small-v1")  # stored path-safe: heuristic_seed0
+        path.parent.mkdir(parents=True)
+        pd.DataFrame({"seed": seeds, "nsw": [odd] * len(seeds), "where": folder.name}).to_csv(path, index=False)
+    assert stored.first_piece([empty, few, all_], "heuristic#seed0", "small-v1")["where"].tolist() == ["few"]
+    got = stored.first_piece([empty, few, all_], "heuristic#seed0", "small-v1", [1, 0])
+    assert got.index.name == "seed" and got["where"].tolist() == ["all", "all"] and got.loc[1, "nsw"] == odd
+    assert stored.first_piece([few, all_], "heuristic#seed0", "small-v1", [2]) is None
+    assert stored.first_piece([few, all_], "heuristic", "small-v1") is None

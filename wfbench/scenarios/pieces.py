@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -42,6 +43,24 @@ def read_rows(path: Path) -> pd.DataFrame:
     return pd.read_csv(path, float_precision="round_trip")
 
 
+def first_piece(folders: Sequence[Path], policy: str, scenario_id: str,
+                seeds: Sequence[int] | None = None) -> pd.DataFrame | None:
+    """The rows, by seed, of the first piece of ``policy`` on ``scenario_id`` in the run folders ``folders``.
+
+    The first in ``folders``' order whose rows hold every one of ``seeds`` (any piece when None),
+    or None where no folder has one. Neither its ``.json`` nor the scenario's hash is read: for
+    scripts over committed runs (``benchmarks/heldout_paired.py``, ``benchmarks/reference_gap.py``),
+    not for reuse by a run (:func:`wfbench.reproduce.pieces.find` checks both).
+    """
+    for folder in folders:
+        path = piece_path(folder, policy, scenario_id)
+        if path.exists():
+            df = read_rows(path).set_index("seed")
+            if seeds is None or set(seeds) <= set(df.index):
+                return df
+    return None
+
+
 def parts_of(meta: dict) -> list[dict]:
     """The parts of a piece: each ``{"seeds", "wall_s", "provenance"}`` and, where recorded, ``"batches"``.
 
@@ -55,4 +74,4 @@ def parts_of(meta: dict) -> list[dict]:
     return [part]
 
 
-__all__ = ["parts_of", "piece_folder", "piece_path", "read_meta", "read_rows"]
+__all__ = ["first_piece", "parts_of", "piece_folder", "piece_path", "read_meta", "read_rows"]
