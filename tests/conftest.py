@@ -1,7 +1,10 @@
+import importlib.util
 import os
 import shutil
 import sys
 import warnings
+from pathlib import Path
+from types import ModuleType
 
 import absl.logging
 import pytest
@@ -38,6 +41,19 @@ def tiny():
     return ScenarioConfig(name="tiny", grid_width=12, grid_height=12, max_facilities=5, max_personnel=3,
                           initial_facilities=5, initial_personnel=3, horizon=60, request_interval=10.0,
                           window=10)
+
+
+# -- the checkout's scripts (benchmarks/, examples/): no package, so a test calling their functions loads them by path
+def load_script(relative: str) -> ModuleType:
+    """The script at ``relative`` from the checkout's root (``benchmarks/identity_check.py``) as a module of its name.
+
+    Its ``if __name__ == "__main__"`` block does not run; the module is not put in ``sys.modules``.
+    """
+    path = Path(__file__).resolve().parents[1] / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 # -- a real browser (the HTML leaderboard test, issue #26) ------------------------------------------------------

@@ -7,24 +7,18 @@ before plus its settings; ``--compile`` and ``--device`` reach the trainer (comp
 minutes on 2 cores, so its run is not made here).
 """
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import pytest
 
+from tests.conftest import load_script
 from wfbench.cli import main as cli_main
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
 def train_speed():
-    spec = importlib.util.spec_from_file_location("train_speed", ROOT / "benchmarks" / "train_speed.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("benchmarks/train_speed.py")
 
 
 def test_train_speed__bf16_runs_on_cpu_and_reports_the_usual_row(train_speed, tmp_path):
