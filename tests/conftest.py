@@ -7,6 +7,7 @@ from pathlib import Path
 from types import ModuleType
 
 import absl.logging
+import numpy as np
 import pytest
 
 import wfbench
@@ -41,6 +42,20 @@ def tiny():
     return ScenarioConfig(name="tiny", grid_width=12, grid_height=12, max_facilities=5, max_personnel=3,
                           initial_facilities=5, initial_personnel=3, horizon=60, request_interval=10.0,
                           window=10)
+
+
+def play_episode(pol, config: ScenarioConfig, seeds) -> tuple[wfbench.Simulator, list[dict[str, np.ndarray]]]:
+    """``pol`` reset and played to the end on ``seeds``: the finished simulator and a copy of each step's actions."""
+    sim = wfbench.Simulator(config, seeds)
+    obs = sim.reset()
+    pol.reset(seeds)
+    actions = []
+    while not sim.done:
+        a = pol.act(obs)
+        actions.append({k: np.array(v, copy=True) for k, v in a.items()})
+        sim.step(a)
+        obs = sim.observe()
+    return sim, actions
 
 
 # -- the checkout's scripts (benchmarks/, examples/): no package, so a test calling their functions loads them by path

@@ -8,7 +8,8 @@ import pytest
 from wfbench.policies.lookahead import BUDGETS, Rollout
 from wfbench.policies.registry import entries, parse_spec
 
-from wfbench import ScenarioConfig, Simulator, policies
+from tests.conftest import play_episode
+from wfbench import ScenarioConfig, policies
 
 SMALL = ScenarioConfig.preset("small")
 
@@ -50,16 +51,8 @@ def test_the_presets_are_registered_by_budget():
 
 
 def play(pol, config, seeds):
-    sim = Simulator(config, seeds)
-    obs = sim.reset()
-    pol.reset(seeds)
-    actions = []
-    while not sim.done:
-        a = pol.act(obs)
-        actions.append(a["workforce"].copy())
-        sim.step(a)
-        obs = sim.observe()
-    return sim.episode_means()["nsw"], np.stack(actions)
+    sim, actions = play_episode(pol, config, seeds)
+    return sim.episode_means()["nsw"], np.stack([a["workforce"] for a in actions])
 
 
 def test_a_small_rollout_is_not_worse_than_its_base_on_public_seeds():

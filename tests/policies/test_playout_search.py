@@ -11,23 +11,15 @@ from wfbench.policies.lookahead.playout import PlayoutSearch
 from wfbench.policies.lookahead.search import BUDGETS, NetworkSearch, value_map
 from wfbench.policies.registry import lookahead_base, parse_spec
 
-from wfbench import ScenarioConfig, Simulator, policies
+from tests.conftest import play_episode
+from wfbench import ScenarioConfig, policies
 
 SMALL = ScenarioConfig.preset("small").replace(horizon=60)
 SEEDS = [1000, 1001]
 
 
 def actions(pol, config=SMALL, seeds=SEEDS) -> list[dict[str, np.ndarray]]:
-    sim = Simulator(config, seeds)
-    obs = sim.reset()
-    pol.reset(seeds)
-    out = []
-    while not sim.done:
-        a = pol.act(obs)
-        out.append({k: np.array(v, copy=True) for k, v in a.items()})
-        sim.step(a)
-        obs = sim.observe()
-    return out
+    return play_episode(pol, config, seeds)[1]
 
 
 def same(x: list[dict], y: list[dict]) -> None:
