@@ -1,6 +1,7 @@
 """Cold compile time of the compiled core, by entry point and by function.
 
     python benchmarks/compile_time.py [--src CHECKOUT ...] [--target simulator|rollout|both] [--repeat N]
+    python benchmarks/compile_time.py [--src CHECKOUT ...] --policy NAME [--repeat N]
 
 Each measurement runs in a fresh child process with an empty numba cache (a new
 temporary ``WFBENCH_CACHE_DIR`` and ``NUMBA_CACHE_DIR``), so everything it uses is
@@ -10,7 +11,9 @@ compiled from scratch:
   ``observe`` (what an environment compiles);
 - ``rollout``: ``wfbench.policies.episode.play_episodes`` of the heuristic on ``paper-64``, one seed,
   one thread (the compiled whole-episode rollout with the built-in kernels; what
-  ``wfbench evaluate`` compiles).
+  ``wfbench evaluate`` compiles);
+- ``--policy NAME``: ``wfbench.evaluate(NAME, "paper-64", [0])``, what a user's first
+  ``wfbench evaluate --policy NAME`` compiles (any registered family, the lookaheads included).
 
 With several ``--src`` checkouts the children alternate between them (A, B, A, B, ...),
 so a slow spell of a shared machine hits both. Each child reports its wall and CPU time and,
@@ -77,6 +80,9 @@ if target in ("rollout", "both"):
     from wfbench.core.simulator import Simulator
     sim = Simulator(resolve_scenario("paper-64"), [0], keep_series=False)
     play_episodes(sim, *get("heuristic").compiled_plan([0], sim.M, sim.N), threads=1)
+if target.startswith("policy:"):  # what a user's first evaluate of this policy compiles
+    import wfbench
+    wfbench.evaluate(target[len("policy:"):], "paper-64", [0])
 wall = time.perf_counter() - t_start
 print("RESULT " + json.dumps({"wall_s": wall, "cpu_s": time.process_time(), "functions": times}))
 """
@@ -105,10 +111,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--src", action="append", help="checkout to import wfbench from (repeat to alternate)")
     ap.add_argument("--target", default="both", choices=("simulator", "rollout", "both"))
+    ap.add_argument("--policy", help="measure the first wfbench.evaluate of this registered policy instead of --target")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--top", type=int, default=12)
     ap.add_argument("--json", help="write every measurement to this file")
     args = ap.parse_args()
+    if args.policy:
+        args.target = f"policy:{args.policy}"
     sources = args.src or [None]
     runs = []
     for r in range(args.repeat):
