@@ -14,7 +14,7 @@ import time
 import numpy as np
 from numba import njit
 from wfbench.policies import get
-from wfbench.policies.kernels import act_env
+from wfbench.policies.kernels import act_codes
 
 from wfbench.core.dynamics import reset_env, step_env
 from wfbench.core.observe import observe_env
@@ -28,7 +28,7 @@ def _episodes(S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning, full
         reset_env(b, S, Tr, P)
         while S.t[b] < P.horizon:
             observe_env(b, S, P, O, False, full)
-            act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b], True)
+            act_codes(codes[0], codes[1], codes[2], b, O, PS, hp, dispatch, workforce, positioning, S.t[b], True)
             step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
 
 

@@ -6,7 +6,7 @@ integer code is its position among its decision's rows (the no-op first, code 0)
 :data:`HYPERPARAMETERS` lays out the flat vector ``hp`` every kernel reads at run time (so a
 tuned value needs no recompile): each field's default and, where it may be searched, its range
 (:class:`~wfbench.policies.tunable.Param`); the model-of-the-world fields have none. A new rule is
-a row here, its kernel and the branch of ``act_env`` that calls it. ``docs/policies.md``,
+a row here, its kernel and the branch of ``act_rules`` that calls it. ``docs/policies.md``,
 "Tuning".
 """
 

@@ -13,7 +13,7 @@ current state under these kernels, and the oracles and the deployable lookaheads
 their candidates with it.
 """
 
-from wfbench.policies.kernels.act import act_batch, act_env
+from wfbench.policies.kernels.act import act_batch, act_codes
 from wfbench.policies.kernels.common import (
     D_ASSIGN,
     D_ASSIGN_SPARSE,
@@ -97,7 +97,7 @@ __all__ = [
     "HP_NOISE", "HP_P0", "HP_P1", "HP_P2", "HP_RATE", "HP_REFRESH", "HP_REQW", "HP_REVISIT", "HP_SERVICE",
     "HP_SMOOTH", "HP_SPEED", "HP_UNASSIGNED", "HP_WARMUP", "P_FACILITY", "P_FACILITY_SPARSE", "P_GAUSSIAN", "P_NONE",
     "P_RANDOM", "P_SPATIAL", "PolicyState", "SPARSE_K_MEDIANS", "SPARSE_K_PEOPLE", "SPARSE_K_SITES", "W_EPSILON",
-    "W_NOOP", "W_RANDOM", "W_STAFFING", "W_THRESHOLD", "act_batch", "act_env", "allocate_state", "assignment_costs",
+    "W_NOOP", "W_RANDOM", "W_STAFFING", "W_THRESHOLD", "act_batch", "act_codes", "allocate_state", "assignment_costs",
     "dispatch_assignment", "dispatch_assignment_sparse", "dispatch_inverse_distance", "dispatch_nearest",
     "dispatch_random", "dist_to", "fill_open_requests_and_free_people", "observe_history",
     "open_requests_and_free_people", "positioning_facility", "positioning_facility_sparse", "positioning_random",

@@ -1,9 +1,11 @@
 """All three decisions of one environment by their rule codes: what ``Policy.act`` and the rollouts call.
 
 Part of :mod:`wfbench.policies.kernels`; the branch of :func:`act_rules` for a rule is
-where a new rule's code meets its kernel (``docs/design.md``, "Adding things"). :func:`act_env`
-reads the codes at run time (every rule compiled); :func:`act_codes` takes them as constants
-of its compilation (only their rules compiled: the compiled episode, one per code triple).
+where a new rule's code meets its kernel (``docs/design.md``, "Adding things").
+:func:`act_codes` is what compiled code calls: given the codes as integer literals it
+compiles only their rules (the compiled episode, ``Policy.act`` and the lookaheads' futures:
+one compilation per code triple), given them at run time every rule (the oracle's
+roll-forward, which plays many composites in one compiled batch).
 """
 
 from __future__ import annotations
@@ -44,29 +46,24 @@ from wfbench.policies.kernels.positioning import (
 )
 from wfbench.policies.kernels.workforce import workforce_random, workforce_staffing, workforce_threshold
 
-
-@njit(cache=True, inline="always")
-def act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t, lazy):
-    """Fill the three decisions of environment b for the given codes (``hp`` has a row per decision).
-
-    ``lazy`` (the compiled rollout, where all three decisions are built in) skips the
-    spatial positioning weights on steps whose workforce action is the no-op: the step
-    does not read them then, and the demand history they come from is still updated, so
-    the episode is the same. ``Policy.act`` always fills them (another agent may hire).
-
-    Callers compile this without numba's runtime (see ``wfbench.core.dynamics.step_env``): the
-    heuristic and random kernels work in the scratch arrays of the policy state, and the
-    solver kernels, which allocate, are compiled with ``_nrt=True`` set explicitly.
-    """
-    act_rules(codes[0], codes[1], codes[2], b, O, S, hp, dispatch, workforce, positioning, t, lazy)
+from wfbench.core.entrypoints import bind
 
 
 @njit(cache=True, inline="always")
 def act_rules(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
-    """:func:`act_env` of the dispatch, workforce and positioning rule codes ``dc``, ``wc``, ``pc``.
+    """Fill the three decisions of environment b for the dispatch, workforce and positioning rule codes.
+
+    ``hp`` has a row per decision. ``lazy`` (the compiled episode and the roll-forward, where
+    all three decisions are built in) skips the spatial positioning weights on steps whose
+    workforce action is the no-op: the step does not read them then, and the demand history
+    they come from is still updated, so the episode is the same. ``Policy.act`` always fills
+    them (another agent may hire).
 
     Inlined into its caller: where the codes are constants there (:func:`act_codes`), numba
     prunes the other rules' branches before typing them, so their kernels are not compiled.
+    Callers compile this without numba's runtime (see ``wfbench.core.dynamics.step_env``): the
+    heuristic and random kernels work in the scratch arrays of the policy state, and the
+    solver kernels, which allocate, are compiled with ``_nrt=True`` set explicitly.
     """
     if dc == D_NEAREST:
         dispatch_nearest(b, O, dispatch[b], S.req_buf[b], S.per_buf[b])
@@ -108,31 +105,51 @@ def act_rules(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy
         positioning[b, :, :] = 0.0
 
 
-@njit(cache=True, _nrt=False)  # see act_env
-def act_batch(O, S, codes, hp, dispatch, workforce, positioning, t):
-    for b in range(O.facilities.shape[0]):
-        act_env(b, O, S, codes, hp, dispatch, workforce, positioning, t[b], False)
-
-
 def act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
-    """:func:`act_env` for codes known when it is compiled: only the three rules' kernels are compiled.
+    """:func:`act_rules` as compiled code calls it: with literal codes only their rules are compiled.
 
-    Called from compiled code with ``dc``, ``wc`` and ``pc`` typed as integer literals (the
-    compiled episode, :func:`wfbench.policies.episode.play_range`, is compiled per code
-    triple). It is :func:`act_rules` with the codes as constants, so numba prunes every other
-    rule before typing it: an episode of the heuristic does not compile the assignment, the
-    p-median or the LAP (docs/performance.md, "Cold compile").
+    Called from compiled code. Where ``dc``, ``wc`` and ``pc`` are typed as integer literals
+    (the entry point bound with ``bind(..., literal=...)``), it is :func:`act_rules` with the
+    codes as constants, so numba prunes every other rule before typing it: an episode of the
+    heuristic does not compile the assignment, the p-median or the LAP (docs/performance.md,
+    "Cold compile"). Where they are plain integers, it is :func:`act_rules` with every rule.
     """
     raise NotImplementedError("act_codes is called from compiled code only")
 
 
-@overload(act_codes, jit_options={"_nrt": False})
+# prefer_literal: numba tries an overload with the arguments' plain types first, which would take the every-rule
+# implementation for literal codes too
+@overload(act_codes, jit_options={"_nrt": False}, prefer_literal=True)
 def _act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
-    if not all(isinstance(c, types.IntegerLiteral) for c in (dc, wc, pc)):
-        return None
-    d, w, p = dc.literal_value, wc.literal_value, pc.literal_value
+    if all(isinstance(c, types.IntegerLiteral) for c in (dc, wc, pc)):
+        d, w, p = dc.literal_value, wc.literal_value, pc.literal_value
 
-    def impl(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
-        act_rules(d, w, p, b, O, S, hp, dispatch, workforce, positioning, t, lazy)
+        def constant(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
+            act_rules(d, w, p, b, O, S, hp, dispatch, workforce, positioning, t, lazy)
 
-    return impl
+        return constant
+    if all(isinstance(c, types.Integer) for c in (dc, wc, pc)):
+
+        def run_time(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy):
+            act_rules(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, lazy)
+
+        return run_time
+    return None
+
+
+@njit(cache=True, _nrt=False)  # see act_rules
+def act_range(dc, wc, pc, O, S, hp, dispatch, workforce, positioning, t):
+    """Every environment's three decisions (``Policy.act``): :func:`act_codes` per environment, not lazy."""
+    for b in range(O.facilities.shape[0]):
+        act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t[b], False)
+
+
+def act_batch(O, S, codes, hp, dispatch, workforce, positioning, t) -> None:
+    """Fill every environment's decisions with the rules ``codes`` (int64 (3,)), compiled for those rules only.
+
+    ``O`` is the observation in the kernels' tuple (``as_obs``), ``S`` the kernels' policy
+    state; ``dispatch``, ``workforce`` and ``positioning`` are filled in place. The entry point
+    is bound once per code triple and argument types (:func:`wfbench.core.entrypoints.bind`).
+    """
+    args = (int(codes[0]), int(codes[1]), int(codes[2]), O, S, hp, dispatch, workforce, positioning, t)
+    bind(act_range, *args, literal=(0, 1, 2))(*args)

@@ -4,8 +4,10 @@ The oracles (:mod:`wfbench.policies.oracle`) and the deployable lookaheads
 (:mod:`wfbench.policies.lookahead`) both score with it. :func:`roll_forward` is
 :func:`wfbench.policies.episode.play_episodes` without the reset and for a number of steps,
 usually on a fork (:func:`wfbench.core.fork.fork`), with an optional explicit first action.
-It calls the same ``step_env``, ``observe_env`` and ``act_env`` as ``Simulator.step``, so it
-plays the episode the simulator would (tested). It returns the sum of ``NSW_t`` per
+It calls the same ``step_env``, ``observe_env`` and rule kernels (``act_codes``) as
+``Simulator.step``, so it plays the episode the simulator would (tested). A lookahead, whose
+futures are played by one base, compiles it for that base's rules only (``literal=True``); the
+oracle, which rolls many composites in one process, compiles it once for every rule. It returns the sum of ``NSW_t`` per
 environment and can record where requests open (the known future demand)
 (``docs/hindsight.md``, "Exact look-ahead").
 """
@@ -14,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from wfbench.policies.kernels.act import act_env
+from wfbench.policies.kernels.act import act_codes
 
 from wfbench.core.dynamics import step_env
 from wfbench.core.entrypoints import bind
@@ -39,15 +41,17 @@ def _record_onsets(b, S, seen, onset_xy, n_onsets):
 
 
 @njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the loop (see wfbench.core.dynamics.step_env)
-def roll_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, positioning, first, first_d, first_w,
+def roll_range(lo, hi, dc, wc, pc, S, Tr, P, O, PS, hp, dispatch, workforce, positioning, first, first_d, first_w,
                first_p, steps, record, seen, onset_xy, n_onsets, score):
     """Roll environments lo..hi-1 forward ``steps`` steps (capped by the horizon).
 
     With ``first``, the first step takes the explicit actions ``first_d[b]``,
     ``first_w[b]``, ``first_p[b]``; every other step observes (the parts the kernels
-    read) and acts with the kernels of ``codes``. ``score[b]`` gets the sum of NSW over
-    the steps run. With ``record``, the cells of the requests that open are appended to
-    ``onset_xy[b]`` (``n_onsets[b]`` counts them, also past the capacity).
+    read) and acts with the kernels of the rule codes ``dc``, ``wc``, ``pc`` (integer literals
+    of the compilation, or plain integers: :func:`wfbench.policies.kernels.act.act_codes`).
+    ``score[b]`` gets the sum of NSW over the steps run. With ``record``, the cells of the
+    requests that open are appended to ``onset_xy[b]`` (``n_onsets[b]`` counts them, also past
+    the capacity).
     """
     for b in range(lo, hi):
         end = min(S.t[b] + steps, P.horizon)
@@ -62,7 +66,7 @@ def roll_range(lo, hi, S, Tr, P, O, PS, codes, hp, dispatch, workforce, position
                 _record_onsets(b, S, seen, onset_xy, n_onsets)
         while S.t[b] < end:
             observe_env(b, S, P, O, False, False)  # only what the kernels read
-            act_env(b, O, PS, codes, hp, dispatch, workforce, positioning, S.t[b], True)
+            act_codes(dc, wc, pc, b, O, PS, hp, dispatch, workforce, positioning, S.t[b], True)
             total += step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
             if record:
                 _record_onsets(b, S, seen, onset_xy, n_onsets)
@@ -85,8 +89,12 @@ class RollBuffers:
         self.score = np.zeros(B, dtype=np.float64)
 
 
+CODES = (2, 3, 4)  # the positions of dc, wc, pc among roll_range's arguments: literals where a base is fixed (bind)
+
+
 def roll_forward(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, first: bool = False,
-                 buffers: RollBuffers | None = None, record: bool = False, rows: int | None = None) -> np.ndarray:
+                 buffers: RollBuffers | None = None, record: bool = False, rows: int | None = None,
+                 literal: bool = False) -> np.ndarray:
     """Roll every environment of ``sim`` forward ``steps`` steps under the built-in kernels ``codes``.
 
     Args:
@@ -101,30 +109,34 @@ def roll_forward(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, fir
         buffers: scratch arrays (:class:`RollBuffers` of B rows); made when None.
         record: record the cells of the requests that open (``buffers.onset_xy``, ``n_onsets``).
         rows: roll only environments 0..rows-1 (all when None); the others stay as they are.
+        literal: compile the roll-forward for these ``codes`` only (a lookahead's one base: its
+            first call compiles that base's rules alone); otherwise one compilation serves
+            every rule (the oracle's candidates). The episodes are the same either way.
 
     Returns:
         (B,) float64: the sum of NSW_t over the steps run (a view of ``buffers.score``).
     """
     if buffers is None:
         buffers = RollBuffers(sim.B, sim.M, sim.N)
-    args = (sim.state, sim.trace, sim.params, sim.obs_buffers, pstate, np.ascontiguousarray(codes, dtype=np.int64),
+    args = (*(int(c) for c in codes), sim.state, sim.trace, sim.params, sim.obs_buffers, pstate,
             np.ascontiguousarray(hp, dtype=np.float64), buffers.dispatch, buffers.workforce, buffers.positioning,
             bool(first), buffers.first_d, buffers.first_w, buffers.first_p, int(steps), bool(record), buffers.seen,
             buffers.onset_xy, buffers.n_onsets, buffers.score)
-    bind(roll_range, 0, 0, *args)(0, sim.B if rows is None else int(rows), *args)
+    bind(roll_range, 0, 0, *args, literal=CODES if literal else ())(0, sim.B if rows is None else int(rows), *args)
     return buffers.score
 
 
 def roll_candidates(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, fork_pstate, buffers: RollBuffers,
-                    env_rows: np.ndarray, first_w, d: np.ndarray, p: np.ndarray) -> np.ndarray:
+                    env_rows: np.ndarray, first_w, d: np.ndarray, p: np.ndarray, literal: bool = False) -> np.ndarray:
     """Score candidate workforce actions: :func:`roll_forward` of rows 0..n-1 of ``sim``, each from its environment.
 
     Row i (its world already written into ``sim``) starts from the kernel state ``pstate`` of
     environment ``env_rows[i]``, copied into ``fork_pstate``, and takes that environment's
     dispatch ``d`` and positioning ``p`` with the workforce action ``first_w[i]`` as its first
-    step. Returns the (n,) sums of NSW over the steps run. The rollout's and the hindsight
-    rollout's decisions (:mod:`wfbench.policies.lookahead.rollout`, :mod:`wfbench.policies.oracle.hindsight`)
-    both score this way.
+    step (``literal``: as :func:`roll_forward`'s). Returns the (n,) sums of NSW over the steps
+    run. The rollout's and the hindsight rollout's decisions
+    (:mod:`wfbench.policies.lookahead.rollout`, :mod:`wfbench.policies.oracle.hindsight`) both
+    score this way.
     """
     n = len(env_rows)
     for src, dst in zip(pstate, fork_pstate, strict=True):
@@ -132,7 +144,7 @@ def roll_candidates(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, 
     buffers.first_d[:n] = d[env_rows]
     buffers.first_w[:n] = first_w
     buffers.first_p[:n] = p[env_rows]
-    return roll_forward(sim, steps, codes, hp, fork_pstate, first=True, buffers=buffers, rows=n)[:n]
+    return roll_forward(sim, steps, codes, hp, fork_pstate, first=True, buffers=buffers, rows=n, literal=literal)[:n]
 
 
 __all__ = ["RollBuffers", "roll_candidates", "roll_forward", "roll_range"]

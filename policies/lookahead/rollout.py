@@ -280,7 +280,7 @@ class Rollout(RolloutBase):
         env_idx = np.asarray(rows_env, dtype=np.int64)
         self.belief.sample_into(self.fork, env_idx, np.asarray(rows_k, dtype=np.int64), self.H)
         score = roll_candidates(self.fork, self.H, self.f_codes, self.f_hp, self.pstate, self.fork_pstate,
-                                self.buffers, env_idx, rows_a, d, p)
+                                self.buffers, env_idx, rows_a, d, p, literal=True)
         self.timing["decisions"] += len(envs)
         self.timing["rolls"] += n
         self.last_scores = pick_best(score, envs, cands, self.K, w, self.B)

@@ -121,18 +121,23 @@ def plan(name: str, seeds, M, N):
     return policies.get(name).compiled_plan(seeds, M, N)
 
 
+@pytest.mark.parametrize("literal", [False, True], ids=["every-rule", "literal-codes"])
 @pytest.mark.parametrize("name", ["heuristic", "solver"])
-def test_roll_forward_equals_stepping_the_policy_through_act(name):
-    """A roll-forward from the reset state to the horizon is the episode the policy plays through act."""
+def test_roll_forward_equals_stepping_the_policy_through_act(name, literal):
+    """A roll-forward from the reset state to the horizon is the episode the policy plays through act.
+
+    Both compilations: every rule behind a switch on the codes (the oracle's), and only the
+    base's rules, the codes literal (a lookahead's).
+    """
     stepped = Simulator(CONFIG, SEEDS)
     obs = stepped.reset()
     pol = policies.get(name)
     pol.reset(SEEDS)
     rolled = fork(stepped)
     codes, hp, ps = plan(name, SEEDS, stepped.M, stepped.N)
-    half = roll_forward(rolled, 45, codes, hp, ps).copy()  # in two legs: the state carries over
+    half = roll_forward(rolled, 45, codes, hp, ps, literal=literal).copy()  # in two legs: the state carries over
     assert rolled.t == 45 and np.array_equal(half, rolled.state.totals[:, K_NSW])  # summed in the same order
-    rest = roll_forward(rolled, 10_000, codes, hp, ps).copy()
+    rest = roll_forward(rolled, 10_000, codes, hp, ps, literal=literal).copy()
     while not stepped.done:
         stepped.step(pol.act(obs))
         obs = stepped.observe()

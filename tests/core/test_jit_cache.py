@@ -232,9 +232,11 @@ def test_editing_a_function_inlined_from_another_file_recompiles(tmp_path):
     ("wfbench.core.dynamics.reset_batch", "compiling the simulator core once"),
     ("wfbench.policies.episode.play_range", "compiling the compiled episode of these built-in rules (each "
                                             "combination of rules once)"),
-    ("wfbench.policies.kernels.act.act_batch", "compiling the built-in policies' compiled code"),
+    ("wfbench.policies.kernels.act.act_range", "compiling the kernels of this policy's built-in rules"),
+    ("wfbench.policies.builtin.something", "compiling the built-in policies' compiled code"),
     ("wfbench.policies.lookahead.kernels.Plan.run", "compiling the lookaheads' kernels"),
-    ("wfbench.policies.kernels.forward.roll_forward", "compiling the roll-forward of the lookaheads and the oracle"),
+    ("wfbench.policies.kernels.forward.roll_forward", "compiling the roll-forward of the lookaheads (for their base's "
+                                                     "rules) and the oracle"),
     ("wfbench.solvers.assignment.auction", "compiling the solvers' compiled kernels once"),
     ("mypkg.kernel.step", "compiling mypkg.kernel's compiled code once"),
 ])

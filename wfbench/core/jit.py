@@ -54,9 +54,10 @@ WHAT = {
     "wfbench.policies": "the built-in policies' compiled code and the simulator's step it inlines",
     "wfbench.policies.episode": "the compiled episode of these built-in rules (each combination of rules once) and "
                                 "the simulator's step it inlines",
+    "wfbench.policies.kernels.act": "the kernels of this policy's built-in rules (each combination of rules once)",
     "wfbench.policies.lookahead": "the lookaheads' kernels (rollouts on sampled futures, the MPC's model)",
     "wfbench.policies.oracle": "the hindsight oracle's planner and roll-forward",
-    "wfbench.policies.kernels.forward": "the roll-forward of the lookaheads and the oracle",
+    "wfbench.policies.kernels.forward": "the roll-forward of the lookaheads (for their base's rules) and the oracle",
     "wfbench.solvers": "the solvers' compiled kernels",
 }
 TIMES_FILE = "wfbench-compile-times.json"
