@@ -137,11 +137,16 @@ def _act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t, laz
     return None
 
 
-@njit(cache=True, _nrt=False)  # see act_rules
-def act_range(dc, wc, pc, O, S, hp, dispatch, workforce, positioning, t):
-    """Every environment's three decisions (``Policy.act``): :func:`act_codes` per environment, not lazy."""
+@njit(cache=True, _nrt=False, nogil=True)  # see act_rules; nogil and lazy as the roll-forward's (one compilation)
+def act_range(dc, wc, pc, O, S, hp, dispatch, workforce, positioning, t, lazy):
+    """Every environment's three decisions (``Policy.act``): :func:`act_codes` per environment.
+
+    ``lazy`` is False (:func:`act_batch`). It is an argument, and the flags are the
+    roll-forward's, so that a lookahead compiles its base's rules once for both
+    (``wfbench.policies.kernels.forward.roll_range``).
+    """
     for b in range(O.facilities.shape[0]):
-        act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t[b], False)
+        act_codes(dc, wc, pc, b, O, S, hp, dispatch, workforce, positioning, t[b], lazy)
 
 
 def act_batch(O, S, codes, hp, dispatch, workforce, positioning, t) -> None:
@@ -151,5 +156,5 @@ def act_batch(O, S, codes, hp, dispatch, workforce, positioning, t) -> None:
     state; ``dispatch``, ``workforce`` and ``positioning`` are filled in place. The entry point
     is bound once per code triple and argument types (:func:`wfbench.core.entrypoints.bind`).
     """
-    args = (int(codes[0]), int(codes[1]), int(codes[2]), O, S, hp, dispatch, workforce, positioning, t)
+    args = (int(codes[0]), int(codes[1]), int(codes[2]), O, S, hp, dispatch, workforce, positioning, t, False)
     bind(act_range, *args, literal=(0, 1, 2))(*args)

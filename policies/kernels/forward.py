@@ -42,7 +42,7 @@ def _record_onsets(b, S, seen, onset_xy, n_onsets):
 
 @njit(cache=True, _nrt=False, nogil=True)  # no reference counting in the loop (see wfbench.core.dynamics.step_env)
 def roll_range(lo, hi, dc, wc, pc, S, Tr, P, O, PS, hp, dispatch, workforce, positioning, first, first_d, first_w,
-               first_p, steps, record, seen, onset_xy, n_onsets, score):
+               first_p, steps, record, seen, onset_xy, n_onsets, score, lazy):
     """Roll environments lo..hi-1 forward ``steps`` steps (capped by the horizon).
 
     With ``first``, the first step takes the explicit actions ``first_d[b]``,
@@ -51,7 +51,9 @@ def roll_range(lo, hi, dc, wc, pc, S, Tr, P, O, PS, hp, dispatch, workforce, pos
     of the compilation, or plain integers: :func:`wfbench.policies.kernels.act.act_codes`).
     ``score[b]`` gets the sum of NSW over the steps run. With ``record``, the cells of the
     requests that open are appended to ``onset_xy[b]`` (``n_onsets[b]`` counts them, also past
-    the capacity).
+    the capacity). ``lazy`` is True (:func:`roll_forward`); an argument, not a constant, so that
+    the rules' compilation is the one ``Policy.act``'s ``act_range`` made (same types and
+    flags: numba compiles an overload's body again for a caller that differs in either).
     """
     for b in range(lo, hi):
         end = min(S.t[b] + steps, P.horizon)
@@ -66,7 +68,7 @@ def roll_range(lo, hi, dc, wc, pc, S, Tr, P, O, PS, hp, dispatch, workforce, pos
                 _record_onsets(b, S, seen, onset_xy, n_onsets)
         while S.t[b] < end:
             observe_env(b, S, P, O, False, False)  # only what the kernels read
-            act_codes(dc, wc, pc, b, O, PS, hp, dispatch, workforce, positioning, S.t[b], True)
+            act_codes(dc, wc, pc, b, O, PS, hp, dispatch, workforce, positioning, S.t[b], lazy)
             total += step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
             if record:
                 _record_onsets(b, S, seen, onset_xy, n_onsets)
@@ -121,7 +123,7 @@ def roll_forward(sim, steps: int, codes: np.ndarray, hp: np.ndarray, pstate, fir
     args = (*(int(c) for c in codes), sim.state, sim.trace, sim.params, sim.obs_buffers, pstate,
             np.ascontiguousarray(hp, dtype=np.float64), buffers.dispatch, buffers.workforce, buffers.positioning,
             bool(first), buffers.first_d, buffers.first_w, buffers.first_p, int(steps), bool(record), buffers.seen,
-            buffers.onset_xy, buffers.n_onsets, buffers.score)
+            buffers.onset_xy, buffers.n_onsets, buffers.score, True)
     bind(roll_range, 0, 0, *args, literal=CODES if literal else ())(0, sim.B if rows is None else int(rows), *args)
     return buffers.score
 
