@@ -62,14 +62,16 @@ def roll_range(lo, hi, dc, wc, pc, S, Tr, P, O, PS, hp, dispatch, workforce, pos
             n_onsets[b] = 0
             for f in range(S.fac_active.shape[1]):
                 seen[b, f] = S.fac_request[b, f]
-        if first and S.t[b] < end:
-            total += step_env(b, S, Tr, P, first_d[b], first_w[b], first_p[b])
-            if record:
-                _record_onsets(b, S, seen, onset_xy, n_onsets)
-        while S.t[b] < end:
-            observe_env(b, S, P, O, False, False)  # only what the kernels read
-            act_codes(dc, wc, pc, b, O, PS, hp, dispatch, workforce, positioning, S.t[b], lazy)
-            total += step_env(b, S, Tr, P, dispatch[b], workforce[b], positioning[b])
+        explicit = first  # the first step's actions are given
+        while S.t[b] < end:  # one call of the (inlined) step: compiled once, not once per kind of step
+            if explicit:
+                d, w, p = first_d[b], first_w[b], first_p[b]
+                explicit = False
+            else:
+                observe_env(b, S, P, O, False, False)  # only what the kernels read
+                act_codes(dc, wc, pc, b, O, PS, hp, dispatch, workforce, positioning, S.t[b], lazy)
+                d, w, p = dispatch[b], workforce[b], positioning[b]
+            total += step_env(b, S, Tr, P, d, w, p)
             if record:
                 _record_onsets(b, S, seen, onset_xy, n_onsets)
         score[b] = total
