@@ -11,6 +11,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -123,3 +125,29 @@ def test_checkpoints_record_distill_load_as_a_policy_and_resume(tmp_path):
     assert pol.mode == "greedy" and set(pol.decisions) == {"dispatch", "workforce", "positioning"}
     trainer = fit(resume=latest, progress=False, log=False, steps=128)
     assert trainer.run.global_step == 128 and trainer.iteration == 4
+
+
+@pytest.mark.slow
+def test_each_history_line_records_the_beta_its_iteration_mixed_with_also_after_a_resume(tmp_path, monkeypatch):
+    used: dict[int, list[float]] = {}  # iteration -> the probabilities its steps mixed with
+    mix = Trainer.mix_beta
+
+    def recording(self, beta):
+        value = mix(self, beta)
+        used.setdefault(self.iteration, []).append(value)
+        return value
+
+    monkeypatch.setattr(Trainer, "mix_beta", recording)
+    run = tmp_path / "run"
+    # one iteration = one episode batch (2 environments x small's 200 steps): each starts a batch, so the
+    # schedule moves at every iteration; the first batch is the teacher's own play (beta = 1)
+    settings = {**TINY, "iter_steps": 400, "steps": 800, "checkpoint_every": 1, "run_dir": str(run),
+                "label_cache": "off", "beta0": 0.5}
+    fit("distill", progress=False, log=False, **settings)
+    trainer = fit(resume=run / "latest.pt", progress=False, log=False, steps=1200)
+    lines = [json.loads(line) for line in (run / "history.jsonl").read_text().splitlines()]
+    assert [line["update"] for line in lines] == [1, 2, 3] and trainer.iteration == 3
+    logged = [line["beta"] for line in lines]
+    assert logged == [used[i][0] for i in range(3)], (logged, {i: sorted(set(v)) for i, v in used.items()})
+    assert all(len(set(used[i])) == 1 for i in range(3)), used  # one batch an iteration: one probability
+    assert logged == [1.0, 0.25, 0.125], logged  # teacher's play, then beta0 * decay ** (batch - 1 + 1)

@@ -258,8 +258,16 @@ class Trainer(hindsight.Trainer):
         return super().episode_seeds()
 
     def beta(self, iteration: int | None = None) -> float:
-        """The probability that an environment of the current episode batch follows the teacher (the schedule)."""
-        return self.episode_beta
+        """The probability that an environment follows the teacher in the iteration about to start (the schedule).
+
+        That of the episode batch in progress, or of the next one where none is (a new run, a
+        resumed one, or a batch that ended with the last iteration): what the iteration's first
+        step mixes with, and what its history line records.
+        """
+        batch = self.seed_cursor // self.run.config.num_envs
+        if self.sim is not None and not self.sim.done:
+            batch -= 1  # _new_episode has moved the cursor past the batch in progress
+        return self.batch_beta(batch)
 
     def batch_beta(self, batch: int) -> float:
         c = self.run.config
