@@ -38,12 +38,12 @@ from wfbench import policies
 ROOT = Path(__file__).resolve().parents[2]
 FRONTIER = ROOT / "docs" / "results" / "frontier-v1" / "frontier.csv"
 
-# the lists as the nine tables gave them before issue #54, in their order
+# the lists as the nine tables gave them before issue #54, in their order (and distill-general, issue #52, after them)
 NAMES = ["random", "heuristic", "heuristic-stochastic", "random-dispatch", "random-positioning", "fixed-workforce",
          "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle-planner", "oracle-dispatch",
          "solver-sparse", "oracle", "oracle-v2", "oracle-rollout", "heuristic-tuned", "solver-tuned",
          "heuristic-tuned-train", "solver-tuned-train", "ppo-joint", "ppo-dispatch", "impala-joint", "hindsight-joint",
-         "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general", "scalefree-general"]
+         "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general", "scalefree-general", "distill-general"]
 LOOKAHEADS = ["rollout-solver-tuned", "rollout-solver-tuned-1ms", "rollout-solver-tuned-100ms",
               "rollout-scalefree-general", "rollout-solver-sparse-tuned", "rollout-solver-sparse-tuned-1ms",
               "rollout-solver-sparse-tuned-100ms", "mpc-rates", "mpc-ma", "mpc-rates-calibrated", "mpc-ma-calibrated",
@@ -61,7 +61,8 @@ def test_the_lists_are_as_they_were_in_their_order():
                                            ("oracle-planner", "oracle-dispatch", "oracle", "oracle-v2",
                                             "oracle-rollout")]
     assert registry.seed_runs() == {m: tuple(f"{m}-seed{i}.pt" for i in range(5))
-                                    for m in ("ppo-general", "hindsight-general", "scalefree-general")}
+                                    for m in ("ppo-general", "hindsight-general", "scalefree-general",
+                                              "distill-general")}
 
 
 def test_each_entry_is_typed_and_its_kind_is_what_parse_spec_reads():
