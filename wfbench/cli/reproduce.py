@@ -47,8 +47,9 @@ def add_parser(sub) -> None:
                     "(default heldout)")
     rp.add_argument("--reuse", default=None, help="suite and frontier only: comma-separated suite run folders "
                     "whose cached pieces are read, in order, after --out's and before anything is played (suite "
-                    "default: none; frontier default: the checkout's docs/results/frontier-v1 and "
-                    "docs/results/suite-v1-50, the committed runs, wherever the command runs from)")
+                    "default: none; frontier default: the checkout's docs/results/frontier-v1, "
+                    "docs/results/suite-v1-50 and docs/results/reference-v2, the committed runs, wherever the "
+                    "command runs from)")
     rp.add_argument("--classes", default=None, metavar="FILE", help="frontier only: also write each policy's CPU ms "
                     "per env-step to FILE, the budget classes wfbench policies prints (the committed frontier's: "
                     "policies/budgets.json, held-out split only)")

@@ -37,7 +37,9 @@ BASELINE = "solver-tuned"  # the probability of improvement is taken over it (th
 SIDES = {"heuristic": "OR", "solver": "OR", "rollout": "OR", "mpc": "OR", "network": "learned", "search": "learned",
          "oracle": "reference", "random": "reference"}
 COMMITTED = "docs/results/frontier-v1"  # the committed frontier: its pieces and its settings (frontier-run.json)
-DEFAULT_REUSE = (COMMITTED, "docs/results/suite-v1-50")  # the committed runs, relative to the checkout's root
+# the committed runs, relative to the checkout's root: the suite's, then the held-out reference's (its candidates'
+# pieces: the lookaheads' other presets, docs/hindsight.md "The held-out reference")
+DEFAULT_REUSE = (COMMITTED, "docs/results/suite-v1-50", "docs/results/reference-v2")
 
 
 def stem(split: str) -> str:
