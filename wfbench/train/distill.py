@@ -242,7 +242,6 @@ class Trainer(hindsight.Trainer):
     def __init__(self, config: DistillConfig, *args: Any, **kwargs: Any):
         self.labels = None if config.label_cache == "off" else LabelCache(config.label_cache or None)
         self.cache_stats = {"hits": 0, "misses": 0}
-        self.episode_beta = 1.0
         super().__init__(config, *args, **kwargs)
 
     def demonstrating(self) -> bool:
@@ -274,14 +273,13 @@ class Trainer(hindsight.Trainer):
         return 1.0 if batch < c.teacher_batches else c.beta0 * c.beta_decay ** (batch - c.teacher_batches + 1)
 
     def mix_beta(self, beta: float) -> float:
-        return self.episode_beta
+        """The schedule's probability for the batch being played (a new one may start within an iteration)."""
+        return self.beta()
 
     def teacher(self, scenario, seeds: list[int]):
         """The teacher of a new episode batch: replayed from the cache while it demonstrates, else the policy."""
         name = self.run.config.teacher
-        batch = self.seed_cursor // self.run.config.num_envs - 1  # _new_episode has moved the cursor past it
-        self.episode_beta = self.batch_beta(batch)
-        if self.labels is not None and self.episode_beta >= 1.0:
+        if self.labels is not None and self.beta() >= 1.0:  # the new batch (_new_episode has made its simulator)
             teacher = CachedTeacher(name, scenario, seeds, self.labels, scenario.horizon)
             self.cache_stats["hits" if teacher.hit else "misses"] += 1
             return teacher
