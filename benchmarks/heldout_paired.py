@@ -2,8 +2,7 @@
 
 For a policy that is not (yet) a row of the committed suite, e.g. a training run's checkpoint:
 it is played here (one core), and each scenario's mean NSW is set beside the reference
-policy's committed pieces (``docs/results/suite-v1-50/cache``, ``docs/results/frontier-v1/cache`` and
-``docs/results/reference-v2/cache``)
+policy's committed pieces (those the frontier reads: ``wfbench.reproduce.frontier.DEFAULT_REUSE``)
 on the same seeds, with the paired difference and its standard error, and the CPU ms per
 env-step the frontier uses. Reported numbers only: nothing here is tuned or selected on.
 
@@ -26,10 +25,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from wfbench.reproduce.frontier import DEFAULT_REUSE
+
 ROOT = Path(__file__).resolve().parents[1]
-# suite runs whose cache/ is read, in order: the suite's, the frontier's, the held-out reference's (its candidates:
-# the lookaheads' other presets)
-FOLDERS = (ROOT / "docs/results/suite-v1-50", ROOT / "docs/results/frontier-v1", ROOT / "docs/results/reference-v2")
+FOLDERS = tuple(ROOT / run for run in DEFAULT_REUSE)  # the committed runs the frontier reads, in its order
 HELDOUT = ("large-v1", "table2-g128-f50-s25-v1", "table2-g32-f100-s25-v1", "slow-64-v1", "churn-64-v1",
            "novice-64-v1", "real-nyc-v1")
 
