@@ -38,7 +38,7 @@ def add_parser(sub) -> None:
                     "(suite default: test, 0-49, instead of --runs; frontier: the committed frontier's; verify "
                     "default: each piece's first --runs seeds, see --runs)")
     rp.add_argument("--policies", default=None, help="suite, verify and frontier only: comma-separated "
-                    "policies (default: every built-in policy, the shipped networks, four lookaheads and the oracle; "
+                    "policies (default: every built-in policy, the shipped networks, five lookaheads and the oracle; "
                     "frontier: the committed frontier's)")
     rp.add_argument("--scenarios", default=None, help="suite, verify and frontier only: comma-separated "
                     "scenario ids or presets of the suite (default: all; frontier: the committed frontier's, else the "

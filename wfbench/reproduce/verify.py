@@ -73,6 +73,7 @@ CI_SAMPLE: tuple[tuple[str, str, int], ...] = (
     ("rollout-solver-tuned-1ms", "small-v1", 17),
     ("rollout-solver-tuned", "small-v1", 34),
     ("mpc-ma-calibrated", "table2-g32-f25-s10-v1", 18),
+    ("search-scalefree-general-1ms", "paper-64-v1", 2),
     ("search-scalefree-general", "small-v1", 35),
     ("oracle", "real-nyc-v1", 47),
     ("oracle", "large-v1", 16),
