@@ -45,7 +45,8 @@ BOUND_SLACK = 1e-9  # a policy's NSW may exceed the bound by floating-point roun
 
 
 # the lookaheads every suite run plays (issue #53, item 4): both presets of the tuned solver's rollout, the MPC the
-# frontier carries and the learned side's search; the other presets are the frontier's, or asked for by name
+# frontier carries and the learned side's search at its 1 ms and 10 ms presets; the other presets are the frontier's, or
+# asked for by name
 LOOKAHEADS = ("rollout-solver-tuned-1ms", "rollout-solver-tuned", "mpc-ma-calibrated", "search-scalefree-general-1ms",
               "search-scalefree-general")
 
