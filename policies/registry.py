@@ -588,7 +588,7 @@ def parts(name: str) -> tuple[str, str, str]:
 
     The entry's own ``decisions`` when it has them (a network's say what decides, an oracle's
     are "Hindsight oracle"); else a composite's are the labels of its decisions
-    (``wfbench.policies.decisions.LABELS``), a tuned file's are its base's with " (tuned)", a
+    (``wfbench.policies.decisions.LABELS``), a tuned file's are its base's with " (tuned)" (once), a
     lookahead's are its base's with its workforce rolled out, or planned by the MILP (mpc).
     """
     from wfbench.policies.decisions import DECISIONS, label
@@ -602,11 +602,9 @@ def parts(name: str) -> tuple[str, str, str]:
     if isinstance(recipe, CompositeOf):
         return tuple(label(decision, n) for decision, n in
                      zip(DECISIONS, (recipe.dispatch, recipe.workforce, recipe.positioning), strict=True))
-    if isinstance(recipe, TunedFile):
-        base = _tuned.read(_tuned.TUNED_DIR / recipe.file).base
-        return tuple(f"{p} (tuned)" for p in parts(base))
-    if isinstance(recipe, TunedLookahead):
-        return tuple(f"{p} (tuned)" for p in parts(recipe.base))
+    if isinstance(recipe, TunedFile | TunedLookahead):  # a part its base already tuned is named once
+        base = _tuned.read(_tuned.TUNED_DIR / recipe.file).base if isinstance(recipe, TunedFile) else recipe.base
+        return tuple(p if p.endswith(" (tuned)") else f"{p} (tuned)" for p in parts(base))
     d, w, pos = parts(recipe.base)  # issue #43: the base's parts, its workforce rolled out or planned (mpc)
     if isinstance(recipe, MPCPreset):
         how = f"{recipe.forecast}, {recipe.option}" if recipe.option else recipe.forecast

@@ -72,6 +72,9 @@ def test_each_entry_is_typed_and_its_kind_is_what_parse_spec_reads():
         assert e.listed == (e.kind != "lookahead"), name  # the lookaheads are asked for by name only
         assert e.reads_future == (e.family == "oracle"), name
         assert len(registry.parts(name)) == 3 and all(registry.parts(name)), name
+        assert not any("(tuned) (tuned)" in p for p in registry.parts(name)), name  # a tuned base's part once
+    assert registry.parts("mpc-ma-tuned-train") == ("Assignment (tuned)", "Staffing MILP on ma (tuned)",
+                                                   "Forecast demand (ma) (tuned)")
     assert [e.name for e in registry.entries("oracle") if e.kind == "composite"] == ["oracle-planner",
                                                                                      "oracle-dispatch"]
 
