@@ -15,7 +15,8 @@ them ablate one ingredient each: ``:novalue`` (the H steps alone, the critic lef
 adds a second proposer (``NetworkSearch(propose=get(NAME))``: its workforce action joins the
 candidates), ``:asks`` with it deliberates where the proposer hires or lets go too;
 ``:critic=PATH`` ends the futures at a futures critic instead of PPO's (``CriticSearch``,
-``benchmarks/futures_critic.py``). The noise
+``benchmarks/futures_critic.py``); ``:tail=NAME`` completes each future by the compiled composite
+NAME's play to the episode's end instead (``TailSearch``). The noise
 test's ablation is a tiny z (``z=1e-9``: any positive mean wins).
 """
 
@@ -31,6 +32,7 @@ import torch
 from wfbench.policies import get
 from wfbench.policies.lookahead.critic import CriticSearch
 from wfbench.policies.lookahead.search import NetworkSearch
+from wfbench.policies.lookahead.tail import TailSearch
 
 import wfbench
 
@@ -48,11 +50,12 @@ def entry(spec: str, base: str) -> tuple[str, object]:
     flags = set(parts[5:])
     proposers = {f for f in flags if f.startswith("propose=")}
     critics = {f for f in flags if f.startswith("critic=")}
-    known = {"novalue", "sample", "period", "asks"} | proposers | critics
-    if flags - known or len(proposers) > 1 or ("asks" in flags and not proposers) or len(critics) > 1 or (
-            critics and "novalue" in flags):
+    tails = {f for f in flags if f.startswith("tail=")}
+    known = {"novalue", "sample", "period", "asks"} | proposers | critics | tails
+    if flags - known or len(proposers) > 1 or ("asks" in flags and not proposers) or len(critics | tails) > 1 or (
+            (critics or tails) and "novalue" in flags):
         raise SystemExit(f"--knobs {spec}: unknown flags {sorted(flags - known)}; allowed: novalue, sample, period, "
-                         "one propose=POLICY, and asks with it, one critic=PATH (not with novalue)")
+                         "one propose=POLICY, and asks with it, one critic=PATH or tail=COMPOSITE (not with novalue)")
     kw = {"value": ()} if "novalue" in flags else {}
     if "period" in flags:
         kw["decide"] = "period"
@@ -66,6 +69,8 @@ def entry(spec: str, base: str) -> tuple[str, object]:
     knobs = {"K": K, "H": H, "R": R, "top": top, "z": float(parts[4])}
     if critics:
         return name, CriticSearch(get(base), critics.pop().split("=", 1)[1], **knobs, **kw)
+    if tails:
+        return name, TailSearch(get(base), get(tails.pop().split("=", 1)[1]), **knobs, **kw)
     return name, NetworkSearch(get(base), **knobs, **kw)
 
 

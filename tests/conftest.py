@@ -44,8 +44,13 @@ def tiny():
                           window=10)
 
 
-def play_episode(pol, config: ScenarioConfig, seeds) -> tuple[wfbench.Simulator, list[dict[str, np.ndarray]]]:
-    """``pol`` reset and played to the end on ``seeds``: the finished simulator and a copy of each step's actions."""
+def play_episode(pol, config: ScenarioConfig, seeds,
+                 scores: list | None = None) -> tuple[wfbench.Simulator, list[dict[str, np.ndarray]]]:
+    """``pol`` reset and played to the end on ``seeds``: the finished simulator and a copy of each step's actions.
+
+    ``scores``, when given, gets (step, a copy of ``pol.last_scores``) at each step a lookahead
+    deliberated (its candidates' mean scores), and the attribute is cleared.
+    """
     sim = wfbench.Simulator(config, seeds)
     obs = sim.reset()
     pol.reset(seeds)
@@ -53,6 +58,9 @@ def play_episode(pol, config: ScenarioConfig, seeds) -> tuple[wfbench.Simulator,
     while not sim.done:
         a = pol.act(obs)
         actions.append({k: np.array(v, copy=True) for k, v in a.items()})
+        if scores is not None and getattr(pol, "last_scores", None) is not None:
+            scores.append((int(obs["t"][0]), pol.last_scores.copy()))
+            pol.last_scores = None
         sim.step(a)
         obs = sim.observe()
     return sim, actions

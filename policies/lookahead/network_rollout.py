@@ -122,6 +122,10 @@ class NetworkRollout(RolloutBase):
             self.forks[rows] = self.belief.simulator(rows)
         return self.forks[rows]
 
+    def _sampled_steps(self) -> int | None:
+        """How far a future's arrivals are drawn: its H steps (None: to the episode's end)."""
+        return self.H
+
     def _play(self, env_idx: np.ndarray, rows_k: list[int], first: dict[str, np.ndarray], t: int,
               rngs: list | None = None) -> tuple[np.ndarray, dict[str, np.ndarray], int]:
         """Play one future per row: world ``rows_k[i]`` of environment ``env_idx[i]``, sampled from the belief.
@@ -134,7 +138,7 @@ class NetworkRollout(RolloutBase):
 
         n = len(env_idx)
         fork = self._fork(n)
-        self.belief.sample_into(fork, env_idx, np.asarray(rows_k, dtype=np.int64), self.H)
+        self.belief.sample_into(fork, env_idx, np.asarray(rows_k, dtype=np.int64), self._sampled_steps())
         p = self.player
         h, c = self.base._state  # after this step's act: the network's memory of the episode so far
         idx = torch.as_tensor(env_idx, device=h.device)

@@ -13,7 +13,8 @@ import torch
 from wfbench.policies.lookahead.critic import CriticSearch, FuturesCritic, Summary
 from wfbench.policies.lookahead.search import NetworkSearch
 
-from wfbench import ScenarioConfig, Simulator, policies
+from tests.conftest import play_episode
+from wfbench import ScenarioConfig, policies
 
 SMALL = ScenarioConfig.preset("small").replace(horizon=60)
 KNOBS = {"K": 2, "H": 8, "R": 10, "top": 3, "scenario": SMALL}
@@ -31,19 +32,8 @@ def constant(per_step: float) -> FuturesCritic:
 
 def play(pol, seeds=(1000, 1001)):
     """Every step's actions and, at each decision, (step, the candidates' mean scores)."""
-    sim = Simulator(SMALL, list(seeds))
-    obs = sim.reset()
-    pol.reset(list(seeds))
-    actions, scores = [], []
-    while not sim.done:
-        a = pol.act(obs)
-        actions.append({k: v.copy() for k, v in a.items()})
-        if getattr(pol, "last_scores", None) is not None:
-            scores.append((int(obs["t"][0]), pol.last_scores.copy()))
-            pol.last_scores = None
-        sim.step(a)
-        obs = sim.observe()
-    return actions, scores
+    scores = []
+    return play_episode(pol, SMALL, list(seeds), scores)[1], scores
 
 
 def test_a_future_ends_at_the_steps_left_times_the_critic_s_estimate_per_step():
