@@ -1,10 +1,11 @@
-"""The held-out reference's campaign: every candidate of ``oracle-v2`` on the held-out worlds, then ``oracle-v2``.
+"""The suite's reference campaign: every candidate of ``oracle-v2`` on a world of the suite, then ``oracle-v2``.
 
 ``oracle-v2`` (docs/hindsight.md, "Versioned references") reads its candidates' totals from
 suite pieces made by clean commits and replays the episodes the runner recorded. On the
 eight held-out worlds at 50 test seeds its candidates cost tens of CPU hours on the 2-core
-VM, more than one session, so this script plays them as a queue of small jobs that any
-session resumes: per world and chunk of ten seeds, each candidate
+VM, more than one session (the training worlds, whose v1 reference is below
+``scalefree-general`` on ``table2-g256-f25-s5-v1``, about 7 more), so this script plays them
+as a queue of small jobs that any session resumes: per world and chunk of ten seeds, each candidate
 (``wfbench reproduce suite --seeds A-B --no-members --policies P --scenarios S``), then
 ``oracle-v2`` on that chunk (``$WFBENCH_ORACLE_PIECES`` naming the run, so a piece from
 other code fails in one line). A network's total depends on its batch, so the candidates
@@ -281,7 +282,8 @@ def main() -> None:
                     "(default: this one; pieces from a dirty tree are not read by oracle-v2)")
     ap.add_argument("--workers", type=int, default=2, help="run: workers, one a core (default 2)")
     ap.add_argument("--worker", default="w0", help=argparse.SUPPRESS)
-    ap.add_argument("--worlds", nargs="+", default=list(WORLDS), help="held-out worlds, in order (default: all)")
+    ap.add_argument("--worlds", nargs="+", default=list(WORLDS),
+                    help="worlds of the suite, in order (default: the held-out ones, cheapest first)")
     ap.add_argument("--policies", default=None, help="comma-separated registered policies to play instead of "
                     "oracle-v2's candidates, with no oracle (e.g. a lookahead for the frontier)")
     ap.add_argument("--seeds", type=int, default=50, help="test seeds 0..N-1 (default 50)")
