@@ -123,13 +123,18 @@ def test_suite_checks_the_newest_reference_that_ran_against_its_candidates():
     def rows(nsw):
         return pd.DataFrame({"scenario": [sc.id] * 2, "seed": [0, 1], "nsw": [nsw, nsw]})
 
-    runs = {"solver-tuned": rows(0.6), "rollout-solver-tuned": rows(0.7), "oracle": rows(0.65)}
-    (check,), _ = _checks([sc], runs, {})
+    runs = {"solver-tuned": rows(0.6), "rollout-solver-tuned": rows(0.7), "oracle": rows(0.65),
+            "scalefree-general": rows(0.62)}
+    (check,), (row,) = _checks([sc], runs, {})
     assert (check["oracle"], check["best_deployable"], check["oracle_at_least_deployable"]) == \
         ("oracle", "solver-tuned", True)  # the rollout is no candidate of v1
-    (check,), _ = _checks([sc], {**runs, "oracle-v2": rows(0.69)}, {})
+    # ... but it is above v1, and said so beside; the network, outside v1 too, is below it and not named
+    assert json.loads(check["above_oracle_outside"]) == {"rollout-solver-tuned": 0.7}
+    assert row[-1] == "rollout-solver-tuned (0.7000)"
+    (check,), (row,) = _checks([sc], {**runs, "oracle-v2": rows(0.69)}, {})
     assert (check["oracle"], check["best_deployable"], check["oracle_at_least_deployable"]) == \
         ("oracle-v2", "rollout-solver-tuned", False)
+    assert json.loads(check["above_oracle_outside"]) == {} and row[-1] == "none"  # v2 plays them all
 
 
 # -- the hindsight rollout --------------------------------------------------------------------------------------------

@@ -339,9 +339,15 @@ def suite(out: Path, runs: int = 50, execution: Execution = PROCESS, progress: P
                   f"{len(oracle_ok)} scenarios." if oracle_ok else
                   f"The {checks[0]['oracle']} ran with no deployable candidate of it beside: nothing to compare."
                   if oracle_ran else "The oracle was not run."))
+    beyond = [c["scenario"] for c in checks if json.loads(c["above_oracle_outside"])]
+    if beyond:  # its candidates were fixed before these policies: a newer reference plays them
+        summary += (f" Deployable policies it does not play are above it on {len(beyond)} scenario(s): "
+                    f"{', '.join(beyond)} (a newer reference plays them: docs/hindsight.md, \"Versioned references\").")
     checks_md = "\n".join([summary, "", markdown_table(["Scenario", "Seeds above the bound (policy: count)",
                                                         "Oracle mean NSW", "Best deployable (mean NSW)",
-                                                        "Oracle >= every deployable"], check_rows)])
+                                                        "Oracle >= every deployable",
+                                                        "Deployable it does not play, above it (mean NSW)"],
+                                                       check_rows)])
     if failures:
         checks_md += "\n\nFailed (not cached; a rerun tries them again):\n\n" + markdown_table(
             ["Scenario", "Policy", "Error"], [list(f) for f in failures])
@@ -446,7 +452,8 @@ def _checks(chosen: list[SuiteScenario], runs_by: dict[str, pd.DataFrame],
     """Per scenario: the seeds where a policy is above the bound, and whether the oracle beats every deployable.
 
     The oracle checked is the newest reference that ran (``oracle-v2`` before ``oracle``), against
-    the deployable policies it plays.
+    the deployable policies it plays; the deployable policies it does not play whose mean is above
+    it are listed beside (``above_oracle_outside``: a reference made before them does not claim them).
     """
     from wfbench.policies.oracle import references
 
@@ -466,14 +473,18 @@ def _checks(chosen: list[SuiteScenario], runs_by: dict[str, pd.DataFrame],
         oracle = means.get(checked)
         best = max(deployable, key=deployable.get) if deployable else None
         ok = None if oracle is None or best is None else bool(oracle >= deployable[best])
+        outside = {} if oracle is None else dict(sorted(
+            ((n, round(m, 4)) for n, m in means.items()
+             if family(n) != "oracle" and outside_oracle(n, checked) and m > oracle), key=lambda nm: -nm[1]))
         bad = {n: k for n, k in above.items() if k}
         checks.append({"scenario": sc.id, "split": sc.split, "oracle": checked, "bound_checked": sc.id in bound,
                        "bound_holds": not bad, "above_bound": json.dumps(bad), "oracle_nsw": oracle,
                        "best_deployable": best, "best_deployable_nsw": deployable.get(best) if best else None,
-                       "oracle_at_least_deployable": ok})
+                       "oracle_at_least_deployable": ok, "above_oracle_outside": json.dumps(outside)})
         rows.append([sc.id, ("none" if sc.id in bound else "(bound not computed)") if not bad else
                      "NO: " + ", ".join(f"{n}: {k}" for n, k in bad.items()),
                      "-" if oracle is None else f"{oracle:.4f}",
                      "-" if best is None else f"{best} ({deployable[best]:.4f})",
-                     "-" if ok is None else ("yes" if ok else "NO")])
+                     "-" if ok is None else ("yes" if ok else "NO"),
+                     "-" if oracle is None else ", ".join(f"{n} ({m:.4f})" for n, m in outside.items()) or "none"])
     return checks, rows
