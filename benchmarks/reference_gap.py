@@ -1,12 +1,14 @@
-"""How far ``oracle-v2`` is from the bound and above its candidates, per held-out world, from committed pieces.
+"""How far ``oracle-v2`` is from the bound and above every deployable policy, per world, from committed pieces.
 
 Reads ``docs/results/reference-v2`` (the campaign's pieces) and then ``docs/results/suite-v1-50``
 (the suite's, the bound's and the compiled candidates'); plays nothing. Per world: the mean NSW
 of the bound, of ``oracle`` (v1) and of ``oracle-v2`` on the seeds ``oracle-v2``'s piece holds,
 the gap (the bound's mean minus v2's), the best deployable candidate's mean, ``oracle-rollout``'s,
 and the seed-by-seed checks: candidate seeds above v2, v2's seeds above the bound, and the seeds
-where v2 is above v1 with the candidate that gave them. docs/hindsight.md, "How far the
-references are from the bound".
+where v2 is above v1 with the candidate that gave them; and the deployable policies with a piece
+that v2 does not play (a method's training seeds ``#seedK``, policies registered after it), the
+best of them and those whose mean is above v2's. docs/hindsight.md, "How far the references are
+from the bound".
 
     python benchmarks/reference_gap.py novice-64-v1 churn-64-v1
 """
@@ -14,11 +16,12 @@ references are from the bound".
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
 import pandas as pd
 from wfbench.policies.oracle.references import V2
-from wfbench.policies.registry import entry
+from wfbench.policies.registry import entry, parse_member
 
 from wfbench.scenarios.pieces import first_piece
 
@@ -33,7 +36,7 @@ def piece(policy: str, world: str) -> pd.DataFrame | None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("worlds", nargs="+", help="held-out scenario ids with an oracle-v2 piece")
+    ap.add_argument("worlds", nargs="+", help="scenario ids of the suite with an oracle-v2 piece")
     args = ap.parse_args()
     print("| scenario | seeds | bound | `oracle` (v1) | `oracle-v2` | gap of v2 | best deployable candidate | "
           "`oracle-rollout` |")
@@ -57,11 +60,31 @@ def main() -> None:
         over = int((o > bound + 1e-9).sum())
         gains = [f"seed {s}: {', '.join(c for c, x in cands.items() if abs(x[s] - o[s]) < 1e-12)}"
                  for s in seeds[o > v1 + 1e-12]]
+        others = {n: x.mean() for n in outside(w) if (x := piece(n, w)["nsw"].reindex(seeds)).notna().all()}
+        top = max(others, key=others.get) if others else None
+        beyond = [f"{n} ({m:.4f})" for n, m in sorted(others.items(), key=lambda nm: -nm[1]) if m > o.mean()]
         notes.append(f"{w}: candidate seeds above oracle-v2: {above}; oracle-v2 seeds above the bound: {over}; "
                      f"v2 above v1 on {len(gains)} ({'; '.join(gains) or 'none'}); candidates without a piece "
-                     f"(compiled, played by the oracle itself): {', '.join(missing) or 'none'}")
+                     f"(compiled, played by the oracle itself): {', '.join(missing) or 'none'}; deployable policies "
+                     f"it does not play, with a piece of these seeds: {len(others)}, the best "
+                     f"{'-' if top is None else f'{top} ({others[top]:.4f})'}, above v2's mean: "
+                     f"{', '.join(beyond) or 'none'}")
     print()
     print("\n".join(notes))
+
+
+def outside(world: str) -> list[str]:
+    """The deployable policies with a committed piece of ``world`` that ``oracle-v2`` does not play."""
+    names = set()
+    for run in RUNS:
+        for path in (run / "cache").glob(f"*/{world}.csv"):
+            name = re.sub(r"_seed(\d+)$", r"#seed\1", path.parent.name)  # the folder of a member METHOD#seedK
+            if name == "bound" or name in V2:
+                continue
+            member = parse_member(name)
+            if not entry(member[0] if member else name).reads_future:
+                names.add(name)
+    return sorted(names)
 
 
 if __name__ == "__main__":
