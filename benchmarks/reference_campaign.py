@@ -54,6 +54,24 @@ WORLDS = ("novice-64-v1", "churn-64-v1", "slow-64-v1", "real-nyc-v1", "table2-g1
 CHUNK = 10
 
 
+def worlds_of(names: list[str]) -> list[str]:
+    """``--worlds`` as scenario ids in order: ``heldout`` and ``train`` stand for their splits' worlds.
+
+    SystemExit of one line naming what is allowed for a name that is neither.
+    """
+    from wfbench.scenarios import get_suite
+
+    suite = get_suite("suite-v1")
+    split = {"heldout": list(WORLDS), "train": suite.ids("train")}
+    out = []
+    for n in names:
+        if n not in split and n not in suite.ids():
+            raise SystemExit(f"reference_campaign: unknown world {n!r}; allowed: heldout, train or a scenario id of "
+                             f"suite-v1 ({', '.join(suite.ids())})")
+        out += split.get(n, [n])
+    return list(dict.fromkeys(out))
+
+
 def candidates() -> list[str]:
     """``oracle-v2``'s candidates that are not compiled (the oracle plays those itself in seconds)."""
     import warnings
@@ -282,8 +300,9 @@ def main() -> None:
                     "(default: this one; pieces from a dirty tree are not read by oracle-v2)")
     ap.add_argument("--workers", type=int, default=2, help="run: workers, one a core (default 2)")
     ap.add_argument("--worker", default="w0", help=argparse.SUPPRESS)
-    ap.add_argument("--worlds", nargs="+", default=list(WORLDS),
-                    help="worlds of the suite, in order (default: the held-out ones, cheapest first)")
+    ap.add_argument("--worlds", nargs="+", default=["heldout"],
+                    help="worlds of the suite, in order: scenario ids, or heldout and train for a split's, the "
+                    "held-out ones cheapest first (default: heldout)")
     ap.add_argument("--policies", default=None, help="comma-separated registered policies to play instead of "
                     "oracle-v2's candidates, with no oracle (e.g. a lookahead for the frontier)")
     ap.add_argument("--seeds", type=int, default=50, help="test seeds 0..N-1 (default 50)")
@@ -291,6 +310,7 @@ def main() -> None:
                     "from its pieces, collect copies into it (default: docs/results/reference-v2)")
     args = ap.parse_args()
     args.state = args.state or str(Path(args.out) / "queue")
+    args.worlds = worlds_of(args.worlds)
     {"plan": plan, "run": run, "work": work, "collect": collect}[args.action](args)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -74,3 +75,17 @@ def test_start_from_copies_the_fresh_pieces_and_names_each_stale_one(campaign, r
     assert lines == [f"not copied: mpc-ma/slow-64-v1.json: {DECIDES} differs between {old[:7]} and the checkout",
                      f"not copied: oracle-v2/novice-64-v1.json: {DECIDES} differs between {old[:7]} and the checkout"]
     assert campaign.start_from(out, committed, [], {"mpc-ma", "oracle-v2"}, root) == 0  # what it holds stays
+
+
+def test_worlds_are_scenario_ids_or_a_split_and_anything_else_is_refused_in_one_line(campaign, tmp_path):
+    assert campaign.worlds_of(["heldout"]) == list(campaign.WORLDS)  # the held-out split, cheapest first
+    assert campaign.worlds_of(["large-v1", "train", "small-v1"]) == [
+        "large-v1", "small-v1", "paper-64-v1", "nonstationary-v1", "table2-g32-f25-s10-v1", "table2-g256-f25-s5-v1",
+        "surge-64-v1", "clustered-64-v1", "real-benelux-v1"]  # in order, each once
+    script = Path(__file__).resolve().parents[2] / "benchmarks/reference_campaign.py"
+    done = subprocess.run([sys.executable, str(script), "plan", "--out", str(tmp_path / "run"), "--worlds", "heldout",
+                           "large"],
+                          capture_output=True, text=True)
+    assert done.returncode == 1 and done.stdout == "" and not (tmp_path / "run").exists()
+    assert done.stderr.startswith("reference_campaign: unknown world 'large'; allowed: heldout, train or a scenario "
+                                  "id of suite-v1 (small-v1, ") and done.stderr.count("\n") == 1
