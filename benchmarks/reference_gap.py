@@ -16,12 +16,11 @@ from the bound".
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 import pandas as pd
 from wfbench.policies.oracle.references import V2
-from wfbench.policies.registry import entry, parse_member
+from wfbench.policies.registry import deployable_names, entry, lookahead_names, seed_runs
 
 from wfbench.scenarios.pieces import first_piece
 
@@ -74,17 +73,11 @@ def main() -> None:
 
 
 def outside(world: str) -> list[str]:
-    """The deployable policies with a committed piece of ``world`` that ``oracle-v2`` does not play."""
-    names = set()
-    for run in RUNS:
-        for path in (run / "cache").glob(f"*/{world}.csv"):
-            name = re.sub(r"_seed(\d+)$", r"#seed\1", path.parent.name)  # the folder of a member METHOD#seedK
-            if name == "bound" or name in V2:
-                continue
-            member = parse_member(name)
-            if not entry(member[0] if member else name).reads_future:
-                names.add(name)
-    return sorted(names)
+    """The registry's deployable policies and training seeds (``METHOD#seedK``) with a committed piece of ``world``
+    that ``oracle-v2`` does not play."""
+    members = [f"{m}#seed{k}" for m, files in seed_runs().items() for k in range(len(files))]
+    names = (*deployable_names(), *lookahead_names(), *members)
+    return [n for n in names if n not in V2 and piece(n, world) is not None]
 
 
 if __name__ == "__main__":
