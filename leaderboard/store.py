@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import secrets
 import sqlite3
 import time
 from collections.abc import Iterable
@@ -399,7 +398,7 @@ def _account(conn: Connection, name: str) -> int:
     if found is not None:
         return found
     return conn.execute(accounts.insert().values(
-        name=name, token_hash=board_db.token_hash(secrets.token_urlsafe(32)), admin=name == board_db.BUILTIN_ACCOUNT,
+        name=name, token_hash=board_db.token_hash(board_db.new_token()), admin=name == board_db.BUILTIN_ACCOUNT,
         created=time.time())).inserted_primary_key[0]
 
 

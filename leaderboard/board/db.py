@@ -377,6 +377,14 @@ class Submission:
         return self.local and not self.fingerprint
 
 
+TOKEN_PREFIX = "wfb_"  # a token never starts with '-', which a command line would read as an option
+
+
+def new_token() -> str:
+    """A fresh account token: ``wfb_`` and 43 url-safe characters (256 random bits)."""
+    return TOKEN_PREFIX + _secrets.token_urlsafe(32)
+
+
 def token_hash(token: str) -> str:
     return hashlib.sha256(token.encode()).hexdigest()
 
@@ -526,7 +534,7 @@ class Board:
     def add_account(self, name: str, admin: bool = False) -> str:
         """Make an account and return its token: shown this once, stored only as its sha256."""
         _check_line("account name", name, 100)
-        token = _secrets.token_urlsafe(32)
+        token = new_token()
         try:
             with self.engine.begin() as conn:
                 conn.execute(accounts.insert().values(name=name, token_hash=token_hash(token), admin=bool(admin),

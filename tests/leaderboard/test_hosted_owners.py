@@ -226,6 +226,16 @@ def test_a_worker_running_a_withdrawn_submission_cannot_write(board):
     assert board.entries("tiny", "dev") == []
 
 
+def test_every_token_the_board_makes_is_read_by_the_command_line_as_a_value(tmp_path, capsys, monkeypatch):
+    # CI once drew a token starting with '-', and argparse took it for an option: "--token: expected one argument"
+    import wfbench.leaderboard.board.db as board_db
+    monkeypatch.setattr(board_db._secrets, "token_urlsafe", lambda n: "-lWugj0rt4U1TQcN8ZpGMTVAg8fw8ah2iPN2yZkGRvk")
+    with serve_board(tmp_path / "board.sqlite") as live:
+        assert live.token == "wfb_-lWugj0rt4U1TQcN8ZpGMTVAg8fw8ah2iPN2yZkGRvk"
+        assert main(["leaderboard", "mine", "--server", live.url, "--token", live.token]) == 0
+        assert capsys.readouterr().err == ""
+
+
 def test_cli_mine_and_withdraw(tmp_path, capsys):
     with serve_board(tmp_path / "board.sqlite") as live:
         with TestClient(create_app(live.board)) as client:
