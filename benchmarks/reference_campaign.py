@@ -1,14 +1,15 @@
-"""The suite's reference campaign: every candidate of ``oracle-v2`` on a world of the suite, then ``oracle-v2``.
+"""The suite's reference campaign: a world's candidates of the replaying references, then their oracles.
 
-``oracle-v2`` (docs/hindsight.md, "Versioned references") reads its candidates' totals from
+``oracle-v2`` and ``oracle-v3`` (docs/hindsight.md, "Versioned references") read their candidates' totals from
 suite pieces made by clean commits and replays the episodes the runner recorded. On the
 eight held-out worlds at 50 test seeds its candidates cost tens of CPU hours on the 2-core
 VM, more than one session (the training worlds, whose v1 reference is below
 ``scalefree-general`` on ``table2-g256-f25-s5-v1``, about 7 more), so this script plays them
 as a queue of small jobs that any session resumes: per world and chunk of ten seeds, each candidate
-(``wfbench reproduce suite --seeds A-B --no-members --policies P --scenarios S``), then
-``oracle-v2`` on that chunk (``$WFBENCH_ORACLE_PIECES`` naming the run, so a piece from
-other code fails in one line). A network's total depends on its batch, so the candidates
+(``wfbench reproduce suite --seeds A-B --no-members --policies P --scenarios S``; a training seed
+``METHOD#seedK``, a candidate from v3 on, is played so too), then each oracle (``--references``,
+default ``v2 v3``) on that chunk once its own candidates are done (``$WFBENCH_ORACLE_PIECES``
+naming the run, so a piece from other code fails in one line). A network's total depends on its batch, so the candidates
 and the oracle play the same chunks; and the oracle, played on the machine that just played
 the chunk's candidates, finds their recorded episodes instead of playing its winners again.
 
@@ -48,6 +49,8 @@ import sys
 import time
 from pathlib import Path
 
+from wfbench.scenarios.pieces import piece_folder, piece_path
+
 ROOT = Path(__file__).resolve().parents[1]
 WORLDS = ("novice-64-v1", "churn-64-v1", "slow-64-v1", "real-nyc-v1", "table2-g128-f50-s25-v1",
           "table2-g32-f100-s25-v1", "large-v1", "city-v1")  # the held-out split, cheapest first
@@ -72,44 +75,84 @@ def worlds_of(names: list[str]) -> list[str]:
     return list(dict.fromkeys(out))
 
 
-def candidates() -> list[str]:
-    """``oracle-v2``'s candidates that are not compiled (the oracle plays those itself in seconds)."""
+def replaying_oracles() -> set[str]:
+    """The oracles of the replaying references (``references.REPLAYING``): the jobs that read the run's pieces."""
+    from wfbench.policies.oracle.references import ORACLES, REPLAYING
+
+    return {n for n, r in ORACLES.items() if r in REPLAYING}
+
+
+def oracle_of(ref: str) -> str:
+    """The registry's best-in-hindsight oracle of the reference ``ref`` (``v2`` -> ``oracle-v2``)."""
+    from wfbench.policies.oracle.references import ORACLES
+
+    return next(n for n, r in ORACLES.items() if r == ref)
+
+
+def candidates(ref: str = "v2") -> list[str]:
+    """The candidates of the reference ``ref`` that are not compiled (its oracle plays those itself in seconds)."""
     import warnings
 
-    from wfbench.policies.oracle.references import V2
+    from wfbench.policies.oracle.references import REFERENCES
 
     from wfbench import policies
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return [n for n in V2 if not getattr(policies.get(n), "compiled", False)]
+        return [n for n in REFERENCES[ref] if not getattr(policies.get(n), "compiled", False)]
 
 
 def played(args: argparse.Namespace) -> list[str]:
-    """The policies the queue plays: ``--policies``, else :func:`candidates`."""
-    return args.policies.split(",") if args.policies else candidates()
+    """What each chunk's jobs play: ``--policies``, else every reference's candidates (:func:`candidates`).
 
-
-def jobs(worlds: list[str], cands: list[str], seeds: int,
-         oracle: bool = True) -> list[tuple[tuple[str, str, int, int], list]]:
-    """(world, policy, first seed, last seed) in order, each with the jobs it waits for (the oracle's chunk)."""
-    out = []
-    for w in worlds:
-        for a in range(0, seeds, CHUNK):
-            chunk = [(w, p, a, min(a + CHUNK, seeds) - 1) for p in cands]
-            out += [(j, []) for j in chunk]
-            if oracle:
-                out.append(((w, "oracle-v2", a, min(a + CHUNK, seeds) - 1), chunk))
+    A method's training seeds play as one job (``A#seed0,A#seed1,...``: one process start for
+    four networks that play a chunk in seconds on most worlds), each still its own piece.
+    """
+    if args.policies:
+        return args.policies.split(",")
+    out: list[str] = []
+    for n in dict.fromkeys(n for ref in args.references for n in candidates(ref)):
+        method = n.split("#seed")[0] if "#seed" in n else None
+        if method and out and out[-1].startswith(f"{method}#seed"):
+            out[-1] += f",{n}"
+        else:
+            out.append(n)
     return out
 
 
+def policies_of(job_policy: str) -> list[str]:
+    """The policies a job plays: one, or a method's training seeds (:func:`played`)."""
+    return job_policy.split(",")
+
+
+def jobs(worlds: list[str], cands: list[str], seeds: int,
+         oracles: dict[str, list[str]] | None = None) -> list[tuple[tuple[str, str, int, int], list]]:
+    """(world, policy, first seed, last seed) in order, each with the jobs it waits for (an oracle's chunk).
+
+    ``oracles``: oracle -> its candidates among ``cands``; each plays a chunk once they have.
+    """
+    out = []
+    for w in worlds:
+        for a in range(0, seeds, CHUNK):
+            b = min(a + CHUNK, seeds) - 1
+            out += [((w, p, a, b), []) for p in cands]
+            for oracle, mine in (oracles or {}).items():
+                out.append(((w, oracle, a, b), [(w, p, a, b) for p in cands if set(policies_of(p)) & set(mine)]))
+    return out
+
+
+def oracles_of(args: argparse.Namespace) -> dict[str, list[str]]:
+    """The oracles the queue plays (none with ``--policies``), each with its non-compiled candidates."""
+    return {} if args.policies else {oracle_of(ref): candidates(ref) for ref in args.references}
+
+
 def queue_of(args: argparse.Namespace) -> list[tuple[tuple[str, str, int, int], list]]:
-    return jobs(args.worlds, played(args), args.seeds, oracle=not args.policies)
+    return jobs(args.worlds, played(args), args.seeds, oracles_of(args))
 
 
 def kept(args: argparse.Namespace) -> set[str]:
     """The policies whose pieces the campaign copies in and out."""
-    return set(played(args)) if args.policies else {*candidates(), "oracle-v2"}
+    return {*(n for p in played(args) for n in policies_of(p)), *oracles_of(args)}
 
 
 def name(job: tuple[str, str, int, int]) -> str:
@@ -117,9 +160,10 @@ def name(job: tuple[str, str, int, int]) -> str:
 
 
 def covered(out: Path, job: tuple[str, str, int, int]) -> bool:
-    """Whether the run's piece of the job's policy and world holds its seeds."""
-    meta = out / "cache" / job[1] / f"{job[0]}.json"
-    return meta.exists() and set(range(job[2], job[3] + 1)) <= set(json.loads(meta.read_text())["seeds"])
+    """Whether the run's piece of each of the job's policies on its world holds its seeds."""
+    metas = [piece_path(out, p, job[0]).with_suffix(".json") for p in policies_of(job[1])]
+    return all(m.exists() and set(range(job[2], job[3] + 1)) <= set(json.loads(m.read_text())["seeds"])
+               for m in metas)
 
 
 def _alive(pid: int) -> bool:
@@ -169,7 +213,7 @@ def work(args: argparse.Namespace) -> None:
         os.write(fd, args.worker.encode())
         os.close(fd)
         env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-        if job[1] == "oracle-v2":
+        if job[1] in replaying_oracles():
             env["WFBENCH_ORACLE_PIECES"] = str(out)
         cmd = ["nice", "-n", "5", str(checkout / ".venv" / "bin" / "wfbench"), "reproduce", "suite", "--out",
                str(out), "--seeds", f"{job[2]}-{job[3]}", "--backend", "serial", "--no-members", "--no-progress",
@@ -186,17 +230,17 @@ def work(args: argparse.Namespace) -> None:
 
 
 def decided_by(policy: str) -> list[str]:
-    """The repository files that decide ``policy``'s episodes (``oracle-v2``: its candidates' and its own)."""
+    """The repository files that decide ``policy``'s episodes (an oracle: its candidates' and its own)."""
     import warnings
 
     from wfbench.policies.oracle.episodes import decisive_files
-    from wfbench.policies.oracle.references import V2
+    from wfbench.policies.oracle.references import ORACLES, REFERENCES
 
     from wfbench import policies
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        names = [*V2, policy] if policy == "oracle-v2" else [policy]
+        names = [*REFERENCES[ORACLES[policy]], policy] if policy in replaying_oracles() else [policy]
         return sorted({f for n in names for f in decisive_files(policies.get(n))})
 
 
@@ -222,11 +266,13 @@ def start_from(out: Path, committed: Path, worlds: list[str], policies: set[str]
     """
     copied = 0
     files: dict[str, list[str]] = {}
-    for meta in sorted(m for m in (committed / "cache").glob("*/*.json") if m.parent.name in policies):
+    by_folder = {piece_folder(p): p for p in policies}  # a training seed's folder: METHOD_seedK
+    for meta in sorted(m for m in (committed / "cache").glob("*/*.json") if m.parent.name in by_folder):
         dest = out / "cache" / meta.parent.name
         if (dest / meta.name).exists():
             continue
-        why = stale(meta, checkout, files.setdefault(meta.parent.name, decided_by(meta.parent.name)))
+        policy = by_folder[meta.parent.name]
+        why = stale(meta, checkout, files.setdefault(policy, decided_by(policy)))
         if why:
             print(f"not copied: {meta.parent.name}/{meta.name}: {why}", flush=True)
             continue
@@ -273,10 +319,11 @@ def plan(args: argparse.Namespace) -> None:
 
 
 def collect(args: argparse.Namespace) -> None:
-    """Copy the run's pieces of the candidates and oracle-v2 (or ``--policies``') no job plays into ``--into``."""
+    """Copy the run's pieces of the candidates and oracles (or ``--policies``') no job plays into ``--into``."""
     out, state, into = Path(args.out).resolve(), Path(args.state).resolve(), Path(args.into)
-    keep = kept(args)
-    busy = {tuple(f.name.split("__")[:2]) for f in state.glob("*.running")} if state.exists() else set()
+    keep = {piece_folder(p) for p in kept(args)}
+    busy = {(w, piece_folder(n)) for w, p, *_ in (f.name.split("__") for f in state.glob("*.running"))
+            for n in policies_of(p)} if state.exists() else set()
     copied = []
     for meta in sorted((out / "cache").glob("*/*.json")):
         policy, world = meta.parent.name, meta.stem
@@ -297,20 +344,27 @@ def main() -> None:
     ap.add_argument("--out", required=True, help="the campaign's suite run folder (its cache/ holds the pieces)")
     ap.add_argument("--state", default=None, help="the queue's lock files and logs (default: OUT/queue)")
     ap.add_argument("--checkout", default=str(ROOT), help="a clean checkout with its .venv to play from "
-                    "(default: this one; pieces from a dirty tree are not read by oracle-v2)")
+                    "(default: this one; pieces from a dirty tree are not read by the oracles)")
     ap.add_argument("--workers", type=int, default=2, help="run: workers, one a core (default 2)")
     ap.add_argument("--worker", default="w0", help=argparse.SUPPRESS)
     ap.add_argument("--worlds", nargs="+", default=["heldout"],
                     help="worlds of the suite, in order: scenario ids, or heldout and train for a split's, the "
                     "held-out ones cheapest first (default: heldout)")
     ap.add_argument("--policies", default=None, help="comma-separated registered policies to play instead of "
-                    "oracle-v2's candidates, with no oracle (e.g. a lookahead for the frontier)")
+                    "the references' candidates, with no oracle (e.g. a lookahead for the frontier)")
+    ap.add_argument("--references", nargs="+", default=["v2", "v3"], help="the replaying references whose candidates "
+                    "and oracle each chunk plays, in order (default: v2 v3)")
     ap.add_argument("--seeds", type=int, default=50, help="test seeds 0..N-1 (default 50)")
     ap.add_argument("--into", default=str(ROOT / "docs/results/reference-v2"), help="the committed run: run starts "
                     "from its pieces, collect copies into it (default: docs/results/reference-v2)")
     args = ap.parse_args()
     args.state = args.state or str(Path(args.out) / "queue")
     args.worlds = worlds_of(args.worlds)
+    from wfbench.policies.oracle.references import REPLAYING
+
+    if bad := [r for r in args.references if r not in REPLAYING]:
+        raise SystemExit(f"reference_campaign: --references {' '.join(bad)} is not a replaying reference; allowed: "
+                         f"{', '.join(sorted(REPLAYING))}")
     {"plan": plan, "run": run, "work": work, "collect": collect}[args.action](args)
 
 

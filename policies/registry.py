@@ -25,6 +25,8 @@ from wfbench.policies.neural import CHECKPOINT_ALGORITHMS
 from wfbench.policies.oracle import references as _references  # noqa: F401  (registers the oracles)
 from wfbench.policies.table import (
     FAMILIES,
+    SINCE_V1,
+    SINCE_V2,
     TABLE,
     BestOf,
     Checkpoint,
@@ -40,42 +42,40 @@ from wfbench.policies.table import (
 
 from wfbench.core.paths import CHECKPOINTS, data_path
 
-V1V2 = ("v1", "v2")  # the references of the oracle that play a policy registered before v1 was published
-
 # the composites of built-in decisions, by name (wfbench.policies.table; the other families register in their own
 # modules: the tuned files in wfbench.policies.tuned, the networks in wfbench.policies.neural, the lookahead presets in
 # wfbench.policies.lookahead, the oracles that are not composites in wfbench.policies.oracle.references)
 register(
     Entry("random", "composite", CompositeOf("random", "random", "random"),
-          "uniformly random valid actions for all three decisions (Table 3 row 1)", candidate_of=V1V2),
+          "uniformly random valid actions for all three decisions (Table 3 row 1)", candidate_of=SINCE_V1),
     Entry("heuristic", "composite", CompositeOf("nearest", "threshold", "spatial"),
-          "the paper's deterministic heuristics (Table 3 row 4)", candidate_of=V1V2),
+          "the paper's deterministic heuristics (Table 3 row 4)", candidate_of=SINCE_V1),
     Entry("heuristic-stochastic", "composite", CompositeOf("inverse-distance", "threshold-epsilon", "spatial-gaussian"),
-          "the stochastic variants of the heuristics", candidate_of=V1V2),
+          "the stochastic variants of the heuristics", candidate_of=SINCE_V1),
     Entry("random-dispatch", "composite", CompositeOf("random", "threshold", "spatial"),
-          "random dispatch, heuristic workforce and positioning (row 2)", candidate_of=V1V2),
+          "random dispatch, heuristic workforce and positioning (row 2)", candidate_of=SINCE_V1),
     Entry("random-positioning", "composite", CompositeOf("nearest", "threshold", "random"),
-          "heuristic dispatch and workforce, random positioning (row 3)", candidate_of=V1V2),
+          "heuristic dispatch and workforce, random positioning (row 3)", candidate_of=SINCE_V1),
     Entry("fixed-workforce", "composite", CompositeOf("nearest", "fixed", "none"),
-          "nearest dispatch, no hiring or letting go (Table 2)", candidate_of=V1V2),
+          "nearest dispatch, no hiring or letting go (Table 2)", candidate_of=SINCE_V1),
     Entry("solver", "composite", CompositeOf("assignment", "staffing", "facility-location"),
-          "the three solver-backed decisions (docs/solvers.md)", candidate_of=V1V2),
+          "the three solver-backed decisions (docs/solvers.md)", candidate_of=SINCE_V1),
     Entry("solver-dispatch", "composite", CompositeOf("assignment", "threshold", "spatial"),
-          "optimal-assignment dispatch, heuristic workforce and positioning", candidate_of=V1V2),
+          "optimal-assignment dispatch, heuristic workforce and positioning", candidate_of=SINCE_V1),
     Entry("solver-workforce", "composite", CompositeOf("nearest", "staffing", "spatial"),
-          "square-root staffing, heuristic dispatch and positioning", candidate_of=V1V2),
+          "square-root staffing, heuristic dispatch and positioning", candidate_of=SINCE_V1),
     Entry("solver-positioning", "composite", CompositeOf("nearest", "threshold", "facility-location"),
-          "p-median positioning, heuristic dispatch and workforce", candidate_of=V1V2),
+          "p-median positioning, heuristic dispatch and workforce", candidate_of=SINCE_V1),
     # the hindsight planner's composites: the oracle family, read as composites
     Entry("oracle-planner", "oracle", CompositeOf("oracle", "oracle", "oracle"),
           "the hindsight planner for all three decisions: reads the trace, not deployable (docs/hindsight.md)",
-          reads_future=True, candidate_of=V1V2),
+          reads_future=True, candidate_of=SINCE_V1),
     Entry("oracle-dispatch", "oracle", CompositeOf("oracle", "threshold", "spatial"),
           "hindsight dispatch, heuristic workforce and positioning: not deployable", reads_future=True),
-    # added after the published tables: opt-in, a candidate of oracle-v2 only
+    # added after the published tables: opt-in, a candidate from oracle-v2 on
     Entry("solver-sparse", "composite", CompositeOf("assignment-sparse", "staffing", "facility-location-sparse"),
           "the solver composite with its assignment and p-median solved on sparse candidate graphs (the k nearest; "
-          "docs/solvers.md, \"Sparse candidate graphs\")", candidate_of=("v2",)),
+          "docs/solvers.md, \"Sparse candidate graphs\")", candidate_of=SINCE_V2),
 )
 CHECKPOINT_DIR = data_path(CHECKPOINTS)  # policies/neural/checkpoints/ (wfbench/policies/... in a wheel)
 
@@ -313,7 +313,10 @@ def oracle_candidates(name: str = "oracle") -> list[str]:
 
 
 def _available(name: str) -> bool:
-    """Whether a candidate can be built here: a network's checkpoint, or a lookahead's base's, is shipped."""
+    """Whether a candidate can be built here: a network's checkpoint, a training seed's, or a lookahead's base's."""
+    member = parse_member(name)
+    if member is not None:  # METHOD#seedK, a candidate from v3 on: its method shipped and its own file here
+        return _available(member[0]) and name in seed_members(member[0])
     e = TABLE.get(name)
     if e is not None and e.kind == "lookahead":
         return _available(e.recipe.base)
@@ -366,7 +369,7 @@ def best_in_hindsight(name: str = "oracle") -> Any:
     if not isinstance(recipe, BestOf):
         raise ValueError(f"policy {name!r} is not a best-in-hindsight oracle; allowed: "
                          f"{', '.join(n for n, e in TABLE.items() if isinstance(e.recipe, BestOf))}")
-    nets = [n for n in oracle_candidates(name) if TABLE[n].kind == "learned"]
+    nets = [n for n in oracle_candidates(name) if parse_spec(n).kind in ("learned", "member")]
     if nets and importlib.util.find_spec("torch") is None:
         raise ValueError(f"policy {name!r} plays the shipped networks ({', '.join(nets)}) as candidates and needs "
                          "torch; install the rl extra: pip install 'wfbench[rl]' (oracle-planner needs no torch)")

@@ -221,6 +221,13 @@ Recipe = CompositeOf | TunedFile | Checkpoint | BestOf | HindsightRolloutOf | Ro
     TunedLookahead | SearchPreset
 
 
+# Entry.candidate_of by when a policy was registered: each reference after v1 plays every policy of the one before it
+# (wfbench.policies.oracle.references), so a policy is a candidate from its first reference on
+SINCE_V1 = ("v1", "v2", "v3")
+SINCE_V2 = ("v2", "v3")
+SINCE_V3 = ("v3",)
+
+
 @dataclass(frozen=True)
 class Entry:
     """One registered policy (module docstring).
@@ -236,7 +243,7 @@ class Entry:
         reads_future: it reads the episode's trace (an oracle), so it is not deployable.
         listed: in ``policies.names()`` (the policies the tables, the leaderboard and the
             command line's ``all`` run); the lookaheads are asked for by name only.
-        candidate_of: the references (``v1``, ``v2``) whose best-in-hindsight oracle plays it, as
+        candidate_of: the references (``v1``, ``v2``, ``v3``) whose best-in-hindsight oracle plays it, as
             :mod:`wfbench.policies.oracle.references` lists them in tie-breaking order; a test
             checks the two agree, so that registering a policy never moves a published number.
 

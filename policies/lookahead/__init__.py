@@ -21,7 +21,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from wfbench.policies.table import Entry, MPCPreset, RolloutPreset, SearchPreset, TunedLookahead, register
+from wfbench.policies.table import (
+    SINCE_V2,
+    SINCE_V3,
+    Entry,
+    MPCPreset,
+    RolloutPreset,
+    SearchPreset,
+    TunedLookahead,
+    register,
+)
 
 from wfbench.core import lazy
 
@@ -61,27 +70,27 @@ def make(base: Any, budget_name: str | None = None, name: str | None = None, **k
 ROLLOUTS = (
     Entry("rollout-solver-tuned", "rollout", RolloutPreset("solver-tuned", "10ms", sparse="auto"),
           "rollout of solver-tuned on sampled futures (K=4, H=80, R=20); on city, its sparse preset",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("rollout-solver-tuned-1ms", "rollout", RolloutPreset("solver-tuned", "1ms", sparse="auto"),
           "rollout of solver-tuned, the 1 ms budget (K=2, H=80, R=80); on city, its sparse preset",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("rollout-solver-tuned-100ms", "rollout", RolloutPreset("solver-tuned", "100ms", sparse="auto"),
           "rollout of solver-tuned, the 100 ms budget (K=16, H=120, R=10); on city, its sparse "
           "preset",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("rollout-scalefree-general", "rollout", RolloutPreset("scalefree-general", "1ms"),
           "rollout of the scale-free network on sampled futures, the network playing them (K=2, H=80, R=80)",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("rollout-solver-sparse-tuned", "rollout", RolloutPreset("solver-tuned", "10ms", sparse=True),
           "rollout of solver-tuned's sparse twin, for city: K=4, H=80, a decision every R=20 steps, spatial "
           "positioning in the futures",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("rollout-solver-sparse-tuned-1ms", "rollout", RolloutPreset("solver-tuned", "1ms", sparse=True),
           "rollout-solver-sparse-tuned at the 1 ms budget (K=2, H=80, R=80)",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("rollout-solver-sparse-tuned-100ms", "rollout", RolloutPreset("solver-tuned", "100ms", sparse=True),
           "rollout-solver-sparse-tuned at the 100 ms budget (K=16, H=120, R=10)",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
 )
 
 # the rolling-horizon MILP (issue #43; docs/policies.md, "mpc"): the base plays dispatch (its assignment), the MILP
@@ -92,33 +101,33 @@ MPCS = (
     Entry("mpc-rates", "mpc", MPCPreset("solver-tuned-train", "rates"),
           "rolling-horizon staffing MILP (HiGHS) on the public rates and schedules, H=100, re-solved every R=20 "
           "steps; assignment dispatch",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("mpc-ma", "mpc", MPCPreset("solver-tuned-train", "ma"),
           "rolling-horizon staffing MILP (HiGHS) on a 100-step moving average of observed requests (no demand "
           "model), H=100, R=20; assignment dispatch",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("mpc-rates-calibrated", "mpc", MPCPreset("solver-tuned-train", "rates", "calibrated"),
           "mpc-rates with the capacity per person measured from observed repairs and the working share averaged "
           "over the window",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("mpc-ma-calibrated", "mpc", MPCPreset("solver-tuned-train", "ma", "calibrated"),
           "mpc-ma with the capacity per person measured from observed repairs; the base staffs until a window of "
           "requests is seen",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("mpc-rates-backlog", "mpc", MPCPreset("solver-tuned-train", "rates", "backlog"),
           "mpc-rates-calibrated whose MILP carries the repair backlog (a fluid queue seeded from the waiting "
           "requests, priced as downtime)",
-          listed=False),
+          listed=False, candidate_of=SINCE_V3),
     Entry("mpc-ma-backlog", "mpc", MPCPreset("solver-tuned-train", "ma", "backlog"),
           "mpc-ma-calibrated whose MILP carries the repair backlog (a fluid queue seeded from the waiting requests, "
           "priced as downtime)",
-          listed=False),
+          listed=False, candidate_of=SINCE_V3),
     Entry("mpc-rates-tuned-train", "mpc", TunedLookahead("mpc-rates", "mpc-rates-suite-v1-train.json"),
           "mpc-rates with its knobs, prices and capacity scale tuned on suite-v1's training split (wfbench tune)",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("mpc-ma-tuned-train", "mpc", TunedLookahead("mpc-ma", "mpc-ma-suite-v1-train.json"),
           "mpc-ma with its knobs, prices and capacity scale tuned on suite-v1's training split (wfbench tune)",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
 )
 
 # search with the network (issue #52; docs/policies.md, "search-scalefree-general"): a budget preset of
@@ -126,15 +135,16 @@ MPCS = (
 SEARCHES = (
     Entry("search-scalefree-general-1ms", "search", SearchPreset("scalefree-general", "1ms"),
           "search with the scale-free network, the 1 ms budget (K=2, H=10, R=80, top=2, z=1)",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("search-scalefree-general", "search", SearchPreset("scalefree-general", "10ms"),
           "search with the scale-free network: greedy futures ended at its value, a noise test (K=8, H=20, R=20, "
           "top=3, z=1)",
-          listed=False, candidate_of=("v2",)),
+          listed=False, candidate_of=SINCE_V2),
     Entry("search-scalefree-general-100ms", "search", SearchPreset("scalefree-general", "100ms"),
           "search with the scale-free network, the 100 ms budget (K=32, H=20, R=10, top=4, z=1)",
-          listed=False, candidate_of=("v2",)),
-    # registered after oracle-v2's candidates were fixed: a candidate of the next reference
+          listed=False, candidate_of=SINCE_V2),
+    # registered after oracle-v2's candidates were fixed; v3 leaves it out (0.1-0.5 s per env-step, pieces of 20 seeds
+    # on four worlds: docs/hindsight.md, "Versioned references"), so the suite's check names it where it is above v3
     Entry("search-scalefree-general-playout", "search", SearchPreset("scalefree-general", "100ms", playout=True),
           "search with the scale-free network, its greedy futures played to the episode's end, no critic (K=4, "
           "R=20, top=3, z=1); on city, the 10 ms search",

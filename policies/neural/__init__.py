@@ -7,7 +7,7 @@ algorithm), and the shipped checkpoints (``policies/neural/checkpoints/``), regi
 (:mod:`wfbench.policies.table`).
 """
 
-from wfbench.policies.table import Checkpoint, Entry, register
+from wfbench.policies.table import SINCE_V1, SINCE_V2, SINCE_V3, Checkpoint, Entry, register
 
 # the algorithms a checkpoint can name in its ``algo`` key, each its prefix ``ALGO:PATH``
 # (wfbench.train.registry.ALGORITHMS; tests/train/test_train_registry.py checks the two agree)
@@ -23,45 +23,46 @@ ALIAS = "ppo"  # the prefix that loads a checkpoint of any algorithm (the one ev
 register(
     Entry("ppo-joint", "learned", Checkpoint("ppo-joint-paper-64.pt"),
           "the joint PPO network (all three decisions) trained on paper-64",
-          decisions=("PPO", "PPO", "PPO"), candidate_of=("v1", "v2")),
+          decisions=("PPO", "PPO", "PPO"), candidate_of=SINCE_V1),
     Entry("ppo-dispatch", "learned", Checkpoint("ppo-dispatch-paper-64.pt"),
           "the dispatch-only PPO network trained on paper-64, heuristic workforce and positioning",
-          decisions=("PPO", "Heuristic", "Heuristic"), candidate_of=("v1", "v2")),
+          decisions=("PPO", "Heuristic", "Heuristic"), candidate_of=SINCE_V1),
     Entry("impala-joint", "learned", Checkpoint("impala-joint-paper-64.pt"),
           "the joint network trained with IMPALA (V-trace) on paper-64",
-          decisions=("IMPALA", "IMPALA", "IMPALA"), candidate_of=("v1", "v2")),
+          decisions=("IMPALA", "IMPALA", "IMPALA"), candidate_of=SINCE_V1),
     Entry("hindsight-joint", "learned", Checkpoint("hindsight-joint-paper-64.pt"),
           "the joint network trained by imitating the hindsight oracles (DAgger) on paper-64",
-          decisions=("Hindsight learning",) * 3, candidate_of=("v1", "v2")),
+          decisions=("Hindsight learning",) * 3, candidate_of=SINCE_V1),
     Entry("ppo-independent", "learned", Checkpoint("ppo-independent-paper-64.pt"),
           "three PPO networks, one per decision (independent agents), trained together on paper-64",
-          decisions=("PPO (own net)",) * 3, candidate_of=("v1", "v2")),
+          decisions=("PPO (own net)",) * 3, candidate_of=SINCE_V1),
     Entry("hindsight-ppo", "learned", Checkpoint("hindsight-ppo-paper-64.pt"),
           "ppo-joint with its workforce head improved by hindsight learning on its own action values (the known "
           "future, its own policy acting) on paper-64",
-          decisions=("PPO", "PPO + hindsight learning", "PPO"), candidate_of=("v1", "v2")),
+          decisions=("PPO", "PPO + hindsight learning", "PPO"), candidate_of=SINCE_V1),
     Entry("ppo-general", "learned",
           Checkpoint("ppo-general.pt", seeds=tuple(f"ppo-general-seed{i}.pt" for i in range(5))),
           "the joint PPO network trained across suite-v1's eight training scenarios (from ppo-joint's weights); the "
           "median of 5 training seeds (ppo-general#seedK)",
-          decisions=("PPO (generalist)",) * 3, candidate_of=("v1", "v2")),
+          decisions=("PPO (generalist)",) * 3, candidate_of=SINCE_V1),
     Entry("hindsight-general", "learned",
           Checkpoint("hindsight-general.pt", seeds=tuple(f"hindsight-general-seed{i}.pt" for i in range(5))),
           "ppo-general with its workforce head improved by hindsight learning on its own action values across the "
           "training scenarios; the median of 5 seeds",
           decisions=("PPO (generalist)", "PPO + hindsight learning (generalist)", "PPO (generalist)"),
-          candidate_of=("v1", "v2")),
+          candidate_of=SINCE_V1),
     Entry("scalefree-general", "learned",
           Checkpoint("scalefree-general.pt", seeds=tuple(f"scalefree-general-seed{i}.pt" for i in range(5))),
           "the scale-free network (observation version 2: lengths in travel time, the world's parameters as context) "
           "trained by PPO from scratch across suite-v1's eight training scenarios; the median of 5 training seeds",
-          decisions=("PPO (scale-free)",) * 3, candidate_of=("v2",)),
+          decisions=("PPO (scale-free)",) * 3, candidate_of=SINCE_V2),
     # issue #52: scalefree-general's workforce and positioning heads trained to imitate its own search on the
-    # network's states (DAgger, wfbench train --algo distill; docs/rl.md "Distillation"); in no reference, so that
-    # shipping it moves no published number
+    # network's states (DAgger, wfbench train --algo distill; docs/rl.md "Distillation"); shipped after v2, so that
+    # shipping it moved no published number; a candidate from v3 on
     Entry("distill-general", "learned",
           Checkpoint("distill-general.pt", seeds=tuple(f"distill-general-seed{i}.pt" for i in range(5))),
           "scalefree-general with its workforce and positioning heads distilled from its search "
           "(search-scalefree-general) across the training scenarios; the median of 5 training seeds",
-          decisions=("PPO (scale-free)", "search distilled (scale-free)", "search distilled (scale-free)")),
+          decisions=("PPO (scale-free)", "search distilled (scale-free)", "search distilled (scale-free)"),
+          candidate_of=SINCE_V3),
 )

@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from wfbench.policies.table import Entry, TunedFile, register
+from wfbench.policies.table import SINCE_V1, SINCE_V2, Entry, TunedFile, register
 
 from wfbench.core.paths import TUNED as TUNED_PACKAGE
 from wfbench.core.paths import data_path
@@ -159,16 +159,16 @@ def build(tuned: TunedPolicy, base: Any, path: str | Path | None = None) -> Any:
 register(
     Entry("heuristic-tuned", "tuned", TunedFile("heuristic-paper-64.json"),
           "the heuristic composite tuned on paper-64's public seeds (wfbench tune)",
-          candidate_of=("v1", "v2")),
+          candidate_of=SINCE_V1),
     Entry("solver-tuned", "tuned", TunedFile("solver-paper-64.json"),
           "the solver composite tuned jointly on paper-64's public seeds (wfbench tune)",
-          candidate_of=("v1", "v2")),
+          candidate_of=SINCE_V1),
     Entry("heuristic-tuned-train", "tuned", TunedFile("heuristic-suite-v1-train.json"),
           "the heuristic composite tuned on suite-v1's training split: the mean normalized score over its eight "
           "scenarios' public seeds (wfbench tune --scenarios suite-v1:train)",
-          candidate_of=("v2",)),
+          candidate_of=SINCE_V2),
     Entry("solver-tuned-train", "tuned", TunedFile("solver-suite-v1-train.json"),
           "the solver composite tuned jointly on suite-v1's training split: the mean normalized score over its eight "
           "scenarios' public seeds (wfbench tune --scenarios suite-v1:train)",
-          candidate_of=("v2",)),
+          candidate_of=SINCE_V2),
 )

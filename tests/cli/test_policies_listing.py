@@ -91,7 +91,7 @@ def test_json_rows_carry_the_entry_typed(capsys):
     # its measured class (what the committed frontier measured: test_policy_table checks it against frontier.csv)
     assert rows["oracle"]["budget"] == TABLE["oracle"].budget_class != "not measured"
     assert (rows["mpc-ma"]["listed"], rows["mpc-ma"]["candidate_of"], rows["mpc-ma"]["oracle_candidate"]) == \
-        (False, ["v2"], True)
+        (False, ["v2", "v3"], True)
     assert rows["oracle-dispatch"]["oracle_candidate"] is False and rows["random"]["budget"] == "not measured"
     assert {row["family"] for row in rows.values()} == set(FAMILIES)
 

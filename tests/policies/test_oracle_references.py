@@ -87,6 +87,23 @@ def test_references__the_oracle_plays_v1_exactly_and_v2_every_deployable_family(
     assert all(n in registry.names() or n in registry.lookahead_names() for n in references.V2)
 
 
+def test_references__v3_adds_every_deployable_policy_v2_does_not_play():
+    v3 = policies.get("oracle-v3")
+    assert v3.replay and v3.reads_trace and references.reference("oracle-v3") == "v3"
+    assert list(references.V3[:len(references.V2)]) == list(references.V2)  # v2's tie order kept
+    assert len(set(references.V3)) == len(references.V3)
+    # every registered deployable policy, lookaheads included, is a candidate, save the one v3 was made without
+    registered = [n for n in [*registry.deployable_names(), *registry.lookahead_names()]]
+    assert [n for n in registered if n not in references.V3] == ["search-scalefree-general-playout"]
+    # every training seed of every method trained over seeds, except the seed its shipped pick is a copy of
+    seeds = {m for method in registry.seed_runs() for m in registry.seed_members(method)}
+    picks = {registry.shipped_member(method) for method in registry.seed_runs()}
+    assert picks <= seeds and len(picks) == len(registry.seed_runs())
+    assert {n for n in references.V3 if registry.parse_member(n)} == seeds - picks
+    assert registry.oracle_candidates("oracle-v3") == list(references.V3)  # each one can be built here
+    assert not registry._available("scalefree-general#seed9")  # a seed the method has not is no candidate
+
+
 def test_references__a_policy_added_to_the_registry_enters_no_existing_reference(monkeypatch):
     before = {name: registry.oracle_candidates(name) for name in references.ORACLES}
     monkeypatch.setitem(registry.TABLE, "heuristic-new", Entry("heuristic-new", "composite",
@@ -102,7 +119,7 @@ def test_references__a_policy_added_to_the_registry_enters_no_existing_reference
 
 def test_references__an_unknown_reference_is_refused_in_one_line():
     with pytest.raises(ValueError, match=r"^'v9' is neither a best-in-hindsight oracle nor a reference; allowed: "
-                                         r"oracle, oracle-v2, v1, v2$"):
+                                         r"oracle, oracle-v2, oracle-v3, v1, v2, v3$"):
         references.candidates("v9")
 
 
@@ -112,6 +129,12 @@ def test_suite_checks_each_oracle_against_its_own_reference():
     assert outside_oracle("rollout-solver-tuned") and not outside_oracle("rollout-solver-tuned", "oracle-v2")
     assert outside_oracle("scalefree-general#seed2") and not outside_oracle("scalefree-general#seed2", "oracle-v2")
     assert not outside_oracle("solver-tuned") and not outside_oracle("solver-tuned", "oracle-v2")
+    # a training seed is played where its reference lists it; the shipped pick's seed wherever its method is
+    assert outside_oracle("scalefree-general#seed1", "oracle-v2") and not outside_oracle("scalefree-general#seed1",
+                                                                                         "oracle-v3")
+    assert not outside_oracle("ppo-general#seed3") and outside_oracle("ppo-general#seed1")
+    assert outside_oracle("ppo-general#seed3@greedy", "oracle-v3")  # another mode is another policy
+    assert outside_oracle("distill-general", "oracle-v2") and not outside_oracle("distill-general", "oracle-v3")
 
 
 def test_suite_checks_the_newest_reference_that_ran_against_its_candidates():
@@ -135,6 +158,16 @@ def test_suite_checks_the_newest_reference_that_ran_against_its_candidates():
     assert (check["oracle"], check["best_deployable"], check["oracle_at_least_deployable"]) == \
         ("oracle-v2", "rollout-solver-tuned", False)
     assert json.loads(check["above_oracle_outside"]) == {} and row[-1] == "none"  # v2 plays them all
+    # per scenario, the newest reference that ran there: v3 on one world only leaves v2 checked on the other
+    other = get_suite("suite-v1").scenario("paper-64-v1")
+    both = {n: pd.concat([df, df.assign(scenario=other.id)]) for n, df in
+            {**runs, "oracle-v2": rows(0.69), "scalefree-general#seed1": rows(0.705)}.items()}
+    both["oracle-v3"] = rows(0.71)
+    (v3, v2), _ = _checks([sc, other], both, {})
+    assert (v3["oracle"], v3["best_deployable"], v3["oracle_at_least_deployable"]) == \
+        ("oracle-v3", "scalefree-general#seed1", True)
+    assert (v2["oracle"], v2["best_deployable"]) == ("oracle-v2", "rollout-solver-tuned")
+    assert json.loads(v2["above_oracle_outside"]) == {"scalefree-general#seed1": 0.705}  # a seed v2 does not play
 
 
 # -- the hindsight rollout --------------------------------------------------------------------------------------------
@@ -226,7 +259,8 @@ def test_replaying_oracle__scores_the_best_candidate_per_seed_then_replays_witho
 
 
 @pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms",
-                                  pytest.param("scalefree-general", marks=pytest.mark.slow)])
+                                  pytest.param("scalefree-general", marks=pytest.mark.slow),
+                                  pytest.param("scalefree-general#seed1", marks=pytest.mark.slow)])  # a v3 candidate
 def test_replaying_oracle__reads_the_episodes_the_runner_recorded_and_plays_none_again(store, monkeypatch, name):
     # the suite plays each candidate once for its piece: recorded there, the oracle neither plays nor replays it
     truth = _nsw(name, record=True)
@@ -244,8 +278,8 @@ def test_replaying_oracle__reads_the_episodes_the_runner_recorded_and_plays_none
 
 
 def test_the_runner_records_no_episode_of_a_policy_no_replaying_reference_reads(store):
-    assert "mpc-rates-backlog" not in references.replayed() and "oracle-rollout" in references.replayed()
-    _nsw("mpc-rates-backlog", record=True)
+    assert "nearest+staffing+spatial" not in references.replayed() and "oracle-rollout" in references.replayed()
+    _nsw("nearest+staffing+spatial", record=True)
     assert not list(store.glob("episode-*"))
 
 

@@ -38,10 +38,11 @@ from wfbench import policies
 ROOT = Path(__file__).resolve().parents[2]
 FRONTIER = ROOT / "docs" / "results" / "frontier-v1" / "frontier.csv"
 
-# the lists as the nine tables gave them before issue #54, in their order (and distill-general, issue #52, after them)
+# the lists as the nine tables gave them before issue #54, in their order (and what came after: oracle-v3 beside the
+# other references, distill-general last)
 NAMES = ["random", "heuristic", "heuristic-stochastic", "random-dispatch", "random-positioning", "fixed-workforce",
          "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle-planner", "oracle-dispatch",
-         "solver-sparse", "oracle", "oracle-v2", "oracle-rollout", "heuristic-tuned", "solver-tuned",
+         "solver-sparse", "oracle", "oracle-v2", "oracle-v3", "oracle-rollout", "heuristic-tuned", "solver-tuned",
          "heuristic-tuned-train", "solver-tuned-train", "ppo-joint", "ppo-dispatch", "impala-joint", "hindsight-joint",
          "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general", "scalefree-general", "distill-general"]
 LOOKAHEADS = ["rollout-solver-tuned", "rollout-solver-tuned-1ms", "rollout-solver-tuned-100ms",
@@ -58,7 +59,7 @@ def test_the_lists_are_as_they_were_in_their_order():
     assert registry.lookahead_names() == LOOKAHEADS
     assert set(TABLE) == {*NAMES, *LOOKAHEADS} and len(TABLE) == len(NAMES) + len(LOOKAHEADS)
     assert registry.deployable_names() == [n for n in registry.names() if n not in
-                                           ("oracle-planner", "oracle-dispatch", "oracle", "oracle-v2",
+                                           ("oracle-planner", "oracle-dispatch", "oracle", "oracle-v2", "oracle-v3",
                                             "oracle-rollout")]
     assert registry.seed_runs() == {m: tuple(f"{m}-seed{i}.pt" for i in range(5))
                                     for m in ("ppo-general", "hindsight-general", "scalefree-general",
@@ -150,11 +151,16 @@ def test_every_name_builds_its_recipe_under_its_name():
 
 def test_the_oracle_candidates_of_each_entry_are_its_references_lists():
     for ref, listed in references.REFERENCES.items():
-        assert {n for n, e in TABLE.items() if ref in e.candidate_of} == set(listed), ref
+        # an entry says which references play it; a training seed (no entry) is listed with its method
+        members = [registry.parse_member(n) for n in listed if registry.parse_member(n)]
+        assert {n for n, e in TABLE.items() if ref in e.candidate_of} == {n for n in listed if n in TABLE}, ref
+        assert len(members) + len({n for n in listed if n in TABLE}) == len(listed), ref
+        assert all(method in listed and not mode for method, _, mode in members), ref
     assert {n: e.recipe.reference for n, e in TABLE.items() if isinstance(e.recipe, BestOf)} == references.ORACLES
-    assert registry.oracle_candidates("oracle") == [n for n in references.V1 if registry._available(n)]
-    assert registry.oracle_candidates("oracle-v2") == [n for n in references.V2 if registry._available(n)]
-    assert not TABLE["mpc-ma-backlog"].oracle_candidate and TABLE["mpc-ma"].oracle_candidate
+    for name, ref in references.ORACLES.items():
+        assert registry.oracle_candidates(name) == [n for n in references.REFERENCES[ref] if registry._available(n)]
+    assert TABLE["mpc-ma-backlog"].candidate_of == ("v3",) and TABLE["mpc-ma"].candidate_of == ("v2", "v3")
+    assert not TABLE["search-scalefree-general-playout"].oracle_candidate
 
 
 def test_the_budget_classes_are_what_the_frontier_measured():

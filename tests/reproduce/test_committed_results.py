@@ -142,7 +142,7 @@ def test_the_reference_pieces_are_the_suite_s_own_played_again_at_clean_commits(
         for part in parts:
             prov = part["provenance"]
             assert prov["commit"] and prov["dirty"] is False and "inputs" in prov, csv
-        if _plays_a_network(csv.parent.name):  # its totals depend on the batch: it must say which it played
+        if _plays_a_network(_policy_of(csv.parent.name)):  # its totals depend on the batch: it must say which
             assert all(part.get("batches") for part in parts), csv
             continue
         suite_piece = RUN / "cache" / csv.parent.name / csv.name
@@ -156,9 +156,20 @@ def test_the_reference_pieces_are_the_suite_s_own_played_again_at_clean_commits(
     assert compared >= 1
 
 
+def _policy_of(folder: str) -> str:
+    """The policy whose pieces a folder of ``cache/`` holds (a training seed's is ``METHOD_seedK``)."""
+    from wfbench.policies.oracle.references import REFERENCES
+
+    from wfbench.scenarios.pieces import piece_folder
+
+    return {piece_folder(n): n for ref in REFERENCES.values() for n in ref}.get(folder, folder)
+
+
 def _plays_a_network(name: str) -> bool:
     from wfbench.policies import registry
 
+    if registry.parse_member(name):  # a training seed: a network
+        return True
     e = registry.entry(name)
     return e.kind == "learned" or (e.kind == "lookahead" and _plays_a_network(registry.lookahead_base(name)))
 
@@ -167,3 +178,5 @@ def test_plays_a_network():
     assert _plays_a_network("scalefree-general") and _plays_a_network("search-scalefree-general")
     assert _plays_a_network("rollout-scalefree-general")
     assert not _plays_a_network("rollout-solver-tuned") and not _plays_a_network("mpc-ma-calibrated")
+    assert _policy_of("scalefree-general_seed1") == "scalefree-general#seed1" and _plays_a_network(
+        _policy_of("scalefree-general_seed1"))

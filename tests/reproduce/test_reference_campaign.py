@@ -77,6 +77,23 @@ def test_start_from_copies_the_fresh_pieces_and_names_each_stale_one(campaign, r
     assert campaign.start_from(out, committed, [], {"mpc-ma", "oracle-v2"}, root) == 0  # what it holds stays
 
 
+def test_a_training_seeds_pieces_are_found_in_its_path_safe_folder(campaign, repo, tmp_path, monkeypatch):
+    root, _, head = repo
+    committed = tmp_path / "committed"
+    _piece(committed, "scalefree-general_seed1", "novice-64-v1", [head, head])  # the suite's folder of #seed1
+    seen = []
+    monkeypatch.setattr(campaign, "decided_by", lambda policy: (seen.append(policy), [DECIDES])[1])
+    out = tmp_path / "run"
+    assert campaign.start_from(out, committed, [], {"scalefree-general#seed1"}, root) == 1 and seen == [
+        "scalefree-general#seed1"]
+    assert campaign.covered(out, ("novice-64-v1", "scalefree-general#seed1", 0, 1))
+    assert not campaign.covered(out, ("novice-64-v1", "scalefree-general#seed1", 0, 9))
+    # a job of several training seeds is covered when each one's piece is
+    assert not campaign.covered(out, ("novice-64-v1", "scalefree-general#seed1,scalefree-general#seed3", 0, 1))
+    _piece(out, "scalefree-general_seed3", "novice-64-v1", [head, head])
+    assert campaign.covered(out, ("novice-64-v1", "scalefree-general#seed1,scalefree-general#seed3", 0, 1))
+
+
 def test_worlds_are_scenario_ids_or_a_split_and_anything_else_is_refused_in_one_line(campaign, tmp_path):
     assert campaign.worlds_of(["heldout"]) == list(campaign.WORLDS)  # the held-out split, cheapest first
     assert campaign.worlds_of(["large-v1", "train", "small-v1"]) == [
@@ -89,3 +106,57 @@ def test_worlds_are_scenario_ids_or_a_split_and_anything_else_is_refused_in_one_
     assert done.returncode == 1 and done.stdout == "" and not (tmp_path / "run").exists()
     assert done.stderr.startswith("reference_campaign: unknown world 'large'; allowed: heldout, train or a scenario "
                                   "id of suite-v1 (small-v1, ") and done.stderr.count("\n") == 1
+
+
+def test_each_oracle_of_a_chunk_waits_for_its_own_candidates_and_v3_plays_the_training_seeds(campaign):
+    from wfbench.policies.oracle import references
+
+    v2, v3 = campaign.candidates("v2"), campaign.candidates("v3")
+    assert set(v2) < set(v3) and "scalefree-general#seed1" in v3 and "scalefree-general#seed2" not in v3
+    assert "heuristic" not in v3  # a compiled candidate: its oracle plays it in seconds
+    queue = campaign.jobs(["novice-64-v1"], list(dict.fromkeys([*v2, *v3])), 20,
+                          {"oracle-v2": v2, "oracle-v3": v3})
+    for a, b in ((0, 9), (10, 19)):
+        needs = {job[1]: {n[1] for n in need} for job, need in queue if job[2:] == (a, b) and need}
+        assert needs == {"oracle-v2": set(v2), "oracle-v3": set(v3)}
+    assert [job[1] for job, _ in queue].count("oracle-v3") == 2 and len(queue) == 2 * (len(v3) + 2)
+    assert campaign.replaying_oracles() == {n for n, r in references.ORACLES.items() if r in references.REPLAYING}
+    # a method's training seeds play as one job per chunk, each its own piece, and an oracle waits for it
+    args = type("Args", (), {"policies": None, "references": ["v2", "v3"]})()
+    groups = [p for p in campaign.played(args) if "," in p]
+    assert groups == [",".join(f"{m}#seed{k}" for k in ks) for m, ks in (
+        ("ppo-general", (0, 1, 2, 4)), ("hindsight-general", (0, 1, 2, 3)), ("scalefree-general", (0, 1, 3, 4)),
+        ("distill-general", (0, 1, 2, 4)))]
+    assert campaign.kept(args) == {*v3, "oracle-v2", "oracle-v3"}
+    queue = dict(campaign.jobs(["novice-64-v1"], campaign.played(args), 10, campaign.oracles_of(args)))
+    assert {p for _, p, _, _ in queue[("novice-64-v1", "oracle-v3", 0, 9)]} == set(campaign.played(args))
+    assert not any("#seed" in p for _, p, _, _ in queue[("novice-64-v1", "oracle-v2", 0, 9)])
+
+
+def test_a_reference_that_does_not_replay_is_refused_in_one_line(tmp_path):
+    script = Path(__file__).resolve().parents[2] / "benchmarks/reference_campaign.py"
+    done = subprocess.run([sys.executable, str(script), "plan", "--out", str(tmp_path / "run"), "--references", "v1"],
+                          capture_output=True, text=True)
+    assert done.returncode == 1 and done.stdout == "" and not (tmp_path / "run").exists()
+    assert done.stderr == "reference_campaign: --references v1 is not a replaying reference; allowed: v2, v3\n"
+
+
+def test_reference_gap_reads_a_training_seed_candidate_as_its_method(monkeypatch, capsys):
+    """v3 plays training seeds (METHOD#seedK), no table entries: the gap is computed, the seed that lifts v3 named."""
+    import pandas as pd
+
+    gap = load_script("benchmarks/reference_gap.py")
+    assert gap.method_of("ppo-general#seed0") == "ppo-general" and gap.method_of("oracle-rollout") == "oracle-rollout"
+    nsw = {"bound": [0.9, 0.9, 0.9], "oracle": [0.70, 0.70, 0.70], "oracle-v2": [0.72, 0.72, 0.72],
+           "heuristic-tuned": [0.70, 0.70, 0.70], "scalefree-general": [0.72, 0.72, 0.72],
+           "scalefree-general#seed1": [0.71, 0.75, 0.70], "oracle-v3": [0.72, 0.75, 0.72],
+           "search-scalefree-general-playout": [0.80, 0.80, 0.80]}  # not a candidate of v3, above it
+    pieces = {p: pd.DataFrame({"nsw": v}, index=pd.Index([0, 1, 2], name="seed")) for p, v in nsw.items()}
+    monkeypatch.setattr(gap, "piece", lambda policy, world: pieces.get(policy))
+    monkeypatch.setattr(sys, "argv", ["reference_gap.py", "--reference", "v3", "table2-g32-f100-s25-v1"])
+    gap.main()
+    out = capsys.readouterr().out
+    assert "| `table2-g32-f100-s25-v1` | 3 | 0.9000 | 0.7000 | 0.7200 | 0.7300 | 0.1700 | " in out
+    assert "candidate seeds above oracle-v3: 0;" in out and "oracle-v3 seeds above the bound: 0;" in out
+    assert "v3 above v2 on 1 (seed 1: scalefree-general#seed1)" in out
+    assert "above v3's mean: search-scalefree-general-playout (0.8000)" in out

@@ -436,31 +436,41 @@ def _scaling_row(policy: str, scenario: SuiteScenario, df: pd.DataFrame) -> dict
 
 
 def outside_oracle(name: str, oracle: str = ORACLE) -> bool:
-    """Whether ``name`` (or the method of a ``METHOD#seedK`` member) is one ``oracle`` does not play.
+    """Whether ``name`` is a policy ``oracle`` does not play.
 
     Each oracle plays the candidates of its reference (:mod:`wfbench.policies.oracle.references`).
+    A training seed ``METHOD#seedK`` is played where its reference lists it (v3 on), or where it
+    is its method's shipped pick (the same file) and the reference lists the method.
     """
     from wfbench.policies.oracle import references
-    from wfbench.policies.registry import parse_member
+    from wfbench.policies.registry import parse_member, shipped_member
 
     member = parse_member(name)
-    return references.outside(member[0] if member else name, oracle)
+    if member is not None and not member[2] and references.outside(name, oracle) \
+            and not references.outside(member[0], oracle):
+        return shipped_member(member[0]) != name  # reads the checkpoints: asked only where it decides
+    return references.outside(name, oracle)
 
 
 def _checks(chosen: list[SuiteScenario], runs_by: dict[str, pd.DataFrame],
             bound: dict[str, np.ndarray]) -> tuple[list[dict], list[list[str]]]:
     """Per scenario: the seeds where a policy is above the bound, and whether the oracle beats every deployable.
 
-    The oracle checked is the newest reference that ran (``oracle-v2`` before ``oracle``), against
-    the deployable policies it plays; the deployable policies it does not play whose mean is above
-    it are listed beside (``above_oracle_outside``: a reference made before them does not claim them).
+    The oracle checked is, per scenario, the newest reference that ran there (``oracle-v3``, else
+    ``oracle-v2``, else ``oracle``), against the deployable policies it plays; the deployable
+    policies it does not play whose mean is above it are listed beside (``above_oracle_outside``:
+    a reference made before them does not claim them).
     """
     from wfbench.policies.oracle import references
 
-    ran = [n for n in references.ORACLES if n in runs_by]
-    checked = ran[-1] if ran else ORACLE
     checks, rows = [], []
+    outside_of: dict[tuple[str, str], bool] = {}  # (policy, oracle) -> outside_oracle: the same on every scenario
     for sc in chosen:
+        ran = [n for n in references.ORACLES if n in runs_by and (runs_by[n]["scenario"] == sc.id).any()]
+        checked = ran[-1] if ran else ORACLE
+        for name in runs_by:
+            if (name, checked) not in outside_of:
+                outside_of[name, checked] = outside_oracle(name, checked)
         above: dict[str, int] = {}
         means = {}
         for name, df in runs_by.items():
@@ -468,14 +478,14 @@ def _checks(chosen: list[SuiteScenario], runs_by: dict[str, pd.DataFrame],
             means[name] = float(g[SCORE].mean())
             if sc.id in bound:
                 above[name] = int((g[SCORE].to_numpy() > bound[sc.id] + BOUND_SLACK).sum())
-        # the oracle's candidates (and members of their methods): the policies it is the best in hindsight of
-        deployable = {n: m for n, m in means.items() if family(n) != "oracle" and not outside_oracle(n, checked)}
+        # the policies the oracle is the best in hindsight of (its candidates, a shipped pick's training seed)
+        deployable = {n: m for n, m in means.items() if family(n) != "oracle" and not outside_of[n, checked]}
         oracle = means.get(checked)
         best = max(deployable, key=deployable.get) if deployable else None
         ok = None if oracle is None or best is None else bool(oracle >= deployable[best])
         outside = {} if oracle is None else dict(sorted(
             ((n, round(m, 4)) for n, m in means.items()
-             if family(n) != "oracle" and outside_oracle(n, checked) and m > oracle), key=lambda nm: -nm[1]))
+             if family(n) != "oracle" and outside_of[n, checked] and m > oracle), key=lambda nm: -nm[1]))
         bad = {n: k for n, k in above.items() if k}
         checks.append({"scenario": sc.id, "split": sc.split, "oracle": checked, "bound_checked": sc.id in bound,
                        "bound_holds": not bad, "above_bound": json.dumps(bad), "oracle_nsw": oracle,
