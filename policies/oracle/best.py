@@ -17,10 +17,11 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from wfbench.policies.kernels.forward import roll_forward
+from wfbench.policies import kernels as K
+from wfbench.policies.kernels.forward import roll_forward, roll_range
 from wfbench.policies.oracle import cache as totals_cache
 from wfbench.policies.oracle.episodes import Recording
-from wfbench.policies.protocol import Attached, seeds_array
+from wfbench.policies.protocol import DECISION_INDEX, Attached, as_obs, seeds_array
 
 from wfbench.core.actions import AGENTS, validate_actions
 from wfbench.core.config import ScenarioConfig
@@ -84,6 +85,7 @@ class BestInHindsight(Attached):
         c = self.config
         B, T = seeds.size, c.horizon
         self.seeds = seeds
+        fresh = self._resolved()
         self.scores = np.full((B, len(self.candidates)), np.nan)
         best_total = np.full(B, -np.inf)
         best = np.full(B, -1, dtype=np.int64)
@@ -92,7 +94,7 @@ class BestInHindsight(Attached):
         self.timing, self.cached = {}, {}
         for k, name in enumerate(self.candidates):
             start = time.perf_counter()
-            policy = self.resolve(name)
+            policy = fresh.pop(name) if name in fresh else self.resolve(name)
             compiled = getattr(policy, "compiled", False)
             played = None if compiled else totals_cache.played_key(c, policy)
             total, found = totals_cache.lookup(played, seeds, batch) if played else (None, None)
@@ -131,6 +133,31 @@ class BestInHindsight(Attached):
                 obj = self.resolve(self.candidates[j])  # fresh: the played copy holds the end-of-episode state
                 obj.reset(seeds[rows])
             self._groups.append((kind, obj, rows))
+
+    def compile_ahead(self, cached: Callable[[Any], bool]) -> tuple[str, Callable, tuple] | None:
+        """On a cold cache, what a second process may compile while this one compiles the roll-forward.
+
+        The runner asks (``wfbench.harness.runner.start_compile_ahead``, after ``attach``): this
+        process compiles the compiled candidates' roll-forward first, its longest compilation;
+        meanwhile the second process compiles the built-in rules that the other candidates act
+        with (:func:`act_plans`, :func:`compile_for_act`), which this one then loads from disk.
+        ``cached(dispatcher)`` says whether numba's cache holds a compilation of it: none of the
+        roll-forward is taken for cold. Changes nothing that runs; the candidates resolved here
+        are the ones ``reset`` plays. None: warm, or nothing to compile ahead.
+        """
+        self._attached()
+        if cached(roll_range):
+            return None
+        self._fresh = {name: self.resolve(name) for name in self.candidates}
+        plans = act_plans(self._fresh.values())
+        if not plans:
+            return None
+        return "the built-in rules the oracle's candidates act with", compile_for_act, (self.config, plans)
+
+    def _resolved(self) -> dict[str, Any]:
+        """The candidates :meth:`compile_ahead` resolved (fresh, not played yet), handed over once."""
+        fresh, self._fresh = getattr(self, "_fresh", {}), {}
+        return fresh
 
     def _play_compiled(self, policy: Any, seeds: np.ndarray) -> tuple[np.ndarray, int]:
         """Episode totals of NSW of a composite of built-in kernels, and how many seeds' came from the cache.
@@ -204,3 +231,50 @@ class BestInHindsight(Attached):
                 sub = obj.act({k: v[rows] for k, v in obs.items()})
                 d[rows], w[rows], p[rows] = sub["dispatch"], sub["workforce"], sub["positioning"]
         return {"dispatch": d, "workforce": w, "positioning": p}
+
+
+def act_plans(policies: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The rule codes and hyper-parameters that the policies not played compiled pass to ``act_batch``, one per codes.
+
+    The built-in parts of a composite that is not compiled whole act alone (their decision's code,
+    the others 0); a planner's part acts with its planner's built-in base. Compiled composites
+    are played by the roll-forward and are not listed.
+    """
+    plans: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
+    for policy in policies:
+        if getattr(policy, "compiled", True) or not hasattr(policy, "parts"):
+            continue
+        for part in policy.parts.values():
+            planner = getattr(part, "planner", None)
+            if planner is not None and hasattr(planner, "base"):
+                codes = np.array([planner.base[d][0] for d in AGENTS], dtype=np.int64)
+                hp = np.stack([planner.base[d][1] for d in AGENTS])
+            elif hasattr(part, "code") and getattr(part, "decision", None) in DECISION_INDEX:
+                codes = np.zeros(3, dtype=np.int64)
+                codes[DECISION_INDEX[part.decision]] = part.code
+                hp = np.zeros((3, len(K.HP_FIELDS)))
+                hp[DECISION_INDEX[part.decision]] = part.hp
+            else:
+                continue
+            plans.setdefault(tuple(codes.tolist()), (codes, hp))
+    return list(plans.values())
+
+
+def compile_for_act(config: ScenarioConfig, plans: Sequence[tuple[np.ndarray, np.ndarray]]) -> None:
+    """What a second process runs for :meth:`BestInHindsight.compile_ahead`: one seed, thrown away.
+
+    ``act_batch`` runs each of ``plans`` on the first observation of a simulator of ``config``
+    (as the candidates' own: no series, one thread), each compiled (or loaded) for the types the
+    candidates pass, and cached; then the simulator steps and observes once.
+    """
+    sim = Simulator(config.replace(horizon=2), [0], keep_series=False, threads=1)
+    obs = sim.reset()
+    B, M, N = sim.B, sim.M, sim.N
+    for codes, hp in plans:
+        d = np.full((B, M), N, dtype=np.int64)
+        w = np.zeros(B, dtype=np.int64)
+        p = np.zeros((B, 2, M), dtype=np.float64)
+        K.act_batch(as_obs(obs), K.allocate_state(B, M, N), codes, hp, d, w, p, np.asarray(obs["t"], dtype=np.int64))
+    sim.step({"dispatch": np.full((B, M), N, dtype=np.int64), "workforce": np.zeros(B, dtype=np.int64),
+              "positioning": np.zeros((B, 2, M))})
+    sim.observe()

@@ -148,9 +148,10 @@ def reset_replaying(oracle: Any, seeds: np.ndarray) -> None:
     best_score = np.full(B, -np.inf)
     best = np.full(B, -1, dtype=np.int64)
     found: dict[int, Any] = {}  # candidate index -> its policy (compiled) or _Candidate
+    fresh = oracle._resolved()
     for k, name in enumerate(oracle.candidates):
         start = time.perf_counter()
-        policy = oracle.resolve(name)
+        policy = fresh.pop(name) if name in fresh else oracle.resolve(name)
         if getattr(policy, "compiled", False):
             total, oracle.cached[name] = oracle._play_compiled(policy, seeds)
             score = total / T

@@ -15,6 +15,9 @@ world's public parameters: set_world".
 from __future__ import annotations
 
 import copy
+import os
+import sys
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -23,15 +26,19 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from joblib.externals.loky import ProcessPoolExecutor
 from numba.core import event as numba_event
 
+from wfbench.core import jit
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.observe import step_range
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import COUNTERS, INVALID_COUNTERS, METRICS
 from wfbench.harness.budget import machine
 from wfbench.harness.guard import LoadedPolicy, load_policy
 from wfbench.policies import Composite
 from wfbench.policies.episode import play_episodes
+from wfbench.policies.lookahead.ahead import rollout_job
 from wfbench.policies.oracle import cache as totals_cache
 
 K_NSW = METRICS.index("nsw")
@@ -139,12 +146,15 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
             step_ms = cpu * 1e3 / max(1, int(sim.state.t.sum()))
             decision_ms, timing = (step_ms, step_ms), "rollout"
         else:
-            obs = sim.reset()
             if guard is None:  # a built-in: our own code runs as it is
                 if getattr(policy, "reads_trace", False):  # a hindsight oracle: handed the scenario, so the future
                     policy.attach(sim.config)
                 elif hasattr(policy, "set_world"):  # a deployable policy that asks for the public parameters
                     policy.set_world(public_world(sim.config))
+                # cold: part compiles on the other core, the step from now on, while this process compiles the reset
+                start_compile_ahead(policy, sim.config, keep_series)
+            obs = sim.reset()
+            if guard is None:
                 r0 = time.process_time()  # the recording is the oracle's, not the policy's: its CPU is left out
                 record = _recorder(loaded.name, sim, seeds)
                 recording += time.process_time() - r0
@@ -218,7 +228,113 @@ def prime(loaded: LoadedPolicy, config: ScenarioConfig) -> None:
         # workers are sent the untouched one, which must still pickle
         run_batch(copy.deepcopy(loaded), short, [0], threads=1)
         return
-    sim = Simulator(short, [0])
+    step_once(short)
+
+
+# -- compiling in a second process -----------------------------------------------------------------
+def has_entries(dispatcher) -> bool:
+    """Whether numba's on-disk cache holds a compilation of ``dispatcher`` (any signature) for this machine.
+
+    Reads the cache's index as numba does before compiling (an index whose source stamp is not
+    the current digest, ``wfbench.core.jit``, reads as empty); False where it cannot be read.
+    """
+    try:
+        index = dispatcher._cache._cache_file._load_index()
+        magic = dispatcher.targetctx.codegen().magic_tuple()
+    except Exception:  # no numba cache (cache=False, not a dispatcher), or numba's internals moved: cold
+        return False
+    return any(isinstance(key, tuple) and len(key) > 1 and key[1] == magic for key in index)
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def _quiet_child() -> None:
+    """The second process prints and records nothing: the first process's lines speak for both."""
+    numba_event.unregister("numba:compile", jit.NOTICE)
+
+
+_AHEAD: dict = {"pool": None, "jobs": 0}  # the second process's pool while it has jobs, and how many
+_AHEAD_LOCK = threading.Lock()
+
+
+def compile_ahead(what: str, job: Any, *args: Any) -> Any:
+    """Run ``job(*args)`` in a second process now, to compile into numba's on-disk cache what this one needs later.
+
+    A numba compilation runs on one core; where there are two or more, the second process
+    compiles (and caches: every function of ours is ``cache=True``) functions this process will
+    call later while this one compiles others, and this one then loads them from disk. The job
+    changes no number: it only compiles (running what it compiled on throw-away data), and this
+    process compiles for itself whatever is not on disk when it needs it (the job failed, is not
+    done yet, or there is one core). Jobs queue in one second process, a worker of loky's process
+    pool (the process backend's: a script without a ``__main__`` guard works), which exits when
+    they are done. Prints one line on stderr naming ``what``.
+
+    Returns:
+        The job's future (nothing waits for it), or None where no second process was asked.
+    """
+    if _cores() < 2:
+        return None
+    try:
+        with _AHEAD_LOCK:
+            if _AHEAD["pool"] is None:
+                _AHEAD["pool"] = ProcessPoolExecutor(max_workers=1, initializer=_quiet_child)
+            pool = _AHEAD["pool"]
+            future = pool.submit(job, *args)
+            _AHEAD["jobs"] += 1
+    except Exception:  # no second process: this one compiles everything itself, as without it
+        return None
+    future.add_done_callback(lambda _: _ahead_done(pool))
+    # "wfbench: compiling" like the line of jit.NOTICE, which scripts and tests set apart from a run's output
+    print(f"wfbench: compiling {what} in a second process meanwhile (on another core); cached afterwards",
+          file=sys.stderr, flush=True)
+    return future
+
+
+def _ahead_done(pool: Any) -> None:
+    """A job of ``pool`` is done: after the last one its process exits (a later job starts another)."""
+    with _AHEAD_LOCK:
+        _AHEAD["jobs"] -= 1
+        if _AHEAD["jobs"] or _AHEAD["pool"] is not pool:
+            return
+        _AHEAD["pool"] = None
+    pool.shutdown(wait=False)
+
+
+def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool = False) -> list:
+    """On a cold cache, what a second process compiles while :func:`run_batch` plays a built-in ``policy``'s ``act``.
+
+    First the simulator's step, where it is not on disk (:func:`run_batch` asks before its
+    reset: this process compiles the reset and the policy's own code first, and steps only
+    after the first action); then whatever the policy names through its
+    ``compile_ahead(has_entries)`` method, if it has one: ``(what, job, args)`` or None (the
+    oracle: the built-in rules its candidates act with, while it compiles their roll-forward),
+    or for a rollout :func:`wfbench.policies.lookahead.ahead.rollout_job` (its futures'
+    roll-forward, while it compiles its belief and base). Returns the futures started.
+    """
+    futures = []
+    if not has_entries(step_range):
+        futures.append(compile_ahead("the simulator's step", step_once, config, keep_series))
+    hook = getattr(policy, "compile_ahead", None)
+    job = hook(has_entries) if callable(hook) else rollout_job(policy, has_entries)
+    if job is not None:
+        what, fn, args = job
+        futures.append(compile_ahead(what, fn, *args))
+    return [f for f in futures if f is not None]
+
+
+def step_once(config: ScenarioConfig, keep_series: bool = True) -> None:
+    """One seed of ``config``: reset, a step with empty actions, observe (compiles or loads the simulator core).
+
+    What :func:`prime` runs for a user's policy, and what a second process runs on a cold
+    cache while :func:`run_batch` plays a built-in policy through ``act``
+    (:func:`start_compile_ahead`).
+    """
+    sim = Simulator(config.replace(horizon=2), [0], keep_series=keep_series)
     sim.reset()
     M, N = sim.M, sim.N
     sim.step({"dispatch": np.full((1, M), N), "workforce": np.zeros(1, dtype=np.int64),
