@@ -309,7 +309,10 @@ def oracle_candidates(name: str = "oracle") -> list[str]:
 
 
 def _available(name: str) -> bool:
-    """Whether a candidate can be built here: a network's checkpoint, or a lookahead's base's, is shipped."""
+    """Whether a candidate can be built here: a network's checkpoint, a training seed's, or a lookahead's base's."""
+    member = parse_member(name)
+    if member is not None:  # METHOD#seedK, a candidate from v3 on: its method shipped and its own file here
+        return _available(member[0]) and name in seed_members(member[0])
     e = TABLE.get(name)
     if e is not None and e.kind == "lookahead":
         return _available(e.recipe.base)
@@ -362,7 +365,7 @@ def best_in_hindsight(name: str = "oracle") -> Any:
     if not isinstance(recipe, BestOf):
         raise ValueError(f"policy {name!r} is not a best-in-hindsight oracle; allowed: "
                          f"{', '.join(n for n, e in TABLE.items() if isinstance(e.recipe, BestOf))}")
-    nets = [n for n in oracle_candidates(name) if TABLE[n].kind == "learned"]
+    nets = [n for n in oracle_candidates(name) if parse_spec(n).kind in ("learned", "member")]
     if nets and importlib.util.find_spec("torch") is None:
         raise ValueError(f"policy {name!r} plays the shipped networks ({', '.join(nets)}) as candidates and needs "
                          "torch; install the rl extra: pip install 'wfbench[rl]' (oracle-planner needs no torch)")

@@ -106,11 +106,11 @@ MPCS = (
     Entry("mpc-rates-backlog", "mpc", MPCPreset("solver-tuned-train", "rates", "backlog"),
           "mpc-rates-calibrated whose MILP carries the repair backlog (a fluid queue seeded from the waiting "
           "requests, priced as downtime)",
-          listed=False),
+          listed=False, candidate_of=("v3",)),
     Entry("mpc-ma-backlog", "mpc", MPCPreset("solver-tuned-train", "ma", "backlog"),
           "mpc-ma-calibrated whose MILP carries the repair backlog (a fluid queue seeded from the waiting requests, "
           "priced as downtime)",
-          listed=False),
+          listed=False, candidate_of=("v3",)),
     Entry("mpc-rates-tuned-train", "mpc", TunedLookahead("mpc-rates", "mpc-rates-suite-v1-train.json"),
           "mpc-rates with its knobs, prices and capacity scale tuned on suite-v1's training split (wfbench tune)",
           listed=False, candidate_of=("v2",)),

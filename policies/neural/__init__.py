@@ -56,4 +56,13 @@ register(
           "the scale-free network (observation version 2: lengths in travel time, the world's parameters as context) "
           "trained by PPO from scratch across suite-v1's eight training scenarios; the median of 5 training seeds",
           decisions=("PPO (scale-free)",) * 3, candidate_of=("v2",)),
+    # issue #52: scalefree-general's workforce and positioning heads trained to imitate its own search on the
+    # network's states (DAgger, wfbench train --algo distill; docs/rl.md "Distillation"); shipped after v2, so that
+    # shipping it moved no published number; a candidate from v3 on
+    Entry("distill-general", "learned",
+          Checkpoint("distill-general.pt", seeds=tuple(f"distill-general-seed{i}.pt" for i in range(5))),
+          "scalefree-general with its workforce and positioning heads distilled from its search "
+          "(search-scalefree-general) across the training scenarios; the median of 5 training seeds",
+          decisions=("PPO (scale-free)", "search distilled (scale-free)", "search distilled (scale-free)"),
+          candidate_of=("v3",)),
 )

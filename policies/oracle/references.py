@@ -7,7 +7,10 @@ reference does not move. :data:`ORACLES` names each oracle of the registry by it
 reference. ``v1`` is the candidate list of the ``oracle`` that made every table up to issue
 #53 (the suite, Table 3, the gap), entry for entry; ``v2`` takes every deployable family,
 the lookahead presets included, and the hindsight rollout (``oracle-rollout``,
-:mod:`wfbench.policies.oracle.hindsight`). ``docs/hindsight.md``, "Versioned references".
+:mod:`wfbench.policies.oracle.hindsight`); ``v3`` adds the deployable policies v2 does not
+play: the MPCs on the repair backlog, ``distill-general``, and every learned method's other
+training seeds (``METHOD#seedK``, a policy as deployable as its method's shipped pick).
+``docs/hindsight.md``, "Versioned references".
 
 This module is below the registry (``wfbench.policies`` layers): it holds the lists,
 builds an oracle from a ``resolve`` function the registry hands it, and registers the
@@ -47,13 +50,27 @@ V2: tuple[str, ...] = (
     "search-scalefree-general-1ms", "search-scalefree-general", "search-scalefree-general-100ms",
 )
 
-REFERENCES: dict[str, tuple[str, ...]] = {"v1": V1, "v2": V2}
+# every deployable policy with a suite piece when issue #53 found v2 below a training seed of scalefree-general
+# (table2-g256-f25-s5-v1, table2-g32-f100-s25-v1): v2's candidates in v2's order, the policies registered after v2,
+# then the training seeds of each method trained over seeds (wfbench.policies.registry.seed_runs), less the seed its
+# shipped pick is a copy of (ppo-general#seed3, hindsight-general#seed4, scalefree-general#seed2,
+# distill-general#seed3: the same file plays the same episodes, and v2 plays the pick first)
+V3: tuple[str, ...] = (
+    *V2,
+    "mpc-rates-backlog", "mpc-ma-backlog", "distill-general",
+    "ppo-general#seed0", "ppo-general#seed1", "ppo-general#seed2", "ppo-general#seed4",
+    "hindsight-general#seed0", "hindsight-general#seed1", "hindsight-general#seed2", "hindsight-general#seed3",
+    "scalefree-general#seed0", "scalefree-general#seed1", "scalefree-general#seed3", "scalefree-general#seed4",
+    "distill-general#seed0", "distill-general#seed1", "distill-general#seed2", "distill-general#seed4",
+)
+
+REFERENCES: dict[str, tuple[str, ...]] = {"v1": V1, "v2": V2, "v3": V3}
 
 # registry name -> its reference: what each best-in-hindsight oracle of the registry plays
-ORACLES: dict[str, str] = {"oracle": "v1", "oracle-v2": "v2"}
-# the reference whose oracle also takes totals from committed suite pieces and replays recorded episodes
+ORACLES: dict[str, str] = {"oracle": "v1", "oracle-v2": "v2", "oracle-v3": "v3"}
+# the references whose oracle also takes totals from committed suite pieces and replays recorded episodes
 # (BestInHindsight(replay=True)); v1 plays as it always did, so its numbers stay bit for bit
-REPLAYING = frozenset({"v2"})
+REPLAYING = frozenset({"v2", "v3"})
 
 
 def reference(name: str) -> str:
@@ -108,12 +125,16 @@ register(
           "reference v2: per seed, the best in hindsight of every deployable family, the lookaheads included, and "
           "oracle-rollout; replays recorded episodes and committed pieces (docs/hindsight.md)",
           decisions=HINDSIGHT, reads_future=True),
+    Entry("oracle-v3", "oracle", BestOf("v3"),
+          "reference v3: per seed, the best in hindsight of v2's candidates, the policies registered since and every "
+          "learned method's training seeds; replays recorded episodes and committed pieces (docs/hindsight.md)",
+          decisions=HINDSIGHT, reads_future=True),
     Entry("oracle-rollout", "oracle", HindsightRolloutOf("solver-tuned"),
           "the rollout of solver-tuned on the true future, rolled to the end of the episode (on city, the rollout's "
           "city preset: the sparse twin every 20 steps, spatial futures): reads the trace, not deployable "
           "(docs/hindsight.md, \"The hindsight rollout\")",
-          decisions=HINDSIGHT, reads_future=True, candidate_of=("v2",)),
+          decisions=HINDSIGHT, reads_future=True, candidate_of=("v2", "v3")),
 )
 
-__all__ = ["HINDSIGHT", "ORACLES", "REFERENCES", "REPLAYING", "V1", "V2", "candidates", "make", "outside", "reference",
-           "replayed"]
+__all__ = ["HINDSIGHT", "ORACLES", "REFERENCES", "REPLAYING", "V1", "V2", "V3", "candidates", "make", "outside",
+           "reference", "replayed"]
