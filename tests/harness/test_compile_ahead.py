@@ -6,6 +6,8 @@ one compiles the roll-forward, and for a rollout its futures' roll-forward (docs
 "Cold compile"). No number may move, and a second process that fails changes nothing.
 """
 
+import threading
+
 import numpy as np
 import pytest
 from wfbench.policies.kernels.act import act_range
@@ -91,8 +93,8 @@ def started(monkeypatch):
     futures = []
     real = runner.compile_ahead
 
-    def recorded(*args):
-        futures.append(real(*args))
+    def recorded(*args, **kwargs):
+        futures.append(real(*args, **kwargs))
         return futures[-1]
 
     monkeypatch.setattr(runner, "has_entries", lambda dispatcher: False)
@@ -105,7 +107,7 @@ def test_the_second_process_changes_no_number(started, monkeypatch):
     assert len(started) == 2 and None not in started  # the step, the candidates' rules (two cores or more)
     for future in started:
         assert future.result(timeout=300) is None  # the second process did its jobs
-    monkeypatch.setattr(runner, "compile_ahead", lambda *args: None)  # no second process at all
+    monkeypatch.setattr(runner, "compile_ahead", lambda *args, **kwargs: None)  # no second process at all
     _same(with_child, _play())
 
 
@@ -113,10 +115,91 @@ def test_a_failing_second_process_falls_back(started, monkeypatch, capfd):
     monkeypatch.setattr(best_module, "act_plans", lambda policies: [(np.zeros(2, dtype=np.int64), np.zeros(1))])
     played = _play()
     with pytest.raises(IndexError):
-        started[1].result(timeout=300)  # the job failed over there ...
-    monkeypatch.setattr(runner, "compile_ahead", lambda *args: None)
+        started[0].result(timeout=300)  # the job failed over there (the candidates' rules, before the step) ...
+    monkeypatch.setattr(runner, "compile_ahead", lambda *args, **kwargs: None)
     _same(played, _play())  # ... and nothing here noticed
     assert "Traceback" not in capfd.readouterr().err
+
+
+# -- this process waits for what the second one is compiling, rather than compile it again -------------
+KERNEL = """
+import numba
+
+@numba.njit(cache=True)
+def twice(x):
+    return 2 * x
+"""
+JOB = """
+import sys, time
+sys.path.insert(0, {folder!r})
+time.sleep({delay})  # this process asks first: the job is still running
+import kernel_for_ahead
+kernel_for_ahead.twice(3)  # compiles and caches twice(int64)
+"""
+
+
+def test_this_process_waits_for_the_job_and_loads_what_it_compiled(tmp_path, monkeypatch):
+    """A real second process compiles a cold function; asked for it meanwhile, this one loads it from disk."""
+    import importlib
+    import runpy
+
+    (tmp_path / "kernel_for_ahead.py").write_text(KERNEL)
+    (tmp_path / "job.py").write_text(JOB.format(folder=str(tmp_path), delay=2.0))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    kernel = importlib.import_module("kernel_for_ahead")
+    future = runner.compile_ahead("a test kernel", runpy.run_path, str(tmp_path / "job.py"), waits=(kernel.twice,))
+    assert future is not None
+    assert not future.done()
+    assert kernel.twice(3) == 6  # cold here: it waited for the job, then read the disk
+    assert future.done()
+    assert sum(kernel.twice.stats.cache_hits.values()) == 1, "this process did not load the job's compilation"
+    assert not kernel.twice.stats.cache_misses, "this process compiled the function a second time"
+    assert "load_overload" not in kernel.twice._cache.__dict__  # undone with the job
+
+
+class _Cache:
+    """numba's on-disk cache as the wait sees it: empty until ``filled``."""
+
+    def __init__(self):
+        self.filled, self.reads = False, 0
+
+    def load_overload(self, sig, target_context):
+        self.reads += 1
+        return "loaded" if self.filled else None
+
+
+class _Dispatcher:
+    def __init__(self):
+        self._cache = _Cache()
+
+
+def test_a_miss_waits_for_the_job_then_reads_again():
+    from concurrent.futures import Future
+
+    dispatcher, future = _Dispatcher(), Future()
+    assert runner.wait_on_miss(dispatcher, future, limit_s=30)
+
+    def finish():
+        dispatcher._cache.filled = True
+        future.set_result(None)
+
+    threading.Timer(0.2, finish).start()
+    assert dispatcher._cache.load_overload("sig", None) == "loaded"
+    assert dispatcher._cache.reads == 2  # once before the wait, once after
+    assert "load_overload" not in dispatcher._cache.__dict__  # undone: later misses compile at once
+
+
+def test_a_failed_or_late_job_leaves_the_compilation_here():
+    from concurrent.futures import Future
+
+    failed, future = _Dispatcher(), Future()
+    runner.wait_on_miss(failed, future, limit_s=30)
+    threading.Timer(0.1, future.set_exception, (RuntimeError("the job failed"),)).start()
+    assert failed._cache.load_overload("sig", None) is None  # compile here, no exception raised
+    late = _Dispatcher()
+    runner.wait_on_miss(late, Future(), limit_s=0.1)  # never done
+    assert late._cache.load_overload("sig", None) is None
+    assert not runner.wait_on_miss(object(), Future())  # not a numba dispatcher: nothing changed
 
 
 def test_one_core_starts_nothing(monkeypatch):
@@ -163,7 +246,7 @@ def test_the_rollouts_second_process_changes_no_number(started, monkeypatch):
     assert len(started) == 2 and None not in started  # the step, the futures' roll-forward
     for future in started:
         assert future.result(timeout=300) is None
-    monkeypatch.setattr(runner, "compile_ahead", lambda *args: None)
+    monkeypatch.setattr(runner, "compile_ahead", lambda *args, **kwargs: None)
     alone = play()
     for k in with_child.means:
         np.testing.assert_array_equal(with_child.means[k], alone.means[k])

@@ -38,6 +38,7 @@ from wfbench.harness.budget import machine
 from wfbench.harness.guard import LoadedPolicy, load_policy
 from wfbench.policies import Composite
 from wfbench.policies.episode import play_episodes
+from wfbench.policies.kernels.forward import roll_range
 from wfbench.policies.lookahead.ahead import rollout_job
 from wfbench.policies.oracle import cache as totals_cache
 
@@ -262,7 +263,7 @@ _AHEAD: dict = {"pool": None, "jobs": 0}  # the second process's pool while it h
 _AHEAD_LOCK = threading.Lock()
 
 
-def compile_ahead(what: str, job: Any, *args: Any) -> Any:
+def compile_ahead(what: str, job: Any, *args: Any, waits: Sequence[Any] = ()) -> Any:
     """Run ``job(*args)`` in a second process now, to compile into numba's on-disk cache what this one needs later.
 
     A numba compilation runs on one core; where there are two or more, the second process
@@ -274,8 +275,13 @@ def compile_ahead(what: str, job: Any, *args: Any) -> Any:
     pool (the process backend's: a script without a ``__main__`` guard works), which exits when
     they are done. Prints one line on stderr naming ``what``.
 
+    ``waits``: the dispatchers the job compiles. Until it is done, this process, asked for one
+    of them that is not on disk, waits for the job and reads the disk again instead of compiling
+    it a second time (:func:`wait_on_miss`): the job started earlier, so it finishes first.
+
     Returns:
-        The job's future (nothing waits for it), or None where no second process was asked.
+        The job's future (nothing waits for it unless a dispatcher of ``waits`` is asked for),
+        or None where no second process was asked.
     """
     if _cores() < 2:
         return None
@@ -289,10 +295,52 @@ def compile_ahead(what: str, job: Any, *args: Any) -> Any:
     except Exception:  # no second process: this one compiles everything itself, as without it
         return None
     future.add_done_callback(lambda _: _ahead_done(pool))
+    for dispatcher in waits:
+        wait_on_miss(dispatcher, future)
     # "wfbench: compiling" like the line of jit.NOTICE, which scripts and tests set apart from a run's output
     print(f"wfbench: compiling {what} in a second process meanwhile (on another core); cached afterwards",
           file=sys.stderr, flush=True)
     return future
+
+
+WAIT_LIMIT_S = 600.0  # the longest this process waits for a second process's job before it compiles for itself
+
+
+def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) -> bool:
+    """Until ``future`` is done, a compilation of ``dispatcher`` missing from disk waits for it, then reads again.
+
+    Numba reads its on-disk cache (``dispatcher._cache.load_overload``) before it compiles a
+    signature, and reads the index afresh each time. Here that read, where it finds nothing
+    while the job compiling ``dispatcher`` is still running, waits for the job (at most
+    ``limit_s``) and reads once more: what the job cached is loaded, anything else (another
+    signature, a job that failed) is compiled here as before. Nothing that runs changes, only
+    where it is compiled. Undone when the job is done. False where numba's internals differ
+    (nothing is changed then).
+    """
+    try:
+        cache = dispatcher._cache
+        load = cache.load_overload
+    except AttributeError:
+        return False
+
+    def load_overload(sig: Any, target_context: Any) -> Any:
+        found = load(sig, target_context)
+        if found is None and not future.done():
+            try:
+                future.result(timeout=limit_s)
+            except Exception:  # failed or late: compile here
+                return None
+            found = load(sig, target_context)
+        return found
+
+    cache.load_overload = load_overload
+
+    def undo(_: Any) -> None:
+        if cache.__dict__.get("load_overload") is load_overload:
+            del cache.load_overload
+
+    future.add_done_callback(undo)
+    return True
 
 
 def _ahead_done(pool: Any) -> None:
@@ -308,22 +356,23 @@ def _ahead_done(pool: Any) -> None:
 def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool = False) -> list:
     """On a cold cache, what a second process compiles while :func:`run_batch` plays a built-in ``policy``'s ``act``.
 
-    First the simulator's step, where it is not on disk (:func:`run_batch` asks before its
-    reset: this process compiles the reset and the policy's own code first, and steps only
-    after the first action); then whatever the policy names through its
-    ``compile_ahead(has_entries)`` method, if it has one: ``(what, job, args)`` or None (the
-    oracle: the built-in rules its candidates act with, while it compiles their roll-forward),
-    or for a rollout :func:`wfbench.policies.lookahead.ahead.rollout_job` (its futures'
-    roll-forward, while it compiles its belief and base). Returns the futures started.
+    First whatever the policy names through its ``compile_ahead(has_entries)`` method, if it
+    has one: ``(what, job, args)`` or None (the oracle: the built-in rules its candidates act
+    with, while it compiles their roll-forward), or for a rollout
+    :func:`wfbench.policies.lookahead.ahead.rollout_job` (its futures' roll-forward, while it
+    compiles its belief and base; its first act then waits for the job rather than compile the
+    roll-forward again, :func:`wait_on_miss`); then the simulator's step, where it is not on disk
+    (:func:`run_batch` asks before its reset: this process compiles the reset and the policy's
+    own code first, and steps only after the first action). Returns the futures started.
     """
     futures = []
-    if not has_entries(step_range):
-        futures.append(compile_ahead("the simulator's step", step_once, config, keep_series))
     hook = getattr(policy, "compile_ahead", None)
     job = hook(has_entries) if callable(hook) else rollout_job(policy, has_entries)
-    if job is not None:
+    if job is not None:  # first: a rollout's first act reaches its futures' roll-forward before the first step
         what, fn, args = job
-        futures.append(compile_ahead(what, fn, *args))
+        futures.append(compile_ahead(what, fn, *args, waits=() if callable(hook) else (roll_range,)))
+    if not has_entries(step_range):
+        futures.append(compile_ahead("the simulator's step", step_once, config, keep_series, waits=(step_range,)))
     return [f for f in futures if f is not None]
 
 
