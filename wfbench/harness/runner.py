@@ -15,6 +15,7 @@ world's public parameters: set_world".
 from __future__ import annotations
 
 import copy
+import functools
 import os
 import sys
 import threading
@@ -314,14 +315,19 @@ def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) ->
     while the job compiling ``dispatcher`` is still running, waits for the job (at most
     ``limit_s``) and reads once more: what the job cached is loaded, anything else (another
     signature, a job that failed) is compiled here as before. Nothing that runs changes, only
-    where it is compiled. Undone when the job is done. False where numba's internals differ
-    (nothing is changed then).
+    where it is compiled. Undone after the first wait, or when the job is done. False where
+    numba's internals differ (nothing is changed then).
     """
     try:
         cache = dispatcher._cache
-        load = cache.load_overload
+        load = functools.partial(type(cache).load_overload, cache)  # numba's own read, not an earlier wait
     except AttributeError:
         return False
+
+    def undo(_: Any = None) -> None:
+        with _WAIT_LOCK:
+            if cache.__dict__.get("load_overload") is load_overload:
+                del cache.__dict__["load_overload"]
 
     def load_overload(sig: Any, target_context: Any) -> Any:
         found = load(sig, target_context)
@@ -329,18 +335,20 @@ def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) ->
             try:
                 future.result(timeout=limit_s)
             except Exception:  # failed or late: compile here
-                return None
-            found = load(sig, target_context)
+                found = None
+            else:
+                found = load(sig, target_context)
+        if future.done() or found is None:  # waited (or the job is over): later reads are numba's own
+            undo()
         return found
 
     cache.load_overload = load_overload
-
-    def undo(_: Any) -> None:
-        if cache.__dict__.get("load_overload") is load_overload:
-            del cache.load_overload
-
+    # also when nobody missed: the future's callbacks may run after a waiter sees it done, so the wait undoes itself too
     future.add_done_callback(undo)
     return True
+
+
+_WAIT_LOCK = threading.Lock()
 
 
 def _ahead_done(pool: Any) -> None:
