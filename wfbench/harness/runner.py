@@ -261,7 +261,7 @@ def _quiet_child() -> None:
 
 
 _AHEAD: dict = {"pool": None, "jobs": 0}  # the second process's pool while it has jobs, and how many
-_AHEAD_LOCK = threading.Lock()
+_AHEAD_LOCK = threading.Lock()  # also guards the waits of wait_on_miss
 
 
 def compile_ahead(what: str, job: Any, *args: Any, waits: Sequence[Any] = ()) -> Any:
@@ -325,7 +325,7 @@ def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) ->
         return False
 
     def undo(_: Any = None) -> None:
-        with _WAIT_LOCK:
+        with _AHEAD_LOCK:
             if cache.__dict__.get("load_overload") is load_overload:
                 del cache.__dict__["load_overload"]
 
@@ -335,7 +335,7 @@ def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) ->
             try:
                 future.result(timeout=limit_s)
             except Exception:  # failed or late: compile here
-                found = None
+                pass
             else:
                 found = load(sig, target_context)
         if future.done() or found is None:  # waited (or the job is over): later reads are numba's own
@@ -346,9 +346,6 @@ def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) ->
     # also when nobody missed: the future's callbacks may run after a waiter sees it done, so the wait undoes itself too
     future.add_done_callback(undo)
     return True
-
-
-_WAIT_LOCK = threading.Lock()
 
 
 def _ahead_done(pool: Any) -> None:
