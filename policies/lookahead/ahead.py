@@ -22,16 +22,17 @@ from wfbench.policies.lookahead.rollout import Rollout
 from wfbench.core.simulator import Simulator
 
 
-def rollout_job(policy: Any, cached: Callable[[Any], bool]) -> tuple[str, Callable, tuple] | None:
-    """The second process's job for ``policy`` after ``set_world``: ``(what, job, args)``, or None.
+def rollout_job(policy: Any, cached: Callable[[Any], bool]) -> tuple[str, Callable, tuple, tuple] | None:
+    """The second process's job for ``policy`` after ``set_world``: ``(what, job, args, waits)``, or None.
 
-    None: not a :class:`Rollout`, no public world to build it for, or warm
-    (``cached(dispatcher)``: numba's cache holds a compilation of the roll-forward).
+    ``waits``: the roll-forward, which this process's first act waits for on a miss. None: not a
+    :class:`Rollout`, no public world to build it for, or warm (``cached(dispatcher)``: numba's
+    cache holds a compilation of the roll-forward).
     """
     if type(policy) is not Rollout or policy.config is None or cached(roll_range):
         return None
     # a copy as it is now: the pool pickles the job later, in its own thread, while this one acts
-    return "the rollout's futures", compile_roll, (copy.deepcopy(policy),)
+    return "the rollout's futures", compile_roll, (copy.deepcopy(policy),), (roll_range,)
 
 
 def compile_roll(policy: Rollout) -> None:

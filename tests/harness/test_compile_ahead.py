@@ -13,6 +13,7 @@ import pytest
 from wfbench.policies.kernels.act import act_range
 from wfbench.policies.kernels.forward import roll_range
 from wfbench.policies.lookahead.ahead import compile_roll, rollout_job
+from wfbench.policies.oracle import ahead as oracle_ahead
 from wfbench.policies.oracle import best as best_module
 from wfbench.policies.oracle import cache as totals_cache
 from wfbench.policies.oracle.best import BestInHindsight, act_plans, compile_for_act
@@ -104,7 +105,7 @@ def started(monkeypatch):
 
 def test_the_second_process_changes_no_number(started, monkeypatch):
     with_child = _play()
-    assert len(started) == 2 and None not in started  # the step, the candidates' rules (two cores or more)
+    assert len(started) == 3 and None not in started  # the kernels, the step, the candidates' rules (two cores or more)
     for future in started:
         assert future.result(timeout=300) is None  # the second process did its jobs
     monkeypatch.setattr(runner, "compile_ahead", lambda *args, **kwargs: None)  # no second process at all
@@ -115,7 +116,7 @@ def test_a_failing_second_process_falls_back(started, monkeypatch, capfd):
     monkeypatch.setattr(best_module, "act_plans", lambda policies: [(np.zeros(2, dtype=np.int64), np.zeros(1))])
     played = _play()
     with pytest.raises(IndexError):
-        started[0].result(timeout=300)  # the job failed over there (the candidates' rules, before the step) ...
+        started[-1].result(timeout=300)  # the job failed over there (the candidates' rules, after the step) ...
     monkeypatch.setattr(runner, "compile_ahead", lambda *args, **kwargs: None)
     _same(played, _play())  # ... and nothing here noticed
     assert "Traceback" not in capfd.readouterr().err
@@ -183,10 +184,26 @@ def test_a_miss_waits_for_the_job_then_reads_again():
         dispatcher._cache.filled = True
         future.set_result(None)
 
-    threading.Timer(0.2, finish).start()
+    threading.Timer(0.5, finish).start()
     assert dispatcher._cache.load_overload("sig", None) == "loaded"
-    assert dispatcher._cache.reads == 2  # once before the wait, once after
+    assert dispatcher._cache.reads >= 3  # before the wait, while the job ran, after it
     assert "load_overload" not in dispatcher._cache.__dict__  # undone: later misses compile at once
+
+
+def test_a_miss_loads_what_the_job_cached_before_the_job_is_done():
+    """A job that compiles several functions hands each over when it is on disk, not at the job's end."""
+    import time
+    from concurrent.futures import Future
+
+    dispatcher, future = _Dispatcher(), Future()
+    assert runner.wait_on_miss(dispatcher, future, limit_s=30)
+    threading.Timer(0.3, setattr, (dispatcher._cache, "filled", True)).start()
+    t = time.monotonic()
+    assert dispatcher._cache.load_overload("sig", None) == "loaded"
+    assert time.monotonic() - t < 5 and not future.done()  # read while the job still runs
+    assert "load_overload" in dispatcher._cache.__dict__  # the job may cache another signature: still waiting
+    future.set_result(None)
+    assert "load_overload" not in dispatcher._cache.__dict__  # undone with the job
 
 
 def test_a_failed_or_late_job_leaves_the_compilation_here():
@@ -229,8 +246,9 @@ def test_the_rollout_compiles_ahead_what_its_decisions_roll():
     """compile_roll compiles the roll-forward its decisions then call: no other signature, nothing else played."""
     r = _rollout()
     r.set_world(runner.public_world(SHORT))
-    what, job, args = rollout_job(r, lambda dispatcher: False)
+    what, job, args, waits = rollout_job(r, lambda dispatcher: False)
     assert job is compile_roll and len(args) == 1 and args[0] is not r and "futures" in what
+    assert waits == (roll_range,)
     job(*args)  # here, as the second process would
     before = set(roll_range.signatures)
     run_batch(LoadedPolicy(r, "rollout-solver-tuned-1ms", None), SHORT, [0, 1], threads=1)
@@ -260,3 +278,87 @@ def test_a_warm_or_worldless_rollout_starts_nothing():
     r.set_world(runner.public_world(SHORT))
     assert rollout_job(r, lambda dispatcher: True) is None
     assert rollout_job(policies.get("heuristic"), lambda dispatcher: False) is None  # no rollout: nothing
+
+
+# -- the oracle: its roll-forward's facility-location kernels, compiled by the second process first ----------
+def test_the_oracle_s_jobs_compile_the_kernels_first_and_its_candidates_rules_last():
+    oracle = BestInHindsight(CANDIDATES, _resolve)
+    oracle.attach(SHORT)
+    (what, job, args, waits), (what2, job2, args2, waits2) = oracle_ahead.oracle_job(oracle, lambda dispatcher: False)
+    assert job is oracle_ahead.compile_kernels and args == () and waits == oracle_ahead.KERNELS
+    assert "facility-location kernels" in what
+    assert job2 is compile_for_act and args2[0] is SHORT and waits2 == (act_range,)  # the oracle's own, as before
+    assert what2 == "the built-in rules the oracle's candidates act with"
+    assert oracle_ahead.oracle_job(oracle, lambda dispatcher: True) is None  # warm: nothing
+    job()
+    sig = oracle_ahead.kernel_signature()
+    assert all(sig in [tuple(s) for s in k.signatures] for k in oracle_ahead.KERNELS)
+
+
+def test_the_oracle_s_jobs_queue_with_the_step_between(monkeypatch):
+    queued = []
+    monkeypatch.setattr(runner, "has_entries", lambda dispatcher: False)
+    monkeypatch.setattr(runner, "compile_ahead", lambda what, fn, *args, waits=(): queued.append((fn, waits)))
+    oracle = BestInHindsight(CANDIDATES, _resolve)
+    oracle.attach(SHORT)
+    runner.start_compile_ahead(oracle, SHORT)
+    assert [fn for fn, _ in queued] == [oracle_ahead.compile_kernels, runner.step_once, compile_for_act]
+    assert queued[1][1] == runner.STEP_WAITS
+
+
+def test_the_kernel_signature_is_what_the_candidates_pass():
+    """The types of the kernels' arguments on a real observation and state: those of kernel_signature."""
+    from numba import typeof
+    from wfbench.policies import kernels as K
+    from wfbench.policies.protocol import as_obs
+
+    from wfbench.core.simulator import Simulator
+
+    sim = Simulator(SHORT, [0, 1], keep_series=False, threads=1)
+    obs = sim.reset()
+    B, M, N = sim.B, sim.M, sim.N
+    hp = np.zeros((3, len(K.HP_FIELDS)))
+    p = np.zeros((B, 2, M))
+    b, t = 1, np.asarray(obs["t"], dtype=np.int64)
+    assert oracle_ahead.kernel_signature() == (typeof(b), typeof(as_obs(obs)), typeof(K.allocate_state(B, M, N)),
+                                               typeof(hp[2]), typeof(p[b]), typeof(t[b]))
+
+
+ROLL_COLD = """
+import glob, os, pickle, sys
+import numpy as np
+from wfbench import policies
+from wfbench.core.simulator import Simulator
+from wfbench.policies.kernels.forward import roll_forward
+from wfbench.policies.oracle import ahead
+from wfbench.scenarios.resolve import resolve_scenario
+
+ahead.compile_kernels()  # what the second process does first
+sim = Simulator(resolve_scenario("small").replace(horizon=4), [0], keep_series=False, threads=1)
+sim.reset()
+codes, hp, pstate = policies.get("solver-tuned").compiled_plan(np.array([0]), sim.M, sim.N)
+roll_forward(sim, 2, codes, hp, pstate)  # the every-rule roll-forward, compiled here from scratch
+counts = {}
+for k in ahead.KERNELS:
+    name = k.py_func.__qualname__
+    for f in glob.glob(os.path.join(os.environ["WFBENCH_CACHE_DIR"], "**", f"*.{name}-*.nbi"), recursive=True):
+        with open(f, "rb") as fh:
+            pickle.load(fh)
+            counts[name] = len(pickle.loads(fh.read())[1])
+print(counts)
+"""
+
+
+@pytest.mark.slow
+def test_the_roll_forward_loads_the_kernels_the_job_compiled(tmp_path):
+    """Cold: after the job's kernels, compiling the every-rule roll-forward adds no other signature of them."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "WFBENCH_CACHE_DIR": str(tmp_path / "wfbench"), "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+           "NUMBA_NUM_THREADS": "1"}
+    out = subprocess.run([sys.executable, "-c", ROLL_COLD], env=env, capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stderr[-2000:]
+    counts = eval(out.stdout.strip().splitlines()[-1])
+    assert counts == {"positioning_facility": 1, "positioning_facility_sparse": 1}

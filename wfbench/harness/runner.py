@@ -32,6 +32,7 @@ from numba.core import event as numba_event
 
 from wfbench.core import jit
 from wfbench.core.config import ScenarioConfig
+from wfbench.core.dynamics import apply_workforce
 from wfbench.core.observe import step_range
 from wfbench.core.simulator import Simulator
 from wfbench.core.state import COUNTERS, INVALID_COUNTERS, METRICS
@@ -39,9 +40,9 @@ from wfbench.harness.budget import machine
 from wfbench.harness.guard import LoadedPolicy, load_policy
 from wfbench.policies import Composite
 from wfbench.policies.episode import play_episodes
-from wfbench.policies.kernels.forward import roll_range
 from wfbench.policies.lookahead.ahead import rollout_job
 from wfbench.policies.oracle import cache as totals_cache
+from wfbench.policies.oracle.ahead import oracle_job
 
 K_NSW = METRICS.index("nsw")
 
@@ -305,18 +306,24 @@ def compile_ahead(what: str, job: Any, *args: Any, waits: Sequence[Any] = ()) ->
 
 
 WAIT_LIMIT_S = 600.0  # the longest this process waits for a second process's job before it compiles for itself
+POLL_S = 0.2  # how often a wait reads the disk again while the job runs
+# what the step's job compiles that this process may ask for first: the step, and its workforce kernel, which a
+# roll-forward inlines
+STEP_WAITS = (step_range, apply_workforce)
 
 
 def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) -> bool:
-    """Until ``future`` is done, a compilation of ``dispatcher`` missing from disk waits for it, then reads again.
+    """Until ``future`` is done, a compilation of ``dispatcher`` missing from disk waits for it to appear there.
 
     Numba reads its on-disk cache (``dispatcher._cache.load_overload``) before it compiles a
     signature, and reads the index afresh each time. Here that read, where it finds nothing
-    while the job compiling ``dispatcher`` is still running, waits for the job (at most
-    ``limit_s``) and reads once more: what the job cached is loaded, anything else (another
-    signature, a job that failed) is compiled here as before. Nothing that runs changes, only
-    where it is compiled. Undone after the first wait, or when the job is done. False where
-    numba's internals differ (nothing is changed then).
+    while the job compiling ``dispatcher`` is still running, reads again every ``POLL_S``
+    until the job has written it or is done (at most ``limit_s``): a job that compiles several
+    functions hands each over as soon as it is cached, not at its end. What the job cached is
+    loaded; anything else (another signature, a job that failed or is late) is compiled here
+    as before. Nothing that runs changes, only where it is compiled. Undone after a wait that
+    found nothing, or when the job is done. False where numba's internals differ (nothing is
+    changed then).
     """
     try:
         cache = dispatcher._cache
@@ -331,14 +338,16 @@ def wait_on_miss(dispatcher: Any, future: Any, limit_s: float = WAIT_LIMIT_S) ->
 
     def load_overload(sig: Any, target_context: Any) -> Any:
         found = load(sig, target_context)
-        if found is None and not future.done():
+        deadline = time.monotonic() + limit_s
+        while found is None and not future.done() and time.monotonic() < deadline:
             try:
-                future.result(timeout=limit_s)
-            except Exception:  # failed or late: compile here
+                future.result(timeout=min(POLL_S, max(deadline - time.monotonic(), 0.0)))
+            except TimeoutError:  # still running: it may have cached this one already
                 pass
-            else:
-                found = load(sig, target_context)
-        if future.done() or found is None:  # waited (or the job is over): later reads are numba's own
+            except Exception:  # failed: compile here
+                break
+            found = load(sig, target_context)
+        if future.done() or found is None:  # the job is over (or this one waited in vain): later reads are numba's own
             undo()
         return found
 
@@ -361,23 +370,34 @@ def _ahead_done(pool: Any) -> None:
 def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool = False) -> list:
     """On a cold cache, what a second process compiles while :func:`run_batch` plays a built-in ``policy``'s ``act``.
 
-    First whatever the policy names through its ``compile_ahead(has_entries)`` method, if it
-    has one: ``(what, job, args)`` or None (the oracle: the built-in rules its candidates act
-    with, while it compiles their roll-forward), or for a rollout
-    :func:`wfbench.policies.lookahead.ahead.rollout_job` (its futures' roll-forward, while it
-    compiles its belief and base; its first act then waits for the job rather than compile the
-    roll-forward again, :func:`wait_on_miss`); then the simulator's step, where it is not on disk
-    (:func:`run_batch` asks before its reset: this process compiles the reset and the policy's
-    own code first, and steps only after the first action). Returns the futures started.
+    The jobs queue in the order this process needs what they compile:
+
+    - for a rollout, :func:`wfbench.policies.lookahead.ahead.rollout_job` first (its futures'
+      roll-forward, while this process compiles its belief and base), then the step;
+    - for a policy with a ``compile_ahead(has_entries)`` method (the oracles),
+      :func:`wfbench.policies.oracle.ahead.oracle_job`'s two: their every-rule roll-forward's
+      facility-location kernels first (this process compiles that roll-forward meanwhile and
+      reaches them last of the rules), then the step (whose workforce kernel the roll-forward
+      inlines at its end), then the built-in rules their candidates act with (their first live
+      ``act``, after the roll-forward);
+    - the simulator's step alone for any other, where it is not on disk (:func:`run_batch` asks
+      before its reset: this process compiles the reset and the policy's own code first, and
+      steps only after the first action).
+
+    This process waits for what a job compiles rather than compile it again
+    (:func:`wait_on_miss`). Returns the futures started.
     """
-    futures = []
-    hook = getattr(policy, "compile_ahead", None)
-    job = hook(has_entries) if callable(hook) else rollout_job(policy, has_entries)
-    if job is not None:  # first: a rollout's first act reaches its futures' roll-forward before the first step
-        what, fn, args = job
-        futures.append(compile_ahead(what, fn, *args, waits=() if callable(hook) else (roll_range,)))
-    if not has_entries(step_range):
-        futures.append(compile_ahead("the simulator's step", step_once, config, keep_series, waits=(step_range,)))
+    before: list[tuple] = []
+    after: list[tuple] = []
+    if callable(getattr(policy, "compile_ahead", None)):
+        jobs = oracle_job(policy, has_entries)
+        if jobs is not None:
+            before, after = [jobs[0]], [jobs[1]]
+    else:
+        job = rollout_job(policy, has_entries)
+        before = [] if job is None else [job]
+    step = [] if has_entries(step_range) else [("the simulator's step", step_once, (config, keep_series), STEP_WAITS)]
+    futures = [compile_ahead(what, fn, *args, waits=waits) for what, fn, args, waits in before + step + after]
     return [f for f in futures if f is not None]
 
 
