@@ -295,15 +295,20 @@ def test_the_oracle_s_jobs_compile_the_kernels_first_and_its_candidates_rules_la
     assert all(sig in [tuple(s) for s in k.signatures] for k in oracle_ahead.KERNELS)
 
 
-def test_the_oracle_s_jobs_queue_with_the_step_between(monkeypatch):
+def test_the_oracle_s_jobs_queue_with_the_step_between_in_one_line(monkeypatch, capsys):
     queued = []
     monkeypatch.setattr(runner, "has_entries", lambda dispatcher: False)
-    monkeypatch.setattr(runner, "compile_ahead", lambda what, fn, *args, waits=(): queued.append((fn, waits)))
+    monkeypatch.setattr(runner, "compile_ahead",
+                        lambda what, fn, *args, waits=(), announce=True: queued.append((fn, waits)) or object())
     oracle = BestInHindsight(CANDIDATES, _resolve)
     oracle.attach(SHORT)
     runner.start_compile_ahead(oracle, SHORT)
     assert [fn for fn, _ in queued] == [oracle_ahead.compile_kernels, runner.step_once, compile_for_act]
     assert queued[1][1] == runner.STEP_WAITS
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["wfbench: compiling the oracle's facility-location kernels, then the simulator's step, then the "
+                   "built-in rules the oracle's candidates act with in a second process meanwhile (on another core); "
+                   "cached afterwards"]  # one line for the three jobs, in their order
 
 
 def test_the_kernel_signature_is_what_the_candidates_pass():

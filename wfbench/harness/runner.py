@@ -265,7 +265,7 @@ _AHEAD: dict = {"pool": None, "jobs": 0}  # the second process's pool while it h
 _AHEAD_LOCK = threading.Lock()  # also guards the waits of wait_on_miss
 
 
-def compile_ahead(what: str, job: Any, *args: Any, waits: Sequence[Any] = ()) -> Any:
+def compile_ahead(what: str, job: Any, *args: Any, waits: Sequence[Any] = (), announce: bool = True) -> Any:
     """Run ``job(*args)`` in a second process now, to compile into numba's on-disk cache what this one needs later.
 
     A numba compilation runs on one core; where there are two or more, the second process
@@ -299,10 +299,16 @@ def compile_ahead(what: str, job: Any, *args: Any, waits: Sequence[Any] = ()) ->
     future.add_done_callback(lambda _: _ahead_done(pool))
     for dispatcher in waits:
         wait_on_miss(dispatcher, future)
-    # "wfbench: compiling" like the line of jit.NOTICE, which scripts and tests set apart from a run's output
-    print(f"wfbench: compiling {what} in a second process meanwhile (on another core); cached afterwards",
-          file=sys.stderr, flush=True)
+    if announce:
+        announce_ahead([what])
     return future
+
+
+def announce_ahead(whats: Sequence[str]) -> None:
+    """The one line on stderr that says what the second process compiles, in its order."""
+    # "wfbench: compiling" like the line of jit.NOTICE, which scripts and tests set apart from a run's output
+    print(f"wfbench: compiling {', then '.join(whats)} in a second process meanwhile (on another core); "
+          "cached afterwards", file=sys.stderr, flush=True)
 
 
 WAIT_LIMIT_S = 600.0  # the longest this process waits for a second process's job before it compiles for itself
@@ -385,7 +391,8 @@ def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool =
       steps only after the first action).
 
     This process waits for what a job compiles rather than compile it again
-    (:func:`wait_on_miss`). Returns the futures started.
+    (:func:`wait_on_miss`). One line on stderr names what the jobs compile. Returns the futures
+    started.
     """
     before: list[tuple] = []
     after: list[tuple] = []
@@ -397,7 +404,11 @@ def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool =
         job = rollout_job(policy, has_entries)
         before = [] if job is None else [job]
     step = [] if has_entries(step_range) else [("the simulator's step", step_once, (config, keep_series), STEP_WAITS)]
-    futures = [compile_ahead(what, fn, *args, waits=waits) for what, fn, args, waits in before + step + after]
+    jobs = before + step + after
+    futures = [compile_ahead(what, fn, *args, waits=waits, announce=False) for what, fn, args, waits in jobs]
+    started = [what for (what, *_), f in zip(jobs, futures, strict=True) if f is not None]
+    if started:
+        announce_ahead(started)
     return [f for f in futures if f is not None]
 
 
