@@ -397,9 +397,9 @@ def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool =
     before: list[tuple] = []
     after: list[tuple] = []
     if callable(getattr(policy, "compile_ahead", None)):
-        jobs = oracle_job(policy, has_entries)
-        if jobs is not None:
-            before, after = [jobs[0]], [jobs[1]]
+        pair = oracle_job(policy, has_entries)
+        if pair is not None:
+            before, after = [pair[0]], [pair[1]]
     else:
         job = rollout_job(policy, has_entries)
         before = [] if job is None else [job]
