@@ -35,6 +35,7 @@ from wfbench.policies.table import (
     HindsightRolloutOf,
     MPCPreset,
     SearchPreset,
+    SwitchPreset,
     TunedFile,
     TunedLookahead,
     register,
@@ -169,6 +170,10 @@ def _lookahead(name: str) -> Any:
         return playout.make(get(recipe.base), recipe.budget, name=name)
     if isinstance(recipe, SearchPreset):
         return lookahead.make(get(recipe.base), f"search:{recipe.budget}", name=name)
+    if isinstance(recipe, SwitchPreset):
+        from wfbench.policies.lookahead import switch
+
+        return switch.make(recipe.base, recipe.budget, name=name)
     from wfbench.policies.lookahead.rollout import SPARSE_PRESET
 
     if recipe.sparse == "auto":  # the sparse preset on a world as large as city only (issue #53)

@@ -34,7 +34,8 @@ FAMILIES: dict[str, str] = {
     "learned": "trained networks (policies/neural/checkpoints/; loading them needs torch)",
     "rollout": "lookahead: a base rolled out on futures sampled from what it observed",
     "mpc": "lookahead: a rolling-horizon staffing MILP on a forecast, the base dispatching",
-    "search": "lookahead: the network's search on greedy futures, ended at its value or played out",
+    "search": "lookahead: the network's search on greedy futures, ended at its value or played out, or a switch "
+              "among its training seeds",
     "oracle": "hindsight: reads the episode's trace, not deployable (docs/hindsight.md)",
 }
 KINDS: tuple[str, ...] = ("composite", "oracle", "tuned", "learned", "lookahead")  # a recipe's kind (parse_spec's)
@@ -217,8 +218,23 @@ class SearchPreset:
         return f"a lookahead on {self.base}, the {'played-out ' if self.playout else ''}search's {self.budget} preset"
 
 
+@dataclass(frozen=True)
+class SwitchPreset:
+    """A switch among the training seeds of the network ``base`` (its shipped pick first) at a budget preset.
+
+    ``budget``: a preset of :data:`wfbench.policies.lookahead.switch.BUDGETS`.
+    """
+
+    kind: ClassVar[str] = "lookahead"
+    base: str
+    budget: str
+
+    def describe(self) -> str:
+        return f"a lookahead on {self.base}'s training seeds, the switch's {self.budget} preset"
+
+
 Recipe = CompositeOf | TunedFile | Checkpoint | BestOf | HindsightRolloutOf | RolloutPreset | MPCPreset | \
-    TunedLookahead | SearchPreset
+    TunedLookahead | SearchPreset | SwitchPreset
 
 
 # Entry.candidate_of by when a policy was registered: each reference after v1 plays every policy of the one before it
@@ -312,5 +328,5 @@ def closest(name: str, n: int = 3) -> list[str]:
 
 
 __all__ = ["FAMILIES", "KINDS", "NOT_MEASURED", "TABLE", "BestOf", "Budget", "Checkpoint", "CompositeOf", "Entry",
-           "HindsightRolloutOf", "MPCPreset", "Recipe", "RolloutPreset", "SearchPreset", "TunedFile",
+           "HindsightRolloutOf", "MPCPreset", "Recipe", "RolloutPreset", "SearchPreset", "SwitchPreset", "TunedFile",
            "TunedLookahead", "closest", "register"]

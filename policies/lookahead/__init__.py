@@ -28,6 +28,7 @@ from wfbench.policies.table import (
     MPCPreset,
     RolloutPreset,
     SearchPreset,
+    SwitchPreset,
     TunedLookahead,
     register,
 )
@@ -37,7 +38,7 @@ from wfbench.core import lazy
 # name -> the module that defines it: imported when the name is first read
 _LAZY = {"MPC": ".mpc", "NetworkRollout": ".network_rollout", "BUDGETS": ".rollout", "DEFAULT_BUDGET": ".rollout",
          "Rollout": ".rollout", "budget": ".rollout", "knob": ".rollout", "NetworkSearch": ".search",
-         "PlayoutSearch": ".playout"}
+         "PlayoutSearch": ".playout", "SeedSwitch": ".switch"}
 __getattr__, __dir__ = lazy.names(__name__, _LAZY)
 
 
@@ -151,9 +152,20 @@ SEARCHES = (
           listed=False),
 )
 
-# in the order lookahead_names() has always given (the rollouts of issue #43, the city presets, the MPCs, the search)
-PRESETS = (*ROLLOUTS, *MPCS, *SEARCHES)
+# the learned side choosing among its own networks (issue #52; docs/policies.md, "switch-scalefree-general"): the
+# method's training seeds played on the same sampled futures to the episode's end, each environment following the best
+# beyond the noise. Registered after v3's candidates were fixed: no reference plays it
+SWITCHES = (
+    Entry("switch-scalefree-general", "search", SwitchPreset("scalefree-general", "10ms"),
+          "the scale-free network's five training seeds played on the same sampled futures to the episode's end, "
+          "following the best beyond the noise (K=4 futures, once at the start, z=1)",
+          decisions=("PPO (scale-free), seed switched",) * 3, listed=False),
+)
+
+# in the order lookahead_names() has always given (the rollouts of issue #43, the city presets, the MPCs, the search),
+# then the switch
+PRESETS = (*ROLLOUTS, *MPCS, *SEARCHES, *SWITCHES)
 register(*PRESETS)
 
-__all__ = ["BUDGETS", "DEFAULT_BUDGET", "MPC", "MPCS", "PRESETS", "ROLLOUTS", "SEARCHES", "NetworkRollout",
-           "NetworkSearch", "PlayoutSearch", "Rollout", "budget", "knob", "make"]
+__all__ = ["BUDGETS", "DEFAULT_BUDGET", "MPC", "MPCS", "PRESETS", "ROLLOUTS", "SEARCHES", "SWITCHES", "NetworkRollout",
+           "NetworkSearch", "PlayoutSearch", "Rollout", "SeedSwitch", "budget", "knob", "make"]

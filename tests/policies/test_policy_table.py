@@ -28,6 +28,7 @@ from wfbench.policies.table import (
     MPCPreset,
     RolloutPreset,
     SearchPreset,
+    SwitchPreset,
     TunedFile,
     TunedLookahead,
     register,
@@ -50,7 +51,7 @@ LOOKAHEADS = ["rollout-solver-tuned", "rollout-solver-tuned-1ms", "rollout-solve
               "rollout-solver-sparse-tuned-100ms", "mpc-rates", "mpc-ma", "mpc-rates-calibrated", "mpc-ma-calibrated",
               "mpc-rates-backlog", "mpc-ma-backlog", "mpc-rates-tuned-train", "mpc-ma-tuned-train",
               "search-scalefree-general-1ms", "search-scalefree-general", "search-scalefree-general-100ms",
-              "search-scalefree-general-playout"]
+              "search-scalefree-general-playout", "switch-scalefree-general"]
 
 
 def test_the_lists_are_as_they_were_in_their_order():
@@ -121,7 +122,7 @@ def test_bad_entries_are_refused_in_one_line():
 
 def test_every_name_builds_its_recipe_under_its_name():
     from wfbench.policies.composite import Composite
-    from wfbench.policies.lookahead import MPC, NetworkRollout, NetworkSearch, Rollout
+    from wfbench.policies.lookahead import MPC, NetworkRollout, NetworkSearch, Rollout, SeedSwitch
     from wfbench.policies.oracle import BestInHindsight
     from wfbench.policies.oracle.hindsight import HindsightRollout
 
@@ -134,7 +135,7 @@ def test_every_name_builds_its_recipe_under_its_name():
         p = policies.get(e.name)
         assert p.name == e.name, e.name
         expected = {CompositeOf: Composite, BestOf: BestInHindsight, MPCPreset: MPC, SearchPreset: NetworkSearch,
-                    TunedLookahead: MPC}.get(type(e.recipe))
+                    TunedLookahead: MPC, SwitchPreset: SeedSwitch}.get(type(e.recipe))
         if isinstance(e.recipe, RolloutPreset):
             expected = NetworkRollout if TABLE[e.recipe.base].kind == "learned" else Rollout
             assert expected is NetworkRollout or p.sparse_knob == e.recipe.sparse, e.name

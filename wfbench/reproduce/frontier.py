@@ -70,7 +70,7 @@ def default_policies() -> list[str]:
 
 def family(policy: str) -> str:
     """The line a policy is joined on: rollout, mpc, search (the network's own), or the suite's family."""
-    if policy.startswith("search-"):  # issue #52: the learned side's lookahead
+    if policy.startswith(("search-", "switch-")):  # issue #52: the learned side's lookaheads
         return "search"
     if policy.startswith("rollout-"):
         return "rollout"
