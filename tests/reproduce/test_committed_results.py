@@ -113,7 +113,9 @@ def test_code_hash_of_a_checkout_equals_the_hash_from_git(tmp_path):
 
 
 @pytest.mark.slow
-def test_verify_command_names_a_differing_piece(tmp_path):
+@pytest.mark.parametrize("bar", [["--no-progress"], []], ids=["quiet", "progress-bar"])
+def test_verify_command_names_a_differing_piece(tmp_path, bar):
+    """With and without its progress bar (verify's size is not known ahead: the bar once failed on that)."""
     src = RUN / "cache" / "random" / "small-v1"
     dst = tmp_path / "cache" / "random"
     dst.mkdir(parents=True)
@@ -122,7 +124,7 @@ def test_verify_command_names_a_differing_piece(tmp_path):
     df.to_csv(dst / "small-v1.csv", index=False)
     (dst / "small-v1.json").write_text(src.with_suffix(".json").read_text())
     r = subprocess.run([sys.executable, "-m", "wfbench.cli", "reproduce", "verify", "--out", str(tmp_path),
-                        "--scenarios", "small-v1", "--no-progress"], capture_output=True, text=True, cwd=ROOT)
+                        "--scenarios", "small-v1", *bar], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 1, r.stderr
     assert "small-v1" in r.stdout and "random" in r.stdout and "workforce_cost seed 0" in r.stdout
     assert "1 differ from the committed results" in r.stdout

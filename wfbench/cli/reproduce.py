@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
                    leave=False)
 
     def step(name: str) -> None:
-        if bar:
+        if bar is not None:
             bar.set_postfix_str(name)
             bar.update(1)
 
@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
                                                         None if args.target == "frontier" else 50)
         result = reproduce(args.target, out, runs=runs, execution=execution, progress=step, **kwargs)
     finally:
-        if bar:
+        if bar is not None:
             bar.close()
     print(result.text)
     if kwargs.get("plan_only"):
