@@ -170,10 +170,12 @@ def _lookahead(name: str) -> Any:
         return playout.make(get(recipe.base), recipe.budget, name=name)
     if isinstance(recipe, SearchPreset):
         return lookahead.make(get(recipe.base), f"search:{recipe.budget}", name=name)
-    if isinstance(recipe, SwitchPreset):
+    if isinstance(recipe, SwitchPreset):  # the shipped pick first, then the method's other training seeds
         from wfbench.policies.lookahead import switch
 
-        return switch.make(recipe.base, recipe.budget, name=name)
+        pick = shipped_member(recipe.base)
+        members = [get(recipe.base)] + [get(s) for s in seed_members(recipe.base) if s != pick]
+        return switch.SeedSwitch(members, budget=recipe.budget, name=name)
     from wfbench.policies.lookahead.rollout import SPARSE_PRESET
 
     if recipe.sparse == "auto":  # the sparse preset on a world as large as city only (issue #53)
@@ -332,9 +334,9 @@ def input_files(policy: str) -> list[Path]:
     """The files besides code whose bytes decide ``policy``'s episodes: none for a composite of built-ins.
 
     Its checkpoint or tuned file; a lookahead's base's too (a tuned MPC: its own and its base's
-    base's); a best-in-hindsight oracle's candidates'. What a suite piece records as its
-    ``inputs`` (``wfbench.reproduce.provenance``) and what the replaying oracle checks a piece
-    against (:mod:`wfbench.policies.oracle.pieces`).
+    base's; a switch: its base's training seeds' as well); a best-in-hindsight oracle's
+    candidates'. What a suite piece records as its ``inputs`` (``wfbench.reproduce.provenance``)
+    and what the replaying oracle checks a piece against (:mod:`wfbench.policies.oracle.pieces`).
     """
     from wfbench.policies.oracle import references
 
@@ -351,6 +353,8 @@ def input_files(policy: str) -> list[Path]:
             files.append(parsed.file)
         if parsed.kind == "lookahead":
             specs.append(lookahead_base(spec))
+            if isinstance(entry(spec).recipe, SwitchPreset):  # every training seed of its base plays too
+                specs += seed_members(lookahead_base(spec))
     return files
 
 

@@ -218,13 +218,4 @@ class SeedSwitch:
                 self.timing["switches"] += 1
 
 
-def make(method: str, budget_name: str = DEFAULT_BUDGET, name: str | None = None, **knobs: Any) -> SeedSwitch:
-    """A :class:`SeedSwitch` over the shipped pick of ``method`` and its other training seeds, at a budget preset."""
-    from wfbench.policies.registry import get, seed_members, shipped_member
-
-    pick = shipped_member(method)
-    members = [get(method)] + [get(s) for s in seed_members(method) if s != pick]
-    return SeedSwitch(members, budget=budget_name, name=name or f"switch-{method}", **knobs)
-
-
-__all__ = ["BUDGETS", "DEFAULT_BUDGET", "FUTURES", "KNOBS", "SeedSwitch", "budget", "knob", "make"]
+__all__ = ["BUDGETS", "DEFAULT_BUDGET", "FUTURES", "KNOBS", "SeedSwitch", "budget", "knob"]

@@ -6,10 +6,11 @@ every registered lookahead). Public seeds only (1000-1049): nothing is selected 
 
 import numpy as np
 import pytest
-from wfbench.policies.lookahead.switch import BUDGETS, SeedSwitch, make
+from wfbench.policies.lookahead.switch import BUDGETS, SeedSwitch
 from wfbench.policies.registry import lookahead_base, lookahead_names, parse_spec, seed_members
 
 from wfbench import ScenarioConfig, Simulator, policies
+from wfbench.reproduce import provenance
 
 SMALL = ScenarioConfig.preset("small").replace(horizon=60)
 
@@ -113,7 +114,9 @@ def test_the_registry_builds_it_from_the_shipped_pick_and_the_other_seeds():
     shipped = policies.get("scalefree-general").model.state_dict()
     for m in pol.members[1:]:  # the shipped pick is not in twice
         assert any(not np.array_equal(v.numpy(), m.model.state_dict()[k].numpy()) for k, v in shipped.items())
-    assert make("scalefree-general").settings() == pol.settings()
+    net = "policies/neural/checkpoints/scalefree-general"
+    assert list(provenance.policy_inputs("switch-scalefree-general")) == [
+        *(f"{net}-seed{k}.pt" for k in range(5)), f"{net}.pt"]  # every member's file decides its episodes
 
 
 @pytest.mark.slow
