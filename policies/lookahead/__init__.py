@@ -160,6 +160,10 @@ SWITCHES = (
           "the scale-free network's five training seeds played on the same sampled futures to the episode's end, "
           "following the best beyond the noise (K=4 futures, once at the start, z=1)",
           decisions=("PPO (scale-free), seed switched",) * 3, listed=False),
+    Entry("switch-scalefree-general-5ms", "search", SwitchPreset("scalefree-general", "5ms"),
+          "the scale-free network's five training seeds played on the same sampled futures to the episode's end, "
+          "following the best beyond the noise, the 5 ms budget (K=2 futures, once at the start, z=1)",
+          decisions=("PPO (scale-free), seed switched",) * 3, listed=False),
 )
 
 # in the order lookahead_names() has always given (the rollouts of issue #43, the city presets, the MPCs, the search),

@@ -95,7 +95,8 @@ def test_references__v3_adds_every_deployable_policy_v2_does_not_play():
     # every registered deployable policy, lookaheads included, is a candidate, save those registered after v3 was made
     registered = [n for n in [*registry.deployable_names(), *registry.lookahead_names()]]
     assert [n for n in registered if n not in references.V3] == ["search-scalefree-general-playout",
-                                                                  "switch-scalefree-general"]
+                                                                  "switch-scalefree-general",
+                                                                  "switch-scalefree-general-5ms"]
     # every training seed of every method trained over seeds, except the seed its shipped pick is a copy of
     seeds = {m for method in registry.seed_runs() for m in registry.seed_members(method)}
     picks = {registry.shipped_member(method) for method in registry.seed_runs()}

@@ -51,7 +51,8 @@ LOOKAHEADS = ["rollout-solver-tuned", "rollout-solver-tuned-1ms", "rollout-solve
               "rollout-solver-sparse-tuned-100ms", "mpc-rates", "mpc-ma", "mpc-rates-calibrated", "mpc-ma-calibrated",
               "mpc-rates-backlog", "mpc-ma-backlog", "mpc-rates-tuned-train", "mpc-ma-tuned-train",
               "search-scalefree-general-1ms", "search-scalefree-general", "search-scalefree-general-100ms",
-              "search-scalefree-general-playout", "switch-scalefree-general"]
+              "search-scalefree-general-playout", "switch-scalefree-general",
+              "switch-scalefree-general-5ms"]
 
 
 def test_the_lists_are_as_they_were_in_their_order():

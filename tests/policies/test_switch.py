@@ -45,7 +45,7 @@ def test_bad_knobs_futures_and_members_are_refused_in_one_line():
              ({"z": 0}, r"^switch knob z = 0 is not allowed; allowed: a number > 0"),
              ({"z": -1.0}, r"^switch knob z = -1.0 is not allowed; allowed: a number > 0"),
              ({"z": float("nan")}, r"^switch knob z = nan is not allowed; allowed: a number > 0"),
-             ({"budget": "1s"}, r"^switch budget '1s' is not allowed; allowed: 10ms$"),
+             ({"budget": "1s"}, r"^switch budget '1s' is not allowed; allowed: 5ms, 10ms$"),
              ({"futures": "mean"}, r"^switch futures 'mean' is not allowed; allowed: greedy, sample ")]
     for knobs, message in cases:
         with pytest.raises(ValueError, match=message):
@@ -117,6 +117,9 @@ def test_the_registry_builds_it_from_the_shipped_pick_and_the_other_seeds():
     net = "policies/neural/checkpoints/scalefree-general"
     assert list(provenance.policy_inputs("switch-scalefree-general")) == [
         *(f"{net}-seed{k}.pt" for k in range(5)), f"{net}.pt"]  # every member's file decides its episodes
+    cheap = policies.get("switch-scalefree-general-5ms")  # the 5 ms preset: half the futures, the same members
+    assert (cheap.K, cheap.R, cheap.z) == BUDGETS["5ms"] and cheap.K < pol.K and cheap.name.endswith("-5ms")
+    assert [m.name for m in cheap.members] == names
 
 
 @pytest.mark.slow
