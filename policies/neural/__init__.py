@@ -65,4 +65,12 @@ register(
           "(search-scalefree-general) across the training scenarios; the median of 5 training seeds",
           decisions=("PPO (scale-free)", "search distilled (scale-free)", "search distilled (scale-free)"),
           candidate_of=SINCE_V3),
+    # issue #52: scalefree-general trained to imitate switch-scalefree-general (its five training seeds chosen on
+    # sampled futures) on the network's own states, all three heads (docs/rl.md "Distilling the switch"); shipped
+    # after v3's candidates were fixed: no reference plays it
+    Entry("distill-switch-general", "learned",
+          Checkpoint("distill-switch-general.pt", seeds=tuple(f"distill-switch-general-seed{i}.pt" for i in range(5))),
+          "scalefree-general distilled from the switch among its training seeds (switch-scalefree-general) across "
+          "the training scenarios, all three heads; the median of 5 training seeds",
+          decisions=("switch distilled (scale-free)",) * 3),
 )

@@ -37,7 +37,8 @@ def test_oracles_are_registered_and_marked_as_reading_the_trace():
     assert isinstance(best, BestInHindsight) and best.reads_trace
     # its candidates: every deployable registered policy (none reads the trace) and the planner, except those added
     # after its numbers were published (a fixed set, so that a new policy does not move them)
-    later = {"heuristic-tuned-train", "solver-tuned-train", "scalefree-general", "solver-sparse", "distill-general"}
+    later = {"heuristic-tuned-train", "solver-tuned-train", "scalefree-general", "solver-sparse", "distill-general",
+             "distill-switch-general"}
     assert set(best.candidates) == {*registry.deployable_names(), "oracle-planner"} - later
     assert not any(getattr(policies.get(n), "reads_trace", False) for n in registry.deployable_names())
     assert set(registry.learned_names()) - later <= set(best.candidates)

@@ -45,7 +45,8 @@ NAMES = ["random", "heuristic", "heuristic-stochastic", "random-dispatch", "rand
          "solver", "solver-dispatch", "solver-workforce", "solver-positioning", "oracle-planner", "oracle-dispatch",
          "solver-sparse", "oracle", "oracle-v2", "oracle-v3", "oracle-rollout", "heuristic-tuned", "solver-tuned",
          "heuristic-tuned-train", "solver-tuned-train", "ppo-joint", "ppo-dispatch", "impala-joint", "hindsight-joint",
-         "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general", "scalefree-general", "distill-general"]
+         "ppo-independent", "hindsight-ppo", "ppo-general", "hindsight-general", "scalefree-general", "distill-general",
+         "distill-switch-general"]
 LOOKAHEADS = ["rollout-solver-tuned", "rollout-solver-tuned-1ms", "rollout-solver-tuned-100ms",
               "rollout-scalefree-general", "rollout-solver-sparse-tuned", "rollout-solver-sparse-tuned-1ms",
               "rollout-solver-sparse-tuned-100ms", "mpc-rates", "mpc-ma", "mpc-rates-calibrated", "mpc-ma-calibrated",
@@ -65,7 +66,7 @@ def test_the_lists_are_as_they_were_in_their_order():
                                             "oracle-rollout")]
     assert registry.seed_runs() == {m: tuple(f"{m}-seed{i}.pt" for i in range(5))
                                     for m in ("ppo-general", "hindsight-general", "scalefree-general",
-                                              "distill-general")}
+                                              "distill-general", "distill-switch-general")}
 
 
 def test_each_entry_is_typed_and_its_kind_is_what_parse_spec_reads():
