@@ -10,13 +10,17 @@ checkpoint in one process and the other way round): equal again.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
 import pytest
 import torch
 
+from wfbench.cli import build_parser
 from wfbench.cli import main as cli_main
+from wfbench.cli.train import two_processes_likely
+from wfbench.train import standby
 from wfbench.train.ppo import TrainConfig, Trainer
 
 # what two runs of the same bits may differ in: when, how long and how (their processes) they ran
@@ -95,6 +99,35 @@ def test_procs__the_second_process_ends_at_once_when_let_go(tmp_path):
              "print('written', end=' '); shards._leave(); print('never')")
     done = subprocess.run([sys.executable, "-c", leave], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.split() == ["written", "handler", "ran"]
+
+
+def test_procs__a_standby_started_ahead_is_the_second_process_or_let_go(tmp_path):
+    # wfbench train starts the second process ahead when it guesses two (its imports overlap the first's)
+    standby.start("wfbench.train.ppo")
+    ahead = standby._standby
+    tr = Trainer(_cfg(tmp_path / "two", 2, 1), progress=False, log=False)
+    assert tr.worker.proc is ahead and standby._standby is None
+    tr.close()
+    assert ahead.returncode == 0
+    # a run of one process lets it go: it ends on its own, unused
+    standby.start("wfbench.train.ppo")
+    ahead = standby._standby
+    Trainer(_cfg(tmp_path / "one", 1, 1), progress=False, log=False)
+    assert standby._standby is None and ahead.wait(timeout=120) == 0
+
+
+@pytest.mark.parametrize(("flags", "likely"), [
+    (["--scenarios", "suite-v1:train"], True),  # the default across worlds: 128 environments, 2 processes
+    (["--num-envs", "64"], True),
+    ([], False),  # one world's default 32: one shard
+    (["--scenarios", "suite-v1:train", "--procs", "1"], False),
+    (["--scenarios", "suite-v1:train", "--device", "cuda"], False),
+    (["--scenarios", "suite-v1:train", "--algo", "impala"], False),
+    (["--scenarios", "suite-v1:train", "--num-envs", "32"], False),
+])
+def test_procs__wfbench_train_guesses_two_processes_from_its_flags(flags, likely):
+    args = build_parser().parse_args(["train", *flags])
+    assert two_processes_likely(args) is (likely and len(os.sched_getaffinity(0)) >= 2)
 
 
 def test_procs__the_batchs_shards_by_default(tmp_path):

@@ -29,7 +29,7 @@ import torch
 from wfbench import policies
 from wfbench.policies.neural import scalefree
 from wfbench.policies.neural.model import agent_set_config
-from wfbench.train import memory
+from wfbench.train import memory, standby
 from wfbench.train.checkpoints import init_weights, load_run, run_checkpoint, save_run
 from wfbench.train.collection import Collector
 from wfbench.train.config import ActorCriticConfig, build_model, check_ints, check_numbers, network_config
@@ -168,6 +168,8 @@ class Trainer:
             port = group.listen()
             self.worker = Worker("wfbench.train.ppo:serve_shard", c, resume, amp, update_envs, port)
             self._close = weakref.finalize(self, _shut, self.worker, group)
+        else:  # one process: a standby started ahead for a second (wfbench train's guess) is not needed
+            standby.release()
         self.decisions = VARIANTS[c.variant]
         independent = c.agents == "independent"
         self.model = build_model(run.network, independent).to(run.device)

@@ -34,6 +34,8 @@ from multiprocessing.connection import Client, Connection, Listener
 import torch
 import torch.distributed as dist
 
+from wfbench.train import standby
+
 HOST = "127.0.0.1"
 TIMEOUT = datetime.timedelta(minutes=10)  # a collective waits at most this long for the other process
 LOOPBACK = "lo0" if sys.platform == "darwin" else "lo"  # gloo's interface: the machine itself, nothing else
@@ -120,8 +122,9 @@ class Worker:
 
     def __init__(self, target: str, *args):
         key = secrets.token_bytes(32)
-        self.proc = subprocess.Popen([sys.executable, "-m", "wfbench.train.shards"], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, text=True)
+        # the standby that wfbench train started ahead (its imports done meanwhile), else a new process
+        self.proc = standby.take() or subprocess.Popen([sys.executable, "-m", "wfbench.train.shards"],
+                                                       stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.proc.stdin.write(key.hex() + "\n")
         self.proc.stdin.close()
         port = self.proc.stdout.readline().strip()
@@ -171,9 +174,18 @@ def receive(conn: Connection):
     return pickle.loads(conn.recv_bytes())
 
 
-def _serve() -> None:
-    """The worker's side of :class:`Worker`: listen, say the port, run the target the first message names."""
-    key = bytes.fromhex(sys.stdin.readline().strip())
+def _serve(argv: list[str]) -> None:
+    """The worker's side of :class:`Worker`: listen, say the port, run the target the first message names.
+
+    ``--preload MODULE`` (a standby, :mod:`wfbench.train.standby`): import it first, then wait
+    for the key; an empty stdin (the standby let go) ends the process.
+    """
+    if argv[:1] == ["--preload"]:
+        importlib.import_module(argv[1])
+    line = sys.stdin.readline().strip()
+    if not line:
+        return
+    key = bytes.fromhex(line)
     with Listener((HOST, 0), authkey=key) as listener:
         print(listener.address[1], flush=True)
         sys.stdout = sys.stderr  # nobody reads the pipe after the port
@@ -198,5 +210,5 @@ def _leave() -> None:
 
 
 if __name__ == "__main__":
-    _serve()
+    _serve(sys.argv[1:])
     _leave()
