@@ -10,11 +10,17 @@ checkpoint in one process and the other way round): equal again.
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import pytest
 import torch
 
+from wfbench.cli import build_parser
 from wfbench.cli import main as cli_main
+from wfbench.cli.train import two_processes_likely
+from wfbench.train import standby
 from wfbench.train.ppo import TrainConfig, Trainer
 
 # what two runs of the same bits may differ in: when, how long and how (their processes) they ran
@@ -80,6 +86,48 @@ def test_procs__one_and_two_processes_train_the_same_bits_and_resume_crosswise(t
     _train(tmp_path / "one-then-two", 2, 3, resume=tmp_path / "one" / "latest.pt")
     _train(tmp_path / "two-then-one", 1, 3, resume=tmp_path / "two" / "latest.pt")
     _assert_same(tmp_path / "one-then-two" / "latest.pt", tmp_path / "two-then-one" / "latest.pt")
+
+
+def test_procs__the_second_process_ends_at_once_when_let_go(tmp_path):
+    # close() waits for the worker; it skips the interpreter's finalization (1.7 s of the 2-core VM) after its
+    # exit handlers, with status 0
+    tr = Trainer(_cfg(tmp_path, 2, 1), progress=False, log=False)
+    worker = tr.worker
+    tr.close()
+    assert tr.worker is None and worker.proc.returncode == 0
+    leave = ("import atexit; from wfbench.train import shards; atexit.register(print, 'handler ran'); "
+             "print('written', end=' '); shards._leave(); print('never')")
+    done = subprocess.run([sys.executable, "-c", leave], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.split() == ["written", "handler", "ran"]
+
+
+def test_procs__a_standby_started_ahead_is_the_second_process_or_let_go(tmp_path):
+    # wfbench train starts the second process ahead when it guesses two (its imports overlap the first's)
+    standby.start("wfbench.train.ppo")
+    ahead = standby._standby
+    tr = Trainer(_cfg(tmp_path / "two", 2, 1), progress=False, log=False)
+    assert tr.worker.proc is ahead and standby._standby is None
+    tr.close()
+    assert ahead.returncode == 0
+    # a run of one process lets it go: it ends on its own, unused
+    standby.start("wfbench.train.ppo")
+    ahead = standby._standby
+    Trainer(_cfg(tmp_path / "one", 1, 1), progress=False, log=False)
+    assert standby._standby is None and ahead.wait(timeout=120) == 0
+
+
+@pytest.mark.parametrize(("flags", "likely"), [
+    (["--scenarios", "suite-v1:train"], True),  # the default across worlds: 128 environments, 2 processes
+    (["--num-envs", "64"], True),
+    ([], False),  # one world's default 32: one shard
+    (["--scenarios", "suite-v1:train", "--procs", "1"], False),
+    (["--scenarios", "suite-v1:train", "--device", "cuda"], False),
+    (["--scenarios", "suite-v1:train", "--algo", "impala"], False),
+    (["--scenarios", "suite-v1:train", "--num-envs", "32"], False),
+])
+def test_procs__wfbench_train_guesses_two_processes_from_its_flags(flags, likely):
+    args = build_parser().parse_args(["train", *flags])
+    assert two_processes_likely(args) is (likely and len(os.sched_getaffinity(0)) >= 2)
 
 
 def test_procs__the_batchs_shards_by_default(tmp_path):

@@ -8,6 +8,7 @@ when the command runs.
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from wfbench.cli.common import UsageError, nonneg, positive, seeds_spec
@@ -114,7 +115,30 @@ def default_num_envs(config_cls: type, given: dict) -> int | None:
     return per_world * len(world_set(given["scenarios"]).worlds)
 
 
+def two_processes_likely(args: argparse.Namespace) -> bool:
+    """Whether the run will likely train in two processes: PPO across worlds or of 64 environments or more, on CPU.
+
+    Then its second process starts ahead and imports meanwhile (:mod:`wfbench.train.standby`);
+    a guess that the settings then prove wrong costs a process that ends unused.
+    """
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return (not args.resume and (args.algo or DEFAULT_ALGORITHM) == "ppo" and args.procs in (None, 0, 2)
+            and args.device in (None, "auto", "cpu") and cores >= 2
+            and (bool(args.scenarios) if args.num_envs is None else args.num_envs >= 64))
+
+
 def run(args: argparse.Namespace) -> int:
+    from wfbench.train import standby
+
+    if two_processes_likely(args):  # before torch's import, which it overlaps
+        standby.start("wfbench.train.ppo")
+    try:
+        return _run(args)
+    finally:
+        standby.release()
+
+
+def _run(args: argparse.Namespace) -> int:
     from wfbench.cli.settings import train_settings
 
     try:  # torch is needed here only: the rest of the command line works without it

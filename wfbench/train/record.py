@@ -20,6 +20,7 @@ from wfbench.core.config import ScenarioConfig
 from wfbench.harness.budget import training_hardware
 from wfbench.policies.neural.model import count_parameters
 from wfbench.train.config import BaseConfig
+from wfbench.train.memory import keep_freed_memory
 from wfbench.train.precision import amp_dtype
 from wfbench.train.worlds import WorldSet
 
@@ -67,6 +68,9 @@ class Run:
 def start_run(config: BaseConfig, progress: bool, log: bool, amp: str | torch.dtype | None = "auto") -> Run:
     """Check ``config``, set torch's threads and seed; the :class:`Run` record of a fresh run on it.
 
+    On CPU, the process keeps freed memory for reuse (:func:`wfbench.train.memory.keep_freed_memory`:
+    the speed of an update, not its bits).
+
     ``amp``: the autocast dtype of the run's forward passes (:func:`amp_dtype`; ``"auto"``:
     bfloat16 on CUDA with ``config.bf16``, float32 on CPU).
     """
@@ -76,6 +80,8 @@ def start_run(config: BaseConfig, progress: bool, log: bool, amp: str | torch.dt
     device = torch_device(config.device)
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
+    if device.type == "cpu":
+        keep_freed_memory()
     return Run(config=config, device=device, scenario=scenario, network=config.network_config(),
                dir=Path(config.run_dir), progress=progress, log=log, commit=git_commit(),
                hardware=training_hardware(device), amp=amp_dtype(device, config.bf16, amp))
