@@ -175,7 +175,13 @@ def _alive(pid: int) -> bool:
 
 
 def _state(state: Path, out: Path, job: tuple[str, str, int, int]) -> str:
-    """done, running, failed or todo; a claim whose process is gone is judged by the piece."""
+    """done, running, failed or todo; a claim whose process is gone is judged by the piece.
+
+    A job whose process exited with an error is failed and stays so (``--state``'s ``.failed``
+    file: remove it to play the job again). A claim whose process is gone without a word (the
+    machine stopped under it) is done when the piece holds the job's seeds, else the job is to
+    play again: the claim is removed.
+    """
     base = state / name(job)
     if base.with_suffix(".done").exists() or covered(out, job) and not base.with_suffix(".running").exists():
         return "done"
@@ -186,7 +192,10 @@ def _state(state: Path, out: Path, job: tuple[str, str, int, int]) -> str:
         words = run.read_text().split()
         if len(words) < 2 or _alive(int(words[1])):
             return "running"
-        run.rename(base.with_suffix(".done" if covered(out, job) else ".failed"))
+        if covered(out, job):
+            run.rename(base.with_suffix(".done"))
+        else:
+            run.unlink(missing_ok=True)
         return _state(state, out, job)
     return "todo"
 

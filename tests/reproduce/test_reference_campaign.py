@@ -160,3 +160,22 @@ def test_reference_gap_reads_a_training_seed_candidate_as_its_method(monkeypatch
     assert "candidate seeds above oracle-v3: 0;" in out and "oracle-v3 seeds above the bound: 0;" in out
     assert "v3 above v2 on 1 (seed 1: scalefree-general#seed1)" in out
     assert "above v3's mean: search-scalefree-general-playout (0.8000)" in out
+
+
+def test_a_claim_whose_process_is_gone_is_played_again_unless_its_piece_holds_the_seeds(campaign, tmp_path):
+    # a machine that stops under a worker leaves its claims behind: such a job is not failed, it is to play again
+    state, out = tmp_path / "state", tmp_path / "run"
+    state.mkdir()
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    lost, finished, broken = (("novice-64-v1", "mpc-ma", 0, 1), ("novice-64-v1", "mpc-rates", 0, 1),
+                              ("novice-64-v1", "solver", 0, 1))
+    for job in (lost, finished):
+        (state / f"{campaign.name(job)}.running").write_text(f"w0 {gone.pid}")
+    _piece(out, "mpc-rates", "novice-64-v1", [None, None])
+    (state / f"{campaign.name(broken)}.failed").write_text("w1")
+    assert campaign._state(state, out, lost) == "todo"
+    assert not (state / f"{campaign.name(lost)}.running").exists()
+    assert campaign._state(state, out, finished) == "done"
+    assert (state / f"{campaign.name(finished)}.done").exists()
+    assert campaign._state(state, out, broken) == "failed"
