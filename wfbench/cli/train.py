@@ -8,7 +8,6 @@ when the command runs.
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 from wfbench.cli.common import UsageError, nonneg, positive, seeds_spec
@@ -121,10 +120,11 @@ def two_processes_likely(args: argparse.Namespace) -> bool:
     Then its second process starts ahead and imports meanwhile (:mod:`wfbench.train.standby`);
     a guess that the settings then prove wrong costs a process that ends unused.
     """
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    from wfbench.train.standby import AUTO_SHARD_ENVS, usable_cores
+
     return (not args.resume and (args.algo or DEFAULT_ALGORITHM) == "ppo" and args.procs in (None, 0, 2)
-            and args.device in (None, "auto", "cpu") and cores >= 2
-            and (bool(args.scenarios) if args.num_envs is None else args.num_envs >= 64))
+            and args.device in (None, "auto", "cpu") and usable_cores() >= 2
+            and (bool(args.scenarios) if args.num_envs is None else args.num_envs >= AUTO_SHARD_ENVS))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -37,7 +37,8 @@ from wfbench.train.outputs import RunOutputs
 from wfbench.train.precision import autocast
 from wfbench.train.record import start_run, write_run_config
 from wfbench.train.scoring import deployable, score_public
-from wfbench.train.shards import ShardGroup, Worker, receive, send, usable_cores
+from wfbench.train.shards import ShardGroup, Worker, receive, send
+from wfbench.train.standby import AUTO_SHARD_ENVS, usable_cores
 from wfbench.train.worlds import world_set
 
 AGENTS = ("joint", "independent")
@@ -48,7 +49,6 @@ VARIANTS = {
 REWARDS = {"joint": "nsw", "dispatch": "nsw-no-cost"}  # the variant's reward (wfbench.core.reward)
 STATS = ("pg_loss", "v_loss", "entropy", "approx_kl", "clipfrac", "ent_dispatch", "ent_workforce", "ent_positioning")
 HEADS = ("dispatch", "workforce", "positioning")
-AUTO_SHARD_ENVS = 64  # shards = 0 (auto): 2 from this batch on; below, two processes gain nothing (performance.md)
 
 
 @dataclass

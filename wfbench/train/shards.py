@@ -41,11 +41,6 @@ TIMEOUT = datetime.timedelta(minutes=10)  # a collective waits at most this long
 LOOPBACK = "lo0" if sys.platform == "darwin" else "lo"  # gloo's interface: the machine itself, nothing else
 
 
-def usable_cores() -> int:
-    """The CPU cores this process may run on."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-
-
 class ShardGroup:
     """The shards of a run's batch and the processes computing them: ``procs`` 1 (all here) or one per shard.
 

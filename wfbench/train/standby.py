@@ -13,10 +13,20 @@ sends when it :func:`take` s it. A standby that no trainer takes is let go by :f
 from __future__ import annotations
 
 import atexit
+import os
 import subprocess
 import sys
 
+# shards = 0 (auto): 2 from this batch on; below, two processes gain nothing (docs/performance.md). Here, with no
+# torch import, so that wfbench train's guess reads the same number as the trainer
+AUTO_SHARD_ENVS = 64
+
 _standby: subprocess.Popen | None = None
+
+
+def usable_cores() -> int:
+    """The CPU cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def start(preload: str) -> None:
