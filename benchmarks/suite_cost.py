@@ -7,8 +7,8 @@ empty output folder: each piece's CPU seconds per episode as its committed piece
 (``cpu_s``, the committed runs of ``docs/results``), times the seeds. It plays nothing. The CPU
 seconds of a piece are those of the machine and load it was played under (the 2-core VM, mostly
 beside other jobs), so the total is an estimate, not a measurement of one run.
-``--no-lookaheads`` leaves out the policies whose recipe is a lookahead (rollouts, MPCs, the
-network's search and switch); ``--no-members`` the learned methods' training seeds (``NAME#seedK``).
+``--no-lookaheads`` leaves out the suite's lookaheads (``wfbench.reproduce.suite.LOOKAHEADS``: the
+rollouts, the MPC and the network's search); ``--no-members`` the learned methods' training seeds (``NAME#seedK``).
 Numbers go to docs/performance.md.
 """
 
@@ -19,15 +19,9 @@ import collections
 import tempfile
 from pathlib import Path
 
-from wfbench.policies.registry import entry
-
 from wfbench.core.seeds import resolve_seeds
 from wfbench.reproduce import pieces, suite
 from wfbench.scenarios import get_suite
-
-
-def is_lookahead(name: str) -> bool:
-    return getattr(entry(name).recipe, "kind", None) == "lookahead"
 
 
 def main() -> None:
@@ -40,7 +34,7 @@ def main() -> None:
     a = ap.parse_args()
 
     s = get_suite("suite-v1")
-    names = [n for n in suite.default_policies() if not (a.no_lookaheads and is_lookahead(n))]
+    names = [n for n in suite.default_policies() if not (a.no_lookaheads and n in suite.LOOKAHEADS)]
     names, _ = suite.with_members(names, not a.no_members)
     with tempfile.TemporaryDirectory() as empty:
         todo = pieces.plan([Path(empty)], [*names, "bound"], s.scenarios, resolve_seeds(a.seeds),
