@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 from wfbench.policies import kernels as K
+from wfbench.policies.lookahead import knobs
 from wfbench.policies.protocol import as_obs, seeds_array
 from wfbench.policies.tunable import Param
 from wfbench.solvers.staffing_mpc import StaffingInstance, plan_staffing
@@ -69,12 +70,7 @@ BACKLOG_TUNABLE: dict[str, Param] = {"backlog_weight": Param(0.1, 100.0, "float"
 
 def knob(name: str, value: Any) -> int:
     """``value`` as an MPC knob's integer >= 1; ValueError of one line naming the knob otherwise."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    if ok and isinstance(value, (float, np.floating)):
-        ok = math.isfinite(value) and float(value).is_integer()
-    if not ok or int(value) < 1:
-        raise ValueError(f"mpc knob {name} = {value!r} is not allowed; allowed: an integer >= 1 ({KNOBS[name]})")
-    return int(value)
+    return knobs.whole("mpc", name, value, KNOBS[name])
 
 
 class MPC:

@@ -24,11 +24,11 @@ from wfbench.policies.lookahead.rollout import (
     check_decide,
     pick_best,
     plays_sparse,
+    start_belief,
 )
 from wfbench.policies.protocol import seeds_array
 
 from wfbench.core.actions import AGENTS
-from wfbench.core.belief import Belief, config_from_observation
 from wfbench.core.config import ScenarioConfig
 
 PURPOSE_NOISE = 0x4E52  # the copy's sampling noise: a purpose of its own beside the belief's keys
@@ -78,12 +78,7 @@ class NetworkRollout(RolloutBase):
     def _start(self, obs: dict[str, np.ndarray]) -> None:
         from wfbench.policies.neural.policy import NetworkPolicy
 
-        config = self.config or config_from_observation(obs)
-        B = obs["facilities"].shape[0]
-        if len(self._seeds) != B:
-            raise RuntimeError(f"{self.name}: reset with {len(self._seeds)} seed(s), observed {B} environment(s)")
-        self.belief = Belief(config)
-        self.belief.reset(self._seeds, self.seed)
+        config, B = start_belief(self, obs)
         self.horizon = config.horizon
         self.forks: dict[int, Any] = {}  # rows -> a fork of that many rows, allocated once
         b = self.base

@@ -12,7 +12,6 @@ spatial positioning (:func:`spatial_twin`); ``sparse="auto"`` plays them only on
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -22,6 +21,7 @@ from wfbench.policies import kernels as K
 from wfbench.policies.builtin import BuiltinDecision
 from wfbench.policies.composite import Composite
 from wfbench.policies.kernels.forward import RollBuffers, roll_candidates
+from wfbench.policies.lookahead import knobs
 from wfbench.policies.protocol import as_obs, seeds_array
 from wfbench.policies.rules import CODES
 
@@ -56,13 +56,7 @@ AUTO_SPARSE_PAIRS = 250_000
 
 def knob(name: str, value: Any) -> int:
     """``value`` as a knob's integer >= 1; ValueError of one line naming the knob otherwise."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    if ok and isinstance(value, (float, np.floating)):
-        ok = math.isfinite(value) and float(value).is_integer()
-    if not ok or int(value) < 1:
-        raise ValueError(f"rollout knob {name} = {value!r} is not allowed; allowed: an integer >= 1 "
-                         f"({KNOBS[name]})")
-    return int(value)
+    return knobs.whole("rollout", name, value, KNOBS[name])
 
 
 def check_decide(decide: str, allowed: dict[str, str] = DECIDE) -> None:
@@ -232,16 +226,12 @@ class Rollout(RolloutBase):
         self.belief = None  # made at the first observation (its M and N, and the model if none was given)
 
     def _start(self, obs: dict[str, np.ndarray]) -> None:
-        config = self.config or config_from_observation(obs)
-        B, M, N = obs["facilities"].shape[0], obs["facilities"].shape[1], obs["personnel"].shape[1]
-        if len(self._seeds) != B:
-            raise RuntimeError(f"{self.name}: reset with {len(self._seeds)} seed(s), observed {B} environment(s)")
+        _, B = start_belief(self, obs)
+        M, N = obs["facilities"].shape[1], obs["personnel"].shape[1]
         if self._large is not None:  # sparse="auto": the world's size decides, each episode
             large = plays_sparse(M, N)
             self.base, self.decide, self.futures = self._large if large else self._small
             self.sparse = large
-        self.belief = Belief(config)
-        self.belief.reset(self._seeds, self.seed)
         codes, hp, pstate = self.base.compiled_plan(self._seeds, M, N)
         self.codes, self.hp, self.pstate = codes, hp, pstate
         # the futures' kernels: the base's, or the cheaper composite's (its state is the base's, copied per row)
@@ -284,6 +274,22 @@ class Rollout(RolloutBase):
         self.timing["decisions"] += len(envs)
         self.timing["rolls"] += n
         self.last_scores = pick_best(score, envs, cands, self.K, w, self.B)
+
+
+def start_belief(policy: Any, obs: dict[str, np.ndarray]) -> tuple[ScenarioConfig, int]:
+    """A lookahead's episode starts: its belief of the world (``policy.belief``) made and reset on its seeds.
+
+    The world's public config is the policy's own (``set_world`` or ``scenario=``), else read from
+    the first observation ``obs``. Returns the config and the number of environments B; a
+    RuntimeError of one line when the policy was reset with another number of seeds.
+    """
+    config = policy.config or config_from_observation(obs)
+    B = obs["facilities"].shape[0]
+    if len(policy._seeds) != B:
+        raise RuntimeError(f"{policy.name}: reset with {len(policy._seeds)} seed(s), observed {B} environment(s)")
+    policy.belief = Belief(config)
+    policy.belief.reset(policy._seeds, policy.seed)
+    return config, B
 
 
 def candidate_rows(envs: np.ndarray, w: np.ndarray, mask: np.ndarray,

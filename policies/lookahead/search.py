@@ -25,6 +25,7 @@ import re
 from typing import Any
 
 import numpy as np
+from wfbench.policies.lookahead import knobs
 from wfbench.policies.lookahead.network_rollout import PURPOSE_NOISE, NetworkRollout
 from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET
 
@@ -94,17 +95,10 @@ SE_FLOOR = 1e-6  # summed NSW; a decision's differences are about 0.01-1
 
 def knob(name: str, value: Any) -> int | float:
     """``value`` as a search knob (:data:`KNOBS`); ValueError of one line naming the knob and what is allowed."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    what, allowed = KNOBS[name]
     if name == "z":
-        if not ok or math.isnan(value) or value <= 0:
-            raise ValueError(f"search knob z = {value!r} is not allowed; allowed: {KNOBS['z'][1]} ({KNOBS['z'][0]})")
-        return float(value)
-    if ok and isinstance(value, (float, np.floating)):
-        ok = math.isfinite(value) and float(value).is_integer()
-    least = 2 if name == "K" else 1
-    if not ok or int(value) < least:
-        raise ValueError(f"search knob {name} = {value!r} is not allowed; allowed: {KNOBS[name][1]} ({KNOBS[name][0]})")
-    return int(value)
+        return knobs.positive("search", name, value, what, allowed)
+    return knobs.whole("search", name, value, what, 2 if name == "K" else 1, allowed)
 
 
 def budget(name: str) -> tuple[int, int, int, int, float]:

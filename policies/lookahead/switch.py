@@ -21,18 +21,19 @@ only the networks followed act. ``docs/policies.md``, "switch-scalefree-general"
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from wfbench.policies.lookahead import knobs
 from wfbench.policies.lookahead.network_rollout import PURPOSE_NOISE
+from wfbench.policies.lookahead.rollout import start_belief
 from wfbench.policies.lookahead.search import beyond_noise
 from wfbench.policies.protocol import seeds_array
 
 from wfbench.core.actions import AGENTS
-from wfbench.core.belief import Belief, config_from_observation
+from wfbench.core.belief import Belief
 from wfbench.core.config import ScenarioConfig, require_config
 
 # budget presets: (K, R, z), named by the CPU time per env-step they aim at on paper-64 (one core, whole episodes);
@@ -52,18 +53,10 @@ FUTURES = ("greedy", "sample")
 
 def knob(name: str, value: Any) -> int | float:
     """``value`` as a switch knob (:data:`KNOBS`); ValueError of one line naming the knob and what is allowed."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    what, allowed = KNOBS[name]
     if name == "z":
-        if not ok or math.isnan(value) or value <= 0:
-            raise ValueError(f"switch knob z = {value!r} is not allowed; allowed: {KNOBS['z'][1]} ({KNOBS['z'][0]})")
-        return float(value)
-    if ok and isinstance(value, (float, np.floating)):
-        ok = math.isfinite(value) and float(value).is_integer()
-    least = 2 if name == "K" else 1
-    if not ok or int(value) < least:
-        raise ValueError(f"switch knob {name} = {value!r} is not allowed; allowed: {KNOBS[name][1]} "
-                         f"({KNOBS[name][0]})")
-    return int(value)
+        return knobs.positive("switch", name, value, what, allowed)
+    return knobs.whole("switch", name, value, what, 2 if name == "K" else 1, allowed)
 
 
 def budget(name: str) -> tuple[int, int, float]:
@@ -141,12 +134,7 @@ class SeedSwitch:
     def _start(self, obs: dict[str, np.ndarray]) -> None:
         from wfbench.policies.neural.policy import NetworkPolicy
 
-        config = self.config or config_from_observation(obs)
-        B = obs["facilities"].shape[0]
-        if len(self._seeds) != B:
-            raise RuntimeError(f"{self.name}: reset with {len(self._seeds)} seed(s), observed {B} environment(s)")
-        self.belief = Belief(config)
-        self.belief.reset(self._seeds, self.seed)
+        config, B = start_belief(self, obs)
         self.horizon = config.horizon
         self.B = B
         self.fork = None
