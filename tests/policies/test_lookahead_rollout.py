@@ -8,6 +8,7 @@ import pytest
 from wfbench.policies.lookahead import BUDGETS, Rollout
 from wfbench.policies.registry import entries, parse_spec
 
+import wfbench
 from tests.conftest import play_episode
 from wfbench import ScenarioConfig, policies
 
@@ -79,3 +80,18 @@ def test_a_rollout_slower_than_the_act_limit_fails_like_any_slow_policy_in_one_l
         evaluate(pol, "paper-64", [1000], act_timeout_s=0.05)
     assert str(err.value).startswith("policy 'rollout-solver-tuned-100ms' did not return from act within the act "
                                      "timeout of 0.05 s") and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("name", ["rollout-solver-tuned-1ms", "rollout-scalefree-general",
+                                  "switch-scalefree-general-5ms"])
+def test_a_lookahead_shown_more_environments_than_it_was_reset_with_says_so_in_one_line(name):
+    # the three lookaheads that build a belief share its start (rollout.start_belief)
+    pytest.importorskip("torch")
+    pol = policies.get(name)
+    pol.reset([1000])
+    obs = wfbench.Simulator(SMALL, [1000, 1001]).reset()
+    with pytest.raises(RuntimeError) as err:
+        pol.act(obs)
+    assert str(err.value) == f"{name}: reset with 1 seed(s), observed 2 environment(s)"
+    pol.reset([1000, 1001])  # the same policy, reset right, plays
+    assert pol.act(obs)["workforce"].shape == (2,)
