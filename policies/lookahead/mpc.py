@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 from wfbench.policies import kernels as K
-from wfbench.policies.lookahead import knobs
+from wfbench.policies.lookahead.knobs import whole
 from wfbench.policies.protocol import as_obs, seeds_array
 from wfbench.policies.tunable import Param
 from wfbench.solvers.staffing_mpc import StaffingInstance, plan_staffing
@@ -70,7 +70,7 @@ BACKLOG_TUNABLE: dict[str, Param] = {"backlog_weight": Param(0.1, 100.0, "float"
 
 def knob(name: str, value: Any) -> int:
     """``value`` as an MPC knob's integer >= 1; ValueError of one line naming the knob otherwise."""
-    return knobs.whole("mpc", name, value, KNOBS[name])
+    return whole("mpc", name, value, KNOBS[name])
 
 
 class MPC:

@@ -21,7 +21,7 @@ from wfbench.policies import kernels as K
 from wfbench.policies.builtin import BuiltinDecision
 from wfbench.policies.composite import Composite
 from wfbench.policies.kernels.forward import RollBuffers, roll_candidates
-from wfbench.policies.lookahead import knobs
+from wfbench.policies.lookahead.knobs import whole
 from wfbench.policies.protocol import as_obs, seeds_array
 from wfbench.policies.rules import CODES
 
@@ -56,7 +56,7 @@ AUTO_SPARSE_PAIRS = 250_000
 
 def knob(name: str, value: Any) -> int:
     """``value`` as a knob's integer >= 1; ValueError of one line naming the knob otherwise."""
-    return knobs.whole("rollout", name, value, KNOBS[name])
+    return whole("rollout", name, value, KNOBS[name])
 
 
 def check_decide(decide: str, allowed: dict[str, str] = DECIDE) -> None:

@@ -25,7 +25,7 @@ import re
 from typing import Any
 
 import numpy as np
-from wfbench.policies.lookahead import knobs
+from wfbench.policies.lookahead.knobs import positive, whole
 from wfbench.policies.lookahead.network_rollout import PURPOSE_NOISE, NetworkRollout
 from wfbench.policies.lookahead.rollout import DEFAULT_BUDGET
 
@@ -97,8 +97,8 @@ def knob(name: str, value: Any) -> int | float:
     """``value`` as a search knob (:data:`KNOBS`); ValueError of one line naming the knob and what is allowed."""
     what, allowed = KNOBS[name]
     if name == "z":
-        return knobs.positive("search", name, value, what, allowed)
-    return knobs.whole("search", name, value, what, 2 if name == "K" else 1, allowed)
+        return positive("search", name, value, what, allowed)
+    return whole("search", name, value, what, 2 if name == "K" else 1, allowed)
 
 
 def budget(name: str) -> tuple[int, int, int, int, float]:

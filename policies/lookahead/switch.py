@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from wfbench.policies.lookahead import knobs
+from wfbench.policies.lookahead.knobs import positive, whole
 from wfbench.policies.lookahead.network_rollout import PURPOSE_NOISE
 from wfbench.policies.lookahead.rollout import start_belief
 from wfbench.policies.lookahead.search import beyond_noise
@@ -55,8 +55,8 @@ def knob(name: str, value: Any) -> int | float:
     """``value`` as a switch knob (:data:`KNOBS`); ValueError of one line naming the knob and what is allowed."""
     what, allowed = KNOBS[name]
     if name == "z":
-        return knobs.positive("switch", name, value, what, allowed)
-    return knobs.whole("switch", name, value, what, 2 if name == "K" else 1, allowed)
+        return positive("switch", name, value, what, allowed)
+    return whole("switch", name, value, what, 2 if name == "K" else 1, allowed)
 
 
 def budget(name: str) -> tuple[int, int, float]:
