@@ -8,7 +8,7 @@ runs unchanged on the code before and after:
   composites, the oracles, the tuned files and the shipped networks) on every scenario
   of suite-v1: ``--seeds`` seeds each (default 10), ``city`` 1 seed, the planners
   and the hindsight oracle at most 4 (they look over the whole future), and the references that play the
-  lookaheads (``oracle-v2``, ``oracle-rollout``) at most 4 on the lookaheads' scenarios only;
+  lookaheads (``oracle-v2``, ``oracle-v3``, ``oracle-rollout``) at most 4 on the lookaheads' scenarios only;
 - each deployable lookahead (``wfbench.policies.registry.lookahead_names()``, asked for by
   name and so not among the registered names above) on ``LOOKAHEAD_SCENARIOS``, one seed:
   a rollout costs seconds to minutes an episode, and on ``city`` hours;
@@ -46,10 +46,11 @@ from pathlib import Path
 
 SLOW = {"oracle-planner", "oracle-dispatch", "oracle"}  # fewer seeds: they look over the whole future
 SLOW_SEEDS = 4
-# the references that play the lookaheads (reference v2's best in hindsight, the hindsight rollout): on the lookaheads'
-# scenarios only, at SLOW_SEEDS; on paper-64 a seed of oracle-v2 plays every rollout, MPC and search preset, and a
-# capture that gave it 10 seeds of every scenario was still on paper-64 after some 70 minutes (a loaded VM)
-WITH_LOOKAHEADS = {"oracle-v2", "oracle-rollout"}
+# the references that play the lookaheads (references v2's and v3's best in hindsight, the hindsight rollout): on the
+# lookaheads' scenarios only, at SLOW_SEEDS; on paper-64 a seed of oracle-v2 plays every rollout, MPC and search
+# preset, and a capture that gave it 10 seeds of every scenario was still on paper-64 after some 70 minutes (a loaded
+# VM); oracle-v3, left out of this set until 2026-12-03, would have played them on large-v1 and city for hours
+WITH_LOOKAHEADS = {"oracle-v2", "oracle-v3", "oracle-rollout"}
 ONE_SEED = {"city-v1"}  # 1,000 facilities and people: a seed of a network is minutes here
 # the lookaheads' scenarios: on these one seed of all eight takes about 4 minutes (the 100 ms preset on paper-64
 # 1.7 of them, a loaded VM); on large-v1 that preset alone is some 10 minutes an episode
