@@ -2,6 +2,7 @@ import importlib.util
 import os
 import shutil
 import sys
+import tempfile
 import warnings
 from pathlib import Path
 from types import ModuleType
@@ -9,6 +10,7 @@ from types import ModuleType
 import absl.logging
 import numpy as np
 import pytest
+from hypothesis.configuration import set_hypothesis_home_dir
 
 import wfbench
 from wfbench import ScenarioConfig
@@ -18,6 +20,10 @@ from wfbench.testing import ADVISORIES
 # a test (the leaderboard's ranking imports rliable lazily), it kept that test's capture, closed after it, and a later
 # test whose served board logs wrote to a closed file. Imported here, it is pointed at the process's own stderr.
 absl.logging.get_absl_handler().python_handler.stream = sys.__stderr__
+
+# Hypothesis keeps its examples and the constants it read from our sources in ./.hypothesis by default, a folder in the
+# checkout; tests write only to temporary folders (issue #54), so its home is one of this run's
+set_hypothesis_home_dir(tempfile.mkdtemp(prefix="wfbench-hypothesis-"))
 
 # The checkers' advice wfbench does not follow on purpose (wfbench.testing.ADVISORIES: entity features are
 # (M, 7) and (N, 9) on purpose, docs/model.md). Only these are let through; any other warning in the checks fails.
