@@ -101,6 +101,7 @@ class FailsOnSeedZero:
         return self.inner.act(obs)
 
 
+@pytest.mark.slow
 def test_a_failed_chunk_kills_the_workers_mid_episode(tmp_path):
     config = ScenarioConfig.preset("small").replace(horizon=2000)
     loaded = load_policy(FailsOnSeedZero(tmp_path), act_timeout_s=None)

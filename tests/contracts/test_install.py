@@ -65,6 +65,7 @@ def test_every_command_runs_from_that_folder(project, args):
     assert "the user's own" not in run.stderr
 
 
+@pytest.mark.slow
 def test_the_checkout_root_on_the_path_still_finds_the_mapped_packages():
     # python run from the checkout puts its root first on sys.path: wfbench is the folder, and the editable
     # install's finder maps wfbench.policies to policies/ (setuptools' editable finder answers after the path)

@@ -139,6 +139,7 @@ kernel_for_ahead.twice(3)  # compiles and caches twice(int64)
 """
 
 
+@pytest.mark.slow
 def test_this_process_waits_for_the_job_and_loads_what_it_compiled(tmp_path, monkeypatch):
     """A real second process compiles a cold function; asked for it meanwhile, this one loads it from disk."""
     import importlib

@@ -38,6 +38,7 @@ def test_the_preset_is_registered_beside_the_truncated_ones():
     assert pol.settings() == {"K": K, "H": "end", "R": R, "top": top, "z": z, "futures": "greedy", "large": "10ms"}
 
 
+@pytest.mark.slow
 def test_it_plays_the_truncated_search_with_its_futures_to_the_end_and_no_value():
     net = policies.get("scalefree-general")
     pol = PlayoutSearch(net, K=2, R=10, top=2, scenario=SMALL)

@@ -26,6 +26,7 @@ def play(pol, seeds=(1000, 1001)):
     return play_episode(pol, SMALL, list(seeds), scores)[1], scores
 
 
+@pytest.mark.slow
 def test_the_tail_adds_the_rest_of_the_episode_and_the_network_still_acts_with_a_huge_z():
     base, H = policies.get("scalefree-general"), 8
     net, _ = play(policies.get("scalefree-general"))
@@ -50,6 +51,7 @@ def test_the_tail_adds_the_rest_of_the_episode_and_the_network_still_acts_with_a
     assert spread, "the candidates' tails never differed: the tail does not play from their states"
 
 
+@pytest.mark.slow
 def test_with_futures_past_the_horizon_it_is_the_search_on_its_futures_alone():
     base = policies.get("scalefree-general")
     x, a = play(NetworkSearch(base, H=SMALL.horizon, z=0.5, value=(), **KNOBS), seeds=(1002, 1003))

@@ -108,6 +108,7 @@ def test_worlds_are_scenario_ids_or_a_split_and_anything_else_is_refused_in_one_
                                   "id of suite-v1 (small-v1, ") and done.stderr.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_each_oracle_of_a_chunk_waits_for_its_own_candidates_and_v3_plays_the_training_seeds(campaign):
     from wfbench.policies.oracle import references
 

@@ -208,6 +208,7 @@ def test_workforce_values_are_the_planners_scores_and_its_choice_their_argmax():
     assert scored >= 10 and acted >= 1  # it hired or let go at least once, so the argmax was put to work
 
 
+@pytest.mark.slow
 def test_values_loss_moves_mass_to_the_best_allowed_action():
     logits = torch.zeros(2, 7, requires_grad=True)
     mask = torch.ones(2, 7)
@@ -232,6 +233,7 @@ def test_values_loss_moves_mass_to_the_best_allowed_action():
     assert float(Trainer.values_loss(logits, mask, batch, valid).detach()) == 0.0
 
 
+@pytest.mark.slow
 def test_improve_target_is_the_old_policy_tilted_by_the_values():
     mask = torch.ones(2, 7)
     mask[1, 2] = 0

@@ -123,6 +123,7 @@ print(kept, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
 
 @pytest.mark.skipif(not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc",
                     reason="glibc's malloc only")
+@pytest.mark.slow
 def test_keep_freed_memory__the_next_minibatch_reuses_the_freed_blocks_without_page_faults():
     # glibc's defaults hand the freed top of the heap back and fault the pages in again (5 x 32 MiB here: about
     # 40,000 faults); kept, the blocks are reused (0 to 2,048 faults seen: the heap's growth once). The user's

@@ -88,6 +88,7 @@ def test_procs__one_and_two_processes_train_the_same_bits_and_resume_crosswise(t
     _assert_same(tmp_path / "one-then-two" / "latest.pt", tmp_path / "two-then-one" / "latest.pt")
 
 
+@pytest.mark.slow
 def test_procs__the_second_process_ends_at_once_when_let_go(tmp_path):
     # close() waits for the worker; it skips the interpreter's finalization (1.7 s of the 2-core VM) after its
     # exit handlers, with status 0
@@ -101,6 +102,7 @@ def test_procs__the_second_process_ends_at_once_when_let_go(tmp_path):
     assert done.returncode == 0 and done.stdout.split() == ["written", "handler", "ran"]
 
 
+@pytest.mark.slow
 def test_procs__a_standby_started_ahead_is_the_second_process_or_let_go(tmp_path):
     # wfbench train starts the second process ahead when it guesses two (its imports overlap the first's)
     standby.start("wfbench.train.ppo")
