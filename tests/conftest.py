@@ -205,3 +205,14 @@ def bwrap() -> str:
     except SandboxUnavailable as exc:
         _skip_or_fail(f"{exc} (.ci/run installs them)", REQUIRE_BWRAP)
     return path
+
+
+@pytest.fixture
+def oracle_totals(tmp_path, monkeypatch):
+    """The oracle's totals cache on, in a private, empty folder (and an empty memory) for one test: the folder."""
+    from wfbench.policies.oracle import cache
+
+    monkeypatch.setenv(cache.ENV, str(tmp_path / "totals"))
+    cache.clear_memory()
+    yield tmp_path / "totals"
+    cache.clear_memory()

@@ -22,15 +22,6 @@ COMPILED = ["random", "heuristic", "heuristic-stochastic", "fixed-workforce", "s
 
 
 @pytest.fixture
-def store(tmp_path, monkeypatch):
-    """A private, empty cache folder (and an empty memory) for one test."""
-    monkeypatch.setenv(cache.ENV, str(tmp_path / "totals"))
-    cache.clear_memory()
-    yield tmp_path / "totals"
-    cache.clear_memory()
-
-
-@pytest.fixture
 def plays(monkeypatch):
     """The batch sizes of the oracle's compiled plays (roll_forward calls), in order."""
     sizes = []
@@ -58,23 +49,23 @@ def _oracle(candidates, config, seeds, resolve=policies.get):
     return o
 
 
-def test_the_runners_totals_are_the_oracles_own(store, monkeypatch):
+def test_the_runners_totals_are_the_oracles_own(oracle_totals, monkeypatch):
     """The runner's compiled rollout (reset in the kernel, all threads) and the oracle's roll-forward: the same bits."""
     seeds = np.array([0, 3, 5, 8])
     for name in COMPILED:
         monkeypatch.setenv(cache.ENV, "off")
         want, hits = _play(name, SHORT, seeds)
         assert hits == 0
-        monkeypatch.setenv(cache.ENV, str(store))
+        monkeypatch.setenv(cache.ENV, str(oracle_totals))
         run_batch(load_policy(name), SHORT, list(seeds))
         codes, hp, pstate = policies.get(name).compiled_plan(seeds, SHORT.max_facilities, SHORT.max_personnel)
         got, found = cache.lookup(cache.policy_key(SHORT, codes, hp), seeds, pstate.keys)
         assert found.all(), name
         assert got.tobytes() == want.tobytes(), name
-    assert any(store.rglob("*.npz"))  # on disk, for the process backend's workers
+    assert any(oracle_totals.rglob("*.npz"))  # on disk, for the process backend's workers
 
 
-def test_a_hit_skips_the_play_and_gives_the_same_choice(store, plays):
+def test_a_hit_skips_the_play_and_gives_the_same_choice(oracle_totals, plays):
     seeds = [0, 1, 2, 3]
     first = _oracle(["random", "heuristic", "solver"], SHORT, seeds)
     assert plays == [4, 4, 4] and first.cached == {"random": 0, "heuristic": 0, "solver": 0}
@@ -89,20 +80,20 @@ def test_a_hit_skips_the_play_and_gives_the_same_choice(store, plays):
     assert plays == [4, 4, 4, 2, 2, 2] and more.cached == {"random": 2, "heuristic": 2, "solver": 2}
 
 
-def test_the_runner_fills_the_cache_for_the_oracle(store, plays):
+def test_the_runner_fills_the_cache_for_the_oracle(oracle_totals, plays):
     for name in ("heuristic", "solver"):
         wfbench.evaluate(name, SHORT, seeds=[0, 1, 2])
     o = _oracle(["random", "heuristic", "solver"], SHORT, [0, 1, 2])
     assert plays == [3] and o.cached == {"random": 0, "heuristic": 3, "solver": 3}
 
 
-def test_a_user_policy_is_not_stored_by_the_runner(store):
+def test_a_user_policy_is_not_stored_by_the_runner(oracle_totals):
     """Only a registry name's rollout is stored: a tuner's thousands of trial composites would fill the disk."""
     wfbench.evaluate(policies.get("heuristic"), SHORT, seeds=[0, 1])
-    assert not any(store.rglob("*.npz"))
+    assert not any(oracle_totals.rglob("*.npz"))
 
 
-def test_a_change_of_parameters_scenario_seed_or_code_misses(store, plays, monkeypatch):
+def test_a_change_of_parameters_scenario_seed_or_code_misses(oracle_totals, plays, monkeypatch):
     seeds = [0, 1]
     _oracle(["heuristic"], SHORT, seeds)
     assert plays == [2]
@@ -122,19 +113,19 @@ def test_a_change_of_parameters_scenario_seed_or_code_misses(store, plays, monke
     monkeypatch.undo()
 
 
-def test_off_looks_up_and_stores_nothing(store, plays, monkeypatch):
+def test_off_looks_up_and_stores_nothing(oracle_totals, plays, monkeypatch):
     _oracle(["heuristic"], SHORT, [0, 1])
     monkeypatch.setenv(cache.ENV, "off")
     o = _oracle(["heuristic"], SHORT, [0, 1])
     assert plays == [2, 2] and o.cached == {"heuristic": 0}
     wfbench.evaluate("solver", SHORT, seeds=[0, 1])
-    assert cache.directory() is None and len(list(store.rglob("*.npz"))) == 1
+    assert cache.directory() is None and len(list(oracle_totals.rglob("*.npz"))) == 1
 
 
-def test_an_unreadable_file_is_a_miss(store, plays):
+def test_an_unreadable_file_is_a_miss(oracle_totals, plays):
     _oracle(["heuristic"], SHORT, [0, 1])
     cache.clear_memory()
-    for path in store.rglob("*.npz"):
+    for path in oracle_totals.rglob("*.npz"):
         path.write_bytes(b"not an npz")
     o = _oracle(["heuristic"], SHORT, [0, 1])
     assert plays == [2, 2] and o.cached == {"heuristic": 0}
@@ -155,7 +146,7 @@ def recorded(monkeypatch):
 
 
 @pytest.mark.slow
-def test_a_network_the_runner_played_on_the_same_batch_is_played_again_only_to_be_replayed(store, recorded):
+def test_a_network_the_runner_played_on_the_same_batch_is_played_again_only_to_be_replayed(oracle_totals, recorded):
     seeds = [0, 1, 2]
     wfbench.evaluate("ppo-joint", SHORT, seeds=seeds)
     alone = _oracle(["ppo-joint"], SHORT, seeds)  # the best everywhere: played once, for its actions
@@ -170,7 +161,7 @@ def test_a_network_the_runner_played_on_the_same_batch_is_played_again_only_to_b
     assert recorded == ["ppo-joint"] and other.cached == {"ppo-joint": 0}
 
 
-def test_a_network_is_keyed_by_its_checkpoint_mode_and_parts(store):
+def test_a_network_is_keyed_by_its_checkpoint_mode_and_parts(oracle_totals):
     keys = {name: cache.played_key(SHORT, policies.get(name))
             for name in ("ppo-joint", "ppo-joint@greedy", "ppo-dispatch", "impala-joint")}
     assert None not in keys.values() and len(set(keys.values())) == 4
@@ -181,12 +172,13 @@ def test_a_network_is_keyed_by_its_checkpoint_mode_and_parts(store):
 
 
 @pytest.mark.slow
-def test_the_oracles_rows_are_bit_identical_with_a_networks_totals_from_the_runner(store, monkeypatch, recorded):
+def test_the_oracles_rows_are_bit_identical_with_a_networks_totals_from_the_runner(oracle_totals, monkeypatch,
+                                                                                  recorded):
     seeds = [0, 1, 2]
     candidates = ["heuristic", "solver", "ppo-joint", "hindsight-joint"]
     monkeypatch.setenv(cache.ENV, "off")
     off = _oracle(candidates, SHORT, seeds)
-    monkeypatch.setenv(cache.ENV, str(store))
+    monkeypatch.setenv(cache.ENV, str(oracle_totals))
     for name in ("ppo-joint", "hindsight-joint"):
         wfbench.evaluate(name, SHORT, seeds=seeds)
     recorded.clear()
@@ -204,11 +196,11 @@ def test_the_oracles_rows_are_bit_identical_with_a_networks_totals_from_the_runn
     assert sim_on.state.totals.tobytes() == sim_off.state.totals.tobytes()
 
 
-def _rows(config, seeds, monkeypatch, store, warm_with=()):
+def _rows(config, seeds, monkeypatch, oracle_totals, warm_with=()):
     """The oracle's per-seed rows without the cache, then with a cache filled by the runner on ``warm_with``."""
     monkeypatch.setenv(cache.ENV, "off")
     off = wfbench.evaluate("oracle", config, seeds=seeds)
-    monkeypatch.setenv(cache.ENV, str(store))
+    monkeypatch.setenv(cache.ENV, str(oracle_totals))
     for name, part in warm_with:
         wfbench.evaluate(name, config, seeds=part)
     cold = wfbench.evaluate("oracle", config, seeds=seeds)
@@ -218,10 +210,10 @@ def _rows(config, seeds, monkeypatch, store, warm_with=()):
 
 
 @pytest.mark.slow
-def test_the_oracles_rows_are_bit_identical_with_the_cache_on_small(store, monkeypatch):
+def test_the_oracles_rows_are_bit_identical_with_the_cache_on_small(oracle_totals, monkeypatch):
     seeds = [0, 1, 2]
     # some candidates' seeds come from the runner, the rest are played: mixed batches
-    off, cold, warm = _rows(SMALL, seeds, monkeypatch, store,
+    off, cold, warm = _rows(SMALL, seeds, monkeypatch, oracle_totals,
                             warm_with=[("solver-tuned", [1]), ("heuristic", [0, 2]), ("random", seeds),
                                        ("ppo-joint", seeds), ("hindsight-general", [0, 1])])
     for df in (cold, warm):
@@ -230,10 +222,10 @@ def test_the_oracles_rows_are_bit_identical_with_the_cache_on_small(store, monke
 
 
 @pytest.mark.slow
-def test_the_oracles_rows_are_bit_identical_with_the_cache_on_a_table2_sized_world(store, monkeypatch):
+def test_the_oracles_rows_are_bit_identical_with_the_cache_on_a_table2_sized_world(oracle_totals, monkeypatch):
     config = ScenarioConfig.preset("table2-g128-f50-s25")
     seeds = [0, 1]
-    off, cold, warm = _rows(config, seeds, monkeypatch, store, warm_with=[(n, seeds) for n in COMPILED])
+    off, cold, warm = _rows(config, seeds, monkeypatch, oracle_totals, warm_with=[(n, seeds) for n in COMPILED])
     for df in (cold, warm):
         assert results_only(df).equals(results_only(off))
         assert df["nsw"].to_numpy().tobytes() == off["nsw"].to_numpy().tobytes()

@@ -20,6 +20,7 @@ import os
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -42,7 +43,9 @@ from wfbench.policies import Composite
 from wfbench.policies.episode import play_episodes
 from wfbench.policies.lookahead.ahead import rollout_job
 from wfbench.policies.oracle import cache as totals_cache
-from wfbench.policies.oracle.ahead import oracle_job
+from wfbench.policies.oracle.ahead import HERE as ORACLE_HERE
+from wfbench.policies.oracle.ahead import HERE_S as ORACLE_HERE_S
+from wfbench.policies.oracle.ahead import network_jobs, oracle_job
 
 K_NSW = METRICS.index("nsw")
 
@@ -132,6 +135,8 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
         sim = Simulator(config, seeds, keep_series=keep_series)
         per_step: list[float] = []  # ms per decision of one environment, one entry per act call
         recording = 0.0  # CPU s of recording the episodes for the oracle (:func:`_recorder`)
+        ahead: list = []  # the second process's jobs (cold only)
+        played_there = 0.0  # CPU s of the policy's own work done there (the oracle's network candidates)
 
         def timed(act: Any, obs: Any) -> Any:
             c0, t0 = compiling.wall, time.perf_counter()
@@ -155,7 +160,7 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
                 elif hasattr(policy, "set_world"):  # a deployable policy that asks for the public parameters
                     policy.set_world(public_world(sim.config))
                 # cold: part compiles on the other core, the step from now on, while this process compiles the reset
-                start_compile_ahead(policy, sim.config, keep_series)
+                ahead = start_compile_ahead(policy, sim.config, keep_series, seeds)
             obs = sim.reset()
             if guard is None:
                 r0 = time.process_time()  # the recording is the oracle's, not the policy's: its CPU is left out
@@ -183,9 +188,10 @@ def run_batch(policy: Any, config: ScenarioConfig, seeds: Sequence[int], keep_se
                 while not sim.done:
                     guard.step(sim, timed(lambda o: guard.call("act", policy.act, o), obs), policy.act)
                     obs = sim.observe()
+                played_there = _played_there(ahead)  # the oracle's episodes played by the second process
             q = np.percentile(per_step, [50, 99]) if per_step else (float("nan"), float("nan"))
             decision_ms, timing = (float(q[0]), float(q[1])), "act"
-        cpu_s = max(0.0, time.process_time() - cpu0 - compiling.cpu - recording) / max(1, len(seeds))
+        cpu_s = max(0.0, time.process_time() - cpu0 - compiling.cpu - recording + played_there) / max(1, len(seeds))
     if guard is None:  # a registry name: the oracle plays it as a candidate and reuses these
         totals = sim.state.totals[:, K_NSW].astype(np.float64)
         if timing == "rollout":
@@ -304,11 +310,22 @@ def compile_ahead(what: str, job: Any, *args: Any, waits: Sequence[Any] = (), an
     return future
 
 
-def announce_ahead(whats: Sequence[str]) -> None:
-    """The one line on stderr that says what the second process compiles, in its order."""
+def announce_ahead(whats: Sequence[str], here: tuple[str, float] | None = None) -> None:
+    """The one line on stderr that says what the second process does, in its order, and what this one compiles.
+
+    ``here``: what this process compiles meanwhile and its CPU seconds on an idle 2-core VM, scaled
+    by the load as the cold-start line scales its own (:func:`wfbench.core.jit.load_factor`).
+    """
     # "wfbench: compiling" like the line of jit.NOTICE, which scripts and tests set apart from a run's output
-    print(f"wfbench: compiling {', then '.join(whats)} in a second process meanwhile (on another core); "
-          "cached afterwards", file=sys.stderr, flush=True)
+    line = (f"wfbench: compiling {', then '.join(whats)} in a second process meanwhile (on another core); "
+            "cached afterwards")
+    if here is not None:
+        what, idle = here
+        factor = jit.load_factor()
+        cost = f"~{idle:.0f} s on an idle 2-core VM" if factor < 1.1 else \
+            f"~{idle * factor:.0f} s ({idle:.0f} s on an idle 2-core VM, x{factor:.1f} for the current load)"
+        line += f"; here meanwhile {what}, {cost}"
+    print(line, file=sys.stderr, flush=True)
 
 
 WAIT_LIMIT_S = 600.0  # the longest this process waits for a second process's job before it compiles for itself
@@ -373,7 +390,8 @@ def _ahead_done(pool: Any) -> None:
     pool.shutdown(wait=False)
 
 
-def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool = False) -> list:
+def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool = False,
+                        seeds: Sequence[int] | None = None) -> list:
     """On a cold cache, what a second process compiles while :func:`run_batch` plays a built-in ``policy``'s ``act``.
 
     The jobs queue in the order this process needs what they compile:
@@ -385,7 +403,10 @@ def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool =
       facility-location kernels first (this process compiles that roll-forward meanwhile and
       reaches them last of the rules), then the step (whose workforce kernel the roll-forward
       inlines at its end), then the built-in rules their candidates act with (their first live
-      ``act``, after the roll-forward);
+      ``act``, after the roll-forward), and last, given the batch's ``seeds``, the oracle's network
+      candidates' episodes (:func:`wfbench.policies.oracle.ahead.network_jobs`: played there
+      from the last candidate while this process plays from the first, their totals handed back
+      through the totals cache);
     - the simulator's step alone for any other, where it is not on disk (:func:`run_batch` asks
       before its reset: this process compiles the reset and the policy's own code first, and
       steps only after the first action).
@@ -396,10 +417,11 @@ def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool =
     """
     before: list[tuple] = []
     after: list[tuple] = []
+    here = None  # what this process compiles meanwhile, for the line
     if callable(getattr(policy, "compile_ahead", None)):
         pair = oracle_job(policy, has_entries)
         if pair is not None:
-            before, after = [pair[0]], [pair[1]]
+            before, after, here = [pair[0]], [pair[1]], (ORACLE_HERE, ORACLE_HERE_S)
     else:
         job = rollout_job(policy, has_entries)
         before = [] if job is None else [job]
@@ -407,9 +429,37 @@ def start_compile_ahead(policy: Any, config: ScenarioConfig, keep_series: bool =
     jobs = before + step + after
     futures = [compile_ahead(what, fn, *args, waits=waits, announce=False) for what, fn, args, waits in jobs]
     started = [what for (what, *_), f in zip(jobs, futures, strict=True) if f is not None]
+    if after and seeds is not None and None not in futures and (played := network_jobs(policy, seeds)) is not None:
+        what, fn, args, start = played
+        future = compile_ahead(what, fn, *args, announce=False)
+        start(future)
+        if future is not None:
+            _PLAYING.add(future)
+            futures.append(future)
+            started.append(what)
     if started:
-        announce_ahead(started)
+        announce_ahead(started, here)
     return [f for f in futures if f is not None]
+
+
+_PLAYING: weakref.WeakSet = weakref.WeakSet()  # the futures of jobs that play the policy's episodes
+
+
+def _played_there(futures: Sequence[Any], limit_s: float = 5.0) -> float:
+    """The CPU seconds that the jobs of ``futures`` spent playing the policy's own episodes (the others compile).
+
+    At the end of a batch such a job is done (this process waited for whatever it played); one
+    that is late (``limit_s``) or failed counts nothing: what it did not hand back was played here.
+    """
+    cpu = 0.0
+    for future in futures:
+        if future not in _PLAYING:
+            continue
+        try:
+            cpu += float(future.result(timeout=limit_s))
+        except Exception:
+            continue
+    return cpu
 
 
 def step_once(config: ScenarioConfig, keep_series: bool = True) -> None:
